@@ -1,0 +1,57 @@
+#ifndef SHAPEID_CORE_DESCRIPTOR_H_
+#define SHAPEID_CORE_DESCRIPTOR_H_
+
+#include <cstddef>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/types/span.h"
+#include "core/descriptor_spec.h"
+#include "core/point_cloud.h"
+
+namespace shapeid {
+
+// A configured shape descriptor: a function from a point cloud to a fixed-length vector.
+// Instances are immutable after creation and thread-safe: Compute may run concurrently on
+// one object from many threads. Create them through the registry (core/descriptor_registry.h).
+class Descriptor {
+ public:
+  virtual ~Descriptor() = default;
+  Descriptor(const Descriptor&) = delete;
+  Descriptor& operator=(const Descriptor&) = delete;
+
+  // The canonical spec: every parameter present, defaults filled, values normalised, in the
+  // kind's parameter order. Equal canonical text means equal output for every cloud.
+  const DescriptorSpec& spec() const { return spec_; }
+
+  // Length of every vector this descriptor produces.
+  size_t dimension() const { return dimension_; }
+
+  // Validates `cloud` (section 0 of docs/descriptors.md: at least 3 points, all finite, not
+  // all identical, within `limits`) and computes its descriptor into `out`, resized to
+  // dimension(). Deterministic: the same cloud gives the same bits on one build, whatever the
+  // CPU's SIMD level. On error `out` is unspecified.
+  absl::Status Compute(const PointCloud& cloud, std::vector<float>* out,
+                       const CloudLimits& limits = {}) const;
+  absl::StatusOr<std::vector<float>> Compute(const PointCloud& cloud,
+                                             const CloudLimits& limits = {}) const;
+
+ protected:
+  Descriptor(DescriptorSpec canonical_spec, size_t dimension)
+      : spec_(std::move(canonical_spec)), dimension_(dimension) {}
+
+  // Computes the descriptor of a cloud that passed validation; `out` has dimension() floats.
+  virtual absl::Status ComputeValidated(const PointCloud& cloud, const CloudStats& stats,
+                                        absl::Span<float> out) const = 0;
+
+ private:
+  DescriptorSpec spec_;
+  size_t dimension_;
+};
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_CORE_DESCRIPTOR_H_

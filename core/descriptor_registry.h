@@ -1,0 +1,48 @@
+#ifndef SHAPEID_CORE_DESCRIPTOR_REGISTRY_H_
+#define SHAPEID_CORE_DESCRIPTOR_REGISTRY_H_
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
+#include "core/descriptor.h"
+#include "core/descriptor_spec.h"
+
+namespace shapeid {
+
+struct DescriptorParam {
+  std::string name;
+  std::string default_value;
+  std::string help;  // one line: meaning, accepted values
+};
+
+// One registry entry. Adding a descriptor is one file pair in core/descriptors/ that defines
+// an entry like this, plus one line in the table in descriptor_registry.cc.
+struct DescriptorKind {
+  std::string kind;     // "rphsd"
+  std::string summary;  // one line for --help and ListDescriptors
+  std::vector<DescriptorParam> params;  // canonical order
+  // Builds the descriptor from a spec whose keys are all known and all present (defaults
+  // filled). Returns InvalidArgument for values out of range.
+  absl::StatusOr<std::unique_ptr<Descriptor>> (*create)(const DescriptorSpec& filled);
+};
+
+// Every registered kind, in registration order.
+const std::vector<DescriptorKind>& RegisteredDescriptors();
+
+// The entry for `kind`, or nullptr.
+const DescriptorKind* FindDescriptorKind(absl::string_view kind);
+
+// Checks `spec` against its kind's schema (unknown kind or parameter: InvalidArgument naming
+// what is known), fills defaults and builds the descriptor. Its spec() is canonical.
+absl::StatusOr<std::unique_ptr<Descriptor>> CreateDescriptor(const DescriptorSpec& spec);
+absl::StatusOr<std::unique_ptr<Descriptor>> CreateDescriptor(absl::string_view spec_text);
+
+// A multi-line human description of every kind and its parameters, for --help.
+std::string DescribeRegistry();
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_CORE_DESCRIPTOR_REGISTRY_H_

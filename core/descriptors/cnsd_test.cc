@@ -1,0 +1,2 @@
+#include "core/descriptors/cnsd.h"
+#include "gtest/gtest.h"

@@ -1,0 +1,2 @@
+#include "core/descriptors/comsd.h"
+#include "gtest/gtest.h"

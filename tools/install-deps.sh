@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Installs every Debian 12 package shapeid needs to build, test and benchmark.
+# Idempotent: apt-get skips what is already installed. Runs `apt-get update` itself,
+# at most once an hour, so repeated test runs on one machine stay fast.
+set -euo pipefail
+
+packages=(
+  # toolchain
+  build-essential cmake ninja-build pkg-config ccache git
+  # core science
+  libeigen3-dev libnanoflann-dev libabsl-dev
+  # RPC stack (server, client library)
+  libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
+  # CLI argument parsing: subcommands with typed options and generated --help
+  libcli11-dev
+  # tests and benchmarks
+  libgtest-dev libgmock-dev libbenchmark-dev
+)
+
+sudo_if_needed() { if [ "$(id -u)" -eq 0 ]; then "$@"; else sudo "$@"; fi; }
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+stamp=/var/lib/apt/periodic/shapeid-update-stamp
+if [ ! -f "$stamp" ] || [ -n "$(find "$stamp" -mmin +60 2>/dev/null)" ]; then
+  sudo_if_needed apt-get update -q
+  sudo_if_needed mkdir -p "$(dirname "$stamp")"
+  sudo_if_needed touch "$stamp"
+fi
+echo "install-deps: installing ${missing[*]}"
+DEBIAN_FRONTEND=noninteractive sudo_if_needed apt-get install -y -q --no-install-recommends "${missing[@]}"
