@@ -1,2 +1,176 @@
+// Descriptor speed: the RPHSD kernel at every SIMD level against the machine's limits, and
+// each descriptor's per-cloud time. Run from a release build:
+//   build/release/bench/descriptor_bench --benchmark_repetitions=5 \
+//       --benchmark_report_aggregates_only=true
+// Figures and their reading: docs/performance.md.
+
+#include <cmath>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "bench/bench_clouds.h"
 #include "benchmark/benchmark.h"
+#include "core/descriptor_registry.h"
+#include "core/descriptors/reference_points.h"
+#include "core/descriptors/rphsd_kernels.h"
+#include "core/simd.h"
+
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
+
+namespace shapeid {
+namespace {
+
+constexpr size_t kLargeCloud = 100000;
+
+// The RPHSD histogram pass alone (complete, cubic27, M = 100) on 100,000 points, at one SIMD
+// level. items/s = point-reference pairs per second.
+struct KernelSetup {
+  PointCloud cloud = bench::SurfaceCloud(kLargeCloud);
+  std::vector<float> rx, ry, rz;
+  rphsd_internal::HistogramInput input;
+  KernelSetup() {
+    const auto refs = Cubic27References();
+    rx.assign(32, 0.0f);
+    ry.assign(32, 0.0f);
+    rz.assign(32, 0.0f);
+    for (size_t k = 0; k < refs.size(); ++k) {
+      rx[k] = refs[k].x();
+      ry[k] = refs[k].y();
+      rz[k] = refs[k].z();
+    }
+    const CloudStats stats = *ValidateCloud(cloud);
+    input.xyz = cloud.data();
+    input.num_points = cloud.size();
+    for (int a = 0; a < 3; ++a) input.center[a] = static_cast<float>(stats.centroid[a]);
+    input.inv_scale = static_cast<float>(1.0 / stats.MaxAbsCentred());
+    input.ref_x = rx.data();
+    input.ref_y = ry.data();
+    input.ref_z = rz.data();
+    input.num_refs = refs.size();
+    input.bins = 100;
+    input.bin_scale = static_cast<float>(100 / (2 * std::sqrt(3.0)));
+  }
+};
+
+const KernelSetup& Kernel() {
+  static const auto* const setup = new KernelSetup;
+  return *setup;
+}
+
+void BM_RphsdKernel(benchmark::State& state) {
+  const auto level = static_cast<SimdLevel>(state.range(0));
+  if (level > DetectedSimdLevel()) {
+    state.SkipWithError("SIMD level not supported by this CPU");
+    return;
+  }
+  const KernelSetup& k = Kernel();
+  std::vector<uint32_t> counts(k.input.num_refs * k.input.bins);
+  for (auto _ : state) {
+    std::fill(counts.begin(), counts.end(), 0u);
+    rphsd_internal::AccumulateHistograms(k.input, counts.data(), level);
+    benchmark::DoNotOptimize(counts.data());
+  }
+  state.SetItemsProcessed(state.iterations() * k.input.num_points * k.input.num_refs);
+  state.SetLabel(std::string(SimdLevelName(level)));
+}
+BENCHMARK(BM_RphsdKernel)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond);
+
+#if defined(__x86_64__)
+// Machine limit 1: one square root per pair and nothing else (AVX-512 vsqrtps over the same
+// number of pairs, results folded so they are not dead).
+__attribute__((target("avx512f"), noinline)) float SqrtOnly(size_t pairs) {
+  __m512 acc = _mm512_setzero_ps();
+  __m512 x = _mm512_set1_ps(1.5f);
+  const __m512 step = _mm512_set1_ps(1e-7f);
+  for (size_t i = 0; i < pairs; i += 16) {
+    acc = _mm512_add_ps(acc, _mm512_sqrt_ps(x));
+    x = _mm512_add_ps(x, step);
+  }
+  return _mm512_reduce_add_ps(acc);
+}
+
+void BM_LimitSqrtOnly(benchmark::State& state) {
+  if (DetectedSimdLevel() < SimdLevel::kAvx512) {
+    state.SkipWithError("needs AVX-512");
+    return;
+  }
+  size_t pairs = kLargeCloud * 27;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(pairs);  // the call must not be hoisted out of the loop
+    float sum = SqrtOnly(pairs);
+    benchmark::DoNotOptimize(sum);
+  }
+  state.SetItemsProcessed(state.iterations() * pairs);
+}
+BENCHMARK(BM_LimitSqrtOnly)->Unit(benchmark::kMicrosecond);
+#endif
+
+// Machine limit 2: one histogram increment per pair with the bin indices already known
+// (precomputed from the real kernel's distances), the same access pattern as the kernel.
+void BM_LimitIncrementsOnly(benchmark::State& state) {
+  const KernelSetup& k = Kernel();
+  const size_t refs = k.input.num_refs;
+  const int bins = k.input.bins;
+  std::vector<int32_t> slots(k.input.num_points * refs);
+  for (size_t i = 0; i < k.input.num_points; ++i) {
+    const float* p = k.input.xyz + 3 * i;
+    for (size_t r = 0; r < refs; ++r) {
+      const float dx = (p[0] - k.input.center[0]) * k.input.inv_scale - k.rx[r];
+      const float dy = (p[1] - k.input.center[1]) * k.input.inv_scale - k.ry[r];
+      const float dz = (p[2] - k.input.center[2]) * k.input.inv_scale - k.rz[r];
+      const int bin = static_cast<int>(std::sqrt((dx * dx + dy * dy) + dz * dz) * k.input.bin_scale);
+      slots[i * refs + r] = static_cast<int32_t>(r) * bins + std::min(bin, bins - 1);
+    }
+  }
+  std::vector<uint32_t> counts(refs * bins);
+  for (auto _ : state) {
+    std::fill(counts.begin(), counts.end(), 0u);
+    for (int32_t s : slots) ++counts[s];
+    benchmark::DoNotOptimize(counts.data());
+  }
+  state.SetItemsProcessed(state.iterations() * slots.size());
+}
+BENCHMARK(BM_LimitIncrementsOnly)->Unit(benchmark::kMicrosecond);
+
+// Whole descriptors through the public API (validation, normalisation, features).
+void DescribeBench(benchmark::State& state, const std::string& spec, size_t points) {
+  auto descriptor = CreateDescriptor(spec);
+  if (!descriptor.ok()) {
+    state.SkipWithError(std::string(descriptor.status().message()).c_str());
+    return;
+  }
+  const PointCloud cloud = bench::SurfaceCloud(points);
+  std::vector<float> out;
+  for (auto _ : state) {
+    const absl::Status status = (*descriptor)->Compute(cloud, &out);
+    if (!status.ok()) {
+      state.SkipWithError(std::string(status.message()).c_str());
+      return;
+    }
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.SetItemsProcessed(state.iterations() * points);
+  state.SetLabel(std::string(SimdLevelName(ActiveSimdLevel())));
+}
+
+BENCHMARK_CAPTURE(DescribeBench, rphsd_complete_cubic27_m100_100k, std::string("rphsd"), 100000)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(DescribeBench, rphsd_reduced_cross7_m10_100k,
+                  std::string("rphsd:refs=cross7,bins=10,variant=reduced"), 100000)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(DescribeBench, comsd_n50_100k, std::string("comsd:grid=50"), 100000)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(DescribeBench, cnsd_default_8k, std::string("cnsd"), 8000)
+    ->Unit(benchmark::kMillisecond);
+// ModelNet10 clouds have 1,024 points.
+BENCHMARK_CAPTURE(DescribeBench, rphsd_1024, std::string("rphsd"), 1024)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(DescribeBench, comsd_1024, std::string("comsd"), 1024)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(DescribeBench, cnsd_1024, std::string("cnsd"), 1024)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
+}  // namespace shapeid
+
 BENCHMARK_MAIN();

@@ -1,0 +1,125 @@
+#include "core/descriptors/rphsd_kernels.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
+
+// GCC 12's AVX-512 headers trip -Wmaybe-uninitialized on their own _mm512_undefined_*
+// placeholders (a known false positive, GCC bug 105593).
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+
+namespace shapeid::rphsd_internal {
+namespace {
+
+// Portable path. The vector paths below are this loop with the reference loop spread over
+// SIMD lanes; each computes the bin indices of one point against all references into
+// `slots` and then increments K histograms. The increments hit K different histograms, so
+// consecutive read-modify-writes never wait on each other (no store-forwarding chain).
+void AccumulateScalar(const HistogramInput& in, uint32_t* counts) {
+  const int last_bin = in.bins - 1;
+  for (size_t i = 0; i < in.num_points; ++i) {
+    const float* p = in.xyz + 3 * i;
+    const float px = (p[0] - in.center[0]) * in.inv_scale;
+    const float py = (p[1] - in.center[1]) * in.inv_scale;
+    const float pz = (p[2] - in.center[2]) * in.inv_scale;
+    uint32_t* histogram = counts;
+    for (size_t k = 0; k < in.num_refs; ++k, histogram += in.bins) {
+      const float dx = px - in.ref_x[k];
+      const float dy = py - in.ref_y[k];
+      const float dz = pz - in.ref_z[k];
+      const float d2 = (dx * dx + dy * dy) + dz * dz;
+      const int bin = static_cast<int>(std::sqrt(d2) * in.bin_scale);
+      ++histogram[std::min(bin, last_bin)];
+    }
+  }
+}
+
+#if defined(__x86_64__)
+
+// The vector kernels: core/descriptors/rphsd_kernel_body.inc compiled once per instruction
+// set, each copy inside its own `#pragma GCC target` region and namespace, over a small
+// `Ops` table of that set's intrinsics.
+#pragma GCC push_options
+#pragma GCC target("avx2")
+namespace avx2 {
+struct Ops {
+  using Vec = __m256;
+  using IVec = __m256i;
+  static constexpr size_t kLanes = 8;
+  static Vec Set1(float v) { return _mm256_set1_ps(v); }
+  static IVec Set1I(int v) { return _mm256_set1_epi32(v); }
+  static Vec Load(const float* p) { return _mm256_loadu_ps(p); }
+  static IVec LoadI(const int32_t* p) { return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p)); }
+  static void StoreI(int32_t* p, IVec v) { _mm256_storeu_si256(reinterpret_cast<__m256i*>(p), v); }
+  static Vec Add(Vec a, Vec b) { return _mm256_add_ps(a, b); }
+  static Vec Sub(Vec a, Vec b) { return _mm256_sub_ps(a, b); }
+  static Vec Mul(Vec a, Vec b) { return _mm256_mul_ps(a, b); }
+  static Vec Sqrt(Vec a) { return _mm256_sqrt_ps(a); }
+  static IVec Truncate(Vec a) { return _mm256_cvttps_epi32(a); }
+  static IVec MinI(IVec a, IVec b) { return _mm256_min_epi32(a, b); }
+  static IVec AddI(IVec a, IVec b) { return _mm256_add_epi32(a, b); }
+};
+#include "core/descriptors/rphsd_kernel_body.inc"
+
+void Accumulate(const HistogramInput& in, uint32_t* counts) {
+  switch ((in.num_refs + Ops::kLanes - 1) / Ops::kLanes) {
+    case 1: return AccumulateVector<1>(in, counts);
+    case 2: return AccumulateVector<2>(in, counts);
+    case 3: return AccumulateVector<3>(in, counts);
+    case 4: return AccumulateVector<4>(in, counts);
+    default: return AccumulateVector<0>(in, counts);
+  }
+}
+}  // namespace avx2
+#pragma GCC pop_options
+
+#pragma GCC push_options
+#pragma GCC target("avx512f")
+namespace avx512 {
+struct Ops {
+  using Vec = __m512;
+  using IVec = __m512i;
+  static constexpr size_t kLanes = 16;
+  static Vec Set1(float v) { return _mm512_set1_ps(v); }
+  static IVec Set1I(int v) { return _mm512_set1_epi32(v); }
+  static Vec Load(const float* p) { return _mm512_loadu_ps(p); }
+  static IVec LoadI(const int32_t* p) { return _mm512_loadu_si512(p); }
+  static void StoreI(int32_t* p, IVec v) { _mm512_storeu_si512(p, v); }
+  static Vec Add(Vec a, Vec b) { return _mm512_add_ps(a, b); }
+  static Vec Sub(Vec a, Vec b) { return _mm512_sub_ps(a, b); }
+  static Vec Mul(Vec a, Vec b) { return _mm512_mul_ps(a, b); }
+  static Vec Sqrt(Vec a) { return _mm512_sqrt_ps(a); }
+  static IVec Truncate(Vec a) { return _mm512_cvttps_epi32(a); }
+  static IVec MinI(IVec a, IVec b) { return _mm512_min_epi32(a, b); }
+  static IVec AddI(IVec a, IVec b) { return _mm512_add_epi32(a, b); }
+};
+#include "core/descriptors/rphsd_kernel_body.inc"
+
+void Accumulate(const HistogramInput& in, uint32_t* counts) {
+  switch ((in.num_refs + Ops::kLanes - 1) / Ops::kLanes) {
+    case 1: return AccumulateVector<1>(in, counts);
+    case 2: return AccumulateVector<2>(in, counts);
+    default: return AccumulateVector<0>(in, counts);
+  }
+}
+}  // namespace avx512
+#pragma GCC pop_options
+
+#endif  // __x86_64__
+
+}  // namespace
+
+void AccumulateHistograms(const HistogramInput& input, uint32_t* counts, SimdLevel level) {
+#if defined(__x86_64__)
+  if (level == SimdLevel::kAvx512) return avx512::Accumulate(input, counts);
+  if (level == SimdLevel::kAvx2) return avx2::Accumulate(input, counts);
+#endif
+  (void)level;
+  AccumulateScalar(input, counts);
+}
+
+}  // namespace shapeid::rphsd_internal
