@@ -135,6 +135,17 @@ void BM_LimitIncrementsOnly(benchmark::State& state) {
 }
 BENCHMARK(BM_LimitIncrementsOnly)->Unit(benchmark::kMicrosecond);
 
+// Section 0 validation, the one pass every descriptor makes before its own work.
+void BM_ValidateCloud(benchmark::State& state) {
+  const PointCloud cloud = bench::SurfaceCloud(kLargeCloud);
+  for (auto _ : state) {
+    auto stats = ValidateCloud(cloud);
+    benchmark::DoNotOptimize(stats);
+  }
+  state.SetItemsProcessed(state.iterations() * cloud.size());
+}
+BENCHMARK(BM_ValidateCloud)->Unit(benchmark::kMicrosecond);
+
 // Whole descriptors through the public API (validation, normalisation, features).
 void DescribeBench(benchmark::State& state, const std::string& spec, size_t points) {
   auto descriptor = CreateDescriptor(spec);

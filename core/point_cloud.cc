@@ -2,8 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 #include "absl/strings/str_cat.h"
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace shapeid {
 
@@ -49,21 +55,73 @@ absl::StatusOr<CloudStats> ValidateCloud(const PointCloud& cloud, const CloudLim
         "cloud has ", n, " points, more than the limit of ", limits.max_points));
   }
 
-  // One pass: box, sum (in double, so a million points do not lose the centroid) and a
-  // finiteness flag. NaN fails every comparison, so the flag is computed explicitly.
+  // One pass over the floats: box, sum and a finiteness flag. Four points (12 floats) per
+  // step into 12 independent accumulators, one per position, so the additions do not wait
+  // on each other and the compiler can vectorise; position l always holds axis l % 3. Sums
+  // are in double so a million points do not lose the centroid. The order of operations is
+  // fixed, so the result is the same bits on every machine.
+  constexpr size_t kLanes = 12;
   const float* xyz = cloud.data();
-  float lo[3] = {xyz[0], xyz[1], xyz[2]};
-  float hi[3] = {xyz[0], xyz[1], xyz[2]};
-  double sum[3] = {0, 0, 0};
-  bool all_finite = true;
-  for (size_t i = 0; i < n; ++i) {
-    for (int a = 0; a < 3; ++a) {
-      const float v = xyz[3 * i + a];
-      all_finite &= std::fabs(v) <= std::numeric_limits<float>::max();
-      lo[a] = std::min(lo[a], v);
-      hi[a] = std::max(hi[a], v);
-      sum[a] += v;
+  const size_t num_floats = 3 * n;
+  const size_t blocked = num_floats / kLanes * kLanes;
+  double sum[kLanes] = {};
+  float lo[kLanes], hi[kLanes];
+  for (size_t l = 0; l < kLanes; ++l) lo[l] = hi[l] = xyz[l % 3];
+  uint32_t nonfinite = 0;
+#if defined(__SSE2__)
+  // The same 12 lanes in SSE2 registers (part of every x86-64 CPU): three float vectors for
+  // the box, six double vectors for the sums, lane for lane the order of the loop below.
+  {
+    __m128 vlo[3], vhi[3];
+    __m128d vsum[6];
+    for (int v = 0; v < 3; ++v) vlo[v] = vhi[v] = _mm_loadu_ps(lo + 4 * v);
+    for (int v = 0; v < 6; ++v) vsum[v] = _mm_setzero_pd();
+    const __m128i exponent = _mm_set1_epi32(0x7f800000);
+    __m128i bad = _mm_setzero_si128();
+    for (size_t b = 0; b < blocked; b += kLanes) {
+      for (int v = 0; v < 3; ++v) {
+        const __m128 x = _mm_loadu_ps(xyz + b + 4 * v);
+        bad = _mm_or_si128(bad, _mm_cmpeq_epi32(_mm_and_si128(_mm_castps_si128(x), exponent), exponent));
+        vsum[2 * v] = _mm_add_pd(vsum[2 * v], _mm_cvtps_pd(x));
+        vsum[2 * v + 1] = _mm_add_pd(vsum[2 * v + 1], _mm_cvtps_pd(_mm_movehl_ps(x, x)));
+        vlo[v] = _mm_min_ps(x, vlo[v]);  // same operand order as `v < lo ? v : lo`
+        vhi[v] = _mm_max_ps(x, vhi[v]);
+      }
     }
+    for (int v = 0; v < 3; ++v) {
+      _mm_storeu_ps(lo + 4 * v, vlo[v]);
+      _mm_storeu_ps(hi + 4 * v, vhi[v]);
+    }
+    for (int v = 0; v < 6; ++v) _mm_storeu_pd(sum + 2 * v, vsum[v]);
+    nonfinite = static_cast<uint32_t>(_mm_movemask_epi8(bad) != 0);
+  }
+#else
+  for (size_t b = 0; b < blocked; b += kLanes) {
+    for (size_t l = 0; l < kLanes; ++l) {
+      const float v = xyz[b + l];
+      uint32_t bits;
+      std::memcpy(&bits, &v, sizeof(bits));
+      nonfinite |= static_cast<uint32_t>((bits & 0x7f800000u) == 0x7f800000u);  // inf or NaN
+      sum[l] += v;
+      lo[l] = v < lo[l] ? v : lo[l];
+      hi[l] = v > hi[l] ? v : hi[l];
+    }
+  }
+#endif
+  for (size_t f = blocked; f < num_floats; ++f) {  // the last 0-3 points
+    const size_t l = f % 3;
+    const float v = xyz[f];
+    nonfinite |= static_cast<uint32_t>(!std::isfinite(v));
+    sum[l] += v;
+    lo[l] = v < lo[l] ? v : lo[l];
+    hi[l] = v > hi[l] ? v : hi[l];
+  }
+  const bool all_finite = nonfinite == 0;
+  // Fold the lanes per axis, in a fixed order.
+  for (size_t l = 3; l < kLanes; ++l) {
+    sum[l % 3] += sum[l];
+    lo[l % 3] = std::min(lo[l % 3], lo[l]);
+    hi[l % 3] = std::max(hi[l % 3], hi[l]);
   }
   if (!all_finite) return NonFiniteError(cloud);
   if (lo[0] == hi[0] && lo[1] == hi[1] && lo[2] == hi[2]) {
