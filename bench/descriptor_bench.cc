@@ -1,7 +1,6 @@
 // Descriptor speed: the RPHSD kernel at every SIMD level against the machine's limits, and
 // each descriptor's per-cloud time. Run from a release build:
-//   build/release/bench/descriptor_bench --benchmark_repetitions=5 \
-//       --benchmark_report_aggregates_only=true
+//   tools/bench.sh --benchmark_filter=Rphsd    (release build, medians of 5 repetitions)
 // Figures and their reading: docs/performance.md.
 
 #include <cmath>
@@ -18,6 +17,9 @@
 
 #if defined(__x86_64__)
 #include <immintrin.h>
+// GCC 12's AVX-512 headers trip these on their own placeholders (GCC bug 105593).
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#pragma GCC diagnostic ignored "-Wuninitialized"
 #endif
 
 namespace shapeid {

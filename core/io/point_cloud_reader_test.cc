@@ -1,0 +1,123 @@
+#include "core/io/point_cloud_reader.h"
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <string>
+
+#include "core/io/test_files.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+
+namespace shapeid {
+namespace {
+
+using ::testing::HasSubstr;
+
+std::string DataDir() { return SHAPEID_SOURCE_DIR "/../shared/data"; }
+
+bool Exists(const std::string& path) { return ::access(path.c_str(), R_OK) == 0; }
+
+TEST(PointCloudReaderTest, ChoosesReaderByExtension) {
+  EXPECT_EQ(*CloudFormatForPath("a/b.pcd"), CloudFormat::kPcd);
+  EXPECT_EQ(*CloudFormatForPath("B.PCD"), CloudFormat::kPcd);
+  EXPECT_EQ(*CloudFormatForPath("x.y/z.xyz"), CloudFormat::kXyz);
+  EXPECT_EQ(*CloudFormatForPath("scan.txt"), CloudFormat::kXyz);
+  EXPECT_EQ(*CloudFormatForPath("scan.Csv"), CloudFormat::kCsv);
+  for (const char* bad : {"mesh.ply", "noext", "dir.pcd/file", "trailing."}) {
+    const absl::StatusOr<CloudFormat> f = CloudFormatForPath(bad);
+    ASSERT_FALSE(f.ok()) << bad;
+    EXPECT_EQ(f.status().code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_THAT(std::string(f.status().message()), HasSubstr(bad));
+    EXPECT_THAT(std::string(f.status().message()), HasSubstr(".pcd, .xyz, .txt, .csv"));
+  }
+}
+
+TEST(PointCloudReaderTest, UnknownExtensionFailsBeforeReading) {
+  const std::string path = WriteTempFile("cloud.ply", "1 2 3\n");
+  const absl::StatusOr<ReadResult> r = ReadPointCloud(path);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(r.status().message()), HasSubstr("\".ply\""));
+}
+
+TEST(PointCloudReaderTest, MissingFileAndDirectory) {
+  const std::string missing = testing::TempDir() + "shapeid_no_such_file.xyz";
+  const absl::StatusOr<ReadResult> r = ReadPointCloud(missing);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_THAT(std::string(r.status().message()), HasSubstr(missing));
+
+  const std::string dir = testing::TempDir() + "shapeid_dir_test.pcd";
+  ::mkdir(dir.c_str(), 0700);
+  const absl::StatusOr<ReadResult> d = ReadPointCloud(dir);
+  ASSERT_FALSE(d.ok());
+  EXPECT_EQ(d.status().code(), absl::StatusCode::kInvalidArgument);
+  ::rmdir(dir.c_str());
+}
+
+TEST(PointCloudReaderTest, RecenteringKeepsCentimetresOfGeoreferencedCoordinates) {
+  // DALES-like: ~5e5 m easting, where float32 steps by 3 cm to 6 cm.
+  const std::string path =
+      WriteTempFile("geo.xyz",
+                    "500000.01 4000000.01 100.01\n500000.02 4000000.03 100.02\n"
+                    "500000.05 4000000.04 100.05\n");
+  const absl::StatusOr<ReadResult> r = ReadPointCloud(path);
+  ASSERT_TRUE(r.ok()) << r.status();
+  ASSERT_EQ(r->cloud.size(), 3u);
+  EXPECT_NEAR(r->offset.x(), 500000.03, 1e-9);
+  EXPECT_NEAR(r->offset.y(), 4000000.025, 1e-8);
+  EXPECT_NEAR(r->offset.z(), 100.03, 1e-9);
+  const double expected[3][3] = {{500000.01, 4000000.01, 100.01},
+                                 {500000.02, 4000000.03, 100.02},
+                                 {500000.05, 4000000.04, 100.05}};
+  for (size_t i = 0; i < 3; ++i) {
+    for (int a = 0; a < 3; ++a) {
+      // Back to the file's coordinates to well under a millimetre.
+      EXPECT_NEAR(r->cloud.point(i)[a] + r->offset[a], expected[i][a], 1e-5) << i << " " << a;
+    }
+  }
+  EXPECT_NEAR(r->cloud.point(1).x() - r->cloud.point(0).x(), 0.01, 1e-5);
+
+  // Without recentering the centimetre is lost: that is why it is the default.
+  ReadOptions raw;
+  raw.recenter = false;
+  const absl::StatusOr<ReadResult> lossy = ReadPointCloud(path, raw);
+  ASSERT_TRUE(lossy.ok()) << lossy.status();
+  EXPECT_EQ(lossy->offset, Eigen::Vector3d::Zero());
+  EXPECT_GT(std::abs((lossy->cloud.point(1).y() - lossy->cloud.point(0).y()) - 0.02), 0.005);
+}
+
+TEST(PointCloudReaderTest, ParsePointCloudFromMemory) {
+  const absl::StatusOr<ReadResult> r =
+      ParsePointCloud("x;y;z\n1;2;3\n", CloudFormat::kCsv, "upload");
+  ASSERT_TRUE(r.ok()) << r.status();
+  EXPECT_EQ(r->cloud.size(), 1u);
+  const absl::StatusOr<ReadResult> bad = ParsePointCloud("1 2\n", CloudFormat::kXyz, "upload");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_THAT(std::string(bad.status().message()), HasSubstr("upload: line 1"));
+}
+
+TEST(PointCloudReaderTest, RealModelNet10File) {
+  const std::string path = DataDir() + "/modelnet10/chair/train/chair_0001.pcd";
+  if (!Exists(path)) GTEST_SKIP() << "no ModelNet10 data at " << path;
+  const absl::StatusOr<ReadResult> r = ReadPointCloud(path);
+  ASSERT_TRUE(r.ok()) << r.status();
+  EXPECT_EQ(r->cloud.size(), 1024u);
+  EXPECT_EQ(r->dropped_non_finite, 0u);
+  EXPECT_TRUE(ValidateCloud(r->cloud).ok());
+  for (float v : r->cloud.xyz()) ASSERT_TRUE(std::isfinite(v));
+}
+
+TEST(PointCloudReaderTest, RealDalesFile) {
+  const std::string path = DataDir() + "/dales-objects/car/100.xyz";
+  if (!Exists(path)) GTEST_SKIP() << "no DALES data at " << path;
+  const absl::StatusOr<ReadResult> r = ReadPointCloud(path);
+  ASSERT_TRUE(r.ok()) << r.status();
+  EXPECT_GE(r->cloud.size(), 100u);
+  EXPECT_TRUE(ValidateCloud(r->cloud).ok());
+}
+
+}  // namespace
+}  // namespace shapeid

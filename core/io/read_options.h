@@ -1,0 +1,40 @@
+#ifndef SHAPEID_CORE_IO_READ_OPTIONS_H_
+#define SHAPEID_CORE_IO_READ_OPTIONS_H_
+
+#include <cstddef>
+
+#include "Eigen/Core"
+#include "core/point_cloud.h"
+
+namespace shapeid {
+
+// How the point-cloud readers turn a file into a PointCloud. Every reader honours every field.
+struct ReadOptions {
+  // Organised PCD clouds (from depth cameras) mark missing pixels with NaN points. Default
+  // false: they are kept, so that describing the cloud fails and says so, rather than
+  // silently describing fewer points than the file holds. When true, every point with a
+  // non-finite coordinate is removed and ReadResult::dropped_non_finite counts them.
+  bool drop_non_finite = false;
+
+  // Default true: coordinates are parsed in double and the cloud is shifted by its
+  // bounding-box centre (computed in double, over the finite points) before conversion to
+  // float, because float32 cannot hold georeferenced coordinates (e.g. DALES, ~5e5 m) to the
+  // centimetre (its spacing there is 3 cm to 6 cm), and every descriptor is translation
+  // invariant, so the shift costs nothing. ReadResult::offset gives the shift back. False
+  // keeps the file's coordinates (rounded to float), e.g. for viewing alongside other data.
+  bool recenter = true;
+};
+
+// A cloud as read, and what reading did to it.
+struct ReadResult {
+  PointCloud cloud;
+  // The shift applied by ReadOptions::recenter: file coordinate = cloud point + offset.
+  // Zero when recenter is false or the cloud has no finite point.
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+  // Points removed by ReadOptions::drop_non_finite; always 0 when it is false.
+  size_t dropped_non_finite = 0;
+};
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_CORE_IO_READ_OPTIONS_H_

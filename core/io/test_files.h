@@ -1,0 +1,41 @@
+#ifndef SHAPEID_CORE_IO_TEST_FILES_H_
+#define SHAPEID_CORE_IO_TEST_FILES_H_
+
+// Test-only helpers: files written into testing::TempDir(), named after the running test so
+// that tests run in parallel (ctest -j) never share one.
+
+#include <unistd.h>
+
+#include <cstring>
+#include <fstream>
+#include <string>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/string_view.h"
+#include "gtest/gtest.h"
+
+namespace shapeid {
+
+// Writes `contents` to a fresh file whose name ends with `name` and returns its path.
+inline std::string WriteTempFile(absl::string_view name, absl::string_view contents) {
+  const testing::TestInfo* info = testing::UnitTest::GetInstance()->current_test_info();
+  const std::string path = absl::StrCat(testing::TempDir(), "shapeid_", info->test_suite_name(),
+                                        "_", info->name(), "_", ::getpid(), "_", name);
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(contents.data(), static_cast<std::streamsize>(contents.size()));
+  out.close();
+  EXPECT_TRUE(out.good()) << "cannot write " << path;
+  return path;
+}
+
+// Appends the bytes of `value` in host byte order, as PCD binary data stores it.
+template <typename T>
+void AppendBytes(std::string* out, T value) {
+  char bytes[sizeof(T)];
+  std::memcpy(bytes, &value, sizeof(T));
+  out->append(bytes, sizeof(T));
+}
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_CORE_IO_TEST_FILES_H_

@@ -1,0 +1,314 @@
+// End-to-end tests of `shapeid describe`: run the built binary on generated files and check
+// what a script would rely on: output formats, exit codes and one error line per failed file.
+
+#include <sys/wait.h>
+
+#include <cctype>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "absl/strings/str_split.h"
+#include "absl/strings/strip.h"
+#include "core/io/test_files.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+
+namespace shapeid {
+namespace {
+
+using ::testing::HasSubstr;
+using ::testing::StartsWith;
+
+constexpr char kSpec[] = "rphsd:refs=cross7,bins=10";
+
+struct RunResult {
+  int exit_code = -1;
+  std::string out;
+  std::string err;
+};
+
+std::string ShellQuote(const std::string& arg) {
+  std::string quoted = "'";
+  for (char c : arg) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return quoted + "'";
+}
+
+std::string Slurp(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+RunResult Shapeid(const std::vector<std::string>& args) {
+  const std::string out_path = WriteTempFile("stdout", "");
+  const std::string err_path = WriteTempFile("stderr", "");
+  std::string command = ShellQuote(SHAPEID_CLI_PATH);
+  for (const std::string& arg : args) absl::StrAppend(&command, " ", ShellQuote(arg));
+  absl::StrAppend(&command, " >", ShellQuote(out_path), " 2>", ShellQuote(err_path));
+  const int status = std::system(command.c_str());
+  RunResult run;
+  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  run.out = Slurp(out_path);
+  run.err = Slurp(err_path);
+  return run;
+}
+
+std::vector<std::string> Lines(const std::string& text) {
+  std::vector<std::string> lines = absl::StrSplit(text, '\n');
+  if (!lines.empty() && lines.back().empty()) lines.pop_back();
+  return lines;
+}
+
+// A deterministic, irregular shape: 300 points on a squashed, twisted ellipsoid.
+std::vector<float> Shape(float scale) {
+  std::vector<float> xyz;
+  for (int i = 0; i < 300; ++i) {
+    const double t = 2.399963 * i, h = 1.0 - 2.0 * (i + 0.5) / 300;
+    const double r = std::sqrt(1 - h * h);
+    xyz.push_back(static_cast<float>(scale * 2.0 * r * std::cos(t + h)));
+    xyz.push_back(static_cast<float>(scale * r * std::sin(t)));
+    xyz.push_back(static_cast<float>(scale * 0.5 * h * (1.2 + std::cos(t))));
+  }
+  return xyz;
+}
+
+std::string BinaryPcd(const std::vector<float>& xyz, int width, int height) {
+  std::string file = absl::StrCat(
+      "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH ", width, "\nHEIGHT ",
+      height, "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS ", width * height, "\nDATA binary\n");
+  for (float v : xyz) AppendBytes(&file, v);
+  return file;
+}
+
+std::string Xyz(const std::vector<float>& xyz) {
+  std::string file = "# x y z\n";
+  for (size_t i = 0; i < xyz.size(); i += 3) {
+    absl::StrAppend(&file, xyz[i], " ", xyz[i + 1], " ", xyz[i + 2], "\n");
+  }
+  return file;
+}
+
+// A small JSON syntax checker: enough to know that a line is one valid JSON value.
+class JsonChecker {
+ public:
+  explicit JsonChecker(absl::string_view text) : s_(text) {}
+  bool Valid() { return Value() && (Space(), pos_ == s_.size()); }
+
+ private:
+  void Space() {
+    while (pos_ < s_.size() && (s_[pos_] == ' ' || s_[pos_] == '\t')) ++pos_;
+  }
+  bool Eat(char c) {
+    Space();
+    if (pos_ < s_.size() && s_[pos_] == c) return ++pos_, true;
+    return false;
+  }
+  bool Value() {
+    Space();
+    if (pos_ >= s_.size()) return false;
+    const char c = s_[pos_];
+    if (c == '{') return Container('}', true);
+    if (c == '[') return Container(']', false);
+    if (c == '"') return String();
+    for (absl::string_view word : {"true", "false", "null"}) {
+      if (s_.substr(pos_, word.size()) == word) return pos_ += word.size(), true;
+    }
+    return Number();
+  }
+  bool Container(char close, bool object) {
+    ++pos_;
+    if (Eat(close)) return true;
+    do {
+      if (object && !(Space(), String() && Eat(':'))) return false;
+      if (!Value()) return false;
+    } while (Eat(','));
+    return Eat(close);
+  }
+  bool String() {
+    if (pos_ >= s_.size() || s_[pos_] != '"') return false;
+    for (++pos_; pos_ < s_.size(); ++pos_) {
+      const unsigned char c = static_cast<unsigned char>(s_[pos_]);
+      if (c < 0x20) return false;
+      if (c == '\\') {
+        ++pos_;
+        if (pos_ >= s_.size()) return false;
+        if (s_[pos_] == 'u') {
+          if (pos_ + 4 >= s_.size()) return false;
+          for (int i = 1; i <= 4; ++i) {
+            if (!std::isxdigit(static_cast<unsigned char>(s_[pos_ + i]))) return false;
+          }
+          pos_ += 4;
+        } else if (absl::string_view("\"\\/bfnrt").find(s_[pos_]) == absl::string_view::npos) {
+          return false;
+        }
+      } else if (c == '"') {
+        return ++pos_, true;
+      }
+    }
+    return false;
+  }
+  bool Number() {  // -?(0|[1-9]d*)(.d+)?([eE][+-]?d+)?
+    const size_t start = pos_;
+    auto digits = [&] {
+      const size_t from = pos_;
+      while (pos_ < s_.size() && std::isdigit(static_cast<unsigned char>(s_[pos_]))) ++pos_;
+      return pos_ > from;
+    };
+    if (pos_ < s_.size() && s_[pos_] == '-') ++pos_;
+    if (pos_ < s_.size() && s_[pos_] == '0') {
+      ++pos_;
+    } else if (!digits()) {
+      return false;
+    }
+    if (pos_ < s_.size() && s_[pos_] == '.' && (++pos_, !digits())) return false;
+    if (pos_ < s_.size() && (s_[pos_] == 'e' || s_[pos_] == 'E')) {
+      ++pos_;
+      if (pos_ < s_.size() && (s_[pos_] == '+' || s_[pos_] == '-')) ++pos_;
+      if (!digits()) return false;
+    }
+    return pos_ > start;
+  }
+
+  absl::string_view s_;
+  size_t pos_ = 0;
+};
+
+std::vector<float> ParseFloats(const std::vector<absl::string_view>& fields) {
+  std::vector<float> values;
+  for (absl::string_view f : fields) {
+    float v = 0;
+    EXPECT_TRUE(absl::SimpleAtof(f, &v)) << "not a float: \"" << f << "\"";
+    EXPECT_TRUE(std::isfinite(v)) << f;
+    values.push_back(v);
+  }
+  return values;
+}
+
+// The values of a text line whose first field is `file`.
+std::vector<float> TextValues(const std::string& line, const std::string& file) {
+  EXPECT_THAT(line, StartsWith(file + " "));
+  if (line.size() <= file.size()) return {};
+  const std::vector<absl::string_view> fields =
+      absl::StrSplit(absl::string_view(line).substr(file.size() + 1), ' ');
+  return ParseFloats(fields);
+}
+
+TEST(CliDescribeTest, TextOutputHasOneLinePerFile) {
+  const std::string pcd = WriteTempFile("shape.pcd", BinaryPcd(Shape(1), 300, 1));
+  const std::string xyz = WriteTempFile("shape.xyz", Xyz(Shape(3)));
+  const RunResult run = Shapeid({"describe", "--local", "--spec", kSpec, pcd, xyz});
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_EQ(run.err, "");
+  const std::vector<std::string> lines = Lines(run.out);
+  ASSERT_EQ(lines.size(), 2u) << run.out;
+  const std::vector<float> a = TextValues(lines[0], pcd);
+  const std::vector<float> b = TextValues(lines[1], xyz);
+  EXPECT_GT(a.size(), 0u);
+  EXPECT_EQ(a.size(), b.size());
+}
+
+TEST(CliDescribeTest, JsonLinesCarryTheSameValues) {
+  const std::string pcd = WriteTempFile("shape \"quoted\".pcd", BinaryPcd(Shape(1), 300, 1));
+  const RunResult text = Shapeid({"describe", "--local", "--spec", kSpec, pcd});
+  const RunResult json = Shapeid({"describe", "--local", "--spec", kSpec, "--format", "json", pcd});
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  ASSERT_EQ(json.exit_code, 0) << json.err;
+  const std::vector<std::string> lines = Lines(json.out);
+  ASSERT_EQ(lines.size(), 1u) << json.out;
+  const std::string& line = lines[0];
+  EXPECT_TRUE(JsonChecker(line).Valid()) << line;
+  EXPECT_THAT(line, StartsWith("{\"file\":"));
+  EXPECT_THAT(line, HasSubstr("shape \\\"quoted\\\".pcd\""));
+  EXPECT_THAT(line, HasSubstr("\"spec\":\"rphsd:"));  // canonical: every parameter filled
+  EXPECT_THAT(line, HasSubstr("\"dimension\":"));
+  EXPECT_THAT(line, HasSubstr("\"descriptor\":["));
+
+  // The dimension and the array agree, and the values equal the text output's.
+  const size_t dim_at = line.find("\"dimension\":") + 12;
+  const size_t array_at = line.find("\"descriptor\":[") + 14;
+  size_t dimension = 0;
+  ASSERT_TRUE(absl::SimpleAtoi(line.substr(dim_at, line.find(',', dim_at) - dim_at), &dimension));
+  const std::string array = line.substr(array_at, line.rfind(']') - array_at);
+  const std::vector<float> values = ParseFloats(absl::StrSplit(array, ','));
+  EXPECT_EQ(values.size(), dimension);
+  EXPECT_EQ(values, TextValues(Lines(text.out).at(0), pcd));
+}
+
+TEST(CliDescribeTest, MissingFileFailsAloneAndExitsOne) {
+  const std::string good = WriteTempFile("good.pcd", BinaryPcd(Shape(1), 300, 1));
+  const std::string missing = testing::TempDir() + "shapeid_cli_no_such_file.pcd";
+  const std::string also_good = WriteTempFile("also_good.xyz", Xyz(Shape(2)));
+  const RunResult run = Shapeid({"describe", "--local", "--spec", kSpec, good, missing, also_good});
+  EXPECT_EQ(run.exit_code, 1);
+  const std::vector<std::string> out = Lines(run.out);
+  ASSERT_EQ(out.size(), 2u) << run.out;
+  EXPECT_THAT(out[0], StartsWith(good + " "));
+  EXPECT_THAT(out[1], StartsWith(also_good + " "));
+  const std::vector<std::string> err = Lines(run.err);
+  ASSERT_EQ(err.size(), 1u) << run.err;
+  EXPECT_THAT(err[0], StartsWith("shapeid: " + missing + ": "));
+}
+
+TEST(CliDescribeTest, NonFinitePointsFailUnlessDropped) {
+  std::vector<float> xyz = Shape(1);
+  for (int i = 0; i < 3; ++i) xyz[30 + i] = std::numeric_limits<float>::quiet_NaN();
+  const std::string organised = WriteTempFile("organised.pcd", BinaryPcd(xyz, 30, 10));
+  const RunResult kept = Shapeid({"describe", "--local", "--spec", kSpec, organised});
+  EXPECT_EQ(kept.exit_code, 1);
+  EXPECT_EQ(kept.out, "");
+  EXPECT_THAT(kept.err, StartsWith("shapeid: " + organised + ": "));
+  const RunResult dropped =
+      Shapeid({"describe", "--local", "--spec", kSpec, "--drop-nonfinite", organised});
+  EXPECT_EQ(dropped.exit_code, 0) << dropped.err;
+  EXPECT_EQ(Lines(dropped.out).size(), 1u);
+}
+
+TEST(CliDescribeTest, BadSpecExitsTwoBeforeReadingFiles) {
+  const std::string good = WriteTempFile("good.pcd", BinaryPcd(Shape(1), 300, 1));
+  for (const char* spec : {"rphsd:nosuchparam=1", "nosuchkind", "rphsd:bins"}) {
+    const RunResult run = Shapeid({"describe", "--local", "--spec", spec, good});
+    EXPECT_EQ(run.exit_code, 2) << spec;
+    EXPECT_EQ(run.out, "") << spec;
+    EXPECT_EQ(Lines(run.err).size(), 1u) << run.err;
+  }
+}
+
+TEST(CliDescribeTest, UsageErrorsExitTwo) {
+  const std::string good = WriteTempFile("good.pcd", BinaryPcd(Shape(1), 300, 1));
+  for (const std::vector<std::string>& args : {std::vector<std::string>{},
+                                               {"describe", "--local"},
+                                               {"describe", good},
+                                               {"describe", "--local", "--format", "xml", good},
+                                               {"frobnicate"}}) {
+    const RunResult run = Shapeid(args);
+    EXPECT_EQ(run.exit_code, 2) << absl::StrJoin(args, " ");
+    EXPECT_EQ(run.out, "");
+    EXPECT_EQ(Lines(run.err).size(), 1u) << run.err;
+  }
+}
+
+TEST(CliDescribeTest, HelpAndVersion) {
+  const RunResult help = Shapeid({"describe", "--help"});
+  EXPECT_EQ(help.exit_code, 0);
+  for (const char* kind : {"rphsd", "comsd", "cnsd", "--spec", "--format", "Examples"}) {
+    EXPECT_THAT(help.out, HasSubstr(kind));
+  }
+  const RunResult top = Shapeid({"--help"});
+  EXPECT_EQ(top.exit_code, 0);
+  EXPECT_THAT(top.out, HasSubstr("describe"));
+  const RunResult version = Shapeid({"--version"});
+  EXPECT_EQ(version.exit_code, 0);
+  EXPECT_THAT(version.out, StartsWith("shapeid "));
+}
+
+}  // namespace
+}  // namespace shapeid
