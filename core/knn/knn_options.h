@@ -1,0 +1,59 @@
+#ifndef SHAPEID_CORE_KNN_KNN_OPTIONS_H_
+#define SHAPEID_CORE_KNN_KNN_OPTIONS_H_
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
+
+namespace shapeid {
+
+// How features are rescaled before Euclidean distances are taken (spec section 4). The
+// statistics are always those of the gallery the query is run against, never of the query.
+enum class FeatureScaling {
+  // Raw features. Right when every dimension already has the same unit (one histogram).
+  kNone,
+  // (x - mean_d) / std_d, population std (ddof = 0) over the gallery; a dimension whose std
+  // is 0 is left unscaled (factor 1). Equalises dimensions of different spread; outliers in
+  // the gallery shrink a dimension's influence.
+  kZScore,
+  // x / max_i |x_id| over the gallery; a dimension that is all zeros is left unscaled. The
+  // dissertation author's choice; keeps zeros at zero and signs; one outlier rescales a
+  // whole dimension.
+  kMaxAbs,
+};
+
+// How the k neighbours vote for a class.
+enum class VoteWeighting {
+  // One vote per neighbour.
+  kUniform,
+  // 1 / distance per neighbour. When any neighbour is at distance exactly 0, only the
+  // zero-distance neighbours vote, one vote each (scikit-learn's rule).
+  kDistance,
+};
+
+struct KnnOptions {
+  // Number of neighbours, >= 1. A k larger than the gallery is clamped to the gallery size.
+  // k = 1 is the published setting; larger k smooths label noise but blurs small classes.
+  int k = 1;
+  // Default uniform: with k = 1 both weightings agree; with larger k, kDistance lets a very
+  // close neighbour outvote several far ones.
+  VoteWeighting weighting = VoteWeighting::kUniform;
+  // Default none: descriptors are usually histograms with one unit. Use kMaxAbs to
+  // reproduce the author's runs, kZScore when dimensions have unrelated units.
+  FeatureScaling scaling = FeatureScaling::kNone;
+};
+
+// Text forms: "none" | "zscore" | "maxabs" and "uniform" | "distance" (lower case; parsing
+// also accepts upper case and surrounding spaces). Unknown names are InvalidArgument and the
+// message lists the accepted ones.
+absl::StatusOr<FeatureScaling> ParseFeatureScaling(absl::string_view text);
+absl::string_view FeatureScalingName(FeatureScaling scaling);
+absl::StatusOr<VoteWeighting> ParseVoteWeighting(absl::string_view text);
+absl::string_view VoteWeightingName(VoteWeighting weighting);
+
+// InvalidArgument when k < 1 or an enum holds a value outside its enumerators.
+absl::Status ValidateKnnOptions(const KnnOptions& options);
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_CORE_KNN_KNN_OPTIONS_H_
