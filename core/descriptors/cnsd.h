@@ -1,8 +1,6 @@
 #ifndef SHAPEID_CORE_DESCRIPTORS_CNSD_H_
 #define SHAPEID_CORE_DESCRIPTORS_CNSD_H_
 
-#include <cstddef>
-#include <cstdint>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -18,10 +16,12 @@ namespace shapeid {
 // Every point is a vertex, the edge (i, j) weighs d(i, j) / d_max, and for each threshold
 // T_k = t_start + k * t_step <= t_end the graph keeping edges with weight <= T_k gives the
 // mean and the maximum of degree / n. Dimension 2 * (number of thresholds), laid out
-// [D_avg(T_0), D_max(T_0), D_avg(T_1), D_max(T_1), ...]. Memory O(n + S), time O(n^2 + n S).
+// [D_avg(T_0), D_max(T_0), D_avg(T_1), D_max(T_1), ...]. Time O(n^2 + n S); memory O(n S)
+// up to 31 thresholds, O(n + S) beyond (cnsd_kernels.h).
 DescriptorKind CnsdKind();
 
-// Building blocks, exposed for tests and benchmarks. Not a stable API.
+// Building blocks, exposed for tests and benchmarks. Not a stable API. The pair passes are in
+// cnsd_kernels.h, downsampling in cnsd_downsample.h.
 namespace cnsd_internal {
 
 // T_k = t_start + k * t_step for k = 0, 1, ... while T_k <= t_end + 1e-9; a T_k within 1e-9
@@ -46,20 +46,6 @@ float SquaredThreshold(double t, float max_d2);
 // InvalidArgument when the cloud has fewer than 2 points or all of them coincide.
 absl::Status ComputeFeatures(const PointCloud& cloud, absl::Span<const double> thresholds,
                              SimdLevel level, absl::Span<float> out);
-
-// Box-grid filter: the centroid (summed in double) of the points in each occupied cell of a
-// grid of cubic cells anchored at the bounding-box minimum. The cell size is found by 20
-// steps of geometric bisection between extent / 2^20 and the largest extent, keeping the
-// smallest size tried whose grid has at most `max_points` occupied cells. Cells come out
-// sorted by (x, y, z) cell index. Needs max_points >= 8 (at the largest extent at most 8
-// cells are occupied, and the two ends of the widest axis are in different cells, so at
-// least 2 points come out). Returns the cloud unchanged when it already fits.
-PointCloud VoxelDownsample(const PointCloud& cloud, size_t max_points);
-
-// Exactly `max_points` points chosen uniformly without replacement (partial Fisher-Yates
-// driven by splitmix64 seeded with `seed`), in their original order. Returns the cloud
-// unchanged when it already fits.
-PointCloud RandomDownsample(const PointCloud& cloud, size_t max_points, uint64_t seed);
 
 }  // namespace cnsd_internal
 }  // namespace shapeid
