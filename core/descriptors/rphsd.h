@@ -50,6 +50,7 @@ class Rphsd final : public Descriptor {
   RphsdOptions options_;
   // Reference coordinates, structure-of-arrays and zero-padded for the SIMD kernels.
   std::vector<float> ref_x_, ref_y_, ref_z_;
+  std::vector<double> idm_weights_;  // 1 / (1 + i^2) for each bin i
 };
 
 // Registry entry: rphsd:refs=cubic27,bins=100,variant=complete.

@@ -115,6 +115,9 @@ void Accumulate(const HistogramInput& in, uint32_t* counts) {
 
 void AccumulateHistograms(const HistogramInput& input, uint32_t* counts, SimdLevel level) {
 #if defined(__x86_64__)
+  // With at most 8 references (cross7) a 16-lane vector is mostly padding, and the 8-lane
+  // kernel measured faster (docs/performance.md); the results are the same bits either way.
+  if (level == SimdLevel::kAvx512 && input.num_refs <= avx2::Ops::kLanes) level = SimdLevel::kAvx2;
   if (level == SimdLevel::kAvx512) return avx512::Accumulate(input, counts);
   if (level == SimdLevel::kAvx2) return avx2::Accumulate(input, counts);
 #endif
