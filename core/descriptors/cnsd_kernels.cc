@@ -16,6 +16,7 @@
 // The scalar kernels walk from a to b with loops instead, so they are exact for any rule;
 // rules without the promise take them at every level.
 #include "core/descriptors/cnsd_kernels.h"
+#include "core/simd_ops.h"
 
 #if defined(__x86_64__)
 #include <immintrin.h>
@@ -186,16 +187,7 @@ void PairDegrees(const PairData& p, const BucketTables& t, uint64_t* degree_sum,
 #pragma GCC push_options
 #pragma GCC target("avx2")
 namespace avx2 {
-struct Ops {
-  using Vec = __m256;
-  using IVec = __m256i;
-  static constexpr size_t kLanes = 8;
-  static Vec Load(const float* p) { return _mm256_load_ps(p); }
-  static Vec Set1(float v) { return _mm256_set1_ps(v); }
-  static Vec Add(Vec a, Vec b) { return _mm256_add_ps(a, b); }
-  static Vec Sub(Vec a, Vec b) { return _mm256_sub_ps(a, b); }
-  static Vec Mul(Vec a, Vec b) { return _mm256_mul_ps(a, b); }
-  static Vec Max(Vec a, Vec b) { return _mm256_max_ps(a, b); }
+struct Ops : simd::Avx2Ops {
   static float ReduceMax(Vec v) {
     alignas(32) float lanes[kLanes];
     _mm256_store_ps(lanes, v);
@@ -207,17 +199,6 @@ struct Ops {
                                            _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
     return _mm256_blendv_ps(d2, _mm256_set1_ps(FLT_MAX), _mm256_castsi256_ps(before));
   }
-  static IVec Set1I(uint32_t v) { return _mm256_set1_epi32(static_cast<int>(v)); }
-  static IVec AddI(IVec a, IVec b) { return _mm256_add_epi32(a, b); }
-  static IVec AndI(IVec a, IVec b) { return _mm256_and_si256(a, b); }
-  template <int kBits>
-  static IVec SrliI(IVec a) {
-    return _mm256_srli_epi32(a, kBits);
-  }
-  static IVec LoadI(const uint32_t* p) {
-    return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p));
-  }
-  static void StoreI(uint32_t* p, IVec v) { _mm256_storeu_si256(reinterpret_cast<__m256i*>(p), v); }
 
   class TableBuckets {
    public:
@@ -285,31 +266,13 @@ struct Ops {
 #pragma GCC push_options
 #pragma GCC target("avx512f")
 namespace avx512 {
-struct Ops {
-  using Vec = __m512;
-  using IVec = __m512i;
-  static constexpr size_t kLanes = 16;
-  static Vec Load(const float* p) { return _mm512_load_ps(p); }
-  static Vec Set1(float v) { return _mm512_set1_ps(v); }
-  static Vec Add(Vec a, Vec b) { return _mm512_add_ps(a, b); }
-  static Vec Sub(Vec a, Vec b) { return _mm512_sub_ps(a, b); }
-  static Vec Mul(Vec a, Vec b) { return _mm512_mul_ps(a, b); }
-  static Vec Max(Vec a, Vec b) { return _mm512_max_ps(a, b); }
+struct Ops : simd::Avx512Ops {
   static float ReduceMax(Vec v) { return _mm512_reduce_max_ps(v); }
   // Lanes j0 + l <= i become FLT_MAX, which lands in bucket S.
   static Vec FarUpTo(Vec d2, size_t j0, size_t i) {
     const __mmask16 before = static_cast<__mmask16>((1u << (i + 1 - j0)) - 1);
     return _mm512_mask_mov_ps(d2, before, _mm512_set1_ps(FLT_MAX));
   }
-  static IVec Set1I(uint32_t v) { return _mm512_set1_epi32(static_cast<int>(v)); }
-  static IVec AddI(IVec a, IVec b) { return _mm512_add_epi32(a, b); }
-  static IVec AndI(IVec a, IVec b) { return _mm512_and_si512(a, b); }
-  template <int kBits>
-  static IVec SrliI(IVec a) {
-    return _mm512_srli_epi32(a, kBits);
-  }
-  static IVec LoadI(const uint32_t* p) { return _mm512_loadu_si512(p); }
-  static void StoreI(uint32_t* p, IVec v) { _mm512_storeu_si512(p, v); }
 
   class TableBuckets {
    public:

@@ -6,6 +6,8 @@
 
 #if defined(__x86_64__)
 #include <immintrin.h>
+
+#include "core/simd_ops.h"
 #endif
 
 // GCC 12's AVX-512 headers trip -Wmaybe-uninitialized on their own _mm512_undefined_*
@@ -41,28 +43,12 @@ void AccumulateScalar(const HistogramInput& in, uint32_t* counts) {
 #if defined(__x86_64__)
 
 // The vector kernels: core/descriptors/rphsd_kernel_body.inc compiled once per instruction
-// set, each copy inside its own `#pragma GCC target` region and namespace, over a small
-// `Ops` table of that set's intrinsics.
+// set, each copy inside its own `#pragma GCC target` region and namespace, over that set's
+// operations from core/simd_ops.h.
 #pragma GCC push_options
 #pragma GCC target("avx2")
 namespace avx2 {
-struct Ops {
-  using Vec = __m256;
-  using IVec = __m256i;
-  static constexpr size_t kLanes = 8;
-  static Vec Set1(float v) { return _mm256_set1_ps(v); }
-  static IVec Set1I(int v) { return _mm256_set1_epi32(v); }
-  static Vec Load(const float* p) { return _mm256_loadu_ps(p); }
-  static IVec LoadI(const int32_t* p) { return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p)); }
-  static void StoreI(int32_t* p, IVec v) { _mm256_storeu_si256(reinterpret_cast<__m256i*>(p), v); }
-  static Vec Add(Vec a, Vec b) { return _mm256_add_ps(a, b); }
-  static Vec Sub(Vec a, Vec b) { return _mm256_sub_ps(a, b); }
-  static Vec Mul(Vec a, Vec b) { return _mm256_mul_ps(a, b); }
-  static Vec Sqrt(Vec a) { return _mm256_sqrt_ps(a); }
-  static IVec Truncate(Vec a) { return _mm256_cvttps_epi32(a); }
-  static IVec MinI(IVec a, IVec b) { return _mm256_min_epi32(a, b); }
-  static IVec AddI(IVec a, IVec b) { return _mm256_add_epi32(a, b); }
-};
+using Ops = simd::Avx2Ops;
 #include "core/descriptors/rphsd_kernel_body.inc"
 
 void Accumulate(const HistogramInput& in, uint32_t* counts) {
@@ -80,23 +66,7 @@ void Accumulate(const HistogramInput& in, uint32_t* counts) {
 #pragma GCC push_options
 #pragma GCC target("avx512f")
 namespace avx512 {
-struct Ops {
-  using Vec = __m512;
-  using IVec = __m512i;
-  static constexpr size_t kLanes = 16;
-  static Vec Set1(float v) { return _mm512_set1_ps(v); }
-  static IVec Set1I(int v) { return _mm512_set1_epi32(v); }
-  static Vec Load(const float* p) { return _mm512_loadu_ps(p); }
-  static IVec LoadI(const int32_t* p) { return _mm512_loadu_si512(p); }
-  static void StoreI(int32_t* p, IVec v) { _mm512_storeu_si512(p, v); }
-  static Vec Add(Vec a, Vec b) { return _mm512_add_ps(a, b); }
-  static Vec Sub(Vec a, Vec b) { return _mm512_sub_ps(a, b); }
-  static Vec Mul(Vec a, Vec b) { return _mm512_mul_ps(a, b); }
-  static Vec Sqrt(Vec a) { return _mm512_sqrt_ps(a); }
-  static IVec Truncate(Vec a) { return _mm512_cvttps_epi32(a); }
-  static IVec MinI(IVec a, IVec b) { return _mm512_min_epi32(a, b); }
-  static IVec AddI(IVec a, IVec b) { return _mm512_add_epi32(a, b); }
-};
+using Ops = simd::Avx512Ops;
 #include "core/descriptors/rphsd_kernel_body.inc"
 
 void Accumulate(const HistogramInput& in, uint32_t* counts) {
