@@ -10,6 +10,7 @@
 #include "core/descriptor_registry.h"
 #include "core/descriptors/cnsd_downsample.h"
 #include "gmock/gmock.h"
+#include "core/testing/test_clouds.h"
 #include "gtest/gtest.h"
 
 namespace shapeid {
@@ -18,24 +19,8 @@ namespace {
 using ::testing::HasSubstr;
 namespace ci = cnsd_internal;
 
-PointCloud UniformCloud(size_t n, uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-  PointCloud cloud;
-  for (size_t i = 0; i < n; ++i) cloud.Add(u(rng), 2 * u(rng), 0.5f * u(rng));
-  return cloud;
-}
-
-PointCloud SphereCloud(size_t n, uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::normal_distribution<float> g;
-  PointCloud cloud;
-  while (cloud.size() < n) {
-    const Eigen::Vector3f p(g(rng), g(rng), g(rng));
-    if (p.norm() > 1e-3f) cloud.Add(p.normalized());
-  }
-  return cloud;
-}
+using testing_clouds::SphereCloud;
+using testing_clouds::UniformCloud;
 
 std::vector<SimdLevel> AvailableLevels() {
   std::vector<SimdLevel> levels = {SimdLevel::kScalar};

@@ -18,21 +18,6 @@ using ::testing::HasSubstr;
 
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
-ReadOptions Raw() {  // keeps the file's coordinates, so tests can compare them exactly
-  ReadOptions options;
-  options.recenter = false;
-  return options;
-}
-
-// Asserts the error code and that the message names the file and the location.
-void ExpectError(const absl::StatusOr<ReadResult>& result, absl::StatusCode code,
-                 const std::string& path, const std::string& where) {
-  ASSERT_FALSE(result.ok());
-  EXPECT_EQ(result.status().code(), code) << result.status();
-  EXPECT_THAT(std::string(result.status().message()), HasSubstr(path));
-  EXPECT_THAT(std::string(result.status().message()), HasSubstr(where));
-}
-
 std::string XyzHeader(int points, absl::string_view data) {
   return absl::StrCat("# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\n",
                       "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n", "WIDTH ", points,

@@ -10,8 +10,11 @@
 #include <fstream>
 #include <string>
 
+#include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
+#include "core/io/read_options.h"
+#include "gmock/gmock.h"
 #include "gtest/gtest.h"
 
 namespace shapeid {
@@ -34,6 +37,22 @@ void AppendBytes(std::string* out, T value) {
   char bytes[sizeof(T)];
   std::memcpy(bytes, &value, sizeof(T));
   out->append(bytes, sizeof(T));
+}
+
+// Options that keep the file's coordinates (no recentring), so tests compare them exactly.
+inline ReadOptions Raw() {
+  ReadOptions options;
+  options.recenter = false;
+  return options;
+}
+
+// Asserts the error code and that the message names the file and the location.
+inline void ExpectError(const absl::StatusOr<ReadResult>& result, absl::StatusCode code,
+                        const std::string& path, const std::string& where) {
+  ASSERT_FALSE(result.ok());
+  EXPECT_EQ(result.status().code(), code) << result.status();
+  EXPECT_THAT(std::string(result.status().message()), ::testing::HasSubstr(path));
+  EXPECT_THAT(std::string(result.status().message()), ::testing::HasSubstr(where));
 }
 
 }  // namespace shapeid

@@ -13,20 +13,6 @@ namespace {
 
 using ::testing::HasSubstr;
 
-ReadOptions Raw() {
-  ReadOptions options;
-  options.recenter = false;
-  return options;
-}
-
-void ExpectError(const absl::StatusOr<ReadResult>& result, absl::StatusCode code,
-                 const std::string& path, const std::string& where) {
-  ASSERT_FALSE(result.ok());
-  EXPECT_EQ(result.status().code(), code) << result.status();
-  EXPECT_THAT(std::string(result.status().message()), HasSubstr(path));
-  EXPECT_THAT(std::string(result.status().message()), HasSubstr(where));
-}
-
 void ExpectPoints(const PointCloud& cloud, std::initializer_list<float> xyz) {
   ASSERT_EQ(cloud.size() * 3, xyz.size());
   size_t i = 0;
