@@ -1,0 +1,107 @@
+// shapeid-server: flags (and SHAPEID_* environment variables) -> ServerOptions -> a running
+// server, until SIGTERM or SIGINT; then a graceful shutdown and exit 0.
+
+#include <unistd.h>
+
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+#include "absl/flags/flag.h"
+#include "absl/flags/parse.h"
+#include "absl/flags/reflection.h"
+#include "absl/flags/usage.h"
+#include "absl/strings/ascii.h"
+#include "absl/strings/str_cat.h"
+#include "absl/time/time.h"
+#include "server/server.h"
+
+ABSL_FLAG(std::string, listen, "127.0.0.1:50051",
+          "HOST:PORT to listen on; port 0 picks a free port (printed at start). "
+          "Env: SHAPEID_LISTEN");
+ABSL_FLAG(int64_t, max_points_per_cloud, 10'000'000,
+          "largest cloud, in points, any call accepts. Env: SHAPEID_MAX_POINTS_PER_CLOUD");
+ABSL_FLAG(int32_t, max_message_bytes, 16 << 20,
+          "largest single gRPC message (clouds stream in chunks, so this bounds a chunk). "
+          "Env: SHAPEID_MAX_MESSAGE_BYTES");
+ABSL_FLAG(int32_t, worker_threads, 0,
+          "threads serving calls; 0 = gRPC's default. Env: SHAPEID_WORKER_THREADS");
+ABSL_FLAG(int32_t, shutdown_grace_seconds, 10,
+          "on SIGTERM/SIGINT, how long in-flight calls may run before they are cancelled. "
+          "Env: SHAPEID_SHUTDOWN_GRACE_SECONDS");
+
+namespace {
+
+int g_stop_pipe[2] = {-1, -1};
+
+void OnStopSignal(int signal) {
+  const unsigned char byte = static_cast<unsigned char>(signal);
+  [[maybe_unused]] const ssize_t written = write(g_stop_pipe[1], &byte, 1);  // async-signal-safe
+}
+
+// Every flag may come from SHAPEID_<FLAG NAME IN CAPITALS>; a command-line flag wins.
+bool ApplyEnvironment() {
+  for (const char* name : {"listen", "max_points_per_cloud", "max_message_bytes",
+                           "worker_threads", "shutdown_grace_seconds"}) {
+    const std::string var = absl::StrCat("SHAPEID_", absl::AsciiStrToUpper(name));
+    const char* value = std::getenv(var.c_str());
+    if (value == nullptr) continue;
+    std::string error;
+    if (!absl::FindCommandLineFlag(name)->ParseFrom(value, &error)) {
+      std::fprintf(stderr, "shapeid-server: %s=%s: %s\n", var.c_str(), value, error.c_str());
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  absl::SetProgramUsageMessage(
+      "shapeid-server: the shapeid gRPC recognition server.\n"
+      "Usage: shapeid-server [--listen=HOST:PORT] [--flag=value...]\n"
+      "Every flag can also be set by an environment variable SHAPEID_<FLAG>; flags win.");
+  if (!ApplyEnvironment()) return 2;
+  absl::ParseCommandLine(argc, argv);
+
+  shapeid::ServerOptions options;
+  options.listen = absl::GetFlag(FLAGS_listen);
+  if (absl::GetFlag(FLAGS_max_points_per_cloud) < 3 || absl::GetFlag(FLAGS_max_message_bytes) < 1024) {
+    std::fprintf(stderr, "shapeid-server: --max_points_per_cloud must be >= 3 and "
+                         "--max_message_bytes >= 1024\n");
+    return 2;
+  }
+  options.service.max_points_per_cloud =
+      static_cast<size_t>(absl::GetFlag(FLAGS_max_points_per_cloud));
+  options.max_message_bytes = absl::GetFlag(FLAGS_max_message_bytes);
+  options.worker_threads = absl::GetFlag(FLAGS_worker_threads);
+
+  // gRPC may own threads whose signal mask we do not control, so a stop signal can land on
+  // any thread: the handler only writes the signal number to a pipe that main waits on.
+  if (pipe(g_stop_pipe) != 0) {
+    std::perror("shapeid-server: pipe");
+    return 1;
+  }
+  struct sigaction action = {};
+  action.sa_handler = OnStopSignal;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGTERM, &action, nullptr);
+  sigaction(SIGINT, &action, nullptr);
+
+  auto server = shapeid::ShapeIdServer::Start(options);
+  if (!server.ok()) {
+    std::fprintf(stderr, "shapeid-server: %s\n", std::string(server.status().message()).c_str());
+    return 1;
+  }
+  std::printf("listening on %s\n", (*server)->address().c_str());
+  std::fflush(stdout);
+
+  unsigned char received = 0;
+  while (read(g_stop_pipe[0], &received, 1) != 1) {
+  }
+  std::fprintf(stderr, "shapeid-server: %s, shutting down\n", received == SIGTERM ? "SIGTERM" : "SIGINT");
+  (*server)->Shutdown(absl::Seconds(absl::GetFlag(FLAGS_shutdown_grace_seconds)));
+  return 0;
+}

@@ -1,0 +1,52 @@
+#include "server/server.h"
+
+#include <chrono>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "grpcpp/ext/proto_server_reflection_plugin.h"
+#include "grpcpp/health_check_service_interface.h"
+
+namespace shapeid {
+
+absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Start(const ServerOptions& options) {
+  // Both must be set before the builder exists.
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+
+  std::unique_ptr<ShapeIdServer> server(new ShapeIdServer);
+  server->service_ = std::make_unique<ShapeIdService>(options.service);
+
+  grpc::ServerBuilder builder;
+  // TLS arrives with the security issue; until then the server must only be exposed where
+  // that is acceptable (the default listens on loopback).
+  builder.AddListeningPort(options.listen, grpc::InsecureServerCredentials(), &server->port_);
+  builder.RegisterService(server->service_.get());
+  builder.SetMaxReceiveMessageSize(options.max_message_bytes);
+  if (options.worker_threads > 0) {
+    grpc::ResourceQuota quota("shapeid");
+    quota.SetMaxThreads(options.worker_threads);
+    builder.SetResourceQuota(quota);
+  }
+  server->server_ = builder.BuildAndStart();
+  if (server->server_ == nullptr || server->port_ == 0) {
+    return absl::UnavailableError(absl::StrCat("cannot listen on ", options.listen,
+                                               " (address in use, or not an address of this host)"));
+  }
+  const size_t colon = options.listen.rfind(':');
+  server->address_ = absl::StrCat(options.listen.substr(0, colon), ":", server->port_);
+  server->server_->GetHealthCheckService()->SetServingStatus(true);
+  return server;
+}
+
+void ShapeIdServer::Shutdown(absl::Duration grace) {
+  if (shut_down_ || server_ == nullptr) return;
+  shut_down_ = true;
+  server_->GetHealthCheckService()->SetServingStatus(false);
+  server_->Shutdown(std::chrono::system_clock::now() + absl::ToChronoNanoseconds(grace));
+  server_->Wait();
+}
+
+ShapeIdServer::~ShapeIdServer() { Shutdown(absl::ZeroDuration()); }
+
+}  // namespace shapeid

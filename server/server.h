@@ -1,0 +1,44 @@
+#ifndef SHAPEID_SERVER_SERVER_H_
+#define SHAPEID_SERVER_SERVER_H_
+
+#include <memory>
+#include <string>
+
+#include "absl/status/statusor.h"
+#include "absl/time/time.h"
+#include "grpcpp/grpcpp.h"
+#include "server/server_options.h"
+#include "server/shapeid_service.h"
+
+namespace shapeid {
+
+// A running shapeid server: the ShapeId service, grpc.health.v1 health checking (SERVING once
+// started) and server reflection, so grpcurl and standard probes work.
+class ShapeIdServer {
+ public:
+  // Binds and starts serving. Unavailable if the address cannot be bound.
+  static absl::StatusOr<std::unique_ptr<ShapeIdServer>> Start(const ServerOptions& options);
+
+  ~ShapeIdServer();
+
+  // "HOST:PORT" with the port actually bound (useful after listening on port 0).
+  const std::string& address() const { return address_; }
+  int port() const { return port_; }
+
+  // Stops accepting calls, lets in-flight calls finish until `grace` has passed, then
+  // cancels the rest. Health turns NOT_SERVING first. Idempotent.
+  void Shutdown(absl::Duration grace);
+
+ private:
+  ShapeIdServer() = default;
+
+  std::unique_ptr<ShapeIdService> service_;
+  std::unique_ptr<grpc::Server> server_;
+  std::string address_;
+  int port_ = 0;
+  bool shut_down_ = false;
+};
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_SERVER_SERVER_H_
