@@ -1,0 +1,269 @@
+#include "core/gallery/gallery.h"
+
+#include <algorithm>
+#include <utility>
+
+#include "absl/strings/escaping.h"
+#include "absl/strings/str_cat.h"
+#include "core/descriptor_registry.h"
+#include "core/status_macros.h"
+
+namespace shapeid {
+
+namespace {
+
+absl::Status Prefixed(absl::string_view prefix, const absl::Status& status) {
+  return absl::Status(status.code(), absl::StrCat(prefix, status.message()));
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------
+// TrainBatch
+
+TrainBatch::TrainBatch(std::shared_ptr<Gallery> gallery)
+    : gallery_(std::move(gallery)), descriptor_(gallery_->Snapshot()->shared_descriptor()) {}
+
+absl::Status TrainBatch::Fail(absl::Status status) {
+  error_ = status;
+  return status;
+}
+
+absl::Status TrainBatch::AddSample(uint64_t id, std::string label, const PointCloud& cloud) {
+  if (!error_.ok()) return error_;
+  if (committed_) return absl::FailedPreconditionError("batch was already committed");
+  const std::string where = absl::StrCat("sample ", samples_.size(), ": ");
+  const GalleryLimits& limits = gallery_->limits();
+  if (size() + 1 > limits.max_samples_per_gallery) {
+    return Fail(absl::ResourceExhaustedError(absl::StrCat(
+        where, "batch has more samples than gallery '", gallery_->name(),
+        "' may hold (max_samples_per_gallery = ", limits.max_samples_per_gallery, ")")));
+  }
+  if (absl::Status s = ValidateLabel(label); !s.ok()) return Fail(Prefixed(where, s));
+  if (id >= kFirstAssignedId) {
+    return Fail(absl::InvalidArgumentError(
+        absl::StrCat(where, "sample id ", id, " is reserved: client ids are 1 to ",
+                     kFirstAssignedId - 1, ", and 0 asks the gallery to assign one")));
+  }
+  if (id != 0) {
+    if (client_ids_.contains(id)) {
+      return Fail(absl::AlreadyExistsError(
+          absl::StrCat(where, "sample id ", id, " appears twice in this batch")));
+    }
+    // Early check for a friendly error at the offending sample; Commit checks again.
+    if (gallery_->Snapshot()->Contains(id)) {
+      return Fail(absl::AlreadyExistsError(absl::StrCat(
+          where, "sample id ", id, " is already in gallery '", gallery_->name(), "'")));
+    }
+  }
+  absl::StatusOr<std::vector<float>> features = descriptor_->Compute(cloud, limits.cloud_limits());
+  if (!features.ok()) return Fail(Prefixed(where, features.status()));
+  if (id != 0) client_ids_.insert(id);
+  samples_.push_back(StoredSample{id, std::move(label), *std::move(features)});
+  return absl::OkStatus();
+}
+
+absl::StatusOr<CommitResult> TrainBatch::Commit() {
+  if (!error_.ok()) return error_;
+  if (committed_) return absl::FailedPreconditionError("batch was already committed");
+  committed_ = true;
+  absl::StatusOr<CommitResult> result = gallery_->CommitBatch(samples_);
+  samples_.clear();
+  samples_.shrink_to_fit();
+  return result;
+}
+
+// ---------------------------------------------------------------------------------------
+// Gallery
+
+Gallery::Gallery(std::string name, GalleryLimits limits, std::shared_ptr<GalleryStore> store,
+                 std::shared_ptr<const GallerySnapshot> initial)
+    : name_(std::move(name)),
+      limits_(limits),
+      store_(std::move(store)),
+      snapshot_(std::move(initial)) {}
+
+absl::StatusOr<std::unique_ptr<GallerySnapshot>> Gallery::EmptySnapshot(
+    std::string name, const GalleryOptions& options, absl::Time created) {
+  SHAPEID_RETURN_IF_ERROR(ValidateGalleryName(name));
+  SHAPEID_RETURN_IF_ERROR(ValidateGalleryOptions(options));
+  SHAPEID_ASSIGN_OR_RETURN(std::unique_ptr<Descriptor> descriptor,
+                           CreateDescriptor(options.descriptor_spec));
+  GalleryOptions canonical = options;
+  canonical.descriptor_spec = descriptor->spec().ToString();
+  SHAPEID_ASSIGN_OR_RETURN(KnnIndex index,
+                           KnnIndex::Create(static_cast<int>(descriptor->dimension())));
+  return std::unique_ptr<GallerySnapshot>(new GallerySnapshot(
+      std::move(name), std::move(canonical),
+      std::shared_ptr<const Descriptor>(std::move(descriptor)), std::move(index), created));
+}
+
+absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Create(std::string name,
+                                                         const GalleryOptions& options,
+                                                         const GalleryLimits& limits,
+                                                         std::shared_ptr<GalleryStore> store,
+                                                         absl::Time created) {
+  SHAPEID_ASSIGN_OR_RETURN(std::unique_ptr<GallerySnapshot> snapshot,
+                           EmptySnapshot(name, options, created));
+  return std::shared_ptr<Gallery>(
+      new Gallery(std::move(name), limits, std::move(store), std::move(snapshot)));
+}
+
+absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Restore(const StoredGallery& stored,
+                                                          const GalleryLimits& limits,
+                                                          std::shared_ptr<GalleryStore> store) {
+  const std::string where = absl::StrCat("restoring gallery '", stored.name, "': ");
+  absl::StatusOr<std::unique_ptr<GallerySnapshot>> empty =
+      EmptySnapshot(stored.name, stored.options, stored.created);
+  if (!empty.ok()) return Prefixed(where, empty.status());
+  std::unique_ptr<GallerySnapshot> snapshot = *std::move(empty);
+  uint64_t next_assigned = kFirstAssignedId;
+  for (const StoredSample& sample : stored.samples) {
+    if (absl::Status s = ValidateLabel(sample.label); !s.ok()) return Prefixed(where, s);
+    if (absl::Status s = snapshot->index_.Add(sample.id, sample.label, sample.features); !s.ok()) {
+      return Prefixed(absl::StrCat(where, "sample id ", sample.id, ": "), s);
+    }
+    snapshot->ids_by_label_[sample.label].push_back(sample.id);
+    if (sample.id >= kFirstAssignedId) next_assigned = std::max(next_assigned, sample.id + 1);
+  }
+  snapshot->updated_ = stored.updated;
+  snapshot->next_assigned_id_ = next_assigned;
+  return std::shared_ptr<Gallery>(
+      new Gallery(stored.name, limits, std::move(store), std::move(snapshot)));
+}
+
+std::shared_ptr<const GallerySnapshot> Gallery::Snapshot() const {
+  std::lock_guard<std::mutex> lock(snapshot_mu_);
+  return snapshot_;
+}
+
+void Gallery::Publish(std::shared_ptr<const GallerySnapshot> next) {
+  std::shared_ptr<const GallerySnapshot> old;
+  {
+    std::lock_guard<std::mutex> lock(snapshot_mu_);
+    old = std::exchange(snapshot_, std::move(next));
+  }
+  // `old` is released here, outside the lock: freeing a large index takes a while.
+}
+
+TrainBatch Gallery::NewBatch() { return TrainBatch(shared_from_this()); }
+
+absl::StatusOr<CommitResult> Gallery::Train(absl::Span<const LabelledCloud> samples) {
+  TrainBatch batch = NewBatch();
+  for (const LabelledCloud& sample : samples) {
+    SHAPEID_RETURN_IF_ERROR(batch.AddSample(sample.id, sample.label, sample.cloud));
+  }
+  return batch.Commit();
+}
+
+absl::Status Gallery::DeletedError() const {
+  return absl::NotFoundError(
+      absl::StrCat("gallery '", name_, "' was deleted; nothing was changed"));
+}
+
+absl::Status Gallery::MarkDeleted(const std::function<absl::Status()>& forget) {
+  std::lock_guard<std::mutex> lock(writer_mu_);
+  if (deleted_) return DeletedError();
+  SHAPEID_RETURN_IF_ERROR(forget());
+  deleted_ = true;
+  return absl::OkStatus();
+}
+
+absl::StatusOr<CommitResult> Gallery::CommitBatch(std::vector<StoredSample>& samples) {
+  std::lock_guard<std::mutex> lock(writer_mu_);
+  if (deleted_) return DeletedError();
+  const std::shared_ptr<const GallerySnapshot> current = Snapshot();
+  CommitResult result;
+  if (samples.empty()) {
+    result.version = current->version();
+    return result;
+  }
+  const int64_t total = current->num_samples() + static_cast<int64_t>(samples.size());
+  if (total > limits_.max_samples_per_gallery) {
+    return absl::ResourceExhaustedError(absl::StrCat(
+        "gallery '", name_, "' holds ", current->num_samples(), " samples; adding ", samples.size(),
+        " would exceed max_samples_per_gallery = ", limits_.max_samples_per_gallery));
+  }
+  // Client ids: checked again here, since other batches may have committed since AddSample.
+  for (size_t i = 0; i < samples.size(); ++i) {
+    const uint64_t id = samples[i].id;
+    if (id != 0 && current->Contains(id)) {
+      return absl::AlreadyExistsError(
+          absl::StrCat("sample ", i, ": sample id ", id, " is already in gallery '", name_, "'"));
+    }
+  }
+
+  // Copying the index is the O(n d) cost of a commit; readers keep using `current`.
+  std::shared_ptr<GallerySnapshot> next(new GallerySnapshot(*current));
+  // Assigned ids live above every client id (kFirstAssignedId), so they cannot collide.
+  uint64_t counter = next->next_assigned_id_;
+  for (StoredSample& sample : samples) {
+    if (sample.id == 0) sample.id = counter++;
+    // Cannot fail for validated descriptors and labels; if it does, nothing is published.
+    SHAPEID_RETURN_IF_ERROR(next->index_.Add(sample.id, sample.label, sample.features));
+    next->ids_by_label_[sample.label].push_back(sample.id);
+    result.ids.push_back(sample.id);
+  }
+  next->next_assigned_id_ = counter;
+  next->version_ = current->version_ + 1;
+  next->updated_ = std::max(absl::Now(), current->updated_);
+  if (store_ != nullptr) {
+    SHAPEID_RETURN_IF_ERROR(store_->AppendSamples(name_, samples, next->updated_));
+  }
+  result.version = next->version_;
+  Publish(std::move(next));
+  return result;
+}
+
+absl::StatusOr<int64_t> Gallery::RemoveSamples(absl::Span<const uint64_t> ids) {
+  std::lock_guard<std::mutex> lock(writer_mu_);
+  if (deleted_) return DeletedError();
+  const std::shared_ptr<const GallerySnapshot> current = Snapshot();
+  std::vector<uint64_t> unique;
+  absl::flat_hash_set<uint64_t> seen;
+  for (uint64_t id : ids) {
+    if (!seen.insert(id).second) continue;
+    if (!current->Contains(id)) {
+      return absl::NotFoundError(
+          absl::StrCat("sample id ", id, " is not in gallery '", name_, "'; nothing was removed"));
+    }
+    unique.push_back(id);
+  }
+  return RemoveLocked(*current, std::move(unique));
+}
+
+absl::StatusOr<int64_t> Gallery::RemoveLabel(absl::string_view label) {
+  std::lock_guard<std::mutex> lock(writer_mu_);
+  if (deleted_) return DeletedError();
+  const std::shared_ptr<const GallerySnapshot> current = Snapshot();
+  auto it = current->ids_by_label().find(label);
+  if (it == current->ids_by_label().end()) {
+    return absl::NotFoundError(absl::StrCat("gallery '", name_, "' has no samples labelled '",
+                                            absl::CHexEscape(label), "'"));
+  }
+  return RemoveLocked(*current, it->second);
+}
+
+absl::StatusOr<int64_t> Gallery::RemoveLocked(const GallerySnapshot& current,
+                                              std::vector<uint64_t> ids) {
+  if (ids.empty()) return 0;
+  std::shared_ptr<GallerySnapshot> next(new GallerySnapshot(current));
+  SHAPEID_RETURN_IF_ERROR(next->index_.Remove(ids));
+  const absl::flat_hash_set<uint64_t> gone(ids.begin(), ids.end());
+  for (auto it = next->ids_by_label_.begin(); it != next->ids_by_label_.end();) {
+    std::vector<uint64_t>& label_ids = it->second;
+    label_ids.erase(std::remove_if(label_ids.begin(), label_ids.end(),
+                                   [&](uint64_t id) { return gone.contains(id); }),
+                    label_ids.end());
+    it = label_ids.empty() ? next->ids_by_label_.erase(it) : std::next(it);
+  }
+  next->version_ = current.version_ + 1;
+  next->updated_ = std::max(absl::Now(), current.updated_);
+  if (store_ != nullptr) {
+    SHAPEID_RETURN_IF_ERROR(store_->RemoveSamples(name_, ids, next->updated_));
+  }
+  Publish(std::move(next));
+  return static_cast<int64_t>(ids.size());
+}
+
+}  // namespace shapeid

@@ -1,0 +1,179 @@
+#ifndef SHAPEID_CORE_GALLERY_GALLERY_H_
+#define SHAPEID_CORE_GALLERY_GALLERY_H_
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "absl/base/thread_annotations.h"
+#include "absl/container/flat_hash_set.h"
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
+#include "absl/time/time.h"
+#include "absl/types/span.h"
+#include "core/gallery/gallery_options.h"
+#include "core/gallery/gallery_snapshot.h"
+#include "core/gallery/gallery_store.h"
+#include "core/point_cloud.h"
+
+namespace shapeid {
+
+class Gallery;
+
+// Sample ids. A client picks ids in [1, kFirstAssignedId) or passes 0 to have the gallery
+// assign one. Assigned ids count up from kFirstAssignedId, per gallery, and are never reused
+// (not even after a removal). Splitting the id space is what makes "assigned ids never
+// collide with client ids" true in both directions: a client that mixes its own ids with
+// assigned ones can never be refused an id because the gallery handed it out earlier. Client
+// ids stay below 2^63, so they fit a signed 64-bit integer (Java, SQL) unchanged.
+inline constexpr uint64_t kFirstAssignedId = uint64_t{1} << 63;
+
+struct LabelledCloud {
+  uint64_t id = 0;  // 0: the gallery assigns one; else in [1, kFirstAssignedId)
+  std::string label;
+  PointCloud cloud;
+};
+
+struct CommitResult {
+  std::vector<uint64_t> ids;  // final id of each sample, in the order they were added
+  uint64_t version = 0;       // version of the snapshot that holds them
+};
+
+// One all-or-nothing training batch, filled sample by sample as a stream arrives, then
+// committed at once. AddSample describes the cloud immediately (outside any lock), so errors
+// surface at the offending sample and the batch keeps only descriptors (d floats per sample),
+// never clouds. A batch destroyed without Commit leaves no trace.
+//
+// Once AddSample has failed the batch is poisoned: later AddSample calls and Commit return
+// that first error, so a caller that forgets to check still cannot publish half a batch.
+// Not thread-safe: one batch per stream. Keeps its gallery alive.
+class TrainBatch {
+ public:
+  TrainBatch(TrainBatch&&) = default;
+  TrainBatch& operator=(TrainBatch&&) = default;
+
+  // Describes `cloud` and keeps its descriptor. `index` in messages is the 0-based position
+  // of the sample in this batch. Errors, each prefixed "sample <index>":
+  //  - InvalidArgument for an id >= kFirstAssignedId, a bad label (ValidateLabel) or cloud
+  //    (the descriptor's message, which names the bad point);
+  //  - ResourceExhausted over max_points_per_cloud or when the batch alone would exceed
+  //    max_samples_per_gallery;
+  //  - AlreadyExists when `id` is nonzero and already in the gallery or in this batch.
+  absl::Status AddSample(uint64_t id, std::string label, const PointCloud& cloud);
+
+  // Samples added so far.
+  int64_t size() const { return static_cast<int64_t>(samples_.size()); }
+
+  // Publishes every sample of the batch as one new snapshot, or none. Applies the
+  // descriptors to the gallery's then-current snapshot, so concurrent batches on one
+  // gallery never lose each other's samples. Rechecks, against that snapshot: duplicate ids
+  // (AlreadyExists), max_samples_per_gallery (ResourceExhausted). NotFound if the gallery
+  // was deleted meanwhile; the store's error if it fails. An empty batch publishes nothing
+  // and returns the current version. A batch commits at most once (FailedPrecondition).
+  //
+  // Cost: copies the gallery's kNN index, O(num_samples * dimension), under the gallery's
+  // writer lock (readers are never blocked by it, other commits are). Measured: one sample
+  // into a 10,000 x 81 gallery ~6 ms, into 100,000 x 81 ~45 ms (gallery_test
+  // DISABLED_CommitCost). Fine for now; batch samples rather than committing one at a time
+  // into a large gallery. A chunked, structurally shared index would make it O(batch).
+  absl::StatusOr<CommitResult> Commit();
+
+ private:
+  friend class Gallery;
+  explicit TrainBatch(std::shared_ptr<Gallery> gallery);
+
+  absl::Status Fail(absl::Status status);
+
+  std::shared_ptr<Gallery> gallery_;
+  std::shared_ptr<const Descriptor> descriptor_;
+  std::vector<StoredSample> samples_;
+  absl::flat_hash_set<uint64_t> client_ids_;
+  absl::Status error_;
+  bool committed_ = false;
+};
+
+// A named, trained kNN gallery that many threads classify against while others train it.
+//
+// Concurrency: readers call Snapshot() and work on the immutable snapshot it returns; they
+// wait for writers only for the copy of one shared_ptr. Writers (commits, removals) are
+// serialised by a second mutex; each builds the next snapshot from the current one, writes
+// it to the store, then swaps it in. All methods are thread-safe.
+//
+// Create galleries through GalleryRegistry; Create and Restore are for the registry and tests.
+class Gallery : public std::enable_shared_from_this<Gallery> {
+ public:
+  // A new, empty gallery. Validates the name (ValidateGalleryName), the options
+  // (ValidateGalleryOptions) and the descriptor spec (the registry's InvalidArgument,
+  // unchanged), and canonicalises the spec. `store` may be null (nothing persisted). Does
+  // not call the store: the registry saves the gallery before publishing it.
+  static absl::StatusOr<std::shared_ptr<Gallery>> Create(std::string name,
+                                                         const GalleryOptions& options,
+                                                         const GalleryLimits& limits,
+                                                         std::shared_ptr<GalleryStore> store,
+                                                         absl::Time created = absl::Now());
+  // A gallery rebuilt from what a store saved, without writing to the store. Assigned ids
+  // continue above the largest stored assigned id.
+  static absl::StatusOr<std::shared_ptr<Gallery>> Restore(const StoredGallery& stored,
+                                                          const GalleryLimits& limits,
+                                                          std::shared_ptr<GalleryStore> store);
+
+  Gallery(const Gallery&) = delete;
+  Gallery& operator=(const Gallery&) = delete;
+
+  const std::string& name() const { return name_; }
+  const GalleryLimits& limits() const { return limits_; }
+
+  // The current snapshot; never null.
+  std::shared_ptr<const GallerySnapshot> Snapshot() const;
+
+  // An empty batch for this gallery.
+  TrainBatch NewBatch();
+  // NewBatch, AddSample for each, Commit.
+  absl::StatusOr<CommitResult> Train(absl::Span<const LabelledCloud> samples);
+
+  // Removes the samples with these ids (duplicates ignored) and returns how many were
+  // removed. NotFound naming the first absent id, with nothing removed. O(num_samples *
+  // dimension): remove in batches.
+  absl::StatusOr<int64_t> RemoveSamples(absl::Span<const uint64_t> ids);
+  // Removes every sample labelled `label`. NotFound if there is none.
+  absl::StatusOr<int64_t> RemoveLabel(absl::string_view label);
+
+ private:
+  friend class TrainBatch;
+  friend class GalleryRegistry;
+
+  Gallery(std::string name, GalleryLimits limits, std::shared_ptr<GalleryStore> store,
+          std::shared_ptr<const GallerySnapshot> initial);
+
+  static absl::StatusOr<std::unique_ptr<GallerySnapshot>> EmptySnapshot(
+      std::string name, const GalleryOptions& options, absl::Time created);
+
+  absl::StatusOr<CommitResult> CommitBatch(std::vector<StoredSample>& samples);
+  absl::StatusOr<int64_t> RemoveLocked(const GallerySnapshot& current, std::vector<uint64_t> ids)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(writer_mu_);
+  void Publish(std::shared_ptr<const GallerySnapshot> next);
+  // Runs `forget` (the store's delete) under the writer lock and, if it succeeds, makes every
+  // later write fail NotFound.
+  absl::Status MarkDeleted(const std::function<absl::Status()>& forget);
+  absl::Status DeletedError() const;
+
+  const std::string name_;
+  const GalleryLimits limits_;
+  const std::shared_ptr<GalleryStore> store_;  // may be null
+
+  // std::mutex rather than absl::Mutex: Debian's Abseil is not built with TSan
+  // instrumentation, so absl::Mutex makes ThreadSanitizer report false races.
+  // Lock order: writer_mu_ before snapshot_mu_ (and the registry's mutex before both).
+  mutable std::mutex snapshot_mu_;
+  std::shared_ptr<const GallerySnapshot> snapshot_ ABSL_GUARDED_BY(snapshot_mu_);
+  std::mutex writer_mu_;
+  bool deleted_ ABSL_GUARDED_BY(writer_mu_) = false;
+};
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_CORE_GALLERY_GALLERY_H_

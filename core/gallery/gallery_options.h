@@ -1,0 +1,75 @@
+#ifndef SHAPEID_CORE_GALLERY_GALLERY_OPTIONS_H_
+#define SHAPEID_CORE_GALLERY_GALLERY_OPTIONS_H_
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "absl/status/status.h"
+#include "absl/strings/string_view.h"
+#include "core/knn/knn_options.h"
+#include "core/point_cloud.h"
+
+namespace shapeid {
+
+// The label a classification answers when it rejects the query (see
+// GalleryOptions::reject_distance). Reserved: no sample may carry it, in any gallery, so a
+// client that only reads the label can never confuse "nobody trained this" with a class.
+inline constexpr absl::string_view kUnknownLabel = "unknown";
+
+// Longest label, in bytes.
+inline constexpr size_t kMaxLabelBytes = 256;
+
+// How one gallery describes and classifies. Fixed when the gallery is created.
+struct GalleryOptions {
+  // Descriptor spec text (core/descriptor_spec.h), e.g. "rphsd:bins=50". Canonicalised at
+  // creation through the registry (every parameter present, defaults filled), so two
+  // galleries with equal canonical specs compute identical descriptors. Default "rphsd":
+  // the published descriptor, 81 floats per cloud with its defaults.
+  std::string descriptor_spec = "rphsd";
+
+  // Neighbours, vote weighting and feature scaling (core/knn/knn_options.h). Default k = 1,
+  // uniform votes, no scaling: the published setting. Larger k smooths label noise but
+  // blurs small classes.
+  KnnOptions knn;
+
+  // Open-set rejection. 0 (the default) turns it off: every query gets the nearest class.
+  // When positive and the nearest neighbour is farther than this, the answer is
+  // kUnknownLabel ("unknown") with confidence 0; the raw kNN result is still reported. The
+  // distance is Neighbor::distance: Euclidean in the feature space of `knn.scaling`, so a
+  // threshold is only meaningful for one descriptor spec and one scaling. Pick it from the
+  // distribution of nearest-neighbour distances of known objects: too small rejects
+  // known objects seen from a new angle, too large accepts objects nobody trained.
+  double reject_distance = 0.0;
+};
+
+// Bounds a server puts on what it accepts; every violation is ResourceExhausted with the
+// numbers in the message. The defaults admit the largest scans of the issue (2,000,000
+// points) with headroom and cap memory at a few gigabytes for the default descriptor.
+struct GalleryLimits {
+  // Points per cloud, for training and classification (16 Mi points = 192 MiB of xyz).
+  size_t max_points_per_cloud = size_t{1} << 24;
+  // Samples per gallery. 1,000,000 x 81 floats = 324 MB; note that every commit copies the
+  // gallery's index (see Gallery::TrainBatch::Commit), so very large galleries train slowly.
+  int64_t max_samples_per_gallery = 1'000'000;
+  // Galleries per registry.
+  size_t max_galleries = 1024;
+
+  CloudLimits cloud_limits() const { return CloudLimits{max_points_per_cloud}; }
+};
+
+// InvalidArgument unless `name` matches [A-Za-z0-9][A-Za-z0-9_.-]{0,127}; the message quotes
+// the pattern. Names are used as file names by future stores, hence the conservative set.
+absl::Status ValidateGalleryName(absl::string_view name);
+
+// InvalidArgument unless `label` is non-empty, at most kMaxLabelBytes bytes, valid UTF-8
+// (RFC 3629: no overlong forms, no surrogates) and not kUnknownLabel.
+absl::Status ValidateLabel(absl::string_view label);
+
+// Checks everything but the descriptor spec (which the registry checks when it builds the
+// descriptor): ValidateKnnOptions, and reject_distance finite and >= 0.
+absl::Status ValidateGalleryOptions(const GalleryOptions& options);
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_CORE_GALLERY_GALLERY_OPTIONS_H_

@@ -1,0 +1,97 @@
+#include "core/gallery/gallery_registry.h"
+
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "core/status_macros.h"
+
+namespace shapeid {
+
+namespace {
+
+absl::Status NoSuchGallery(absl::string_view name) {
+  return absl::NotFoundError(absl::StrCat("no gallery named '", name, "'"));
+}
+
+}  // namespace
+
+GalleryRegistry::GalleryRegistry(GalleryLimits limits, std::shared_ptr<GalleryStore> store)
+    : limits_(limits),
+      store_(store != nullptr ? std::move(store) : std::make_shared<NullGalleryStore>()) {}
+
+absl::Status GalleryRegistry::LoadFromStore() {
+  SHAPEID_ASSIGN_OR_RETURN(std::vector<StoredGallery> stored, store_->LoadAll());
+  std::vector<std::shared_ptr<Gallery>> loaded;
+  for (const StoredGallery& g : stored) {
+    SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<Gallery> gallery,
+                             Gallery::Restore(g, limits_, store_));
+    loaded.push_back(std::move(gallery));
+  }
+  std::lock_guard<std::mutex> lock(mu_);
+  if (galleries_.size() + loaded.size() > limits_.max_galleries) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat("the store holds ", loaded.size(), " galleries and ", galleries_.size(),
+                     " are registered, more than max_galleries = ", limits_.max_galleries));
+  }
+  for (const auto& gallery : loaded) {
+    if (galleries_.count(gallery->name()) != 0) {
+      return absl::AlreadyExistsError(
+          absl::StrCat("stored gallery '", gallery->name(), "' is already registered"));
+    }
+  }
+  for (auto& gallery : loaded) galleries_.emplace(gallery->name(), std::move(gallery));
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::shared_ptr<Gallery>> GalleryRegistry::Create(absl::string_view name,
+                                                                 const GalleryOptions& options) {
+  // Validation and descriptor construction need no lock.
+  SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<Gallery> gallery,
+                           Gallery::Create(std::string(name), options, limits_, store_));
+  std::lock_guard<std::mutex> lock(mu_);
+  if (galleries_.count(name) != 0) {
+    return absl::AlreadyExistsError(absl::StrCat("gallery '", name, "' already exists"));
+  }
+  if (galleries_.size() >= limits_.max_galleries) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat("cannot create gallery '", name, "': ", galleries_.size(),
+                     " galleries exist, the limit (max_galleries) is ", limits_.max_galleries));
+  }
+  const std::shared_ptr<const GallerySnapshot> snapshot = gallery->Snapshot();
+  SHAPEID_RETURN_IF_ERROR(store_->SaveGallery(name, snapshot->options(), snapshot->created()));
+  galleries_.emplace(std::string(name), gallery);
+  return gallery;
+}
+
+absl::StatusOr<std::shared_ptr<Gallery>> GalleryRegistry::Get(absl::string_view name) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = galleries_.find(name);
+  if (it == galleries_.end()) return NoSuchGallery(name);
+  return it->second;
+}
+
+std::vector<std::string> GalleryRegistry::List() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  std::vector<std::string> names;
+  names.reserve(galleries_.size());
+  for (const auto& [name, gallery] : galleries_) names.push_back(name);
+  return names;
+}
+
+absl::Status GalleryRegistry::Delete(absl::string_view name) {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = galleries_.find(name);
+  if (it == galleries_.end()) return NoSuchGallery(name);
+  // Under the gallery's writer lock: a commit in progress reaches the store first, and no
+  // later write of this gallery reaches it at all.
+  SHAPEID_RETURN_IF_ERROR(it->second->MarkDeleted([&] { return store_->DeleteGallery(name); }));
+  galleries_.erase(it);
+  return absl::OkStatus();
+}
+
+size_t GalleryRegistry::size() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return galleries_.size();
+}
+
+}  // namespace shapeid

@@ -1,0 +1,70 @@
+#ifndef SHAPEID_CORE_GALLERY_GALLERY_REGISTRY_H_
+#define SHAPEID_CORE_GALLERY_GALLERY_REGISTRY_H_
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "absl/base/thread_annotations.h"
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
+#include "core/gallery/gallery.h"
+#include "core/gallery/gallery_options.h"
+#include "core/gallery/gallery_store.h"
+
+namespace shapeid {
+
+// The galleries of one server, by name. All methods are thread-safe. Changes reach the
+// store before they are published; a store error fails the call and changes nothing.
+//
+// A Gallery returned by Create or Get stays usable after Delete (a stream in flight keeps
+// its pointer), but its later writes fail NotFound and never reach the store, even if a new
+// gallery of the same name is created meanwhile.
+class GalleryRegistry {
+ public:
+  // `store` null means NullGalleryStore (nothing persisted).
+  explicit GalleryRegistry(GalleryLimits limits = {}, std::shared_ptr<GalleryStore> store = {});
+
+  GalleryRegistry(const GalleryRegistry&) = delete;
+  GalleryRegistry& operator=(const GalleryRegistry&) = delete;
+
+  // Adds every gallery the store holds (call once, before serving). Errors: the store's;
+  // a stored gallery that no longer validates (prefixed with its name); AlreadyExists if a
+  // stored name is already registered. On error nothing is added.
+  absl::Status LoadFromStore();
+
+  // A new, empty gallery. InvalidArgument for a bad name (the message quotes the pattern),
+  // options or descriptor spec (the descriptor registry's message); AlreadyExists;
+  // ResourceExhausted at max_galleries; the store's error.
+  absl::StatusOr<std::shared_ptr<Gallery>> Create(absl::string_view name,
+                                                  const GalleryOptions& options);
+
+  // NotFound naming `name` (and no other gallery).
+  absl::StatusOr<std::shared_ptr<Gallery>> Get(absl::string_view name) const;
+
+  // Names, sorted.
+  std::vector<std::string> List() const;
+
+  // NotFound, or the store's error (gallery kept).
+  absl::Status Delete(absl::string_view name);
+
+  size_t size() const;
+  const GalleryLimits& limits() const { return limits_; }
+
+ private:
+  const GalleryLimits limits_;
+  const std::shared_ptr<GalleryStore> store_;
+
+  // std::mutex, not absl::Mutex: see Gallery. Held across store calls so that the store
+  // sees creates and deletes of one name in order; they are rare and cheap in memory.
+  mutable std::mutex mu_;
+  std::map<std::string, std::shared_ptr<Gallery>, std::less<>> galleries_ ABSL_GUARDED_BY(mu_);
+};
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_CORE_GALLERY_GALLERY_REGISTRY_H_

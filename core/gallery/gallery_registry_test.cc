@@ -1,0 +1,168 @@
+#include "core/gallery/gallery_registry.h"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/gallery/gallery_store.h"
+#include "core/gallery/gallery_test_shapes.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+
+namespace shapeid {
+namespace {
+
+using gallery_testing::Box;
+using gallery_testing::Sphere;
+using ::testing::AllOf;
+using ::testing::ElementsAre;
+using ::testing::HasSubstr;
+using ::testing::IsEmpty;
+using ::testing::Not;
+
+TEST(GalleryRegistryTest, CreateGetListDelete) {
+  GalleryRegistry registry;
+  EXPECT_THAT(registry.List(), IsEmpty());
+  GalleryOptions options;
+  options.knn.k = 3;
+  auto b = registry.Create("ycb", options);
+  ASSERT_TRUE(b.ok()) << b.status();
+  auto a = registry.Create("Modelnet10", {});
+  ASSERT_TRUE(a.ok()) << a.status();
+  EXPECT_THAT(registry.List(), ElementsAre("Modelnet10", "ycb"));  // sorted, byte order
+  EXPECT_EQ(registry.size(), 2u);
+
+  auto got = registry.Get("ycb");
+  ASSERT_TRUE(got.ok());
+  EXPECT_EQ(*got, *b);
+  EXPECT_EQ((*got)->Snapshot()->options().knn.k, 3);
+
+  ASSERT_TRUE(registry.Delete("ycb").ok());
+  EXPECT_THAT(registry.List(), ElementsAre("Modelnet10"));
+  EXPECT_EQ(registry.Get("ycb").status().code(), absl::StatusCode::kNotFound);
+  // The name is free again, for a new empty gallery.
+  auto again = registry.Create("ycb", {});
+  ASSERT_TRUE(again.ok());
+  EXPECT_NE(*again, *b);
+}
+
+TEST(GalleryRegistryTest, Errors) {
+  GalleryRegistry registry;
+  ASSERT_TRUE(registry.Create("a", {}).ok());
+
+  const absl::Status exists = registry.Create("a", {}).status();
+  EXPECT_EQ(exists.code(), absl::StatusCode::kAlreadyExists);
+  EXPECT_THAT(exists.message(), HasSubstr("'a'"));
+
+  const absl::Status bad_name = registry.Create("no/slash", {}).status();
+  EXPECT_EQ(bad_name.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(bad_name.message(), HasSubstr("[A-Za-z0-9][A-Za-z0-9_.-]{0,127}"));
+
+  GalleryOptions bad_spec;
+  bad_spec.descriptor_spec = "rphsd:nosuch=1";
+  const absl::Status spec = registry.Create("b", bad_spec).status();
+  EXPECT_EQ(spec.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(spec.message(), HasSubstr("nosuch"));
+
+  GalleryOptions bad_reject;
+  bad_reject.reject_distance = -1;
+  EXPECT_EQ(registry.Create("b", bad_reject).status().code(), absl::StatusCode::kInvalidArgument);
+
+  const absl::Status missing = registry.Get("zzz").status();
+  EXPECT_EQ(missing.code(), absl::StatusCode::kNotFound);
+  EXPECT_THAT(missing.message(), AllOf(HasSubstr("'zzz'"), Not(HasSubstr("'a'"))));
+  EXPECT_EQ(registry.Delete("zzz").code(), absl::StatusCode::kNotFound);
+  EXPECT_THAT(registry.List(), ElementsAre("a"));
+}
+
+TEST(GalleryRegistryTest, MaxGalleries) {
+  GalleryLimits limits;
+  limits.max_galleries = 2;
+  GalleryRegistry registry(limits);
+  ASSERT_TRUE(registry.Create("a", {}).ok());
+  ASSERT_TRUE(registry.Create("b", {}).ok());
+  const absl::Status full = registry.Create("c", {}).status();
+  EXPECT_EQ(full.code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_THAT(full.message(), AllOf(HasSubstr("2 galleries exist"), HasSubstr("is 2")));
+  ASSERT_TRUE(registry.Delete("a").ok());
+  EXPECT_TRUE(registry.Create("c", {}).ok());
+}
+
+TEST(GalleryRegistryTest, StoreSeesChangesBeforeTheyArePublished) {
+  auto store = std::make_shared<InMemoryGalleryStore>();
+  GalleryRegistry registry({}, store);
+
+  store->SetFailure(absl::UnavailableError("store down"));
+  EXPECT_EQ(registry.Create("a", {}).status(), absl::UnavailableError("store down"));
+  EXPECT_THAT(registry.List(), IsEmpty());
+
+  store->SetFailure(absl::OkStatus());
+  auto a = registry.Create("a", {});
+  ASSERT_TRUE(a.ok());
+  EXPECT_EQ(store->NumSamples("a"), 0);
+  ASSERT_TRUE((*a)->Train({{0, "box", Box(1)}, {0, "sphere", Sphere(1)}}).ok());
+  EXPECT_EQ(store->NumSamples("a"), 2);
+
+  store->SetFailure(absl::UnavailableError("store down"));
+  EXPECT_EQ(registry.Delete("a"), absl::UnavailableError("store down"));
+  EXPECT_THAT(registry.List(), ElementsAre("a"));
+  store->SetFailure(absl::OkStatus());
+  EXPECT_TRUE((*a)->Train({{0, "box", Box(2)}}).ok());  // still writable
+  ASSERT_TRUE(registry.Delete("a").ok());
+  EXPECT_EQ(store->NumSamples("a"), -1);
+}
+
+TEST(GalleryRegistryTest, DeletedGalleryNeverWritesToItsSuccessor) {
+  auto store = std::make_shared<InMemoryGalleryStore>();
+  GalleryRegistry registry({}, store);
+  auto old = registry.Create("g", {});
+  ASSERT_TRUE(old.ok());
+  TrainBatch in_flight = (*old)->NewBatch();  // a stream that outlives the delete
+  ASSERT_TRUE(in_flight.AddSample(0, "box", Box(1)).ok());
+  ASSERT_TRUE(registry.Delete("g").ok());
+  auto fresh = registry.Create("g", {});
+  ASSERT_TRUE(fresh.ok());
+
+  const auto late = in_flight.Commit();
+  EXPECT_EQ(late.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_THAT(late.status().message(), HasSubstr("was deleted"));
+  EXPECT_EQ((*old)->RemoveLabel("box").status().code(), absl::StatusCode::kNotFound);
+  EXPECT_EQ((*fresh)->Snapshot()->num_samples(), 0);
+  EXPECT_EQ(store->NumSamples("g"), 0);
+  // Readers holding the old gallery still read it.
+  EXPECT_EQ((*old)->Snapshot()->name(), "g");
+}
+
+TEST(GalleryRegistryTest, LoadFromStoreRestoresEveryGallery) {
+  auto store = std::make_shared<InMemoryGalleryStore>();
+  {
+    GalleryRegistry first({}, store);
+    GalleryOptions options;
+    options.descriptor_spec = "rphsd:bins=30";
+    auto a = first.Create("a", options);
+    ASSERT_TRUE(a.ok());
+    ASSERT_TRUE((*a)->Train({{5, "box", Box(1)}, {0, "sphere", Sphere(1)}}).ok());
+    ASSERT_TRUE(first.Create("b", {}).ok());
+  }
+  GalleryRegistry second({}, store);
+  ASSERT_TRUE(second.LoadFromStore().ok());
+  EXPECT_THAT(second.List(), ElementsAre("a", "b"));
+  auto a = second.Get("a");
+  ASSERT_TRUE(a.ok());
+  auto snap = (*a)->Snapshot();
+  EXPECT_EQ(snap->num_samples(), 2);
+  EXPECT_THAT(snap->options().descriptor_spec, HasSubstr("bins=30"));
+  EXPECT_EQ(snap->Classify(Sphere(7))->label, "sphere");
+  // Writes go on reaching the store.
+  auto more = (*a)->Train({{0, "box", Box(3)}});
+  ASSERT_TRUE(more.ok());
+  EXPECT_THAT(more->ids, ElementsAre(kFirstAssignedId + 1));
+  EXPECT_EQ(store->NumSamples("a"), 3);
+
+  // Loading twice clashes and adds nothing.
+  EXPECT_EQ(second.LoadFromStore().code(), absl::StatusCode::kAlreadyExists);
+  EXPECT_EQ(second.size(), 2u);
+}
+
+}  // namespace
+}  // namespace shapeid

@@ -1,0 +1,113 @@
+#ifndef SHAPEID_CORE_GALLERY_GALLERY_SNAPSHOT_H_
+#define SHAPEID_CORE_GALLERY_GALLERY_SNAPSHOT_H_
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "absl/time/time.h"
+#include "absl/types/span.h"
+#include "core/descriptor.h"
+#include "core/gallery/gallery_options.h"
+#include "core/knn/knn_index.h"
+#include "core/point_cloud.h"
+
+namespace shapeid {
+
+// The answer to one classification.
+struct GalleryClassification {
+  // The answer: knn.label, or kUnknownLabel when the query was rejected.
+  std::string label;
+  // knn.confidence (the winner's vote share), or 0 when rejected.
+  double confidence = 0.0;
+  // True when the nearest neighbour was farther than the gallery's reject_distance.
+  bool unknown = false;
+  // The raw kNN result, reported even when rejected (which class was nearest, how far).
+  KnnResult knn;
+  // Server-side time spent computing the descriptor and searching the index.
+  absl::Duration describe_time;
+  absl::Duration search_time;
+};
+
+// One immutable state of a gallery: what readers hold while writers publish the next one
+// (Gallery::Snapshot). Every method is const and thread-safe; a snapshot never changes, so a
+// reader that holds one sees the same samples for as long as it holds it.
+class GallerySnapshot {
+ public:
+  const std::string& name() const { return name_; }
+  // Canonical: descriptor_spec as the registry spells it, every parameter present.
+  const GalleryOptions& options() const { return options_; }
+  const Descriptor& descriptor() const { return *descriptor_; }
+  const std::shared_ptr<const Descriptor>& shared_descriptor() const { return descriptor_; }
+  const KnnIndex& index() const { return index_; }
+
+  int64_t num_samples() const { return index_.size(); }
+  bool empty() const { return index_.empty(); }
+  bool Contains(uint64_t id) const { return index_.Contains(id); }
+  // Sample ids per label, each in training order; labels sorted (byte order).
+  const std::map<std::string, std::vector<uint64_t>, std::less<>>& ids_by_label() const {
+    return ids_by_label_;
+  }
+  // Samples per label, labels sorted.
+  std::map<std::string, int64_t> LabelCounts() const;
+
+  absl::Time created() const { return created_; }
+  // Time of the last published change; created() for a new gallery.
+  absl::Time updated() const { return updated_; }
+  // Published changes since the gallery was created (or loaded from its store): 0 for a
+  // new gallery, +1 per committed batch or removal. Lets a client or cache tell snapshots
+  // apart.
+  uint64_t version() const { return version_; }
+  // The id the next id-0 sample will get (see kFirstAssignedId in gallery.h).
+  uint64_t next_assigned_id() const { return next_assigned_id_; }
+
+  // The gallery's descriptor of `cloud`. Cloud errors are the descriptor's, unchanged
+  // (InvalidArgument naming the bad point, ResourceExhausted over `limits`).
+  absl::StatusOr<std::vector<float>> Describe(const PointCloud& cloud,
+                                              const CloudLimits& limits = {}) const;
+
+  // Describes `cloud` and classifies it. FailedPrecondition (naming the gallery) when the
+  // gallery has no samples, checked before any work; cloud errors as in Describe.
+  absl::StatusOr<GalleryClassification> Classify(const PointCloud& cloud,
+                                                 const CloudLimits& limits = {}) const;
+  // The same for a descriptor computed elsewhere (describe_time is zero). InvalidArgument
+  // for a wrong dimension or non-finite feature.
+  absl::StatusOr<GalleryClassification> ClassifyFeatures(absl::Span<const float> features) const;
+
+ private:
+  friend class Gallery;
+
+  GallerySnapshot(std::string name, GalleryOptions options,
+                  std::shared_ptr<const Descriptor> descriptor, KnnIndex index, absl::Time created)
+      : name_(std::move(name)),
+        options_(std::move(options)),
+        descriptor_(std::move(descriptor)),
+        index_(std::move(index)),
+        created_(created),
+        updated_(created) {}
+  // Writers build the next snapshot from a copy of the current one; nobody else copies.
+  GallerySnapshot(const GallerySnapshot&) = default;
+  GallerySnapshot& operator=(const GallerySnapshot&) = delete;
+
+  // Applies the reject rule to a kNN result.
+  GalleryClassification Answer(KnnResult knn) const;
+
+  std::string name_;
+  GalleryOptions options_;
+  std::shared_ptr<const Descriptor> descriptor_;
+  KnnIndex index_;
+  std::map<std::string, std::vector<uint64_t>, std::less<>> ids_by_label_;
+  absl::Time created_;
+  absl::Time updated_;
+  uint64_t version_ = 0;
+  uint64_t next_assigned_id_ = uint64_t{1} << 63;  // kFirstAssignedId
+};
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_CORE_GALLERY_GALLERY_SNAPSHOT_H_

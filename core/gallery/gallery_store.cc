@@ -1,0 +1,84 @@
+#include "core/gallery/gallery_store.h"
+
+#include <algorithm>
+#include <utility>
+
+#include "absl/container/flat_hash_set.h"
+#include "absl/strings/str_cat.h"
+
+namespace shapeid {
+
+namespace {
+
+absl::Status NotStored(absl::string_view name) {
+  return absl::InternalError(absl::StrCat("store holds no gallery '", name, "'"));
+}
+
+}  // namespace
+
+absl::Status InMemoryGalleryStore::SaveGallery(absl::string_view name,
+                                               const GalleryOptions& options, absl::Time created) {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (!failure_.ok()) return failure_;
+  StoredGallery& g = galleries_[std::string(name)];
+  g = StoredGallery{std::string(name), options, created, created, {}};
+  return absl::OkStatus();
+}
+
+absl::Status InMemoryGalleryStore::DeleteGallery(absl::string_view name) {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (!failure_.ok()) return failure_;
+  auto it = galleries_.find(name);
+  if (it == galleries_.end()) return NotStored(name);
+  galleries_.erase(it);
+  return absl::OkStatus();
+}
+
+absl::Status InMemoryGalleryStore::AppendSamples(absl::string_view name,
+                                                 absl::Span<const StoredSample> batch,
+                                                 absl::Time updated) {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (!failure_.ok()) return failure_;
+  auto it = galleries_.find(name);
+  if (it == galleries_.end()) return NotStored(name);
+  it->second.samples.insert(it->second.samples.end(), batch.begin(), batch.end());
+  it->second.updated = updated;
+  return absl::OkStatus();
+}
+
+absl::Status InMemoryGalleryStore::RemoveSamples(absl::string_view name,
+                                                 absl::Span<const uint64_t> ids,
+                                                 absl::Time updated) {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (!failure_.ok()) return failure_;
+  auto it = galleries_.find(name);
+  if (it == galleries_.end()) return NotStored(name);
+  const absl::flat_hash_set<uint64_t> gone(ids.begin(), ids.end());
+  auto& samples = it->second.samples;
+  samples.erase(std::remove_if(samples.begin(), samples.end(),
+                               [&](const StoredSample& s) { return gone.contains(s.id); }),
+                samples.end());
+  it->second.updated = updated;
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::vector<StoredGallery>> InMemoryGalleryStore::LoadAll() {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (!failure_.ok()) return failure_;
+  std::vector<StoredGallery> all;
+  for (const auto& [name, g] : galleries_) all.push_back(g);
+  return all;
+}
+
+void InMemoryGalleryStore::SetFailure(absl::Status status) {
+  std::lock_guard<std::mutex> lock(mu_);
+  failure_ = std::move(status);
+}
+
+int64_t InMemoryGalleryStore::NumSamples(absl::string_view name) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = galleries_.find(name);
+  return it == galleries_.end() ? -1 : static_cast<int64_t>(it->second.samples.size());
+}
+
+}  // namespace shapeid

@@ -1,0 +1,108 @@
+#ifndef SHAPEID_CORE_GALLERY_GALLERY_STORE_H_
+#define SHAPEID_CORE_GALLERY_GALLERY_STORE_H_
+
+#include <cstdint>
+#include <map>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "absl/base/thread_annotations.h"
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
+#include "absl/time/time.h"
+#include "absl/types/span.h"
+#include "core/gallery/gallery_options.h"
+
+namespace shapeid {
+
+// One trained sample as a store keeps it: the descriptor, not the cloud (clouds are large
+// and the descriptor is all a gallery needs; re-describing after a spec change is not a
+// goal, since a gallery's spec never changes).
+struct StoredSample {
+  uint64_t id = 0;
+  std::string label;
+  std::vector<float> features;
+};
+
+struct StoredGallery {
+  std::string name;
+  GalleryOptions options;  // canonical
+  absl::Time created;
+  absl::Time updated;
+  std::vector<StoredSample> samples;  // in training order (the kNN tie-break order)
+};
+
+// Where galleries persist. The registry and the galleries call it BEFORE they publish a
+// change, and a store error fails the operation with nothing published; so with a durable
+// store, "the call returned OK" means "the change survives a restart".
+//
+// Calls for one gallery arrive serialised, in the order the changes are published (galleries
+// call under their writer lock); calls for different galleries may run concurrently, so an
+// implementation must be thread-safe. Errors should be Unavailable / Internal / DataLoss with
+// a message naming the gallery; they reach the client as they are.
+class GalleryStore {
+ public:
+  virtual ~GalleryStore() = default;
+
+  // A new, empty gallery. Called once per name between DeleteGallery calls.
+  virtual absl::Status SaveGallery(absl::string_view name, const GalleryOptions& options,
+                                   absl::Time created) = 0;
+  virtual absl::Status DeleteGallery(absl::string_view name) = 0;
+  // One committed training batch, all or nothing; ids are final (assigned ones filled in).
+  virtual absl::Status AppendSamples(absl::string_view name, absl::Span<const StoredSample> batch,
+                                     absl::Time updated) = 0;
+  // Every id is present in the gallery; no duplicates.
+  virtual absl::Status RemoveSamples(absl::string_view name, absl::Span<const uint64_t> ids,
+                                     absl::Time updated) = 0;
+  // Everything saved, for GalleryRegistry::LoadFromStore at start-up.
+  virtual absl::StatusOr<std::vector<StoredGallery>> LoadAll() = 0;
+};
+
+// Persists nothing: the server's store until persistence lands (a later issue).
+class NullGalleryStore final : public GalleryStore {
+ public:
+  absl::Status SaveGallery(absl::string_view, const GalleryOptions&, absl::Time) override {
+    return absl::OkStatus();
+  }
+  absl::Status DeleteGallery(absl::string_view) override { return absl::OkStatus(); }
+  absl::Status AppendSamples(absl::string_view, absl::Span<const StoredSample>,
+                             absl::Time) override {
+    return absl::OkStatus();
+  }
+  absl::Status RemoveSamples(absl::string_view, absl::Span<const uint64_t>, absl::Time) override {
+    return absl::OkStatus();
+  }
+  absl::StatusOr<std::vector<StoredGallery>> LoadAll() override {
+    return std::vector<StoredGallery>{};
+  }
+};
+
+// Keeps a copy of everything in memory, for tests: it lets them check what a durable store
+// would have received, restore a registry from it, and inject failures.
+class InMemoryGalleryStore final : public GalleryStore {
+ public:
+  absl::Status SaveGallery(absl::string_view name, const GalleryOptions& options,
+                           absl::Time created) override;
+  absl::Status DeleteGallery(absl::string_view name) override;
+  absl::Status AppendSamples(absl::string_view name, absl::Span<const StoredSample> batch,
+                             absl::Time updated) override;
+  absl::Status RemoveSamples(absl::string_view name, absl::Span<const uint64_t> ids,
+                             absl::Time updated) override;
+  absl::StatusOr<std::vector<StoredGallery>> LoadAll() override;
+
+  // Every later call fails with `status` (until called again with OkStatus()).
+  void SetFailure(absl::Status status);
+  // Samples stored for `name`; -1 if the gallery is not stored.
+  int64_t NumSamples(absl::string_view name) const;
+
+ private:
+  mutable std::mutex mu_;
+  absl::Status failure_ ABSL_GUARDED_BY(mu_);
+  std::map<std::string, StoredGallery, std::less<>> galleries_ ABSL_GUARDED_BY(mu_);
+};
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_CORE_GALLERY_GALLERY_STORE_H_

@@ -1,0 +1,493 @@
+#include "core/gallery/gallery.h"
+
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+#include "core/descriptor_registry.h"
+#include "core/gallery/gallery_store.h"
+#include "core/gallery/gallery_test_shapes.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+
+namespace shapeid {
+namespace {
+
+using gallery_testing::Box;
+using gallery_testing::BoxWithNaN;
+using gallery_testing::Line;
+using gallery_testing::Sphere;
+using ::testing::AllOf;
+using ::testing::ElementsAre;
+using ::testing::HasSubstr;
+using ::testing::Pair;
+
+std::shared_ptr<Gallery> MakeGallery(GalleryOptions options = {}, GalleryLimits limits = {},
+                                     std::shared_ptr<GalleryStore> store = nullptr) {
+  absl::StatusOr<std::shared_ptr<Gallery>> g =
+      Gallery::Create("shapes", options, limits, std::move(store));
+  EXPECT_TRUE(g.ok()) << g.status();
+  return *g;
+}
+
+// Three boxes (ids 1-3), three spheres (4-6), three lines (7-9), seeds 1-3.
+std::vector<LabelledCloud> ThreeShapes() {
+  std::vector<LabelledCloud> samples;
+  uint64_t id = 1;
+  for (uint32_t seed = 1; seed <= 3; ++seed) samples.push_back({id++, "box", Box(seed)});
+  for (uint32_t seed = 1; seed <= 3; ++seed) samples.push_back({id++, "sphere", Sphere(seed)});
+  for (uint32_t seed = 1; seed <= 3; ++seed) samples.push_back({id++, "line", Line(seed)});
+  return samples;
+}
+
+TEST(GalleryTest, CreateCanonicalisesTheSpec) {
+  auto g = MakeGallery();
+  auto snap = g->Snapshot();
+  auto expected = CreateDescriptor("rphsd");
+  ASSERT_TRUE(expected.ok());
+  EXPECT_EQ(snap->options().descriptor_spec, (*expected)->spec().ToString());
+  EXPECT_NE(snap->options().descriptor_spec, "rphsd");  // parameters filled in
+  EXPECT_EQ(snap->index().dimension(), static_cast<int>((*expected)->dimension()));
+  EXPECT_EQ(snap->name(), "shapes");
+  EXPECT_EQ(snap->version(), 0u);
+  EXPECT_EQ(snap->num_samples(), 0);
+  EXPECT_EQ(snap->created(), snap->updated());
+}
+
+TEST(GalleryTest, CreateRejectsBadSpecWithTheRegistrysMessage) {
+  GalleryOptions options;
+  options.descriptor_spec = "nosuch:x=1";
+  auto g = Gallery::Create("g", options, {}, nullptr);
+  ASSERT_EQ(g.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(g.status(), CreateDescriptor("nosuch:x=1").status());
+
+  options.descriptor_spec = "rphsd:bins=-3";
+  g = Gallery::Create("g", options, {}, nullptr);
+  EXPECT_EQ(g.status(), CreateDescriptor("rphsd:bins=-3").status());
+
+  options = {};
+  options.knn.k = 0;
+  EXPECT_EQ(Gallery::Create("g", options, {}, nullptr).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(Gallery::Create("bad name", {}, {}, nullptr).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+TEST(GalleryTest, TrainPublishesOneSnapshotPerBatch) {
+  auto g = MakeGallery();
+  auto result = g->Train(ThreeShapes());
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_THAT(result->ids, ElementsAre(1, 2, 3, 4, 5, 6, 7, 8, 9));
+  EXPECT_EQ(result->version, 1u);
+  auto snap = g->Snapshot();
+  EXPECT_EQ(snap->num_samples(), 9);
+  EXPECT_EQ(snap->version(), 1u);
+  EXPECT_GE(snap->updated(), snap->created());
+  EXPECT_THAT(snap->LabelCounts(), ElementsAre(Pair("box", 3), Pair("line", 3), Pair("sphere", 3)));
+  EXPECT_THAT(snap->ids_by_label().at("sphere"), ElementsAre(4, 5, 6));
+}
+
+TEST(GalleryTest, ClassifyGivesNeighboursVotesAndConfidence) {
+  GalleryOptions options;
+  options.knn.k = 5;
+  auto g = MakeGallery(options);
+  ASSERT_TRUE(g->Train(ThreeShapes()).ok());
+  auto snap = g->Snapshot();
+
+  const PointCloud query = Sphere(42);
+  auto answer = snap->Classify(query);
+  ASSERT_TRUE(answer.ok()) << answer.status();
+  EXPECT_EQ(answer->label, "sphere");
+  EXPECT_FALSE(answer->unknown);
+  // The three spheres are the three nearest; two others fill k = 5.
+  ASSERT_EQ(answer->knn.neighbors.size(), 5u);
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(answer->knn.neighbors[i].label, "sphere");
+  for (int i = 3; i < 5; ++i) EXPECT_NE(answer->knn.neighbors[i].label, "sphere");
+  EXPECT_DOUBLE_EQ(answer->confidence, 3.0 / 5.0);
+  EXPECT_EQ(answer->confidence, answer->knn.confidence);
+  ASSERT_FALSE(answer->knn.votes.empty());
+  EXPECT_EQ(answer->knn.votes[0].label, "sphere");
+  EXPECT_EQ(answer->knn.votes[0].weight, 3.0);
+  double total = 0;
+  for (const ClassVote& v : answer->knn.votes) total += v.weight;
+  EXPECT_EQ(total, 5.0);
+
+  // Distances are Euclidean between the descriptors (no scaling by default).
+  auto q = snap->Describe(query);
+  ASSERT_TRUE(q.ok());
+  const Neighbor& nearest = answer->knn.neighbors[0];
+  auto clouds = ThreeShapes();
+  auto x = snap->Describe(clouds[nearest.id - 1].cloud);
+  ASSERT_TRUE(x.ok());
+  double sum = 0;
+  for (size_t j = 0; j < q->size(); ++j) sum += std::pow((*q)[j] - (*x)[j], 2);
+  EXPECT_NEAR(nearest.distance, std::sqrt(sum), 1e-4 * (1 + std::sqrt(sum)));
+  EXPECT_GE(answer->describe_time, absl::ZeroDuration());
+  EXPECT_GE(answer->search_time, absl::ZeroDuration());
+
+  // Each shape is recognised.
+  EXPECT_EQ(snap->Classify(Box(77))->label, "box");
+  EXPECT_EQ(snap->Classify(Line(77))->label, "line");
+}
+
+TEST(GalleryTest, ClassifyFeaturesMatchesClassify) {
+  auto g = MakeGallery();
+  ASSERT_TRUE(g->Train(ThreeShapes()).ok());
+  auto snap = g->Snapshot();
+  auto features = snap->Describe(Line(5));
+  ASSERT_TRUE(features.ok());
+  auto a = snap->ClassifyFeatures(*features);
+  auto b = snap->Classify(Line(5));
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_EQ(a->label, b->label);
+  EXPECT_EQ(a->knn.neighbors[0].id, b->knn.neighbors[0].id);
+  EXPECT_EQ(a->describe_time, absl::ZeroDuration());
+  EXPECT_EQ(snap->ClassifyFeatures(std::vector<float>(3, 0.f)).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+TEST(GalleryTest, RejectDistanceAnswersUnknown) {
+  // Nearest distance of a sphere query, measured in a gallery without rejection.
+  auto plain = MakeGallery();
+  ASSERT_TRUE(plain->Train(ThreeShapes()).ok());
+  auto measured = plain->Snapshot()->Classify(Sphere(42));
+  ASSERT_TRUE(measured.ok());
+  const double d = measured->knn.neighbors[0].distance;
+  ASSERT_GT(d, 0);
+
+  GalleryOptions options;
+  options.reject_distance = d / 2;
+  auto strict = MakeGallery(options);
+  ASSERT_TRUE(strict->Train(ThreeShapes()).ok());
+  auto rejected = strict->Snapshot()->Classify(Sphere(42));
+  ASSERT_TRUE(rejected.ok());
+  EXPECT_TRUE(rejected->unknown);
+  EXPECT_EQ(rejected->label, "unknown");
+  EXPECT_EQ(rejected->confidence, 0.0);
+  EXPECT_EQ(rejected->knn.label, "sphere");  // the raw result is kept
+  EXPECT_EQ(rejected->knn.neighbors[0].distance, d);
+
+  options.reject_distance = d * 2;
+  auto lenient = MakeGallery(options);
+  ASSERT_TRUE(lenient->Train(ThreeShapes()).ok());
+  auto accepted = lenient->Snapshot()->Classify(Sphere(42));
+  ASSERT_TRUE(accepted.ok());
+  EXPECT_FALSE(accepted->unknown);
+  EXPECT_EQ(accepted->label, "sphere");
+}
+
+TEST(GalleryTest, ClassifyOnEmptyGalleryIsFailedPrecondition) {
+  auto g = MakeGallery();
+  auto answer = g->Snapshot()->Classify(Box(1));
+  EXPECT_EQ(answer.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(answer.status().message(), HasSubstr("'shapes'"));
+}
+
+TEST(GalleryTest, ClassifyPassesCloudErrorsThrough) {
+  auto g = MakeGallery();
+  ASSERT_TRUE(g->Train(ThreeShapes()).ok());
+  auto snap = g->Snapshot();
+  const PointCloud bad = BoxWithNaN(1, 17);
+  EXPECT_EQ(snap->Classify(bad).status(), snap->descriptor().Compute(bad).status());
+  EXPECT_THAT(snap->Classify(bad).status().message(), HasSubstr("point 17"));
+  auto big = snap->Classify(Box(1), CloudLimits{100});
+  EXPECT_EQ(big.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_THAT(big.status().message(), AllOf(HasSubstr("256"), HasSubstr("100")));
+}
+
+TEST(GalleryTest, BatchWithBadSampleFailsWholeAndNamesSampleAndPoint) {
+  auto g = MakeGallery();
+  ASSERT_TRUE(g->Train({{1, "box", Box(1)}}).ok());
+  const auto before = g->Snapshot();
+
+  TrainBatch batch = g->NewBatch();
+  ASSERT_TRUE(batch.AddSample(10, "box", Box(2)).ok());
+  ASSERT_TRUE(batch.AddSample(11, "sphere", Sphere(2)).ok());
+  const absl::Status bad = batch.AddSample(12, "box", BoxWithNaN(3, 41));
+  EXPECT_EQ(bad.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(bad.message(), AllOf(HasSubstr("sample 2"), HasSubstr("point 41")));
+  // Poisoned: a later good sample and the commit report the first error.
+  EXPECT_EQ(batch.AddSample(13, "line", Line(1)), bad);
+  EXPECT_EQ(batch.Commit().status(), bad);
+
+  EXPECT_EQ(g->Snapshot(), before);
+  EXPECT_EQ(g->Snapshot()->num_samples(), 1);
+  EXPECT_FALSE(g->Snapshot()->Contains(10));
+
+  // Train() stops at the same sample.
+  auto train = g->Train({{20, "box", Box(2)}, {21, "box", Box(4)}, {22, "box", BoxWithNaN(5, 0)}});
+  EXPECT_THAT(train.status().message(), AllOf(HasSubstr("sample 2"), HasSubstr("point 0")));
+  EXPECT_EQ(g->Snapshot(), before);
+}
+
+TEST(GalleryTest, BadLabelsAndCloudsFailAtTheirSample) {
+  auto g = MakeGallery();
+  TrainBatch batch = g->NewBatch();
+  EXPECT_THAT(batch.AddSample(0, "unknown", Box(1)).message(),
+              AllOf(HasSubstr("sample 0"), HasSubstr("reserved")));
+  TrainBatch b2 = g->NewBatch();
+  ASSERT_TRUE(b2.AddSample(0, "box", Box(1)).ok());
+  EXPECT_THAT(b2.AddSample(0, "", Box(1)).message(), HasSubstr("sample 1: label is empty"));
+  TrainBatch b3 = g->NewBatch();
+  const absl::Status few = b3.AddSample(0, "box", PointCloud({{0, 0, 0}, {1, 1, 1}}));
+  EXPECT_EQ(few.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(few.message(), HasSubstr("at least 3"));
+  EXPECT_EQ(g->Snapshot()->num_samples(), 0);
+}
+
+TEST(GalleryTest, DroppedBatchLeavesNoTrace) {
+  auto store = std::make_shared<InMemoryGalleryStore>();
+  ASSERT_TRUE(store->SaveGallery("shapes", {}, absl::Now()).ok());
+  auto g = MakeGallery({}, {}, store);
+  const auto before = g->Snapshot();
+  {
+    TrainBatch batch = g->NewBatch();
+    ASSERT_TRUE(batch.AddSample(5, "box", Box(1)).ok());
+    ASSERT_TRUE(batch.AddSample(0, "box", Box(2)).ok());
+  }
+  EXPECT_EQ(g->Snapshot(), before);
+  EXPECT_EQ(store->NumSamples("shapes"), 0);
+  // The dropped batch reserved nothing: id 5 is free and assignment starts afresh.
+  auto result = g->Train({{5, "box", Box(1)}, {0, "box", Box(2)}});
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_THAT(result->ids, ElementsAre(5, kFirstAssignedId));
+}
+
+TEST(GalleryTest, DuplicateIdsFailTheBatch) {
+  auto g = MakeGallery();
+  ASSERT_TRUE(g->Train({{7, "box", Box(1)}}).ok());
+
+  auto in_gallery = g->Train({{8, "box", Box(2)}, {7, "sphere", Sphere(1)}});
+  EXPECT_EQ(in_gallery.status().code(), absl::StatusCode::kAlreadyExists);
+  EXPECT_THAT(in_gallery.status().message(),
+              AllOf(HasSubstr("sample 1"), HasSubstr("id 7"), HasSubstr("'shapes'")));
+
+  auto in_batch = g->Train({{9, "box", Box(2)}, {9, "sphere", Sphere(1)}});
+  EXPECT_EQ(in_batch.status().code(), absl::StatusCode::kAlreadyExists);
+  EXPECT_THAT(in_batch.status().message(), AllOf(HasSubstr("id 9"), HasSubstr("twice")));
+  EXPECT_EQ(g->Snapshot()->num_samples(), 1);
+
+  // Two open batches claim id 20: the first to commit wins, the other fails whole.
+  TrainBatch a = g->NewBatch();
+  TrainBatch b = g->NewBatch();
+  ASSERT_TRUE(a.AddSample(20, "box", Box(3)).ok());
+  ASSERT_TRUE(b.AddSample(21, "box", Box(4)).ok());
+  ASSERT_TRUE(b.AddSample(20, "sphere", Sphere(4)).ok());
+  ASSERT_TRUE(a.Commit().ok());
+  auto late = b.Commit();
+  EXPECT_EQ(late.status().code(), absl::StatusCode::kAlreadyExists);
+  EXPECT_THAT(late.status().message(), HasSubstr("sample 1: sample id 20"));
+  EXPECT_FALSE(g->Snapshot()->Contains(21));
+  EXPECT_EQ(b.Commit().status().code(), absl::StatusCode::kFailedPrecondition);  // spent
+}
+
+TEST(GalleryTest, AssignedIdsNeverCollideAndAreNotReused) {
+  constexpr uint64_t kA = kFirstAssignedId;
+  auto g = MakeGallery();
+  auto r1 = g->Train({{0, "box", Box(1)}, {0, "box", Box(2)}});
+  ASSERT_TRUE(r1.ok());
+  EXPECT_THAT(r1->ids, ElementsAre(kA, kA + 1));
+  auto r2 = g->Train({{0, "box", Box(3)}, {100, "sphere", Sphere(1)}, {0, "line", Line(1)}});
+  ASSERT_TRUE(r2.ok());
+  EXPECT_THAT(r2->ids, ElementsAre(kA + 2, 100, kA + 3));
+  ASSERT_TRUE(g->RemoveSamples({kA + 2, kA + 3}).ok());
+  auto r3 = g->Train({{0, "box", Box(4)}});
+  ASSERT_TRUE(r3.ok());
+  EXPECT_THAT(r3->ids, ElementsAre(kA + 4));  // removed ids are not handed out again
+  EXPECT_EQ(g->Snapshot()->next_assigned_id(), kA + 5);
+  // The largest client id is accepted; assigned-range ids are refused, naming the range.
+  EXPECT_TRUE(g->Train({{kA - 1, "box", Box(5)}}).ok());
+  for (uint64_t reserved : {kA, kA + 77, UINT64_MAX}) {
+    auto r = g->Train({{reserved, "box", Box(6)}});
+    EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_THAT(r.status().message(), AllOf(HasSubstr("sample 0"), HasSubstr("reserved"),
+                                            HasSubstr("9223372036854775807")));
+  }
+}
+
+TEST(GalleryTest, RemoveByIdAndByLabel) {
+  auto store = std::make_shared<InMemoryGalleryStore>();
+  ASSERT_TRUE(store->SaveGallery("shapes", {}, absl::Now()).ok());
+  auto g = MakeGallery({}, {}, store);
+  ASSERT_TRUE(g->Train(ThreeShapes()).ok());
+  EXPECT_EQ(store->NumSamples("shapes"), 9);
+
+  auto removed = g->RemoveSamples({1, 4, 4});  // duplicates ignored
+  ASSERT_TRUE(removed.ok());
+  EXPECT_EQ(*removed, 2);
+  EXPECT_EQ(g->Snapshot()->version(), 2u);
+  EXPECT_THAT(g->Snapshot()->LabelCounts(),
+              ElementsAre(Pair("box", 2), Pair("line", 3), Pair("sphere", 2)));
+
+  const auto before = g->Snapshot();
+  auto missing = g->RemoveSamples({2, 999});
+  EXPECT_EQ(missing.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_THAT(missing.status().message(), HasSubstr("999"));
+  EXPECT_EQ(g->Snapshot(), before);  // nothing removed, not even id 2
+
+  auto by_label = g->RemoveLabel("line");
+  ASSERT_TRUE(by_label.ok());
+  EXPECT_EQ(*by_label, 3);
+  EXPECT_THAT(g->Snapshot()->LabelCounts(), ElementsAre(Pair("box", 2), Pair("sphere", 2)));
+  EXPECT_FALSE(g->Snapshot()->Contains(7));
+  EXPECT_EQ(store->NumSamples("shapes"), 4);
+  EXPECT_EQ(g->RemoveLabel("line").status().code(), absl::StatusCode::kNotFound);
+  EXPECT_EQ(g->Snapshot()->Classify(Line(9))->knn.neighbors[0].label != "line", true);
+
+  auto none = g->RemoveSamples({});
+  ASSERT_TRUE(none.ok());
+  EXPECT_EQ(*none, 0);
+}
+
+TEST(GalleryTest, SnapshotsAreImmutable) {
+  auto g = MakeGallery();
+  ASSERT_TRUE(g->Train({{1, "box", Box(1)}}).ok());
+  const std::shared_ptr<const GallerySnapshot> old = g->Snapshot();
+  ASSERT_TRUE(g->Train({{2, "sphere", Sphere(1)}}).ok());
+  ASSERT_TRUE(g->RemoveSamples({1}).ok());
+  EXPECT_EQ(old->num_samples(), 1);
+  EXPECT_TRUE(old->Contains(1));
+  EXPECT_EQ(old->version(), 1u);
+  EXPECT_EQ(old->Classify(Sphere(9))->label, "box");  // the only sample it knows
+  EXPECT_EQ(g->Snapshot()->Classify(Sphere(9))->label, "sphere");
+  EXPECT_EQ(g->Snapshot()->version(), 3u);
+}
+
+TEST(GalleryTest, LimitsAreResourceExhaustedWithTheNumbers) {
+  GalleryLimits limits;
+  limits.max_points_per_cloud = 200;
+  limits.max_samples_per_gallery = 3;
+  auto g = MakeGallery({}, limits);
+  TrainBatch big = g->NewBatch();
+  const absl::Status too_many_points = big.AddSample(0, "box", Box(1));  // 256 points
+  EXPECT_EQ(too_many_points.code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_THAT(too_many_points.message(),
+              AllOf(HasSubstr("sample 0"), HasSubstr("256"), HasSubstr("200")));
+
+  limits.max_points_per_cloud = 1000;
+  g = MakeGallery({}, limits);
+  ASSERT_TRUE(g->Train({{0, "box", Box(1)}, {0, "box", Box(2)}}).ok());
+  auto over = g->Train({{0, "box", Box(3)}, {0, "box", Box(4)}});
+  EXPECT_EQ(over.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_THAT(over.status().message(),
+              AllOf(HasSubstr("holds 2"), HasSubstr("adding 2"), HasSubstr("= 3")));
+  TrainBatch huge = g->NewBatch();
+  for (uint32_t i = 0; i < 3; ++i) ASSERT_TRUE(huge.AddSample(0, "box", Box(i)).ok());
+  EXPECT_EQ(huge.AddSample(0, "box", Box(9)).code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_EQ(g->Snapshot()->num_samples(), 2);
+}
+
+TEST(GalleryTest, StoreFailurePublishesNothing) {
+  auto store = std::make_shared<InMemoryGalleryStore>();
+  ASSERT_TRUE(store->SaveGallery("shapes", {}, absl::Now()).ok());
+  auto g = MakeGallery({}, {}, store);
+  ASSERT_TRUE(g->Train({{0, "box", Box(1)}, {0, "sphere", Sphere(1)}}).ok());
+  const auto before = g->Snapshot();
+
+  store->SetFailure(absl::UnavailableError("disk full"));
+  auto train = g->Train({{0, "line", Line(1)}});
+  EXPECT_EQ(train.status(), absl::UnavailableError("disk full"));
+  EXPECT_EQ(g->RemoveSamples({kFirstAssignedId}).status(), absl::UnavailableError("disk full"));
+  EXPECT_EQ(g->Snapshot(), before);
+
+  store->SetFailure(absl::OkStatus());
+  auto retry = g->Train({{0, "line", Line(1)}});
+  ASSERT_TRUE(retry.ok());
+  EXPECT_THAT(retry->ids, ElementsAre(kFirstAssignedId + 2));
+  EXPECT_EQ(store->NumSamples("shapes"), 3);
+}
+
+TEST(GalleryTest, RestoreRebuildsFromTheStore) {
+  auto store = std::make_shared<InMemoryGalleryStore>();
+  GalleryOptions options;
+  options.knn.k = 3;
+  auto g = MakeGallery(options, {}, store);
+  ASSERT_TRUE(
+      store->SaveGallery("shapes", g->Snapshot()->options(), g->Snapshot()->created()).ok());
+  ASSERT_TRUE(g->Train(ThreeShapes()).ok());
+  ASSERT_TRUE(g->RemoveSamples({9}).ok());
+
+  auto stored = store->LoadAll();
+  ASSERT_TRUE(stored.ok());
+  ASSERT_EQ(stored->size(), 1u);
+  auto restored = Gallery::Restore((*stored)[0], {}, store);
+  ASSERT_TRUE(restored.ok()) << restored.status();
+  auto a = g->Snapshot();
+  auto b = (*restored)->Snapshot();
+  EXPECT_EQ(b->options().descriptor_spec, a->options().descriptor_spec);
+  EXPECT_EQ(b->options().knn.k, 3);
+  EXPECT_EQ(b->num_samples(), 8);
+  EXPECT_EQ(b->LabelCounts(), a->LabelCounts());
+  EXPECT_EQ(b->created(), a->created());
+  EXPECT_EQ(b->updated(), a->updated());
+  EXPECT_EQ(b->next_assigned_id(), kFirstAssignedId);  // only client ids were stored
+  auto qa = a->Classify(Sphere(3));
+  auto qb = b->Classify(Sphere(3));
+  ASSERT_TRUE(qa.ok() && qb.ok());
+  EXPECT_EQ(qa->knn.neighbors[0].id, qb->knn.neighbors[0].id);
+  EXPECT_EQ(qa->knn.neighbors[0].distance, qb->knn.neighbors[0].distance);
+
+  StoredGallery with_assigned = (*stored)[0];
+  with_assigned.samples[0].id = kFirstAssignedId + 41;
+  auto continued = Gallery::Restore(with_assigned, {}, nullptr);
+  ASSERT_TRUE(continued.ok());
+  EXPECT_EQ((*continued)->Snapshot()->next_assigned_id(), kFirstAssignedId + 42);
+
+  StoredGallery corrupt = (*stored)[0];
+  corrupt.samples[2].features.pop_back();
+  auto bad = Gallery::Restore(corrupt, {}, store);
+  EXPECT_EQ(bad.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(bad.status().message(),
+              AllOf(HasSubstr("restoring gallery 'shapes'"), HasSubstr("sample id 3")));
+}
+
+// Not a test: the cost of committing one sample into a large gallery (the index copy).
+// Run with --gtest_also_run_disabled_tests --gtest_filter=*CommitCost*.
+TEST(GalleryCostTest, DISABLED_CommitCost) {
+  for (int64_t n : {10'000, 100'000}) {
+    StoredGallery stored;
+    stored.name = "big";
+    stored.created = stored.updated = absl::Now();
+    std::mt19937 rng(1);
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    const auto descriptor = CreateDescriptor(stored.options.descriptor_spec);
+    ASSERT_TRUE(descriptor.ok());
+    const size_t d = (*descriptor)->dimension();
+    for (int64_t i = 0; i < n; ++i) {
+      StoredSample s{static_cast<uint64_t>(i + 1), absl::StrCat("c", i % 40),
+                     std::vector<float>(d)};
+      for (float& f : s.features) f = u(rng);
+      stored.samples.push_back(std::move(s));
+    }
+    auto g = Gallery::Restore(stored, {}, nullptr);
+    ASSERT_TRUE(g.ok()) << g.status();
+    constexpr int kReps = 20;
+    const absl::Time start = absl::Now();
+    for (int r = 0; r < kReps; ++r) {
+      ASSERT_TRUE((*g)->Train({{0, "new", Box(static_cast<uint32_t>(r))}}).ok());
+    }
+    const absl::Duration per_commit = (absl::Now() - start) / kReps;
+    const absl::Time c0 = absl::Now();
+    for (int r = 0; r < kReps; ++r) {
+      KnnIndex copy = (*g)->Snapshot()->index();
+      ASSERT_EQ(copy.size(), n + kReps);
+    }
+    const absl::Duration per_copy = (absl::Now() - c0) / kReps;
+    const absl::Time q0 = absl::Now();
+    ASSERT_TRUE((*g)->Snapshot()->Classify(Box(99)).ok());
+    std::printf(
+        "n = %lld x d = %zu: Train of 1 sample %s (KnnIndex copy + free %s); "
+        "one Classify %s\n",
+        static_cast<long long>(n), d, absl::FormatDuration(per_commit).c_str(),
+        absl::FormatDuration(per_copy).c_str(), absl::FormatDuration(absl::Now() - q0).c_str());
+  }
+}
+
+}  // namespace
+}  // namespace shapeid
