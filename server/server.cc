@@ -15,7 +15,10 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Start(const Server
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
 
   std::unique_ptr<ShapeIdServer> server(new ShapeIdServer);
-  server->service_ = std::make_unique<ShapeIdService>(options.service);
+  GalleryLimits limits = options.gallery_limits;
+  limits.max_points_per_cloud = options.service.max_points_per_cloud;
+  server->registry_ = std::make_shared<GalleryRegistry>(limits);
+  server->service_ = std::make_unique<ShapeIdService>(options.service, server->registry_);
 
   grpc::ServerBuilder builder;
   // TLS arrives with the security issue; until then the server must only be exposed where

@@ -12,7 +12,8 @@
 
 namespace shapeid {
 
-// A running shapeid server: the ShapeId service, grpc.health.v1 health checking (SERVING once
+// A running shapeid server: the ShapeId service over an in-memory gallery registry,
+// grpc.health.v1 health checking (SERVING once
 // started) and server reflection, so grpcurl and standard probes work.
 class ShapeIdServer {
  public:
@@ -32,6 +33,8 @@ class ShapeIdServer {
  private:
   ShapeIdServer() = default;
 
+  // Galleries live in memory for now; the durable store plugs into the registry (issue 5).
+  std::shared_ptr<GalleryRegistry> registry_;
   std::unique_ptr<ShapeIdService> service_;
   std::unique_ptr<grpc::Server> server_;
   std::string address_;

@@ -3,6 +3,7 @@
 
 #include <string>
 
+#include "core/gallery/gallery_options.h"
 #include "server/service_options.h"
 
 namespace shapeid {
@@ -19,6 +20,8 @@ struct ServerOptions {
   // Threads serving calls; 0: gRPC's default (one per core).
   int worker_threads = 0;
   ServiceOptions service;
+  // Samples per gallery and number of galleries; points per cloud comes from `service`.
+  GalleryLimits gallery_limits;
 };
 
 }  // namespace shapeid

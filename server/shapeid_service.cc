@@ -1,32 +1,44 @@
 #include "server/shapeid_service.h"
 
 #include <memory>
+#include <set>
 #include <utility>
+#include <vector>
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
 #include "core/descriptor_registry.h"
+#include "core/gallery/gallery.h"
 #include "core/status_macros.h"
 #include "server/cloud_assembler.h"
 #include "server/grpc_status.h"
+#include "server/proto_convert.h"
 #include "server/stream_reactor.h"
 
 namespace shapeid {
 namespace {
 
-void SetDuration(absl::Duration d, google::protobuf::Duration* out) {
-  const int64_t nanos = absl::ToInt64Nanoseconds(d);
-  out->set_seconds(nanos / 1'000'000'000);
-  out->set_nanos(static_cast<int32_t>(nanos % 1'000'000'000));
+// Finishes a unary call with the status `handler` returns.
+template <typename Handler>
+grpc::ServerUnaryReactor* Unary(grpc::CallbackServerContext* context, Handler handler) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  reactor->Finish(ToGrpcStatus(handler()));
+  return reactor;
+}
+
+absl::Status RequireGalleryName(absl::string_view rpc, const std::string& name) {
+  if (name.empty()) return absl::InvalidArgumentError(absl::StrCat(rpc, ": the gallery name is empty"));
+  return absl::OkStatus();
 }
 
 class DescribeReactor final : public StreamReactor<v1::DescribeRequest> {
  public:
   DescribeReactor(grpc::CallbackServerContext* context, const ServiceOptions& options,
-                  v1::DescribeResponse* response)
+                  const GalleryRegistry& registry, v1::DescribeResponse* response)
       : StreamReactor(context),
         options_(options),
+        registry_(registry),
         response_(response),
         assembler_(options.max_points_per_cloud) {
     StartReading();
@@ -53,12 +65,14 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest> {
     if (descriptor_ != nullptr) {
       return absl::InvalidArgumentError("Describe: a second DescribeHeader in one stream");
     }
-    if (!header.gallery().empty()) {
-      return absl::UnimplementedError("Describe: galleries arrive with the gallery service");
+    if (header.descriptor_spec().empty() && !header.gallery().empty()) {
+      SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry_.Get(header.gallery()));
+      descriptor_ = gallery->Snapshot()->shared_descriptor();
+    } else {
+      const std::string& spec = header.descriptor_spec().empty() ? options_.default_descriptor_spec
+                                                                 : header.descriptor_spec();
+      SHAPEID_ASSIGN_OR_RETURN(descriptor_, CreateDescriptor(spec));
     }
-    const std::string& spec =
-        header.descriptor_spec().empty() ? options_.default_descriptor_spec : header.descriptor_spec();
-    SHAPEID_ASSIGN_OR_RETURN(descriptor_, CreateDescriptor(spec));
     return assembler_.Start(header.expected_points());
   }
 
@@ -70,7 +84,7 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest> {
     const absl::Time start = absl::Now();
     std::vector<float> values;
     SHAPEID_RETURN_IF_ERROR(descriptor_->Compute(cloud, &values));
-    SetDuration(absl::Now() - start, response_->mutable_describe_time());
+    ToProto(absl::Now() - start, response_->mutable_describe_time());
     response_->set_descriptor_spec(descriptor_->spec().ToString());
     response_->mutable_values()->Assign(values.begin(), values.end());
     response_->set_num_points(cloud.size());
@@ -78,43 +92,270 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest> {
   }
 
   const ServiceOptions& options_;
+  const GalleryRegistry& registry_;
   v1::DescribeResponse* response_;
   CloudAssembler assembler_;
-  std::unique_ptr<Descriptor> descriptor_;
+  std::shared_ptr<const Descriptor> descriptor_;
+};
+
+// One Train stream: TrainHeader, then samples (SampleHeader + PointChunks). Each sample is
+// described as soon as its points are complete; the batch commits only when the stream ends
+// OK, so an error or a cut stream (the reactor dies without OnEnd) publishes nothing.
+class TrainReactor final : public StreamReactor<v1::TrainRequest> {
+ public:
+  TrainReactor(grpc::CallbackServerContext* context, const ServiceOptions& options,
+               const GalleryRegistry& registry, v1::TrainResponse* response)
+      : StreamReactor(context),
+        registry_(registry),
+        response_(response),
+        assembler_(options.max_points_per_cloud) {
+    StartReading();
+  }
+
+ private:
+  absl::Status OnMessage(const v1::TrainRequest& request) override {
+    switch (request.kind_case()) {
+      case v1::TrainRequest::kHeader: {
+        if (batch_ != nullptr) return absl::InvalidArgumentError("Train: a second TrainHeader");
+        SHAPEID_RETURN_IF_ERROR(RequireGalleryName("Train", request.header().gallery()));
+        SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
+                                 registry_.Get(request.header().gallery()));
+        batch_ = std::make_unique<TrainBatch>(gallery->NewBatch());
+        batch_gallery_ = gallery;
+        return absl::OkStatus();
+      }
+      case v1::TrainRequest::kSample: {
+        if (batch_ == nullptr) {
+          return absl::InvalidArgumentError("Train: the first message must be a TrainHeader");
+        }
+        SHAPEID_RETURN_IF_ERROR(FinishSample());
+        sample_ = request.sample();
+        return assembler_.Start(sample_.expected_points());
+      }
+      case v1::TrainRequest::kPoints:
+        if (batch_ == nullptr) {
+          return absl::InvalidArgumentError("Train: the first message must be a TrainHeader");
+        }
+        if (!assembler_.started()) {
+          return absl::InvalidArgumentError(
+              absl::StrCat("Train: points after sample ", samples_, " without a SampleHeader"));
+        }
+        return assembler_.Append(request.points().xyz());
+      case v1::TrainRequest::KIND_NOT_SET:
+        break;
+    }
+    return absl::InvalidArgumentError("Train: a message with no header, sample or points");
+  }
+
+  // Describes the sample whose points have all arrived, if any, into the batch.
+  absl::Status FinishSample() {
+    if (!assembler_.started()) return absl::OkStatus();
+    auto cloud = assembler_.Finish();
+    if (!cloud.ok()) {
+      return absl::Status(cloud.status().code(),
+                          absl::StrCat("sample ", samples_, ": ", cloud.status().message()));
+    }
+    const absl::Time start = absl::Now();
+    SHAPEID_RETURN_IF_ERROR(batch_->AddSample(sample_.sample_id(), sample_.label(), *cloud));
+    describe_time_ += absl::Now() - start;
+    ++samples_;
+    return absl::OkStatus();
+  }
+
+  absl::Status OnEnd() override {
+    if (batch_ == nullptr) return absl::InvalidArgumentError("Train: the stream ended without a TrainHeader");
+    SHAPEID_RETURN_IF_ERROR(FinishSample());
+    if (samples_ == 0) return absl::InvalidArgumentError("Train: the stream carried no sample");
+    SHAPEID_ASSIGN_OR_RETURN(const CommitResult committed, batch_->Commit());
+    response_->mutable_sample_ids()->Assign(committed.ids.begin(), committed.ids.end());
+    response_->set_gallery_version(committed.version);
+    response_->set_gallery_sample_count(
+        static_cast<uint64_t>(batch_gallery_->Snapshot()->num_samples()));
+    ToProto(describe_time_, response_->mutable_describe_time());
+    return absl::OkStatus();
+  }
+
+  const GalleryRegistry& registry_;
+  v1::TrainResponse* response_;
+  CloudAssembler assembler_;
+  std::unique_ptr<TrainBatch> batch_;
+  std::shared_ptr<Gallery> batch_gallery_;
+  v1::SampleHeader sample_;
+  int64_t samples_ = 0;
+  absl::Duration describe_time_;
+};
+
+class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest> {
+ public:
+  ClassifyReactor(grpc::CallbackServerContext* context, const ServiceOptions& options,
+                  const GalleryRegistry& registry, v1::ClassifyResponse* response)
+      : StreamReactor(context),
+        registry_(registry),
+        response_(response),
+        assembler_(options.max_points_per_cloud) {
+    StartReading();
+  }
+
+ private:
+  absl::Status OnMessage(const v1::ClassifyRequest& request) override {
+    switch (request.kind_case()) {
+      case v1::ClassifyRequest::kHeader: {
+        if (gallery_ != nullptr) return absl::InvalidArgumentError("Classify: a second ClassifyHeader");
+        SHAPEID_RETURN_IF_ERROR(RequireGalleryName("Classify", request.header().gallery()));
+        SHAPEID_ASSIGN_OR_RETURN(gallery_, registry_.Get(request.header().gallery()));
+        k_ = static_cast<int>(std::min<uint32_t>(request.header().k(), 1 << 20));
+        // Fail before the points arrive rather than after.
+        if (gallery_->Snapshot()->empty()) {
+          return absl::FailedPreconditionError(absl::StrCat(
+              "gallery '", gallery_->name(), "' has no samples; train it before classifying"));
+        }
+        return assembler_.Start(request.header().expected_points());
+      }
+      case v1::ClassifyRequest::kPoints:
+        if (gallery_ == nullptr) {
+          return absl::InvalidArgumentError(
+              "Classify: the first message must be a ClassifyHeader; points came first");
+        }
+        return assembler_.Append(request.points().xyz());
+      case v1::ClassifyRequest::KIND_NOT_SET:
+        break;
+    }
+    return absl::InvalidArgumentError("Classify: a message with neither header nor points");
+  }
+
+  absl::Status OnEnd() override {
+    if (gallery_ == nullptr) return absl::InvalidArgumentError("Classify: the stream ended without a ClassifyHeader");
+    SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud, assembler_.Finish());
+    SHAPEID_ASSIGN_OR_RETURN(
+        const GalleryClassification answer,
+        gallery_->Snapshot()->Classify(cloud, gallery_->limits().cloud_limits(), k_));
+    ToProto(answer, cloud.size(), response_);
+    return absl::OkStatus();
+  }
+
+  const GalleryRegistry& registry_;
+  v1::ClassifyResponse* response_;
+  CloudAssembler assembler_;
+  std::shared_ptr<Gallery> gallery_;
+  int k_ = 0;
 };
 
 }  // namespace
 
 grpc::ServerReadReactor<v1::DescribeRequest>* ShapeIdService::Describe(
     grpc::CallbackServerContext* context, v1::DescribeResponse* response) {
-  return new DescribeReactor(context, options_, response);
+  return new DescribeReactor(context, options_, *registry_, response);
+}
+
+grpc::ServerReadReactor<v1::TrainRequest>* ShapeIdService::Train(
+    grpc::CallbackServerContext* context, v1::TrainResponse* response) {
+  return new TrainReactor(context, options_, *registry_, response);
+}
+
+grpc::ServerReadReactor<v1::ClassifyRequest>* ShapeIdService::Classify(
+    grpc::CallbackServerContext* context, v1::ClassifyResponse* response) {
+  return new ClassifyReactor(context, options_, *registry_, response);
+}
+
+grpc::ServerUnaryReactor* ShapeIdService::CreateGallery(grpc::CallbackServerContext* context,
+                                                        const v1::CreateGalleryRequest* request,
+                                                        v1::Gallery* response) {
+  return Unary(context, [&]() -> absl::Status {
+    SHAPEID_ASSIGN_OR_RETURN(const GalleryOptions options, GalleryOptionsFromProto(*request));
+    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
+                             registry_->Create(request->name(), options));
+    ToProto(*gallery->Snapshot(), response);
+    return absl::OkStatus();
+  });
+}
+
+grpc::ServerUnaryReactor* ShapeIdService::GetGallery(grpc::CallbackServerContext* context,
+                                                     const v1::GetGalleryRequest* request,
+                                                     v1::Gallery* response) {
+  return Unary(context, [&]() -> absl::Status {
+    SHAPEID_RETURN_IF_ERROR(RequireGalleryName("GetGallery", request->name()));
+    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry_->Get(request->name()));
+    ToProto(*gallery->Snapshot(), response);
+    return absl::OkStatus();
+  });
+}
+
+grpc::ServerUnaryReactor* ShapeIdService::ListGalleries(grpc::CallbackServerContext* context,
+                                                        const v1::ListGalleriesRequest* /*request*/,
+                                                        v1::ListGalleriesResponse* response) {
+  return Unary(context, [&]() -> absl::Status {
+    for (const std::string& name : registry_->List()) {
+      auto gallery = registry_->Get(name);
+      if (!gallery.ok()) continue;  // deleted since List: not an error for the caller
+      ToProto(*(*gallery)->Snapshot(), response->add_galleries());
+    }
+    return absl::OkStatus();
+  });
+}
+
+grpc::ServerUnaryReactor* ShapeIdService::DeleteGallery(grpc::CallbackServerContext* context,
+                                                        const v1::DeleteGalleryRequest* request,
+                                                        v1::DeleteGalleryResponse* response) {
+  return Unary(context, [&]() -> absl::Status {
+    SHAPEID_RETURN_IF_ERROR(RequireGalleryName("DeleteGallery", request->name()));
+    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry_->Get(request->name()));
+    const int64_t samples = gallery->Snapshot()->num_samples();
+    SHAPEID_RETURN_IF_ERROR(registry_->Delete(request->name()));
+    response->set_samples_deleted(static_cast<uint64_t>(samples));
+    return absl::OkStatus();
+  });
+}
+
+grpc::ServerUnaryReactor* ShapeIdService::RemoveSamples(grpc::CallbackServerContext* context,
+                                                        const v1::RemoveSamplesRequest* request,
+                                                        v1::RemoveSamplesResponse* response) {
+  return Unary(context, [&]() -> absl::Status {
+    SHAPEID_RETURN_IF_ERROR(RequireGalleryName("RemoveSamples", request->gallery()));
+    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
+                             registry_->Get(request->gallery()));
+    if (request->sample_ids().empty() && request->labels().empty()) {
+      return absl::InvalidArgumentError("RemoveSamples: give sample_ids, labels or both");
+    }
+    // One removal of the union, so the call is all-or-nothing. Labels are resolved against
+    // the gallery as it is now; a label with no samples is NOT_FOUND.
+    std::set<uint64_t> ids(request->sample_ids().begin(), request->sample_ids().end());
+    const auto snapshot = gallery->Snapshot();
+    for (const std::string& label : request->labels()) {
+      const auto it = snapshot->ids_by_label().find(label);
+      if (it == snapshot->ids_by_label().end()) {
+        return absl::NotFoundError(absl::StrCat("gallery '", gallery->name(),
+                                                "' has no samples labelled '", label, "'"));
+      }
+      ids.insert(it->second.begin(), it->second.end());
+    }
+    const std::vector<uint64_t> all(ids.begin(), ids.end());
+    SHAPEID_ASSIGN_OR_RETURN(const int64_t removed, gallery->RemoveSamples(all));
+    response->set_removed(static_cast<uint64_t>(removed));
+    response->set_remaining(static_cast<uint64_t>(gallery->Snapshot()->num_samples()));
+    return absl::OkStatus();
+  });
 }
 
 grpc::ServerUnaryReactor* ShapeIdService::ListDescriptors(
     grpc::CallbackServerContext* context, const v1::ListDescriptorsRequest* /*request*/,
     v1::ListDescriptorsResponse* response) {
-  absl::Status status;
-  for (const DescriptorKind& kind : RegisteredDescriptors()) {
-    v1::DescriptorKind* out = response->add_descriptors();
-    out->set_kind(kind.kind);
-    out->set_summary(kind.summary);
-    for (const DescriptorParam& p : kind.params) {
-      v1::DescriptorParameter* param = out->add_parameters();
-      param->set_name(p.name);
-      param->set_default_value(p.default_value);
-      param->set_help(p.help);
+  return Unary(context, [&]() -> absl::Status {
+    for (const DescriptorKind& kind : RegisteredDescriptors()) {
+      v1::DescriptorKind* out = response->add_descriptors();
+      out->set_kind(kind.kind);
+      out->set_summary(kind.summary);
+      for (const DescriptorParam& p : kind.params) {
+        v1::DescriptorParameter* param = out->add_parameters();
+        param->set_name(p.name);
+        param->set_default_value(p.default_value);
+        param->set_help(p.help);
+      }
+      SHAPEID_ASSIGN_OR_RETURN(const std::unique_ptr<Descriptor> defaults, CreateDescriptor(kind.kind));
+      out->set_default_spec(defaults->spec().ToString());
+      out->set_default_dimension(static_cast<uint32_t>(defaults->dimension()));
     }
-    auto defaults = CreateDescriptor(kind.kind);
-    if (!defaults.ok()) {
-      status = defaults.status();
-      break;
-    }
-    out->set_default_spec((*defaults)->spec().ToString());
-    out->set_default_dimension(static_cast<uint32_t>((*defaults)->dimension()));
-  }
-  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  reactor->Finish(ToGrpcStatus(status));
-  return reactor;
+    return absl::OkStatus();
+  });
 }
 
 }  // namespace shapeid

@@ -21,7 +21,8 @@ absl::StatusOr<std::vector<float>> GallerySnapshot::Describe(const PointCloud& c
 }
 
 absl::StatusOr<GalleryClassification> GallerySnapshot::Classify(const PointCloud& cloud,
-                                                                const CloudLimits& limits) const {
+                                                                const CloudLimits& limits,
+                                                                int k) const {
   if (empty()) {
     return absl::FailedPreconditionError(
         absl::StrCat("gallery '", name_, "' has no samples; train it before classifying"));
@@ -29,7 +30,7 @@ absl::StatusOr<GalleryClassification> GallerySnapshot::Classify(const PointCloud
   const absl::Time start = absl::Now();
   SHAPEID_ASSIGN_OR_RETURN(std::vector<float> features, Describe(cloud, limits));
   const absl::Time described = absl::Now();
-  SHAPEID_ASSIGN_OR_RETURN(KnnResult knn, index_.Classify(features, options_.knn));
+  SHAPEID_ASSIGN_OR_RETURN(KnnResult knn, index_.Classify(features, KnnFor(k)));
   GalleryClassification answer = Answer(std::move(knn));
   answer.describe_time = described - start;
   answer.search_time = absl::Now() - described;
@@ -37,16 +38,22 @@ absl::StatusOr<GalleryClassification> GallerySnapshot::Classify(const PointCloud
 }
 
 absl::StatusOr<GalleryClassification> GallerySnapshot::ClassifyFeatures(
-    absl::Span<const float> features) const {
+    absl::Span<const float> features, int k) const {
   if (empty()) {
     return absl::FailedPreconditionError(
         absl::StrCat("gallery '", name_, "' has no samples; train it before classifying"));
   }
   const absl::Time start = absl::Now();
-  SHAPEID_ASSIGN_OR_RETURN(KnnResult knn, index_.Classify(features, options_.knn));
+  SHAPEID_ASSIGN_OR_RETURN(KnnResult knn, index_.Classify(features, KnnFor(k)));
   GalleryClassification answer = Answer(std::move(knn));
   answer.search_time = absl::Now() - start;
   return answer;
+}
+
+KnnOptions GallerySnapshot::KnnFor(int k) const {
+  KnnOptions knn = options_.knn;
+  if (k > 0) knn.k = k;
+  return knn;
 }
 
 GalleryClassification GallerySnapshot::Answer(KnnResult knn) const {

@@ -73,11 +73,13 @@ class GallerySnapshot {
 
   // Describes `cloud` and classifies it. FailedPrecondition (naming the gallery) when the
   // gallery has no samples, checked before any work; cloud errors as in Describe.
+  // `k` > 0 overrides the gallery's k for this call (a client asking for more neighbours).
   absl::StatusOr<GalleryClassification> Classify(const PointCloud& cloud,
-                                                 const CloudLimits& limits = {}) const;
+                                                 const CloudLimits& limits = {}, int k = 0) const;
   // The same for a descriptor computed elsewhere (describe_time is zero). InvalidArgument
   // for a wrong dimension or non-finite feature.
-  absl::StatusOr<GalleryClassification> ClassifyFeatures(absl::Span<const float> features) const;
+  absl::StatusOr<GalleryClassification> ClassifyFeatures(absl::Span<const float> features,
+                                                         int k = 0) const;
 
  private:
   friend class Gallery;
@@ -94,6 +96,8 @@ class GallerySnapshot {
   GallerySnapshot(const GallerySnapshot&) = default;
   GallerySnapshot& operator=(const GallerySnapshot&) = delete;
 
+  // The gallery's kNN options, with k replaced when `k` > 0.
+  KnnOptions KnnFor(int k) const;
   // Applies the reject rule to a kNN result.
   GalleryClassification Answer(KnnResult knn) const;
 

@@ -1,0 +1,116 @@
+#include "server/proto_convert.h"
+
+#include "absl/strings/str_cat.h"
+
+namespace shapeid {
+
+absl::StatusOr<KnnOptions> FromProto(const v1::KnnOptions& knn) {
+  KnnOptions out;
+  out.k = knn.k() == 0 ? 1 : static_cast<int>(std::min<uint32_t>(knn.k(), 1 << 20));
+  switch (knn.weighting()) {
+    case v1::VOTE_WEIGHTING_UNSPECIFIED:
+    case v1::VOTE_WEIGHTING_UNIFORM:
+      out.weighting = VoteWeighting::kUniform;
+      break;
+    case v1::VOTE_WEIGHTING_DISTANCE:
+      out.weighting = VoteWeighting::kDistance;
+      break;
+    default:
+      return absl::InvalidArgumentError(absl::StrCat("unknown vote weighting ", knn.weighting()));
+  }
+  switch (knn.scaling()) {
+    case v1::FEATURE_SCALING_UNSPECIFIED:
+    case v1::FEATURE_SCALING_NONE:
+      out.scaling = FeatureScaling::kNone;
+      break;
+    case v1::FEATURE_SCALING_ZSCORE:
+      out.scaling = FeatureScaling::kZScore;
+      break;
+    case v1::FEATURE_SCALING_MAXABS:
+      out.scaling = FeatureScaling::kMaxAbs;
+      break;
+    default:
+      return absl::InvalidArgumentError(absl::StrCat("unknown feature scaling ", knn.scaling()));
+  }
+  return out;
+}
+
+v1::KnnOptions ToProto(const KnnOptions& knn) {
+  v1::KnnOptions out;
+  out.set_k(static_cast<uint32_t>(knn.k));
+  out.set_weighting(knn.weighting == VoteWeighting::kDistance ? v1::VOTE_WEIGHTING_DISTANCE
+                                                               : v1::VOTE_WEIGHTING_UNIFORM);
+  switch (knn.scaling) {
+    case FeatureScaling::kNone:
+      out.set_scaling(v1::FEATURE_SCALING_NONE);
+      break;
+    case FeatureScaling::kZScore:
+      out.set_scaling(v1::FEATURE_SCALING_ZSCORE);
+      break;
+    case FeatureScaling::kMaxAbs:
+      out.set_scaling(v1::FEATURE_SCALING_MAXABS);
+      break;
+  }
+  return out;
+}
+
+absl::StatusOr<GalleryOptions> GalleryOptionsFromProto(const v1::CreateGalleryRequest& request) {
+  GalleryOptions options;
+  if (!request.descriptor_spec().empty()) options.descriptor_spec = request.descriptor_spec();
+  auto knn = FromProto(request.knn());
+  if (!knn.ok()) return knn.status();
+  options.knn = *knn;
+  options.reject_distance = request.reject_distance();
+  return options;
+}
+
+void ToProto(absl::Duration d, google::protobuf::Duration* out) {
+  const int64_t nanos = absl::ToInt64Nanoseconds(d);
+  out->set_seconds(nanos / 1'000'000'000);
+  out->set_nanos(static_cast<int32_t>(nanos % 1'000'000'000));
+}
+
+void ToProto(absl::Time t, google::protobuf::Timestamp* out) {
+  const int64_t nanos = absl::ToUnixNanos(t);
+  out->set_seconds(nanos / 1'000'000'000);
+  out->set_nanos(static_cast<int32_t>(nanos % 1'000'000'000));
+}
+
+void ToProto(const GallerySnapshot& snapshot, v1::Gallery* out) {
+  out->set_name(snapshot.name());
+  out->set_descriptor_spec(snapshot.descriptor().spec().ToString());
+  out->set_dimension(static_cast<uint32_t>(snapshot.descriptor().dimension()));
+  *out->mutable_knn() = ToProto(snapshot.options().knn);
+  out->set_reject_distance(snapshot.options().reject_distance);
+  out->set_sample_count(static_cast<uint64_t>(snapshot.num_samples()));
+  for (const auto& [label, count] : snapshot.LabelCounts()) {  // std::map: sorted by label
+    v1::LabelCount* entry = out->add_label_counts();
+    entry->set_label(label);
+    entry->set_count(static_cast<uint64_t>(count));
+  }
+  ToProto(snapshot.created(), out->mutable_create_time());
+  ToProto(snapshot.updated(), out->mutable_update_time());
+  out->set_version(snapshot.version());
+}
+
+void ToProto(const GalleryClassification& answer, size_t num_points, v1::ClassifyResponse* out) {
+  out->set_label(answer.label);
+  out->set_unknown(answer.unknown);
+  out->set_confidence(answer.confidence);
+  for (const Neighbor& n : answer.knn.neighbors) {
+    v1::Neighbor* neighbor = out->add_neighbors();
+    neighbor->set_sample_id(n.id);
+    neighbor->set_label(n.label);
+    neighbor->set_distance(n.distance);
+  }
+  for (const ClassVote& v : answer.knn.votes) {
+    v1::ClassVote* vote = out->add_votes();
+    vote->set_label(v.label);
+    vote->set_weight(v.weight);
+  }
+  out->set_num_points(num_points);
+  ToProto(answer.describe_time, out->mutable_describe_time());
+  ToProto(answer.search_time, out->mutable_search_time());
+}
+
+}  // namespace shapeid

@@ -1,0 +1,31 @@
+#ifndef SHAPEID_SERVER_PROTO_CONVERT_H_
+#define SHAPEID_SERVER_PROTO_CONVERT_H_
+
+// Conversions between the wire messages and core/ types: the only place that knows both.
+
+#include "absl/status/statusor.h"
+#include "absl/time/time.h"
+#include "core/gallery/gallery_options.h"
+#include "core/gallery/gallery_snapshot.h"
+#include "core/knn/knn_options.h"
+#include "shapeid/v1/shapeid.pb.h"
+
+namespace shapeid {
+
+// UNSPECIFIED enums and k = 0 take the defaults (uniform, no scaling, k = 1).
+absl::StatusOr<KnnOptions> FromProto(const v1::KnnOptions& knn);
+v1::KnnOptions ToProto(const KnnOptions& knn);
+
+absl::StatusOr<GalleryOptions> GalleryOptionsFromProto(const v1::CreateGalleryRequest& request);
+
+// The gallery as GetGallery / ListGalleries report it.
+void ToProto(const GallerySnapshot& snapshot, v1::Gallery* out);
+
+void ToProto(const GalleryClassification& answer, size_t num_points, v1::ClassifyResponse* out);
+
+void ToProto(absl::Duration d, google::protobuf::Duration* out);
+void ToProto(absl::Time t, google::protobuf::Timestamp* out);
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_SERVER_PROTO_CONVERT_H_
