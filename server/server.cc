@@ -4,6 +4,7 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
 #include "grpcpp/ext/proto_server_reflection_plugin.h"
 #include "grpcpp/health_check_service_interface.h"
 
@@ -46,7 +47,14 @@ void ShapeIdServer::Shutdown(absl::Duration grace) {
   if (shut_down_ || server_ == nullptr) return;
   shut_down_ = true;
   server_->GetHealthCheckService()->SetServingStatus(false);
-  server_->Shutdown(std::chrono::system_clock::now() + absl::ToChronoNanoseconds(grace));
+  // Drain ourselves, then shut gRPC down at once: Server::Shutdown(deadline) alone would also
+  // wait for idle client connections and so always take the whole grace period.
+  service_->StartDraining();
+  const absl::Time deadline = absl::Now() + grace;
+  while (service_->calls_in_flight() > 0 && absl::Now() < deadline) {
+    absl::SleepFor(absl::Milliseconds(5));
+  }
+  server_->Shutdown(std::chrono::system_clock::now());  // cancels whatever is left
   server_->Wait();
 }
 

@@ -26,8 +26,9 @@ class ShapeIdServer {
   const std::string& address() const { return address_; }
   int port() const { return port_; }
 
-  // Stops accepting calls, lets in-flight calls finish until `grace` has passed, then
-  // cancels the rest. Health turns NOT_SERVING first. Idempotent.
+  // Health turns NOT_SERVING; new calls are refused with UNAVAILABLE; calls in flight may
+  // finish until `grace` has passed, then the rest are cancelled and the server stops.
+  // Returns as soon as the last call ends. Idempotent.
   void Shutdown(absl::Duration grace);
 
  private:

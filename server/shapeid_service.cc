@@ -19,11 +19,17 @@
 namespace shapeid {
 namespace {
 
-// Finishes a unary call with the status `handler` returns.
+// Finishes a unary call with the status `handler` returns (UNAVAILABLE while draining).
 template <typename Handler>
-grpc::ServerUnaryReactor* Unary(grpc::CallbackServerContext* context, Handler handler) {
+grpc::ServerUnaryReactor* Unary(grpc::CallbackServerContext* context, CallTracker& tracker,
+                                Handler handler) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  if (!tracker.Enter()) {
+    reactor->Finish(CallTracker::Refusal());
+    return reactor;
+  }
   reactor->Finish(ToGrpcStatus(handler()));
+  tracker.Exit();
   return reactor;
 }
 
@@ -34,9 +40,9 @@ absl::Status RequireGalleryName(absl::string_view rpc, const std::string& name) 
 
 class DescribeReactor final : public StreamReactor<v1::DescribeRequest> {
  public:
-  DescribeReactor(grpc::CallbackServerContext* context, const ServiceOptions& options,
+  DescribeReactor(grpc::CallbackServerContext* context, CallTracker* tracker, const ServiceOptions& options,
                   const GalleryRegistry& registry, v1::DescribeResponse* response)
-      : StreamReactor(context),
+      : StreamReactor(context, tracker),
         options_(options),
         registry_(registry),
         response_(response),
@@ -103,9 +109,9 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest> {
 // OK, so an error or a cut stream (the reactor dies without OnEnd) publishes nothing.
 class TrainReactor final : public StreamReactor<v1::TrainRequest> {
  public:
-  TrainReactor(grpc::CallbackServerContext* context, const ServiceOptions& options,
+  TrainReactor(grpc::CallbackServerContext* context, CallTracker* tracker, const ServiceOptions& options,
                const GalleryRegistry& registry, v1::TrainResponse* response)
-      : StreamReactor(context),
+      : StreamReactor(context, tracker),
         registry_(registry),
         response_(response),
         assembler_(options.max_points_per_cloud) {
@@ -187,9 +193,9 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest> {
 
 class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest> {
  public:
-  ClassifyReactor(grpc::CallbackServerContext* context, const ServiceOptions& options,
+  ClassifyReactor(grpc::CallbackServerContext* context, CallTracker* tracker, const ServiceOptions& options,
                   const GalleryRegistry& registry, v1::ClassifyResponse* response)
-      : StreamReactor(context),
+      : StreamReactor(context, tracker),
         registry_(registry),
         response_(response),
         assembler_(options.max_points_per_cloud) {
@@ -244,23 +250,23 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest> {
 
 grpc::ServerReadReactor<v1::DescribeRequest>* ShapeIdService::Describe(
     grpc::CallbackServerContext* context, v1::DescribeResponse* response) {
-  return new DescribeReactor(context, options_, *registry_, response);
+  return new DescribeReactor(context, &tracker_, options_, *registry_, response);
 }
 
 grpc::ServerReadReactor<v1::TrainRequest>* ShapeIdService::Train(
     grpc::CallbackServerContext* context, v1::TrainResponse* response) {
-  return new TrainReactor(context, options_, *registry_, response);
+  return new TrainReactor(context, &tracker_, options_, *registry_, response);
 }
 
 grpc::ServerReadReactor<v1::ClassifyRequest>* ShapeIdService::Classify(
     grpc::CallbackServerContext* context, v1::ClassifyResponse* response) {
-  return new ClassifyReactor(context, options_, *registry_, response);
+  return new ClassifyReactor(context, &tracker_, options_, *registry_, response);
 }
 
 grpc::ServerUnaryReactor* ShapeIdService::CreateGallery(grpc::CallbackServerContext* context,
                                                         const v1::CreateGalleryRequest* request,
                                                         v1::Gallery* response) {
-  return Unary(context, [&]() -> absl::Status {
+  return Unary(context, tracker_, [&]() -> absl::Status {
     SHAPEID_ASSIGN_OR_RETURN(const GalleryOptions options, GalleryOptionsFromProto(*request));
     SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
                              registry_->Create(request->name(), options));
@@ -272,7 +278,7 @@ grpc::ServerUnaryReactor* ShapeIdService::CreateGallery(grpc::CallbackServerCont
 grpc::ServerUnaryReactor* ShapeIdService::GetGallery(grpc::CallbackServerContext* context,
                                                      const v1::GetGalleryRequest* request,
                                                      v1::Gallery* response) {
-  return Unary(context, [&]() -> absl::Status {
+  return Unary(context, tracker_, [&]() -> absl::Status {
     SHAPEID_RETURN_IF_ERROR(RequireGalleryName("GetGallery", request->name()));
     SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry_->Get(request->name()));
     ToProto(*gallery->Snapshot(), response);
@@ -283,7 +289,7 @@ grpc::ServerUnaryReactor* ShapeIdService::GetGallery(grpc::CallbackServerContext
 grpc::ServerUnaryReactor* ShapeIdService::ListGalleries(grpc::CallbackServerContext* context,
                                                         const v1::ListGalleriesRequest* /*request*/,
                                                         v1::ListGalleriesResponse* response) {
-  return Unary(context, [&]() -> absl::Status {
+  return Unary(context, tracker_, [&]() -> absl::Status {
     for (const std::string& name : registry_->List()) {
       auto gallery = registry_->Get(name);
       if (!gallery.ok()) continue;  // deleted since List: not an error for the caller
@@ -296,7 +302,7 @@ grpc::ServerUnaryReactor* ShapeIdService::ListGalleries(grpc::CallbackServerCont
 grpc::ServerUnaryReactor* ShapeIdService::DeleteGallery(grpc::CallbackServerContext* context,
                                                         const v1::DeleteGalleryRequest* request,
                                                         v1::DeleteGalleryResponse* response) {
-  return Unary(context, [&]() -> absl::Status {
+  return Unary(context, tracker_, [&]() -> absl::Status {
     SHAPEID_RETURN_IF_ERROR(RequireGalleryName("DeleteGallery", request->name()));
     SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry_->Get(request->name()));
     const int64_t samples = gallery->Snapshot()->num_samples();
@@ -309,7 +315,7 @@ grpc::ServerUnaryReactor* ShapeIdService::DeleteGallery(grpc::CallbackServerCont
 grpc::ServerUnaryReactor* ShapeIdService::RemoveSamples(grpc::CallbackServerContext* context,
                                                         const v1::RemoveSamplesRequest* request,
                                                         v1::RemoveSamplesResponse* response) {
-  return Unary(context, [&]() -> absl::Status {
+  return Unary(context, tracker_, [&]() -> absl::Status {
     SHAPEID_RETURN_IF_ERROR(RequireGalleryName("RemoveSamples", request->gallery()));
     SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
                              registry_->Get(request->gallery()));
@@ -339,7 +345,7 @@ grpc::ServerUnaryReactor* ShapeIdService::RemoveSamples(grpc::CallbackServerCont
 grpc::ServerUnaryReactor* ShapeIdService::ListDescriptors(
     grpc::CallbackServerContext* context, const v1::ListDescriptorsRequest* /*request*/,
     v1::ListDescriptorsResponse* response) {
-  return Unary(context, [&]() -> absl::Status {
+  return Unary(context, tracker_, [&]() -> absl::Status {
     for (const DescriptorKind& kind : RegisteredDescriptors()) {
       v1::DescriptorKind* out = response->add_descriptors();
       out->set_kind(kind.kind);

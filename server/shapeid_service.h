@@ -6,6 +6,7 @@
 
 #include "core/gallery/gallery_registry.h"
 #include "server/service_options.h"
+#include "server/stream_reactor.h"
 #include "shapeid/v1/shapeid.grpc.pb.h"
 
 namespace shapeid {
@@ -47,7 +48,12 @@ class ShapeIdService final : public v1::ShapeId::CallbackService {
                                             const v1::ListDescriptorsRequest* request,
                                             v1::ListDescriptorsResponse* response) override;
 
+  // Refuses new calls (UNAVAILABLE) from now on; calls already running continue.
+  void StartDraining() { tracker_.StartDraining(); }
+  int64_t calls_in_flight() const { return tracker_.in_flight(); }
+
  private:
+  CallTracker tracker_;
   const ServiceOptions options_;
   const std::shared_ptr<GalleryRegistry> registry_;
 };
