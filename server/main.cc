@@ -25,8 +25,6 @@ ABSL_FLAG(int64_t, max_points_per_cloud, 10'000'000,
 ABSL_FLAG(int32_t, max_message_bytes, 16 << 20,
           "largest single gRPC message (clouds stream in chunks, so this bounds a chunk). "
           "Env: SHAPEID_MAX_MESSAGE_BYTES");
-ABSL_FLAG(int32_t, worker_threads, 0,
-          "threads serving calls; 0 = gRPC's default. Env: SHAPEID_WORKER_THREADS");
 ABSL_FLAG(int32_t, shutdown_grace_seconds, 10,
           "on SIGTERM/SIGINT, how long in-flight calls may run before they are cancelled. "
           "Env: SHAPEID_SHUTDOWN_GRACE_SECONDS");
@@ -42,8 +40,8 @@ void OnStopSignal(int signal) {
 
 // Every flag may come from SHAPEID_<FLAG NAME IN CAPITALS>; a command-line flag wins.
 bool ApplyEnvironment() {
-  for (const char* name : {"listen", "max_points_per_cloud", "max_message_bytes",
-                           "worker_threads", "shutdown_grace_seconds"}) {
+  for (const char* name :
+       {"listen", "max_points_per_cloud", "max_message_bytes", "shutdown_grace_seconds"}) {
     const std::string var = absl::StrCat("SHAPEID_", absl::AsciiStrToUpper(name));
     const char* value = std::getenv(var.c_str());
     if (value == nullptr) continue;
@@ -76,7 +74,6 @@ int main(int argc, char** argv) {
   options.service.max_points_per_cloud =
       static_cast<size_t>(absl::GetFlag(FLAGS_max_points_per_cloud));
   options.max_message_bytes = absl::GetFlag(FLAGS_max_message_bytes);
-  options.worker_threads = absl::GetFlag(FLAGS_worker_threads);
 
   // gRPC may own threads whose signal mask we do not control, so a stop signal can land on
   // any thread: the handler only writes the signal number to a pipe that main waits on.

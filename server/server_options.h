@@ -17,8 +17,6 @@ struct ServerOptions {
   // Largest single gRPC message. Clouds stream in chunks, so this bounds one chunk, not a
   // cloud; 16 MiB leaves clients room for chunks far above the recommended 192 KiB.
   int max_message_bytes = 16 << 20;
-  // Threads serving calls; 0: gRPC's default (one per core).
-  int worker_threads = 0;
   ServiceOptions service;
   // Samples per gallery and number of galleries; points per cloud comes from `service`.
   GalleryLimits gallery_limits;

@@ -1,0 +1,608 @@
+// Service speed (issue 3, "Speed"): Classify latency and throughput through a real gRPC server
+// on a loopback TCP port, against a 4,000-sample gallery of the default spec (rphsd, cubic27,
+// M = 100), and the same work in-process for the RPC overhead ratio.
+//
+//   service_bench                 full run (~30 s): single-client latency, in-process latency,
+//                                 1 / 4 / 16 concurrent clients (shared channel and one
+//                                 channel per client), a table and one JSON line
+//   service_bench --quick         a ~2 s smoke for CI
+//
+// Server and load generator share this process and the machine's cores, as in the issue
+// ("the load generator runs on the same 2-core machine"). Clouds are ModelNet10 (1,024
+// points each) when ../shared/data/modelnet10 exists, else synthetic 1,024-point clouds; the
+// output says which. Figures and their reading: docs/performance.md.
+//
+// Not Google Benchmark: latency percentiles and multi-client throughput over fixed durations
+// fit it poorly, so this is a plain program with its own timing.
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "CLI/CLI.hpp"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
+#include "absl/time/time.h"
+#include "bench/bench_clouds.h"
+#include "core/gallery/gallery.h"
+#include "core/gallery/gallery_registry.h"
+#include "core/io/point_cloud_reader.h"
+#include "grpcpp/grpcpp.h"
+#include "server/server.h"
+#include "shapeid/v1/shapeid.grpc.pb.h"
+
+namespace shapeid {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+constexpr char kGalleryName[] = "bench";
+
+// ----------------------------------------------------------------------------- data
+
+struct Sample {
+  std::string label;
+  PointCloud cloud;
+};
+
+struct Data {
+  std::vector<Sample> train;  // exactly gallery_size
+  std::vector<Sample> test;   // queries, cycled through
+  std::string source;         // what the clouds are, for the output
+};
+
+std::vector<fs::path> SortedEntries(const fs::path& dir) {
+  std::vector<fs::path> entries;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) entries.push_back(entry.path());
+  std::sort(entries.begin(), entries.end());
+  return entries;
+}
+
+// Every <class>/<split>/*.pcd, classes and files in sorted order. Empty on any read error.
+std::vector<Sample> ReadSplit(const fs::path& root, const std::string& split, size_t limit) {
+  std::vector<Sample> out;
+  for (const fs::path& class_dir : SortedEntries(root)) {
+    if (!fs::is_directory(class_dir)) continue;
+    for (const fs::path& file : SortedEntries(class_dir / split)) {
+      if (out.size() >= limit) return out;
+      if (file.extension() != ".pcd") continue;
+      auto read = ReadPointCloud(file.string());
+      if (!read.ok()) {
+        std::fprintf(stderr, "cannot read %s: %s\n", file.c_str(), read.status().ToString().c_str());
+        return {};
+      }
+      out.push_back({class_dir.filename().string(), std::move(read->cloud)});
+    }
+  }
+  return out;
+}
+
+// Repeats `samples` cyclically up to `n` (ModelNet10 has 3,991 training clouds).
+void FillTo(std::vector<Sample>& samples, size_t n) {
+  const size_t have = samples.size();
+  for (size_t i = 0; samples.size() < n; ++i) samples.push_back(samples[i % have]);
+  samples.resize(n);
+}
+
+Data LoadData(const std::string& root, size_t gallery_size, size_t num_clouds) {
+  Data data;
+  if (fs::is_directory(root)) {
+    data.train = ReadSplit(root, "train", gallery_size);
+    data.test = ReadSplit(root, "test", num_clouds);
+  }
+  if (!data.train.empty() && !data.test.empty()) {
+    const size_t read = data.train.size();
+    FillTo(data.train, gallery_size);
+    data.source = absl::StrCat("ModelNet10 (", read, " train clouds",
+                               read < gallery_size ? absl::StrCat(", first ", gallery_size - read,
+                                                                  " repeated")
+                                                   : "",
+                               "; ", data.test.size(), " test clouds; ",
+                               data.test[0].cloud.size(), " points each)");
+    return data;
+  }
+  data.train.clear();
+  data.test.clear();
+  const char* kLabels[] = {"a", "b", "c", "d", "e", "f", "g", "h", "i", "j"};
+  for (size_t i = 0; i < gallery_size; ++i) {
+    data.train.push_back({kLabels[i % 10], bench::SurfaceCloud(1024, 1000 + i)});
+  }
+  for (size_t i = 0; i < num_clouds; ++i) {
+    data.test.push_back({kLabels[i % 10], bench::SurfaceCloud(1024, 900000 + i)});
+  }
+  data.source = absl::StrCat("SYNTHETIC 1,024-point clouds (no ModelNet10 at ", root, ")");
+  return data;
+}
+
+std::string Bytes(const PointCloud& cloud) {
+  std::string bytes(cloud.size() * 12, '\0');
+  std::memcpy(bytes.data(), cloud.data(), bytes.size());
+  return bytes;
+}
+
+// ----------------------------------------------------------------------------- statistics
+
+struct Stats {
+  int64_t count = 0;
+  double p50_us = 0, p90_us = 0, p99_us = 0, mean_us = 0;
+};
+
+Stats Summarise(std::vector<int64_t> ns) {
+  Stats s;
+  s.count = static_cast<int64_t>(ns.size());
+  if (ns.empty()) return s;
+  std::sort(ns.begin(), ns.end());
+  auto at = [&](double q) {
+    const size_t i = std::min(ns.size() - 1, static_cast<size_t>(q * (ns.size() - 1) + 0.5));
+    return ns[i] / 1e3;
+  };
+  s.p50_us = at(0.50);
+  s.p90_us = at(0.90);
+  s.p99_us = at(0.99);
+  double sum = 0;
+  for (int64_t v : ns) sum += static_cast<double>(v);
+  s.mean_us = sum / ns.size() / 1e3;
+  return s;
+}
+
+double ProcessCpuSeconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  auto sec = [](const timeval& t) { return t.tv_sec + t.tv_usec / 1e6; };
+  return sec(usage.ru_utime) + sec(usage.ru_stime);
+}
+
+std::string LoadAverage() {
+  std::ifstream in("/proc/loadavg");
+  std::string a, b, c;
+  in >> a >> b >> c;
+  return absl::StrCat(a, " ", b, " ", c);
+}
+
+// ----------------------------------------------------------------------------- client
+
+// The two messages of one Classify stream, built once per query cloud so the load generator
+// spends its (shared) CPU on the RPC, not on copying points.
+struct Query {
+  v1::ClassifyRequest header;
+  v1::ClassifyRequest points;
+};
+
+std::vector<Query> BuildQueries(const std::vector<Sample>& test) {
+  std::vector<Query> queries(test.size());
+  for (size_t i = 0; i < test.size(); ++i) {
+    queries[i].header.mutable_header()->set_gallery(kGalleryName);
+    queries[i].header.mutable_header()->set_expected_points(test[i].cloud.size());
+    queries[i].points.mutable_points()->set_xyz(Bytes(test[i].cloud));
+  }
+  return queries;
+}
+
+// How the client writes a Classify stream.
+//  plain:     Write(header), Write(points), WritesDone, Finish  (gallery_service_test's way)
+//  coalesced: initial metadata corked, header buffered, WriteLast(points): the whole request
+//             leaves in one flush
+enum class WriteMode { kPlain, kCoalesced };
+
+grpc::Status ClassifyOnce(v1::ShapeId::Stub& stub, const Query& query, WriteMode mode,
+                          v1::ClassifyResponse* response) {
+  grpc::ClientContext context;
+  if (mode == WriteMode::kCoalesced) context.set_initial_metadata_corked(true);
+  auto writer = stub.Classify(&context, response);
+  if (mode == WriteMode::kPlain) {
+    if (writer->Write(query.header)) writer->Write(query.points);
+    writer->WritesDone();
+  } else {
+    if (writer->Write(query.header, grpc::WriteOptions().set_buffer_hint())) {
+      writer->WriteLast(query.points, grpc::WriteOptions());
+    } else {
+      writer->WritesDone();
+    }
+  }
+  return writer->Finish();
+}
+
+std::shared_ptr<grpc::Channel> MakeChannel(const std::string& address, bool own_connection) {
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(16 << 20);
+  // Channels with equal arguments share one TCP connection through gRPC's global subchannel
+  // pool; a local pool gives each channel its own connection.
+  if (own_connection) args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
+  auto channel = grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
+  channel->WaitForConnected(std::chrono::system_clock::now() + std::chrono::seconds(10));
+  return channel;
+}
+
+// ----------------------------------------------------------------------------- phases
+
+struct Breakdown {  // server-side, from ClassifyResponse
+  double describe_us = 0, search_us = 0;
+};
+
+struct LatencyResult {
+  Stats stats;
+  Breakdown server;
+  int64_t errors = 0;
+  int64_t label_mismatches = 0;  // against the in-process answers
+};
+
+LatencyResult SingleClient(v1::ShapeId::Stub& stub, const std::vector<Query>& queries,
+                           const std::vector<std::string>& expected, int warmup, int requests,
+                           WriteMode mode) {
+  LatencyResult r;
+  v1::ClassifyResponse response;
+  for (int i = 0; i < warmup; ++i) ClassifyOnce(stub, queries[i % queries.size()], mode, &response);
+  std::vector<int64_t> ns;
+  ns.reserve(requests);
+  double describe = 0, search = 0;
+  for (int i = 0; i < requests; ++i) {
+    const size_t q = i % queries.size();
+    response.Clear();
+    const auto t0 = Clock::now();
+    const grpc::Status status = ClassifyOnce(stub, queries[q], mode, &response);
+    const auto t1 = Clock::now();
+    if (!status.ok()) {
+      if (++r.errors == 1) std::fprintf(stderr, "Classify: %s\n", status.error_message().c_str());
+      continue;
+    }
+    ns.push_back(std::chrono::duration_cast<std::chrono::nanoseconds>(t1 - t0).count());
+    if (response.label() != expected[q]) ++r.label_mismatches;
+    describe += response.describe_time().seconds() * 1e6 + response.describe_time().nanos() / 1e3;
+    search += response.search_time().seconds() * 1e6 + response.search_time().nanos() / 1e3;
+  }
+  r.stats = Summarise(std::move(ns));
+  if (r.stats.count > 0) {
+    r.server.describe_us = describe / r.stats.count;
+    r.server.search_us = search / r.stats.count;
+  }
+  return r;
+}
+
+struct InProcessResult {
+  Stats stats;
+  double describe_us = 0, search_us = 0;
+  double throughput_2t = 0;  // classifications/s with two threads
+  std::vector<std::string> labels;
+};
+
+InProcessResult InProcess(const Gallery& gallery, const std::vector<Sample>& test, int warmup,
+                          int requests, double seconds) {
+  InProcessResult r;
+  const CloudLimits limits = gallery.limits().cloud_limits();
+  for (const Sample& s : test) {
+    auto answer = gallery.Snapshot()->Classify(s.cloud, limits);
+    r.labels.push_back(answer.ok() ? answer->label : "<error>");
+  }
+  for (int i = 0; i < warmup; ++i) (void)gallery.Snapshot()->Classify(test[i % test.size()].cloud, limits);
+  std::vector<int64_t> ns;
+  ns.reserve(requests);
+  double describe = 0, search = 0;
+  for (int i = 0; i < requests; ++i) {
+    const auto t0 = Clock::now();
+    auto answer = gallery.Snapshot()->Classify(test[i % test.size()].cloud, limits);
+    const auto t1 = Clock::now();
+    ns.push_back(std::chrono::duration_cast<std::chrono::nanoseconds>(t1 - t0).count());
+    describe += absl::ToDoubleMicroseconds(answer->describe_time);
+    search += absl::ToDoubleMicroseconds(answer->search_time);
+  }
+  r.stats = Summarise(std::move(ns));
+  r.describe_us = describe / requests;
+  r.search_us = search / requests;
+
+  // Two threads (the machine's cores): the ceiling any server could reach here.
+  std::atomic<int64_t> done{0};
+  const auto start = Clock::now();
+  const auto deadline = start + std::chrono::duration<double>(seconds);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 2; ++t) {
+    threads.emplace_back([&, t] {
+      int64_t n = 0;
+      for (size_t i = t; Clock::now() < deadline; ++i, ++n) {
+        (void)gallery.Snapshot()->Classify(test[i % test.size()].cloud, limits);
+      }
+      done += n;
+    });
+  }
+  for (auto& th : threads) th.join();
+  r.throughput_2t = done / std::chrono::duration<double>(Clock::now() - start).count();
+  return r;
+}
+
+struct LoadResult {
+  int clients = 0;
+  bool channel_per_client = false;
+  double per_second = 0;
+  Stats stats;
+  double cpu_us_per_call = 0;  // whole process (server + clients) CPU time per classification
+  int64_t errors = 0;
+};
+
+LoadResult Load(const std::string& address, const std::vector<Query>& queries, int clients,
+                bool channel_per_client, double seconds, WriteMode mode) {
+  LoadResult r;
+  r.clients = clients;
+  r.channel_per_client = channel_per_client;
+  std::vector<std::shared_ptr<grpc::Channel>> channels;
+  std::vector<std::unique_ptr<v1::ShapeId::Stub>> stubs;
+  auto shared = channel_per_client ? nullptr : MakeChannel(address, false);
+  for (int c = 0; c < clients; ++c) {
+    channels.push_back(channel_per_client ? MakeChannel(address, true) : shared);
+    stubs.push_back(v1::ShapeId::NewStub(channels.back()));
+  }
+  // A short warm-up on every stub (connections, server threads).
+  {
+    std::vector<std::thread> warm;
+    for (int c = 0; c < clients; ++c) {
+      warm.emplace_back([&, c] {
+        v1::ClassifyResponse response;
+        for (int i = 0; i < 20; ++i) ClassifyOnce(*stubs[c], queries[(c + i) % queries.size()], mode, &response);
+      });
+    }
+    for (auto& th : warm) th.join();
+  }
+
+  std::vector<std::vector<int64_t>> ns(clients);
+  std::atomic<int64_t> errors{0};
+  std::atomic<bool> go{false};
+  std::vector<std::thread> threads;
+  Clock::time_point deadline;
+  for (int c = 0; c < clients; ++c) {
+    threads.emplace_back([&, c] {
+      while (!go.load(std::memory_order_acquire)) std::this_thread::yield();
+      v1::ClassifyResponse response;
+      ns[c].reserve(1 << 16);
+      for (size_t i = c * 7919; Clock::now() < deadline; ++i) {
+        response.Clear();
+        const auto t0 = Clock::now();
+        const grpc::Status status = ClassifyOnce(*stubs[c], queries[i % queries.size()], mode, &response);
+        const auto t1 = Clock::now();
+        if (!status.ok()) {
+          ++errors;
+          continue;
+        }
+        ns[c].push_back(std::chrono::duration_cast<std::chrono::nanoseconds>(t1 - t0).count());
+      }
+    });
+  }
+  const double cpu0 = ProcessCpuSeconds();
+  const auto start = Clock::now();
+  deadline = start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
+  go.store(true, std::memory_order_release);
+  for (auto& th : threads) th.join();
+  const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
+  const double cpu = ProcessCpuSeconds() - cpu0;
+
+  std::vector<int64_t> all;
+  for (auto& v : ns) all.insert(all.end(), v.begin(), v.end());
+  r.stats = Summarise(std::move(all));
+  r.per_second = r.stats.count / elapsed;
+  r.cpu_us_per_call = r.stats.count > 0 ? cpu / r.stats.count * 1e6 : 0;
+  r.errors = errors;
+  return r;
+}
+
+// ----------------------------------------------------------------------------- setup
+
+bool CreateAndTrain(v1::ShapeId::Stub& stub, const std::vector<Sample>& train, int streams) {
+  {
+    grpc::ClientContext context;
+    v1::CreateGalleryRequest request;
+    request.set_name(kGalleryName);  // default spec: rphsd (cubic27, M = 100), k = 1
+    v1::Gallery gallery;
+    const grpc::Status status = stub.CreateGallery(&context, request, &gallery);
+    if (!status.ok()) {
+      std::fprintf(stderr, "CreateGallery: %s\n", status.error_message().c_str());
+      return false;
+    }
+    std::printf("gallery: %s, dimension %u\n", gallery.descriptor_spec().c_str(), gallery.dimension());
+  }
+  const size_t per_stream = (train.size() + streams - 1) / streams;
+  for (size_t first = 0; first < train.size(); first += per_stream) {
+    grpc::ClientContext context;
+    v1::TrainResponse response;
+    auto writer = stub.Train(&context, &response);
+    v1::TrainRequest header;
+    header.mutable_header()->set_gallery(kGalleryName);
+    bool open = writer->Write(header);
+    for (size_t i = first; open && i < std::min(train.size(), first + per_stream); ++i) {
+      v1::TrainRequest sample;
+      sample.mutable_sample()->set_label(train[i].label);
+      open = writer->Write(sample);
+      v1::TrainRequest points;
+      points.mutable_points()->set_xyz(Bytes(train[i].cloud));
+      open = open && writer->Write(points);
+    }
+    writer->WritesDone();
+    const grpc::Status status = writer->Finish();
+    if (!status.ok()) {
+      std::fprintf(stderr, "Train: %s\n", status.error_message().c_str());
+      return false;
+    }
+    if (first + per_stream >= train.size() && response.gallery_sample_count() != train.size()) {
+      std::fprintf(stderr, "Train: gallery holds %llu samples, expected %zu\n",
+                   static_cast<unsigned long long>(response.gallery_sample_count()), train.size());
+      return false;
+    }
+  }
+  return true;
+}
+
+std::string StatsJson(const Stats& s) {
+  return absl::StrFormat(R"({"n":%d,"p50_us":%.1f,"p90_us":%.1f,"p99_us":%.1f,"mean_us":%.1f})",
+                         s.count, s.p50_us, s.p90_us, s.p99_us, s.mean_us);
+}
+
+int Run(int argc, char** argv) {
+  CLI::App app{"Classify latency and throughput through a loopback gRPC server vs in-process"};
+  std::string data_dir = fs::path(SHAPEID_SOURCE_DIR) / ".." / "shared" / "data" / "modelnet10";
+  bool quick = false;
+  double seconds = 3.0;
+  size_t gallery_size = 4000;
+  size_t num_clouds = 908;
+  int requests = 2000;
+  int warmup = 200;
+  int train_streams = 4;
+  int server_threads = 0;
+  std::vector<int> clients = {1, 4, 16};
+  std::string channels_mode = "both";
+  std::string write_mode_name = "plain";
+  app.add_option("--data", data_dir, "ModelNet10 folder with <class>/{train,test}/*.pcd")->capture_default_str();
+  app.add_flag("--quick", quick, "tiny numbers for a CI smoke (~2 s)");
+  app.add_option("--seconds", seconds, "duration of each concurrent-load run")->capture_default_str();
+  app.add_option("--gallery_size", gallery_size, "samples in the gallery")->capture_default_str();
+  app.add_option("--clouds", num_clouds, "distinct query clouds (cycled)")->capture_default_str();
+  app.add_option("--requests", requests, "single-client classifications measured")->capture_default_str();
+  app.add_option("--warmup", warmup, "single-client classifications before measuring")->capture_default_str();
+  app.add_option("--train_streams", train_streams, "Train streams the gallery is filled over")->capture_default_str();
+  app.add_option("--server_threads", server_threads, "ServerOptions::worker_threads (0: gRPC default)")->capture_default_str();
+  app.add_option("--clients", clients, "concurrent client counts")->capture_default_str();
+  app.add_option("--channels", channels_mode, "shared | per-client | both")->capture_default_str();
+  app.add_option("--write_mode", write_mode_name, "plain | coalesced (see ClassifyOnce)")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  if (quick) {
+    seconds = 0.2;
+    gallery_size = std::min<size_t>(gallery_size, 200);
+    num_clouds = std::min<size_t>(num_clouds, 16);
+    requests = 100;
+    warmup = 10;
+    clients = {1, 4};
+  }
+  const WriteMode mode = write_mode_name == "coalesced" ? WriteMode::kCoalesced : WriteMode::kPlain;
+  if (gallery_size == 0 || num_clouds == 0 || requests <= 0 || train_streams <= 0) {
+    std::fprintf(stderr, "sizes must be positive\n");
+    return 2;
+  }
+
+  const std::string load_before = LoadAverage();
+  std::printf("load average before: %s (%u hardware threads)\n", load_before.c_str(),
+              std::thread::hardware_concurrency());
+  const Data data = LoadData(data_dir, gallery_size, num_clouds);
+  std::printf("clouds: %s\n", data.source.c_str());
+
+  ServerOptions options;
+  options.listen = "127.0.0.1:0";
+  options.worker_threads = server_threads;
+  auto started = ShapeIdServer::Start(options);
+  if (!started.ok()) {
+    std::fprintf(stderr, "%s\n", started.status().ToString().c_str());
+    return 1;
+  }
+  std::unique_ptr<ShapeIdServer> server = std::move(started).value();
+  auto channel = MakeChannel(server->address(), false);
+  auto stub = v1::ShapeId::NewStub(channel);
+  const auto train_start = Clock::now();
+  if (!CreateAndTrain(*stub, data.train, train_streams)) return 1;
+  std::printf("trained %zu samples over %d Train streams on %s in %.2f s\n", data.train.size(),
+              train_streams, server->address().c_str(),
+              std::chrono::duration<double>(Clock::now() - train_start).count());
+
+  // The in-process twin: an identical gallery (same spec, same samples in the same order).
+  GalleryRegistry registry(options.gallery_limits);
+  auto gallery = registry.Create(kGalleryName, GalleryOptions{});
+  if (!gallery.ok()) {
+    std::fprintf(stderr, "%s\n", gallery.status().ToString().c_str());
+    return 1;
+  }
+  {
+    std::vector<LabelledCloud> samples;
+    samples.reserve(data.train.size());
+    for (const Sample& s : data.train) samples.push_back({0, s.label, s.cloud});
+    auto trained = (*gallery)->Train(samples);
+    if (!trained.ok()) {
+      std::fprintf(stderr, "%s\n", trained.status().ToString().c_str());
+      return 1;
+    }
+  }
+
+  const std::vector<Query> queries = BuildQueries(data.test);
+  const InProcessResult local = InProcess(**gallery, data.test, warmup, requests, seconds);
+  const LatencyResult rpc = SingleClient(*stub, queries, local.labels, warmup, requests, mode);
+
+  std::vector<LoadResult> loads;
+  for (int c : clients) {
+    if (channels_mode != "per-client") loads.push_back(Load(server->address(), queries, c, false, seconds, mode));
+    if (channels_mode != "shared" && c > 1) loads.push_back(Load(server->address(), queries, c, true, seconds, mode));
+  }
+  const std::string load_after = LoadAverage();
+  server->Shutdown(absl::Seconds(1));
+
+  // ------------------------------------------------------------------ report
+  const double ratio = local.stats.p50_us > 0 ? rpc.stats.p50_us / local.stats.p50_us : 0;
+  std::printf("\nSingle client, sequential, %lld classifications (after %d warm-up), write mode %s\n",
+              static_cast<long long>(rpc.stats.count), warmup, write_mode_name.c_str());
+  std::printf("  %-12s %9s %9s %9s %9s\n", "", "p50 us", "p90 us", "p99 us", "mean us");
+  std::printf("  %-12s %9.1f %9.1f %9.1f %9.1f\n", "RPC", rpc.stats.p50_us, rpc.stats.p90_us,
+              rpc.stats.p99_us, rpc.stats.mean_us);
+  std::printf("  %-12s %9.1f %9.1f %9.1f %9.1f\n", "in-process", local.stats.p50_us,
+              local.stats.p90_us, local.stats.p99_us, local.stats.mean_us);
+  std::printf("  RPC overhead: x%.2f at p50 (+%.1f us); mean +%.1f us\n", ratio,
+              rpc.stats.p50_us - local.stats.p50_us, rpc.stats.mean_us - local.stats.mean_us);
+  std::printf("  server-side describe %.1f us + search %.1f us (in-process: %.1f + %.1f)\n",
+              rpc.server.describe_us, rpc.server.search_us, local.describe_us, local.search_us);
+  std::printf("  target p50 < 1000 us: %s\n", rpc.stats.p50_us < 1000 ? "MET" : "MISSED");
+  if (rpc.errors > 0 || rpc.label_mismatches > 0) {
+    std::printf("  WARNING: %lld errors, %lld answers differ from in-process\n",
+                static_cast<long long>(rpc.errors), static_cast<long long>(rpc.label_mismatches));
+  }
+  std::printf("\nConcurrent clients, %.1f s each (in-process, 2 threads: %.0f /s)\n", seconds,
+              local.throughput_2t);
+  std::printf("  %7s  %-11s %9s %9s %9s %12s %6s\n", "clients", "channels", "calls/s", "p50 us",
+              "p99 us", "cpu us/call", "errors");
+  for (const LoadResult& l : loads) {
+    std::printf("  %7d  %-11s %9.0f %9.1f %9.1f %12.1f %6lld\n", l.clients,
+                l.channel_per_client ? "per-client" : "shared", l.per_second, l.stats.p50_us,
+                l.stats.p99_us, l.cpu_us_per_call, static_cast<long long>(l.errors));
+  }
+  // The best 16-client configuration (or the largest client count measured).
+  const int top = *std::max_element(clients.begin(), clients.end());
+  const LoadResult* best = nullptr;
+  for (const LoadResult& l : loads) {
+    if (l.clients == top && (best == nullptr || l.per_second > best->per_second)) best = &l;
+  }
+  if (best != nullptr) {
+    std::printf("  best at %d clients: %.0f /s (%s channels); target >= 3000 /s at 16: %s\n", top,
+                best->per_second, best->channel_per_client ? "per-client" : "shared",
+                top == 16 ? (best->per_second >= 3000 ? "MET" : "MISSED") : "not measured");
+  }
+  std::printf("load average after: %s\n", load_after.c_str());
+
+  std::vector<std::string> load_json;
+  for (const LoadResult& l : loads) {
+    load_json.push_back(absl::StrFormat(
+        R"({"clients":%d,"channels":"%s","per_second":%.1f,"p50_us":%.1f,"p99_us":%.1f,"cpu_us_per_call":%.1f,"errors":%d})",
+        l.clients, l.channel_per_client ? "per-client" : "shared", l.per_second, l.stats.p50_us,
+        l.stats.p99_us, l.cpu_us_per_call, l.errors));
+  }
+  std::fputs(absl::StrFormat(
+      "JSON {\"bench\":\"service\",\"data\":\"%s\",\"gallery_size\":%zu,\"write_mode\":\"%s\","
+      "\"server_threads\":%d,\"rpc\":%s,\"in_process\":%s,\"overhead_ratio_p50\":%.2f,"
+      "\"overhead_us_p50\":%.1f,\"server_describe_us\":%.1f,\"server_search_us\":%.1f,"
+      "\"in_process_2t_per_second\":%.1f,\"load\":[%s],\"best_top\":%.1f,"
+      "\"loadavg_before\":\"%s\",\"loadavg_after\":\"%s\"}\n",
+      data.source.rfind("SYNTHETIC", 0) == 0 ? "synthetic" : "modelnet10", gallery_size,
+      write_mode_name, server_threads, StatsJson(rpc.stats), StatsJson(local.stats), ratio,
+      rpc.stats.p50_us - local.stats.p50_us, rpc.server.describe_us, rpc.server.search_us,
+      local.throughput_2t, absl::StrJoin(load_json, ","), best ? best->per_second : 0.0,
+      load_before, load_after).c_str(), stdout);
+  return rpc.errors > 0 ? 1 : 0;
+}
+
+}  // namespace
+}  // namespace shapeid
+
+int main(int argc, char** argv) { return shapeid::Run(argc, argv); }
