@@ -457,7 +457,6 @@ int Run(int argc, char** argv) {
   int requests = 2000;
   int warmup = 200;
   int train_streams = 4;
-  int server_threads = 0;
   std::vector<int> clients = {1, 4, 16};
   std::string channels_mode = "both";
   std::string write_mode_name = "plain";
@@ -469,7 +468,6 @@ int Run(int argc, char** argv) {
   app.add_option("--requests", requests, "single-client classifications measured")->capture_default_str();
   app.add_option("--warmup", warmup, "single-client classifications before measuring")->capture_default_str();
   app.add_option("--train_streams", train_streams, "Train streams the gallery is filled over")->capture_default_str();
-  app.add_option("--server_threads", server_threads, "ServerOptions::worker_threads (0: gRPC default)")->capture_default_str();
   app.add_option("--clients", clients, "concurrent client counts")->capture_default_str();
   app.add_option("--channels", channels_mode, "shared | per-client | both")->capture_default_str();
   app.add_option("--write_mode", write_mode_name, "plain | coalesced (see ClassifyOnce)")->capture_default_str();
@@ -496,7 +494,6 @@ int Run(int argc, char** argv) {
 
   ServerOptions options;
   options.listen = "127.0.0.1:0";
-  options.worker_threads = server_threads;
   auto started = ShapeIdServer::Start(options);
   if (!started.ok()) {
     std::fprintf(stderr, "%s\n", started.status().ToString().c_str());
@@ -590,12 +587,12 @@ int Run(int argc, char** argv) {
   }
   std::fputs(absl::StrFormat(
       "JSON {\"bench\":\"service\",\"data\":\"%s\",\"gallery_size\":%zu,\"write_mode\":\"%s\","
-      "\"server_threads\":%d,\"rpc\":%s,\"in_process\":%s,\"overhead_ratio_p50\":%.2f,"
+      "\"rpc\":%s,\"in_process\":%s,\"overhead_ratio_p50\":%.2f,"
       "\"overhead_us_p50\":%.1f,\"server_describe_us\":%.1f,\"server_search_us\":%.1f,"
       "\"in_process_2t_per_second\":%.1f,\"load\":[%s],\"best_top\":%.1f,"
       "\"loadavg_before\":\"%s\",\"loadavg_after\":\"%s\"}\n",
       data.source.rfind("SYNTHETIC", 0) == 0 ? "synthetic" : "modelnet10", gallery_size,
-      write_mode_name, server_threads, StatsJson(rpc.stats), StatsJson(local.stats), ratio,
+      write_mode_name, StatsJson(rpc.stats), StatsJson(local.stats), ratio,
       rpc.stats.p50_us - local.stats.p50_us, rpc.server.describe_us, rpc.server.search_us,
       local.throughput_2t, absl::StrJoin(load_json, ","), best ? best->per_second : 0.0,
       load_before, load_after).c_str(), stdout);
