@@ -15,6 +15,9 @@ packages=(
   libcli11-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
+  # Python interop test (tests/python): a client generated from the proto with grpc_python_plugin,
+  # run by Debian's /usr/bin/python3
+  python3-grpcio python3-protobuf
 )
 
 sudo_if_needed() { if [ "$(id -u)" -eq 0 ]; then "$@"; else sudo "$@"; fi; }
