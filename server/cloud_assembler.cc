@@ -9,9 +9,8 @@ namespace shapeid {
 
 absl::Status CloudAssembler::Start(uint64_t expected_points) {
   if (expected_points > max_points_) {
-    return absl::ResourceExhaustedError(absl::StrCat("the cloud announces ", expected_points,
-                                                     " points, more than the limit of ",
-                                                     max_points_));
+    return absl::ResourceExhaustedError(absl::StrCat(
+        "the cloud announces ", expected_points, " points, more than the limit of ", max_points_));
   }
   started_ = true;
   expected_points_ = expected_points;
@@ -44,8 +43,8 @@ absl::Status CloudAssembler::Append(absl::string_view xyz_bytes) {
 #else
   for (size_t i = 0; i < 3 * added; ++i) {  // the wire is little-endian
     const auto* b = reinterpret_cast<const unsigned char*>(xyz_bytes.data()) + 4 * i;
-    const uint32_t bits = uint32_t{b[0]} | uint32_t{b[1]} << 8 | uint32_t{b[2]} << 16 |
-                          uint32_t{b[3]} << 24;
+    const uint32_t bits =
+        uint32_t{b[0]} | uint32_t{b[1]} << 8 | uint32_t{b[2]} << 16 | uint32_t{b[3]} << 24;
     std::memcpy(&xyz[old_size + i], &bits, 4);
   }
 #endif

@@ -261,7 +261,8 @@ TEST_F(GalleryServiceTest, ACutTrainStreamLeavesNoTrace) {
 TEST_F(GalleryServiceTest, StreamErrorsAreNamed) {
   ASSERT_TRUE(Create("g").ok());
   v1::TrainResponse trained;
-  EXPECT_EQ(Train("missing", TrainingSet(1, 1), &trained).error_code(), grpc::StatusCode::NOT_FOUND);
+  EXPECT_EQ(Train("missing", TrainingSet(1, 1), &trained).error_code(),
+            grpc::StatusCode::NOT_FOUND);
   const grpc::Status empty = Train("g", {}, &trained);
   EXPECT_EQ(empty.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(empty.error_message(), HasSubstr("no sample"));
@@ -334,7 +335,8 @@ TEST_F(GalleryServiceTest, SixteenConcurrentClientsTrainAndClassify) {
     clients.emplace_back([&, c] {
       for (int i = 0; i < 5; ++i) {
         v1::TrainResponse trained;
-        if (!Train("shared", {{kShapeNames[c % 3], 0, Shape(c % 3, 1000 * c + i, 300)}}, &trained).ok()) {
+        if (!Train("shared", {{kShapeNames[c % 3], 0, Shape(c % 3, 1000 * c + i, 300)}}, &trained)
+                 .ok()) {
           ++failures;
         }
         v1::ClassifyResponse answer;

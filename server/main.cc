@@ -66,9 +66,11 @@ int main(int argc, char** argv) {
 
   shapeid::ServerOptions options;
   options.listen = absl::GetFlag(FLAGS_listen);
-  if (absl::GetFlag(FLAGS_max_points_per_cloud) < 3 || absl::GetFlag(FLAGS_max_message_bytes) < 1024) {
-    std::fprintf(stderr, "shapeid-server: --max_points_per_cloud must be >= 3 and "
-                         "--max_message_bytes >= 1024\n");
+  if (absl::GetFlag(FLAGS_max_points_per_cloud) < 3 ||
+      absl::GetFlag(FLAGS_max_message_bytes) < 1024) {
+    std::fprintf(stderr,
+                 "shapeid-server: --max_points_per_cloud must be >= 3 and "
+                 "--max_message_bytes >= 1024\n");
     return 2;
   }
   options.service.max_points_per_cloud =
@@ -98,7 +100,8 @@ int main(int argc, char** argv) {
   unsigned char received = 0;
   while (read(g_stop_pipe[0], &received, 1) != 1) {
   }
-  std::fprintf(stderr, "shapeid-server: %s, shutting down\n", received == SIGTERM ? "SIGTERM" : "SIGINT");
+  std::fprintf(stderr, "shapeid-server: %s, shutting down\n",
+               received == SIGTERM ? "SIGTERM" : "SIGINT");
   (*server)->Shutdown(absl::Seconds(absl::GetFlag(FLAGS_shutdown_grace_seconds)));
   return 0;
 }

@@ -39,7 +39,7 @@ v1::KnnOptions ToProto(const KnnOptions& knn) {
   v1::KnnOptions out;
   out.set_k(static_cast<uint32_t>(knn.k));
   out.set_weighting(knn.weighting == VoteWeighting::kDistance ? v1::VOTE_WEIGHTING_DISTANCE
-                                                               : v1::VOTE_WEIGHTING_UNIFORM);
+                                                              : v1::VOTE_WEIGHTING_UNIFORM);
   switch (knn.scaling) {
     case FeatureScaling::kNone:
       out.set_scaling(v1::FEATURE_SCALING_NONE);

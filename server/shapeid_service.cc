@@ -34,14 +34,16 @@ grpc::ServerUnaryReactor* Unary(grpc::CallbackServerContext* context, CallTracke
 }
 
 absl::Status RequireGalleryName(absl::string_view rpc, const std::string& name) {
-  if (name.empty()) return absl::InvalidArgumentError(absl::StrCat(rpc, ": the gallery name is empty"));
+  if (name.empty())
+    return absl::InvalidArgumentError(absl::StrCat(rpc, ": the gallery name is empty"));
   return absl::OkStatus();
 }
 
 class DescribeReactor final : public StreamReactor<v1::DescribeRequest> {
  public:
-  DescribeReactor(grpc::CallbackServerContext* context, CallTracker* tracker, const ServiceOptions& options,
-                  const GalleryRegistry& registry, v1::DescribeResponse* response)
+  DescribeReactor(grpc::CallbackServerContext* context, CallTracker* tracker,
+                  const ServiceOptions& options, const GalleryRegistry& registry,
+                  v1::DescribeResponse* response)
       : StreamReactor(context, tracker),
         options_(options),
         registry_(registry),
@@ -72,7 +74,8 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest> {
       return absl::InvalidArgumentError("Describe: a second DescribeHeader in one stream");
     }
     if (header.descriptor_spec().empty() && !header.gallery().empty()) {
-      SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry_.Get(header.gallery()));
+      SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
+                               registry_.Get(header.gallery()));
       descriptor_ = gallery->Snapshot()->shared_descriptor();
     } else {
       const std::string& spec = header.descriptor_spec().empty() ? options_.default_descriptor_spec
@@ -109,8 +112,9 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest> {
 // OK, so an error or a cut stream (the reactor dies without OnEnd) publishes nothing.
 class TrainReactor final : public StreamReactor<v1::TrainRequest> {
  public:
-  TrainReactor(grpc::CallbackServerContext* context, CallTracker* tracker, const ServiceOptions& options,
-               const GalleryRegistry& registry, v1::TrainResponse* response)
+  TrainReactor(grpc::CallbackServerContext* context, CallTracker* tracker,
+               const ServiceOptions& options, const GalleryRegistry& registry,
+               v1::TrainResponse* response)
       : StreamReactor(context, tracker),
         registry_(registry),
         response_(response),
@@ -169,7 +173,8 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest> {
   }
 
   absl::Status OnEnd() override {
-    if (batch_ == nullptr) return absl::InvalidArgumentError("Train: the stream ended without a TrainHeader");
+    if (batch_ == nullptr)
+      return absl::InvalidArgumentError("Train: the stream ended without a TrainHeader");
     SHAPEID_RETURN_IF_ERROR(FinishSample());
     if (samples_ == 0) return absl::InvalidArgumentError("Train: the stream carried no sample");
     SHAPEID_ASSIGN_OR_RETURN(const CommitResult committed, batch_->Commit());
@@ -193,8 +198,9 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest> {
 
 class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest> {
  public:
-  ClassifyReactor(grpc::CallbackServerContext* context, CallTracker* tracker, const ServiceOptions& options,
-                  const GalleryRegistry& registry, v1::ClassifyResponse* response)
+  ClassifyReactor(grpc::CallbackServerContext* context, CallTracker* tracker,
+                  const ServiceOptions& options, const GalleryRegistry& registry,
+                  v1::ClassifyResponse* response)
       : StreamReactor(context, tracker),
         registry_(registry),
         response_(response),
@@ -206,7 +212,8 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest> {
   absl::Status OnMessage(const v1::ClassifyRequest& request) override {
     switch (request.kind_case()) {
       case v1::ClassifyRequest::kHeader: {
-        if (gallery_ != nullptr) return absl::InvalidArgumentError("Classify: a second ClassifyHeader");
+        if (gallery_ != nullptr)
+          return absl::InvalidArgumentError("Classify: a second ClassifyHeader");
         SHAPEID_RETURN_IF_ERROR(RequireGalleryName("Classify", request.header().gallery()));
         SHAPEID_ASSIGN_OR_RETURN(gallery_, registry_.Get(request.header().gallery()));
         k_ = static_cast<int>(std::min<uint32_t>(request.header().k(), 1 << 20));
@@ -230,7 +237,8 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest> {
   }
 
   absl::Status OnEnd() override {
-    if (gallery_ == nullptr) return absl::InvalidArgumentError("Classify: the stream ended without a ClassifyHeader");
+    if (gallery_ == nullptr)
+      return absl::InvalidArgumentError("Classify: the stream ended without a ClassifyHeader");
     SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud, assembler_.Finish());
     SHAPEID_ASSIGN_OR_RETURN(
         const GalleryClassification answer,
@@ -280,7 +288,8 @@ grpc::ServerUnaryReactor* ShapeIdService::GetGallery(grpc::CallbackServerContext
                                                      v1::Gallery* response) {
   return Unary(context, tracker_, [&]() -> absl::Status {
     SHAPEID_RETURN_IF_ERROR(RequireGalleryName("GetGallery", request->name()));
-    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry_->Get(request->name()));
+    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
+                             registry_->Get(request->name()));
     ToProto(*gallery->Snapshot(), response);
     return absl::OkStatus();
   });
@@ -304,7 +313,8 @@ grpc::ServerUnaryReactor* ShapeIdService::DeleteGallery(grpc::CallbackServerCont
                                                         v1::DeleteGalleryResponse* response) {
   return Unary(context, tracker_, [&]() -> absl::Status {
     SHAPEID_RETURN_IF_ERROR(RequireGalleryName("DeleteGallery", request->name()));
-    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry_->Get(request->name()));
+    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
+                             registry_->Get(request->name()));
     const int64_t samples = gallery->Snapshot()->num_samples();
     SHAPEID_RETURN_IF_ERROR(registry_->Delete(request->name()));
     response->set_samples_deleted(static_cast<uint64_t>(samples));
@@ -329,8 +339,8 @@ grpc::ServerUnaryReactor* ShapeIdService::RemoveSamples(grpc::CallbackServerCont
     for (const std::string& label : request->labels()) {
       const auto it = snapshot->ids_by_label().find(label);
       if (it == snapshot->ids_by_label().end()) {
-        return absl::NotFoundError(absl::StrCat("gallery '", gallery->name(),
-                                                "' has no samples labelled '", label, "'"));
+        return absl::NotFoundError(
+            absl::StrCat("gallery '", gallery->name(), "' has no samples labelled '", label, "'"));
       }
       ids.insert(it->second.begin(), it->second.end());
     }
@@ -356,7 +366,8 @@ grpc::ServerUnaryReactor* ShapeIdService::ListDescriptors(
         param->set_default_value(p.default_value);
         param->set_help(p.help);
       }
-      SHAPEID_ASSIGN_OR_RETURN(const std::unique_ptr<Descriptor> defaults, CreateDescriptor(kind.kind));
+      SHAPEID_ASSIGN_OR_RETURN(const std::unique_ptr<Descriptor> defaults,
+                               CreateDescriptor(kind.kind));
       out->set_default_spec(defaults->spec().ToString());
       out->set_default_dimension(static_cast<uint32_t>(defaults->dimension()));
     }

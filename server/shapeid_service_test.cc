@@ -3,17 +3,17 @@
 
 #include <cmath>
 #include <condition_variable>
-#include <mutex>
 #include <cstring>
 #include <limits>
+#include <mutex>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "core/descriptor_registry.h"
 #include "gmock/gmock.h"
-#include "grpcpp/grpcpp.h"
 #include "grpcpp/generic/generic_stub.h"
+#include "grpcpp/grpcpp.h"
 #include "gtest/gtest.h"
 #include "server/server.h"
 #include "shapeid/v1/shapeid.grpc.pb.h"
@@ -74,7 +74,8 @@ class ShapeIdServiceTest : public ::testing::Test {
     std::vector<v1::DescribeRequest> out;
     for (size_t i = 0; i < cloud.size(); i += per_chunk) {
       v1::DescribeRequest r;
-      r.mutable_points()->set_xyz(Bytes(cloud.data() + 3 * i, std::min(per_chunk, cloud.size() - i)));
+      r.mutable_points()->set_xyz(
+          Bytes(cloud.data() + 3 * i, std::min(per_chunk, cloud.size() - i)));
       out.push_back(r);
     }
     return out;
@@ -137,29 +138,50 @@ TEST_F(ShapeIdServiceTest, EveryMalformedStreamGetsAPreciseError) {
   std::vector<Case> cases = {
       {"points first", Chunks(cloud, 10), grpc::StatusCode::INVALID_ARGUMENT,
        "the first message must be a DescribeHeader"},
-      {"two headers", {Header("rphsd"), Header("rphsd")}, grpc::StatusCode::INVALID_ARGUMENT,
+      {"two headers",
+       {Header("rphsd"), Header("rphsd")},
+       grpc::StatusCode::INVALID_ARGUMENT,
        "a second DescribeHeader"},
-      {"no header at all", {}, grpc::StatusCode::INVALID_ARGUMENT, "ended without a DescribeHeader"},
-      {"empty message", {empty_message}, grpc::StatusCode::INVALID_ARGUMENT,
+      {"no header at all",
+       {},
+       grpc::StatusCode::INVALID_ARGUMENT,
+       "ended without a DescribeHeader"},
+      {"empty message",
+       {empty_message},
+       grpc::StatusCode::INVALID_ARGUMENT,
        "neither header nor points"},
-      {"bad spec", {Header("rphsd:bins=0")}, grpc::StatusCode::INVALID_ARGUMENT,
+      {"bad spec",
+       {Header("rphsd:bins=0")},
+       grpc::StatusCode::INVALID_ARGUMENT,
        "bins=0 is outside [1, 100000]"},
       {"unknown kind", {Header("esf")}, grpc::StatusCode::INVALID_ARGUMENT, "unknown descriptor"},
-      {"partial point", {Header("rphsd"), odd_chunk}, grpc::StatusCode::INVALID_ARGUMENT,
+      {"partial point",
+       {Header("rphsd"), odd_chunk},
+       grpc::StatusCode::INVALID_ARGUMENT,
        "25 bytes is not a whole number of points"},
-      {"too few points", {Header("rphsd")}, grpc::StatusCode::INVALID_ARGUMENT,
+      {"too few points",
+       {Header("rphsd")},
+       grpc::StatusCode::INVALID_ARGUMENT,
        "cloud has 0 points; at least 3 are needed"},
-      {"announced too many", {Header("rphsd", 60000)}, grpc::StatusCode::RESOURCE_EXHAUSTED,
+      {"announced too many",
+       {Header("rphsd", 60000)},
+       grpc::StatusCode::RESOURCE_EXHAUSTED,
        "announces 60000 points, more than the limit of 50000"},
-      {"short of announced", {Header("rphsd", 101)}, grpc::StatusCode::INVALID_ARGUMENT,
+      {"short of announced",
+       {Header("rphsd", 101)},
+       grpc::StatusCode::INVALID_ARGUMENT,
        "announced 101 points but 100 arrived"},
   };
   for (auto& chunk : Chunks(cloud, 100)) cases.back().messages.push_back(chunk);
-  Case nan_case{"NaN point", {Header("rphsd")}, grpc::StatusCode::INVALID_ARGUMENT,
+  Case nan_case{"NaN point",
+                {Header("rphsd")},
+                grpc::StatusCode::INVALID_ARGUMENT,
                 "point 42 has a non-finite coordinate"};
   for (auto& chunk : Chunks(with_nan, 30)) nan_case.messages.push_back(chunk);
   cases.push_back(nan_case);
-  Case big_case{"over the limit", {Header("rphsd")}, grpc::StatusCode::RESOURCE_EXHAUSTED,
+  Case big_case{"over the limit",
+                {Header("rphsd")},
+                grpc::StatusCode::RESOURCE_EXHAUSTED,
                 "more than the limit of 50000 points"};
   for (auto& chunk : Chunks(big, 20000)) big_case.messages.push_back(chunk);
   cases.push_back(big_case);

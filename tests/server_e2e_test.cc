@@ -61,7 +61,8 @@ class ServerProcess {
     }
     close(out[0]);
     const std::string prefix = "listening on ";
-    if (line.rfind(prefix, 0) == 0) address_ = line.substr(prefix.size(), line.find('\n') - prefix.size());
+    if (line.rfind(prefix, 0) == 0)
+      address_ = line.substr(prefix.size(), line.find('\n') - prefix.size());
   }
 
   ~ServerProcess() {
@@ -126,7 +127,8 @@ class ServerE2ETest : public ::testing::Test {
   void SetUp() override {
     server_ = std::make_unique<ServerProcess>();
     ASSERT_FALSE(server_->address().empty()) << "shapeid-server did not print 'listening on'";
-    stub_ = v1::ShapeId::NewStub(grpc::CreateChannel(server_->address(), grpc::InsecureChannelCredentials()));
+    stub_ = v1::ShapeId::NewStub(
+        grpc::CreateChannel(server_->address(), grpc::InsecureChannelCredentials()));
     grpc::ClientContext context;
     v1::CreateGalleryRequest create;
     create.set_name("e2e");
@@ -184,7 +186,8 @@ class ServerE2ETest : public ::testing::Test {
   void TrainThreeShapes(int per_shape) {
     std::vector<std::pair<int, PointCloud>> samples;
     for (int i = 0; i < per_shape; ++i) {
-      for (int kind = 0; kind < 3; ++kind) samples.emplace_back(kind, Shape(kind, 10 * i + kind, 800));
+      for (int kind = 0; kind < 3; ++kind)
+        samples.emplace_back(kind, Shape(kind, 10 * i + kind, 800));
     }
     const grpc::Status status = Train(samples);
     ASSERT_TRUE(status.ok()) << status.error_message();
@@ -212,7 +215,8 @@ TEST_F(ServerE2ETest, SixteenClientsTrainAndClassifyOneGallery) {
   for (int c = 0; c < 16; ++c) {
     clients.emplace_back([&, c] {
       // One channel per client, as separate robots would have.
-      auto stub = v1::ShapeId::NewStub(grpc::CreateChannel(server_->address(), grpc::InsecureChannelCredentials()));
+      auto stub = v1::ShapeId::NewStub(
+          grpc::CreateChannel(server_->address(), grpc::InsecureChannelCredentials()));
       for (int i = 0; i < 4; ++i) {
         const int kind = (c + i) % 3;
         grpc::ClientContext train_context;
@@ -282,7 +286,8 @@ TEST_F(ServerE2ETest, SigtermUnderLoadShutsDownCleanly) {
   std::vector<std::thread> clients;
   for (int c = 0; c < 4; ++c) {
     clients.emplace_back([&, c] {
-      auto stub = v1::ShapeId::NewStub(grpc::CreateChannel(server_->address(), grpc::InsecureChannelCredentials()));
+      auto stub = v1::ShapeId::NewStub(
+          grpc::CreateChannel(server_->address(), grpc::InsecureChannelCredentials()));
       for (int i = 0; !stop.load(); ++i) {
         grpc::ClientContext context;
         context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
