@@ -1,5 +1,9 @@
 #include "core/knn/knn_kernels.h"
 
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
+
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
 #define SHAPEID_KNN_X86 1
@@ -7,6 +11,16 @@
 
 namespace shapeid {
 namespace knn_internal {
+
+void AdviseHugePages(void* p, std::size_t bytes) {
+#if defined(__linux__)
+  madvise(p, bytes, MADV_HUGEPAGE);
+#else
+  (void)p;
+  (void)bytes;
+#endif
+}
+
 namespace {
 
 int64_t NumBlocks(int64_t size) { return (size + kBlockLanes - 1) / kBlockLanes; }

@@ -34,16 +34,31 @@ inline std::size_t FeatureOffset(int64_t slot, int dim, int j) {
          static_cast<std::size_t>(j) * kBlockLanes + static_cast<std::size_t>(slot % kBlockLanes);
 }
 
+// Galleries of 2 MiB and more are aligned to 2 MiB and marked for transparent huge pages.
+// Every commit copies the gallery into fresh memory (core/gallery), and on a VM each 4 KiB
+// page's first touch is a costly fault: a 100k x 81 gallery (32 MB) took 8,000 faults per
+// commit, most of a 50 ms commit; with huge pages it takes 16. Scans also miss the TLB less.
+inline constexpr std::size_t kHugePageBytes = std::size_t{2} << 20;
+
+// Asks the kernel for huge pages over [p, p + bytes); a hint, so failure is harmless.
+void AdviseHugePages(void* p, std::size_t bytes);
+
 template <typename T>
 struct AlignedAllocator {
   using value_type = T;
   AlignedAllocator() = default;
   template <typename U>
   AlignedAllocator(const AlignedAllocator<U>&) {}  // NOLINT: allocator rebinding
-  T* allocate(std::size_t n) {
-    return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t(kStorageAlignment)));
+  static std::size_t AlignmentFor(std::size_t n) {
+    return n * sizeof(T) >= kHugePageBytes ? kHugePageBytes : kStorageAlignment;
   }
-  void deallocate(T* p, std::size_t) { ::operator delete(p, std::align_val_t(kStorageAlignment)); }
+  T* allocate(std::size_t n) {
+    const std::size_t alignment = AlignmentFor(n);
+    void* p = ::operator new(n * sizeof(T), std::align_val_t(alignment));
+    if (alignment == kHugePageBytes) AdviseHugePages(p, n * sizeof(T));
+    return static_cast<T*>(p);
+  }
+  void deallocate(T* p, std::size_t n) { ::operator delete(p, std::align_val_t(AlignmentFor(n))); }
   friend bool operator==(const AlignedAllocator&, const AlignedAllocator&) { return true; }
   friend bool operator!=(const AlignedAllocator&, const AlignedAllocator&) { return false; }
 };
