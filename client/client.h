@@ -1,0 +1,109 @@
+#ifndef SHAPEID_CLIENT_CLIENT_H_
+#define SHAPEID_CLIENT_CLIENT_H_
+
+// The C++ client of a shapeid server (the ShapeId service of proto/shapeid/v1/shapeid.proto).
+//
+//   shapeid::ClientOptions options;
+//   options.target = "recognizer:50051";
+//   auto client = shapeid::Client::Connect(options);
+//   if (!client.ok()) ...
+//   absl::StatusOr<shapeid::v1::ClassifyResponse> result = (*client)->Classify("parts", cloud);
+//
+// Results are the service's response messages (shapeid/v1/shapeid.pb.h): every field is
+// documented in the proto. Errors are the server's gRPC status as an absl::Status with the same
+// code and message (INVALID_ARGUMENT, NOT_FOUND, ALREADY_EXISTS, ...; see the proto's header),
+// or UNAVAILABLE / DEADLINE_EXCEEDED from the transport. A failed call changes nothing on the
+// server.
+//
+// Thread safety: a Client is safe to share; any number of threads may call any method at
+// once. Calls block the calling thread until the reply, the error or the deadline.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/types/span.h"
+#include "client/client_options.h"
+#include "core/point_cloud.h"
+#include "grpcpp/grpcpp.h"
+#include "shapeid/v1/shapeid.grpc.pb.h"
+#include "shapeid/v1/shapeid.pb.h"
+
+namespace shapeid {
+
+// One labelled cloud for Train. The cloud is borrowed: it must outlive the Train call.
+struct TrainSample {
+  std::string label;
+  // Client-chosen id, unique in the gallery; 0 lets the server choose (and disables retries).
+  uint64_t sample_id = 0;
+  const PointCloud* cloud = nullptr;
+};
+
+class Client {
+ public:
+  // Checks `options` (InvalidArgument for an empty target, max_attempts < 1, chunk_points
+  // < 1, a non-positive deadline) and creates the channel. Does not touch the network: a
+  // server that is down shows up as UNAVAILABLE on the first call.
+  static absl::StatusOr<std::unique_ptr<Client>> Connect(ClientOptions options);
+
+  Client(const Client&) = delete;
+  Client& operator=(const Client&) = delete;
+  ~Client();
+
+  const ClientOptions& options() const { return options_; }
+
+  // The descriptor of `cloud`. `spec` empty: the spec of `gallery` if given, else the
+  // server's default. The cloud travels in chunks of options().chunk_points points.
+  absl::StatusOr<v1::DescribeResponse> Describe(const PointCloud& cloud,
+                                                const std::string& spec = "",
+                                                const std::string& gallery = "");
+
+  // Classifies `cloud` against `gallery` with `k` neighbours (0: the gallery's k).
+  // FAILED_PRECONDITION on an empty gallery, NOT_FOUND on an unknown one.
+  absl::StatusOr<v1::ClassifyResponse> Classify(const std::string& gallery,
+                                                const PointCloud& cloud, uint32_t k = 0);
+
+  // Adds `samples` to `gallery` in one stream: all of them or, on any error, none.
+  // InvalidArgument (before sending anything) if a sample has no cloud.
+  absl::StatusOr<v1::TrainResponse> Train(const std::string& gallery,
+                                          absl::Span<const TrainSample> samples);
+
+  // Gallery management: thin wrappers over the unary RPCs of the same names.
+  absl::StatusOr<v1::Gallery> CreateGallery(const v1::CreateGalleryRequest& request);
+  absl::StatusOr<v1::Gallery> GetGallery(const std::string& name);
+  absl::StatusOr<std::vector<v1::Gallery>> ListGalleries();  // sorted by name
+  // Returns the number of samples deleted with the gallery.
+  absl::StatusOr<uint64_t> DeleteGallery(const std::string& name);
+  // Removes the union of `sample_ids` and `labels`; all-or-nothing (an unknown id: NOT_FOUND).
+  absl::StatusOr<v1::RemoveSamplesResponse> RemoveSamples(const std::string& gallery,
+                                                          absl::Span<const uint64_t> sample_ids,
+                                                          absl::Span<const std::string> labels);
+  absl::StatusOr<std::vector<v1::DescriptorKind>> ListDescriptors();
+
+  // grpc.health.v1 Check of the whole server: OK when it answers SERVING, UNAVAILABLE when
+  // it answers anything else or cannot be reached.
+  absl::Status CheckHealth();
+
+ private:
+  explicit Client(ClientOptions options);
+
+  // Runs `attempt` (one RPC on a fresh context) up to options_.max_attempts times while it
+  // returns UNAVAILABLE and `retry` is true, with exponential backoff, all within one
+  // deadline. `attempt` is called as grpc::Status(grpc::ClientContext&).
+  template <typename Attempt>
+  absl::Status Call(bool retry, bool corked, const Attempt& attempt);
+
+  const ClientOptions options_;
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<v1::ShapeId::Stub> stub_;  // thread-safe
+};
+
+// The one conversion of a gRPC status into an absl::Status: same code, same message.
+absl::Status FromGrpcStatus(const grpc::Status& status);
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_CLIENT_CLIENT_H_

@@ -1,0 +1,240 @@
+// shapeid::Client against an in-process ShapeIdServer on a loopback port: every call, chunking
+// of a big cloud, error codes, retries with backoff, deadlines, concurrent use.
+
+#include "client/client.h"
+
+#include <atomic>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "server/server.h"
+
+namespace shapeid {
+namespace {
+
+using ::testing::HasSubstr;
+
+PointCloud Shape(int kind, uint32_t seed, size_t n = 600) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  PointCloud cloud;
+  for (size_t i = 0; i < n; ++i) {
+    if (kind == 0) {
+      cloud.Add(2 * u(rng), 1.5f * u(rng), 0.1f * u(rng));
+    } else {
+      cloud.Add(3 * u(rng), 0.05f * u(rng), 0.05f * u(rng));
+    }
+  }
+  return cloud;
+}
+
+class ClientTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ServerOptions server_options;
+    server_options.listen = "127.0.0.1:0";
+    auto server = ShapeIdServer::Start(server_options);
+    ASSERT_TRUE(server.ok()) << server.status();
+    server_ = std::move(server).value();
+    ClientOptions options;
+    options.target = server_->address();
+    options.chunk_points = 1000;  // small clouds still span several chunks
+    auto client = Client::Connect(options);
+    ASSERT_TRUE(client.ok()) << client.status();
+    client_ = std::move(client).value();
+  }
+
+  void CreateTrained(const std::string& name) {
+    v1::CreateGalleryRequest request;
+    request.set_name(name);
+    ASSERT_TRUE(client_->CreateGallery(request).ok());
+    std::vector<PointCloud> clouds;
+    for (int i = 0; i < 6; ++i) clouds.push_back(Shape(i % 2, 100 + i));
+    std::vector<TrainSample> samples;
+    for (int i = 0; i < 6; ++i) {
+      samples.push_back({i % 2 == 0 ? "box" : "rod", static_cast<uint64_t>(i + 1), &clouds[i]});
+    }
+    auto trained = client_->Train(name, samples);
+    ASSERT_TRUE(trained.ok()) << trained.status();
+    EXPECT_EQ(trained->sample_ids_size(), 6);
+    EXPECT_EQ(trained->gallery_sample_count(), 6u);
+  }
+
+  std::unique_ptr<ShapeIdServer> server_;
+  std::unique_ptr<Client> client_;
+};
+
+TEST(ClientConnectTest, RejectsBadOptions) {
+  ClientOptions options;
+  options.max_attempts = 0;
+  EXPECT_TRUE(absl::IsInvalidArgument(Client::Connect(options).status()));
+  options = ClientOptions();
+  options.target = "";
+  EXPECT_TRUE(absl::IsInvalidArgument(Client::Connect(options).status()));
+  options = ClientOptions();
+  options.chunk_points = 0;
+  EXPECT_TRUE(absl::IsInvalidArgument(Client::Connect(options).status()));
+}
+
+TEST_F(ClientTest, EveryCallRoundTrips) {
+  EXPECT_TRUE(client_->CheckHealth().ok());
+
+  auto descriptors = client_->ListDescriptors();
+  ASSERT_TRUE(descriptors.ok()) << descriptors.status();
+  EXPECT_FALSE(descriptors->empty());
+
+  auto described = client_->Describe(Shape(0, 1), "rphsd");
+  ASSERT_TRUE(described.ok()) << described.status();
+  EXPECT_EQ(described->num_points(), 600u);
+  EXPECT_FALSE(described->values().empty());
+
+  CreateTrained("parts");
+  auto gallery = client_->GetGallery("parts");
+  ASSERT_TRUE(gallery.ok()) << gallery.status();
+  EXPECT_EQ(gallery->sample_count(), 6u);
+
+  auto classified = client_->Classify("parts", Shape(1, 999), 3);
+  ASSERT_TRUE(classified.ok()) << classified.status();
+  EXPECT_EQ(classified->label(), "rod");
+  EXPECT_EQ(classified->num_points(), 600u);
+
+  auto list = client_->ListGalleries();
+  ASSERT_TRUE(list.ok()) << list.status();
+  ASSERT_EQ(list->size(), 1u);
+  EXPECT_EQ((*list)[0].name(), "parts");
+
+  const uint64_t ids[] = {1};
+  const std::string labels[] = {"rod"};
+  auto removed = client_->RemoveSamples("parts", ids, labels);
+  ASSERT_TRUE(removed.ok()) << removed.status();
+  EXPECT_EQ(removed->removed(), 4u);
+  EXPECT_EQ(removed->remaining(), 2u);
+
+  auto deleted = client_->DeleteGallery("parts");
+  ASSERT_TRUE(deleted.ok()) << deleted.status();
+  EXPECT_EQ(*deleted, 2u);
+}
+
+TEST(ClientChunkTest, BigCloudIsChunked) {
+  // The server refuses any message over 256 KiB; the cloud is 1.2 MB, so it only gets
+  // through in chunks (16,384 points = 192 KiB each).
+  ServerOptions server_options;
+  server_options.listen = "127.0.0.1:0";
+  server_options.max_message_bytes = 256 << 10;
+  auto server = ShapeIdServer::Start(server_options);
+  ASSERT_TRUE(server.ok()) << server.status();
+  ClientOptions options;
+  options.target = (*server)->address();
+  auto client = Client::Connect(options);
+  ASSERT_TRUE(client.ok());
+  const PointCloud cloud = Shape(0, 7, 100000);
+  auto described = (*client)->Describe(cloud);
+  ASSERT_TRUE(described.ok()) << described.status();
+  EXPECT_EQ(described->num_points(), 100000u);
+
+  // Chunks above the server's limit: refused (RESOURCE_EXHAUSTED), proving the limit bites.
+  options.chunk_points = 100000;
+  auto one_chunk = Client::Connect(options);
+  ASSERT_TRUE(one_chunk.ok());
+  const absl::Status status = (*one_chunk)->Describe(cloud).status();
+  EXPECT_TRUE(absl::IsResourceExhausted(status)) << status;
+}
+
+TEST_F(ClientTest, ErrorsKeepCodeAndMessage) {
+  EXPECT_TRUE(absl::IsNotFound(client_->GetGallery("nope").status()));
+  EXPECT_TRUE(absl::IsNotFound(client_->Classify("nope", Shape(0, 1)).status()));
+  EXPECT_TRUE(absl::IsNotFound(client_->DeleteGallery("nope").status()));
+
+  v1::CreateGalleryRequest request;
+  request.set_name("g");
+  ASSERT_TRUE(client_->CreateGallery(request).ok());
+  EXPECT_TRUE(absl::IsAlreadyExists(client_->CreateGallery(request).status()));
+  EXPECT_TRUE(absl::IsFailedPrecondition(client_->Classify("g", Shape(0, 1)).status()));
+
+  PointCloud two({{0, 0, 0}, {1, 1, 1}});
+  const absl::Status few = client_->Describe(two).status();
+  EXPECT_TRUE(absl::IsInvalidArgument(few)) << few;
+  EXPECT_FALSE(few.message().empty());
+
+  const absl::Status spec = client_->Describe(Shape(0, 1), "nosuchdescriptor").status();
+  EXPECT_TRUE(absl::IsInvalidArgument(spec)) << spec;
+  EXPECT_THAT(std::string(spec.message()), HasSubstr("nosuchdescriptor"));
+
+  PointCloud bad = Shape(0, 1);
+  bad.mutable_xyz()[3 * 500 + 1] = std::numeric_limits<float>::quiet_NaN();
+  const absl::Status nan = client_->Describe(bad).status();
+  EXPECT_TRUE(absl::IsInvalidArgument(nan)) << nan;
+
+  const std::vector<TrainSample> none_cloud = {{"box", 0, nullptr}};
+  EXPECT_TRUE(absl::IsInvalidArgument(client_->Train("g", none_cloud).status()));
+
+  // Train is all-or-nothing: a taken id fails the stream and adds nothing.
+  const PointCloud a = Shape(0, 1), b = Shape(1, 2);
+  const std::vector<TrainSample> first = {{"box", 5, &a}};
+  ASSERT_TRUE(client_->Train("g", first).ok());
+  const std::vector<TrainSample> again = {{"rod", 6, &b}, {"box", 5, &a}};
+  EXPECT_TRUE(absl::IsAlreadyExists(client_->Train("g", again).status()));
+  EXPECT_EQ(client_->GetGallery("g")->sample_count(), 1u);
+}
+
+TEST(ClientRetryTest, UnavailableAfterBoundedRetries) {
+  ClientOptions options;
+  options.target = "127.0.0.1:1";  // nothing listens
+  options.max_attempts = 3;
+  options.initial_backoff = absl::Milliseconds(100);
+  auto client = Client::Connect(options);
+  ASSERT_TRUE(client.ok());
+  const absl::Time start = absl::Now();
+  const absl::Status status = (*client)->ListGalleries().status();
+  const absl::Duration took = absl::Now() - start;
+  EXPECT_TRUE(absl::IsUnavailable(status)) << status;
+  EXPECT_GE(took, absl::Milliseconds(300));  // backoffs 100 + 200 ms
+  EXPECT_LT(took, absl::Seconds(5));
+  EXPECT_TRUE(absl::IsUnavailable((*client)->CheckHealth()));
+
+  // Not idempotent: one attempt, no backoff.
+  const absl::Time start2 = absl::Now();
+  v1::CreateGalleryRequest request;
+  request.set_name("g");
+  EXPECT_TRUE(absl::IsUnavailable((*client)->CreateGallery(request).status()));
+  EXPECT_LT(absl::Now() - start2, absl::Milliseconds(100));
+}
+
+TEST_F(ClientTest, DeadlineIsHonoured) {
+  ClientOptions options = client_->options();
+  options.deadline = absl::Milliseconds(1);
+  auto client = Client::Connect(options);
+  ASSERT_TRUE(client.ok());
+  const PointCloud cloud = Shape(0, 7, 200000);
+  const absl::Time start = absl::Now();
+  const absl::Status status = (*client)->Describe(cloud).status();
+  EXPECT_TRUE(absl::IsDeadlineExceeded(status)) << status;
+  EXPECT_LT(absl::Now() - start, absl::Seconds(2));
+}
+
+TEST_F(ClientTest, SharedAcrossThreads) {
+  CreateTrained("shared");
+  std::atomic<int> ok{0};
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 8; ++t) {
+    threads.emplace_back([&, t] {
+      for (int i = 0; i < 5; ++i) {
+        const int kind = (t + i) % 2;
+        auto result = client_->Classify("shared", Shape(kind, 1000 + 10 * t + i, 3000));
+        if (result.ok() && result->label() == (kind == 0 ? "box" : "rod") &&
+            result->num_points() == 3000u && client_->GetGallery("shared").ok()) {
+          ++ok;
+        }
+      }
+    });
+  }
+  for (auto& thread : threads) thread.join();
+  EXPECT_EQ(ok.load(), 40);
+}
+
+}  // namespace
+}  // namespace shapeid
