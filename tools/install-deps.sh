@@ -13,6 +13,8 @@ packages=(
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   # CLI argument parsing: subcommands with typed options and generated --help
   libcli11-dev
+  # LZF decompression of PCD DATA binary_compressed (core/io/pcd_reader.cc)
+  liblzf-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   # Python interop test (tests/python): a client generated from the proto with grpc_python_plugin,

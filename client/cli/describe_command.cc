@@ -192,9 +192,11 @@ std::string DescribeHelpFooter() {
       "defaults shown):\n",
       DescribeRegistry(),
       "\n"
-      "Files: .pcd (PCD v0.7, ascii or binary), .xyz / .txt (x y z per line, blank- or\n"
-      "comma-separated), .csv (comma or semicolon). Coordinates are recentred on the bounding\n"
-      "box before conversion to float; every descriptor is translation invariant.\n"
+      "Files: .pcd (PCD v0.7: ascii, binary, binary_compressed), .ply (ascii, binary little or\n"
+      "big endian; vertices), .off (a mesh, sampled to 2,048 points, area-weighted, seeded),\n"
+      ".xyz / .txt (x y z per line, blank- or comma-separated), .csv (comma or semicolon).\n"
+      "Coordinates are recentred on the bounding box before conversion to float; every\n"
+      "descriptor is translation invariant.\n"
       "\n"
       "Output: text prints one line per file, the file name and then the values (%.9g, which\n"
       "round-trips float); json prints one JSON object per line:\n"

@@ -23,7 +23,7 @@ void AddDescribe(CLI::App& app, shapeid::DescribeOptions* options, std::string* 
   describe->add_flag("--drop-nonfinite", options->drop_non_finite,
                      "Remove points with NaN or infinite coordinates (organised PCD clouds) "
                      "instead of failing on them");
-  describe->add_option("FILE", options->files, "Point-cloud files: .pcd .xyz .txt .csv")
+  describe->add_option("FILE", options->files, "Point-cloud files: .pcd .ply .off .xyz .txt .csv")
       ->required()
       ->type_name("");
   describe->footer(shapeid::DescribeHelpFooter());

@@ -13,38 +13,19 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "core/io/cloud_accumulator.h"
+#include "core/io/pcd_internal.h"
 #include "core/io/text_lines.h"
 #include "core/status_macros.h"
 
 namespace shapeid {
 namespace {
 
-enum class DataKind { kAscii, kBinary };
-
-// The header as written; checked for consistency by MakeLayout().
-struct Header {
-  std::vector<absl::string_view> fields;
-  std::vector<uint64_t> sizes;
-  std::vector<char> types;
-  std::vector<uint64_t> counts;
-  uint64_t width = 0;
-  uint64_t height = 1;
-  uint64_t points = 0;
-  DataKind data = DataKind::kBinary;
-  size_t data_offset = 0;  // first byte after the DATA line
-  // The line of each keyword; 0 when absent.
-  uint64_t version_line = 0, fields_line = 0, size_line = 0, type_line = 0, count_line = 0,
-           width_line = 0, height_line = 0, viewpoint_line = 0, points_line = 0, data_line = 0;
-};
-
-// Where x, y and z sit in one point; derived from a consistent header.
-struct Layout {
-  uint64_t point_bytes = 0;   // binary: bytes per point
-  uint64_t point_values = 0;  // ascii: values per point
-  uint64_t byte_offset[3] = {0, 0, 0};
-  uint64_t value_index[3] = {0, 0, 0};
-  bool is_double[3] = {false, false, false};
-};
+using pcd_internal::DataKind;
+using pcd_internal::DecodeCompressed;
+using pcd_internal::Header;
+using pcd_internal::Layout;
+using pcd_internal::LoadCoordinate;
+using pcd_internal::MulOverflows;
 
 absl::Status LineError(absl::string_view name, uint64_t line, absl::string_view message) {
   return absl::InvalidArgumentError(absl::StrCat(name, ": line ", line, ": ", message));
@@ -160,11 +141,7 @@ absl::StatusOr<Header> ParseHeader(absl::string_view contents, absl::string_view
       } else if (values[0] == "binary") {
         h.data = DataKind::kBinary;
       } else if (values[0] == "binary_compressed") {
-        return absl::UnimplementedError(absl::StrCat(
-            name, ": line ", ln,
-            ": DATA binary_compressed is not supported yet; it arrives with the full PCD "
-            "reader (liblzf). Meanwhile convert the file, e.g. with PCL's "
-            "`pcl_convert_pcd_ascii_binary in.pcd out.pcd 1`"));
+        h.data = DataKind::kBinaryCompressed;
       } else {
         return LineError(name, ln,
                          absl::StrCat("unknown DATA kind ", QuoteForMessage(values[0]),
@@ -177,10 +154,6 @@ absl::StatusOr<Header> ParseHeader(absl::string_view contents, absl::string_view
   return absl::InvalidArgumentError(
       absl::StrCat(name, ": the PCD header has no DATA line (", lines.line_number(), " lines read)",
                    h.version_line == 0 && h.fields_line == 0 ? "; is this a PCD file?" : ""));
-}
-
-bool MulOverflows(uint64_t a, uint64_t b, uint64_t* out) {
-  return __builtin_mul_overflow(a, b, out);
 }
 
 absl::StatusOr<Layout> MakeLayout(Header& h, absl::string_view name) {
@@ -277,17 +250,6 @@ absl::StatusOr<Layout> MakeLayout(Header& h, absl::string_view name) {
   return layout;
 }
 
-double LoadCoordinate(const char* p, bool is_double) {
-  if (is_double) {
-    double d;
-    std::memcpy(&d, p, sizeof d);
-    return d;
-  }
-  float f;
-  std::memcpy(&f, p, sizeof f);
-  return f;
-}
-
 absl::StatusOr<ReadResult> DecodeBinary(absl::string_view contents, absl::string_view name,
                                         const Header& h, const Layout& layout,
                                         const ReadOptions& options) {
@@ -370,6 +332,9 @@ absl::StatusOr<ReadResult> ParsePcd(absl::string_view contents, absl::string_vie
   SHAPEID_ASSIGN_OR_RETURN(Header header, ParseHeader(contents, name));
   SHAPEID_ASSIGN_OR_RETURN(const Layout layout, MakeLayout(header, name));
   if (header.data == DataKind::kAscii) return DecodeAscii(contents, name, header, layout, options);
+  if (header.data == DataKind::kBinaryCompressed) {
+    return DecodeCompressed(contents, name, header, layout, options);
+  }
   return DecodeBinary(contents, name, header, layout, options);
 }
 

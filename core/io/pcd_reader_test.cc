@@ -4,6 +4,9 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <vector>
+
+#include <lzf.h>
 
 #include "absl/strings/str_cat.h"
 #include "core/io/point_cloud_reader.h"
@@ -264,11 +267,94 @@ TEST(PcdReaderTest, UnknownDataKind) {
   ExpectError(ReadPointCloud(path), absl::StatusCode::kInvalidArgument, path, "line 11");
 }
 
-TEST(PcdReaderTest, BinaryCompressedIsUnimplemented) {
-  const std::string path = WriteTempFile("bc.pcd", XyzHeader(1, "binary_compressed") + "xxxx");
-  const absl::StatusOr<ReadResult> r = ReadPointCloud(path);
-  ExpectError(r, absl::StatusCode::kUnimplemented, path, "line 11");
-  EXPECT_THAT(std::string(r.status().message()), HasSubstr("liblzf"));
+// A binary_compressed file as PCL writes it: fields intensity (U2), x, _ (3 padding bytes),
+// y (F8), z, each stored for all points before the next (SoA), then LZF-compressed.
+std::string CompressedFile(const std::vector<float>& xyz) {
+  const size_t n = xyz.size() / 3;
+  std::string soa;
+  for (size_t i = 0; i < n; ++i) AppendBytes<uint16_t>(&soa, 7);
+  for (size_t i = 0; i < n; ++i) AppendBytes<float>(&soa, xyz[3 * i]);
+  soa.append(3 * n, '\x5a');
+  for (size_t i = 0; i < n; ++i) AppendBytes<double>(&soa, xyz[3 * i + 1]);
+  for (size_t i = 0; i < n; ++i) AppendBytes<float>(&soa, xyz[3 * i + 2]);
+  std::string block(soa.size() + 64, '\0');
+  const unsigned int size = lzf_compress(soa.data(), static_cast<unsigned int>(soa.size()),
+                                         block.data(), static_cast<unsigned int>(block.size()));
+  EXPECT_GT(size, 0u);
+  block.resize(size);
+  std::string file = absl::StrCat(
+      "VERSION 0.7\nFIELDS intensity x _ y z\nSIZE 2 4 1 8 4\nTYPE U F U F F\n"
+      "COUNT 1 1 3 1 1\nWIDTH ", n, "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS ", n,
+      "\nDATA binary_compressed\n");
+  AppendBytes<uint32_t>(&file, size);
+  AppendBytes<uint32_t>(&file, static_cast<uint32_t>(soa.size()));
+  return file + block;
+}
+
+std::vector<float> RepetitiveXyz(size_t n) {
+  std::vector<float> xyz;
+  for (size_t i = 0; i < n; ++i) {
+    xyz.push_back(static_cast<float>(i % 10));
+    xyz.push_back(-0.5f * static_cast<float>(i % 3));
+    xyz.push_back(1000.25f);
+  }
+  return xyz;
+}
+
+TEST(PcdReaderTest, BinaryCompressedWithExtraFieldsAndPadding) {
+  const std::vector<float> xyz = RepetitiveXyz(500);
+  const std::string file = CompressedFile(xyz);
+  const std::string path = WriteTempFile("bc.pcd", file);
+  absl::StatusOr<ReadResult> r = ReadPointCloud(path, Raw());
+  ASSERT_TRUE(r.ok()) << r.status();
+  ASSERT_EQ(r->cloud.size(), 500u);
+  for (size_t i = 0; i < 500; i += 37) {
+    ExpectPoint(r->cloud, i, xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+  }
+  EXPECT_LT(file.size(), 500u * 23);  // it really is compressed
+}
+
+TEST(PcdReaderTest, BinaryCompressedEmptyCloud) {
+  std::string file = XyzHeader(0, "binary_compressed");
+  const absl::StatusOr<ReadResult> bare = ParsePcd(file, "e.pcd");
+  ASSERT_TRUE(bare.ok()) << bare.status();
+  AppendBytes<uint32_t>(&file, 0);
+  AppendBytes<uint32_t>(&file, 0);
+  const absl::StatusOr<ReadResult> sized = ParsePcd(file, "e.pcd");
+  ASSERT_TRUE(sized.ok()) << sized.status();
+  EXPECT_EQ(sized->cloud.size(), 0u);
+}
+
+TEST(PcdReaderTest, BinaryCompressedErrorsNameTheByteOffset) {
+  const std::string file = CompressedFile(RepetitiveXyz(50));
+  const size_t data = file.find("binary_compressed\n") + 18;
+  // Truncated block.
+  const std::string cut = WriteTempFile("cut.pcd", file.substr(0, file.size() - 3));
+  ExpectError(ReadPointCloud(cut), absl::StatusCode::kInvalidArgument, cut,
+              absl::StrCat("byte offset ", data + 8, ": compressed data is truncated"));
+  // Sizes cut short.
+  const std::string sizes = WriteTempFile("sizes.pcd", file.substr(0, data + 5));
+  ExpectError(ReadPointCloud(sizes), absl::StatusCode::kInvalidArgument, sizes,
+              absl::StrCat("byte offset ", data));
+  // Uncompressed size disagrees with the header.
+  std::string wrong = file;
+  wrong[data + 4] = static_cast<char>(wrong[data + 4] + 1);
+  const std::string wrong_path = WriteTempFile("wrong.pcd", wrong);
+  ExpectError(ReadPointCloud(wrong_path), absl::StatusCode::kInvalidArgument, wrong_path,
+              absl::StrCat("byte offset ", data + 4, ": uncompressed size"));
+  // Corrupt LZF block: a back reference before the start of the output.
+  std::string corrupt = file;
+  corrupt[data + 8] = '\xe0';
+  corrupt[data + 9] = '\xff';
+  const std::string corrupt_path = WriteTempFile("corrupt.pcd", corrupt);
+  ExpectError(ReadPointCloud(corrupt_path), absl::StatusCode::kInvalidArgument, corrupt_path,
+              absl::StrCat("byte offset ", data + 8, ": the LZF block is corrupt"));
+  // A size LZF cannot reach is refused before allocating it.
+  std::string forged = XyzHeader(400000000, "binary_compressed");
+  AppendBytes<uint32_t>(&forged, 4);
+  AppendBytes<uint32_t>(&forged, 4800000000u % (1ull << 32));
+  forged += "abcd";
+  EXPECT_FALSE(ParsePcd(forged, "forged.pcd").ok());
 }
 
 TEST(PcdReaderTest, DuplicateKeywordAndMissingWidth) {
@@ -286,7 +372,8 @@ TEST(PcdReaderTest, DuplicateKeywordAndMissingWidth) {
 TEST(PcdReaderTest, EveryTruncationIsHandled) {
   std::string binary = XyzBinary({1, 2, 3, 4, 5, 6});
   std::string ascii = XyzHeader(2, "ascii") + "1 2 3\n4 5 6\n";
-  for (const std::string& file : {binary, ascii}) {
+  std::string compressed = CompressedFile({1, 2, 3, 4, 5, 6});
+  for (const std::string& file : {binary, ascii, compressed}) {
     for (size_t n = 0; n <= file.size(); ++n) {
       // Parse from a heap copy of exactly n bytes, so ASan sees any overrun.
       const std::string prefix = file.substr(0, n);
@@ -305,6 +392,7 @@ TEST(PcdReaderTest, RandomCorruptionsAreHandled) {
   const std::string files[] = {
       XyzBinary({1, 2, 3, 4, 5, 6, 7, 8, 9}),
       XyzHeader(3, "ascii") + "1 2 3\n4 5 6\n7 8 9\n",
+      CompressedFile(RepetitiveXyz(40)),
   };
   const char replacements[] = "0123456789 \n.-eFIUxyz#\xff";
   std::mt19937 rng(12345);

@@ -10,7 +10,9 @@
 #include "absl/status/status.h"
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
+#include "core/io/off_reader.h"
 #include "core/io/pcd_reader.h"
+#include "core/io/ply_reader.h"
 #include "core/io/xyz_reader.h"
 #include "core/status_macros.h"
 
@@ -54,12 +56,14 @@ absl::StatusOr<CloudFormat> CloudFormatForPath(absl::string_view path) {
   const std::string ext =
       dot == absl::string_view::npos ? "" : absl::AsciiStrToLower(base.substr(dot));
   if (ext == ".pcd") return CloudFormat::kPcd;
+  if (ext == ".ply") return CloudFormat::kPly;
+  if (ext == ".off") return CloudFormat::kOff;
   if (ext == ".xyz" || ext == ".txt") return CloudFormat::kXyz;
   if (ext == ".csv") return CloudFormat::kCsv;
   return absl::InvalidArgumentError(absl::StrCat(
       path, ": ",
       ext.empty() ? "no file extension" : absl::StrCat("unknown extension \"", ext, "\""),
-      "; supported: .pcd, .xyz, .txt, .csv"));
+      "; supported: .pcd, .ply, .off, .xyz, .txt, .csv"));
 }
 
 absl::StatusOr<std::string> ReadFileContents(const std::string& path) {
@@ -105,6 +109,10 @@ absl::StatusOr<ReadResult> ParsePointCloud(absl::string_view contents, CloudForm
   switch (format) {
     case CloudFormat::kPcd:
       return ParsePcd(contents, name, options);
+    case CloudFormat::kPly:
+      return ParsePly(contents, name, options);
+    case CloudFormat::kOff:
+      return ParseOff(contents, name, options);
     case CloudFormat::kXyz:
       return ParseXyz(contents, name, TextDialect::kXyz, options);
     case CloudFormat::kCsv:

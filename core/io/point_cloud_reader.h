@@ -10,10 +10,13 @@
 namespace shapeid {
 
 // The file formats ReadPointCloud knows, by extension (case-insensitive):
-//   .pcd               PCD v0.7, DATA ascii or binary (core/io/pcd_reader.h)
+//   .pcd               PCD v0.7, DATA ascii, binary or binary_compressed (core/io/pcd_reader.h)
+//   .ply               PLY ascii / binary little or big endian; vertices, or faces sampled
+//                      with ReadOptions::sample_faces (core/io/ply_reader.h)
+//   .off               OFF mesh, sampled to ReadOptions::sample_points (core/io/off_reader.h)
 //   .xyz .txt          text, blank- or comma-separated (core/io/xyz_reader.h)
 //   .csv               text, comma- or semicolon-separated
-enum class CloudFormat { kPcd, kXyz, kCsv };
+enum class CloudFormat { kPcd, kPly, kOff, kXyz, kCsv };
 
 // The format for `path`'s extension; InvalidArgument listing the supported extensions.
 absl::StatusOr<CloudFormat> CloudFormatForPath(absl::string_view path);

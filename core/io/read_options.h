@@ -2,13 +2,15 @@
 #define SHAPEID_CORE_IO_READ_OPTIONS_H_
 
 #include <cstddef>
+#include <cstdint>
 
 #include "Eigen/Core"
 #include "core/point_cloud.h"
 
 namespace shapeid {
 
-// How the point-cloud readers turn a file into a PointCloud. Every reader honours every field.
+// How the point-cloud readers turn a file into a PointCloud. Every reader honours
+// drop_non_finite and recenter; the sample_* fields concern the mesh formats (PLY, OFF).
 struct ReadOptions {
   // Organised PCD clouds (from depth cameras) mark missing pixels with NaN points. Default
   // false: they are kept, so that describing the cloud fails and says so, rather than
@@ -23,6 +25,19 @@ struct ReadOptions {
   // invariant, so the shift costs nothing. ReadResult::offset gives the shift back. False
   // keeps the file's coordinates (rounded to float), e.g. for viewing alongside other data.
   bool recenter = true;
+
+  // Meshes (PLY with faces, OFF) can be sampled to points on their surface, area-weighted:
+  // each point picks a triangle (polygons are split into fans) with probability proportional
+  // to its area, then a uniform point in it. The PRNG is splitmix64 seeded with sample_seed,
+  // so the same file, count and seed give the same points everywhere.
+
+  // PLY: 0 (default) reads the vertex element as the cloud; N > 0 samples N points on the
+  // faces instead (an error if the file has no face element).
+  size_t sample_faces = 0;
+  // OFF: the number of points sampled on the mesh; 0 reads the vertices as the cloud.
+  size_t sample_points = 2048;
+  // Seed for both kinds of sampling.
+  uint64_t sample_seed = 0;
 };
 
 // A cloud as read, and what reading did to it.

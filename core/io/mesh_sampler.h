@@ -1,0 +1,61 @@
+#ifndef SHAPEID_CORE_IO_MESH_SAMPLER_H_
+#define SHAPEID_CORE_IO_MESH_SAMPLER_H_
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/strings/string_view.h"
+#include "core/io/cloud_accumulator.h"
+
+namespace shapeid {
+
+// Internal to core/io: the mesh readers (PLY, OFF) collect vertices and triangles here, then
+// sample points on the surface, area-weighted, with a seeded PRNG of our own (splitmix64), so
+// the same file and seed give the same points with every standard library.
+class TriangleMesh {
+ public:
+  void AddVertex(double x, double y, double z);
+  size_t vertex_count() const { return xyz_.size() / 3; }
+
+  // Adds a polygon as a fan of triangles (a, b, c), (a, c, d), ... `where` locates the face in
+  // the file for messages. The indices must have been checked against vertex_count().
+  void AddPolygon(const std::vector<uint64_t>& indices, uint64_t where);
+  size_t triangle_count() const { return triangles_.size(); }
+
+  // Adds `n` points sampled uniformly on the surface to `cloud`. InvalidArgument, naming `name`
+  // and the face (`where_label` and its location), for a face with a non-finite vertex; and
+  // when the mesh has no face of positive area.
+  absl::Status Sample(size_t n, uint64_t seed, absl::string_view name,
+                      absl::string_view where_label, CloudAccumulator* cloud) const;
+
+ private:
+  struct Triangle {
+    uint64_t v[3];
+    uint64_t where;
+  };
+  std::vector<double> xyz_;
+  std::vector<Triangle> triangles_;
+};
+
+// splitmix64 (Steele, Lea and Flood 2014): a small, fast generator with a fixed definition.
+class SplitMix64 {
+ public:
+  explicit SplitMix64(uint64_t seed) : state_(seed) {}
+  uint64_t Next() {
+    uint64_t z = (state_ += 0x9e3779b97f4a7c15ull);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return z ^ (z >> 31);
+  }
+  // Uniform in [0, 1), 53 random bits.
+  double Uniform() { return static_cast<double>(Next() >> 11) * 0x1.0p-53; }
+
+ private:
+  uint64_t state_;
+};
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_CORE_IO_MESH_SAMPLER_H_

@@ -1,0 +1,26 @@
+#ifndef SHAPEID_CORE_IO_PLY_READER_H_
+#define SHAPEID_CORE_IO_PLY_READER_H_
+
+#include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
+#include "core/io/read_options.h"
+
+namespace shapeid {
+
+// Parses a PLY file (Stanford polygon format) held in memory: format ascii 1.0,
+// binary_little_endian 1.0 or binary_big_endian 1.0. Every element and property is parsed,
+// whatever its type (char/int8, uchar/uint8, short/int16, ushort/uint16, int/int32,
+// uint/uint32, float/float32, double/float64) or list type, so unknown elements (edges,
+// materials) and properties (normals, colours) are skipped. The "vertex" element must have
+// scalar x, y and z properties. With ReadOptions::sample_faces = 0 the vertices are the cloud;
+// with N > 0, N points are sampled on the "face" element's polygons (list property
+// vertex_indices or vertex_index), area-weighted and seeded with sample_seed.
+// InvalidArgument, naming `name` and the header line, data line (ascii) or byte offset
+// (binary), for malformed contents: a bad header, missing x / y / z, truncated or extra data,
+// non-numeric values, out-of-range vertex indices, faces to sample that are absent.
+absl::StatusOr<ReadResult> ParsePly(absl::string_view contents, absl::string_view name,
+                                    const ReadOptions& options = {});
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_CORE_IO_PLY_READER_H_

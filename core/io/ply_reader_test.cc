@@ -1,0 +1,213 @@
+#include "core/io/ply_reader.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <string>
+
+#include "absl/strings/str_cat.h"
+#include "core/io/point_cloud_reader.h"
+#include "core/io/test_files.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+
+namespace shapeid {
+namespace {
+
+using ::testing::HasSubstr;
+
+// The unit square in z = 0 as two triangles, plus an off-plane vertex used by no face; with
+// mixed property types, an extra element before and after the faces, and a list in both.
+constexpr char kHeaderTail[] =
+    "comment made by shapeid tests\n"
+    "element vertex 5\n"
+    "property double x\nproperty float y\nproperty int16 z\nproperty uchar red\n"
+    "element edge 1\n"
+    "property list uint8 uint32 ends\n"
+    "element face 2\n"
+    "property list uchar int vertex_indices\nproperty ushort flags\n"
+    "element material 1\n"
+    "property float shine\n"
+    "end_header\n";
+
+constexpr char kAscii[] =
+    "ply\nformat ascii 1.0\n%s"
+    "0 0 0 255\n1 0 0 1\n1 1 0 2\n0 1 0 3\n0.5 0.5 9 4\n"
+    "2 0 1\n"
+    "3 0 1 2 7\n3 0 2 3 7\n"
+    "0.25\n";
+
+template <typename T>
+void Put(std::string* out, T value, bool big) {
+  char b[sizeof(T)];
+  std::memcpy(b, &value, sizeof(T));
+  if (big) std::reverse(b, b + sizeof(T));
+  out->append(b, sizeof(T));
+}
+
+std::string AsciiFile() {
+  std::string s = kAscii;
+  return s.replace(s.find("%s"), 2, kHeaderTail);
+}
+
+std::string BinaryFile(bool big) {
+  std::string s = absl::StrCat("ply\nformat binary_", big ? "big" : "little", "_endian 1.0\n",
+                               kHeaderTail);
+  const double v[5][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0.5, 0.5, 9}};
+  for (int i = 0; i < 5; ++i) {
+    Put<double>(&s, v[i][0], big);
+    Put<float>(&s, static_cast<float>(v[i][1]), big);
+    Put<int16_t>(&s, static_cast<int16_t>(v[i][2]), big);
+    Put<uint8_t>(&s, static_cast<uint8_t>(i), big);
+  }
+  Put<uint8_t>(&s, 2, big);
+  Put<uint32_t>(&s, 0, big);
+  Put<uint32_t>(&s, 1, big);
+  for (const int32_t t : {1, 2}) {  // faces 0 1 2 and 0 2 3, as in the ascii file
+    Put<uint8_t>(&s, 3, big);
+    Put<int32_t>(&s, 0, big);
+    Put<int32_t>(&s, t, big);
+    Put<int32_t>(&s, t + 1, big);
+    Put<uint16_t>(&s, 7, big);
+  }
+  Put<float>(&s, 0.25f, big);
+  return s;
+}
+
+ReadOptions Faces(size_t n, uint64_t seed = 0) {
+  ReadOptions options = Raw();
+  options.sample_faces = n;
+  options.sample_seed = seed;
+  return options;
+}
+
+TEST(PlyReaderTest, VerticesInEveryEncoding) {
+  for (const std::string& file : {AsciiFile(), BinaryFile(false), BinaryFile(true)}) {
+    const std::string path = WriteTempFile("v.ply", file);
+    const absl::StatusOr<ReadResult> r = ReadPointCloud(path, Raw());
+    ASSERT_TRUE(r.ok()) << r.status();
+    ASSERT_EQ(r->cloud.size(), 5u);
+    EXPECT_EQ(r->cloud.point(1), Eigen::Vector3f(1, 0, 0));
+    EXPECT_EQ(r->cloud.point(4), Eigen::Vector3f(0.5f, 0.5f, 9));
+  }
+}
+
+TEST(PlyReaderTest, FacesSampledInEveryEncoding) {
+  for (const std::string& file : {AsciiFile(), BinaryFile(false), BinaryFile(true)}) {
+    const absl::StatusOr<ReadResult> r = ParsePly(file, "f.ply", Faces(500, 9));
+    ASSERT_TRUE(r.ok()) << r.status();
+    ASSERT_EQ(r->cloud.size(), 500u);
+    for (size_t i = 0; i < r->cloud.size(); ++i) {
+      const auto p = r->cloud.point(i);
+      EXPECT_EQ(p.z(), 0);  // the off-plane vertex is in no face
+      EXPECT_GE(std::min(p.x(), p.y()), 0);
+      EXPECT_LE(std::max(p.x(), p.y()), 1);
+    }
+    // The same seed gives the same points, whatever the encoding.
+    const absl::StatusOr<ReadResult> ascii = ParsePly(AsciiFile(), "a.ply", Faces(500, 9));
+    ASSERT_TRUE(ascii.ok());
+    EXPECT_EQ(ascii->cloud.point(123), r->cloud.point(123));
+  }
+}
+
+TEST(PlyReaderTest, SamplingWithoutFacesIsAnError) {
+  const std::string file = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+                           "property float y\nproperty float z\nend_header\n1 2 3\n";
+  const absl::StatusOr<ReadResult> vertices = ParsePly(file, "p.ply", Raw());
+  ASSERT_TRUE(vertices.ok()) << vertices.status();
+  EXPECT_EQ(vertices->cloud.size(), 1u);
+  ExpectError(ParsePly(file, "p.ply", Faces(10)), absl::StatusCode::kInvalidArgument, "p.ply",
+              "no face element");
+}
+
+TEST(PlyReaderTest, MalformedHeaderNamesTheLine) {
+  const struct {
+    const char* contents;
+    const char* where;
+  } cases[] = {
+      {"pcd\n", "line 1"},
+      {"ply\nformat ascii 2.0\nend_header\n", "line 2"},
+      {"ply\nformat binary_middle_endian 1.0\nend_header\n", "line 2"},
+      {"ply\nformat ascii 1.0\nproperty float x\nend_header\n", "line 3"},
+      {"ply\nformat ascii 1.0\nelement vertex many\nend_header\n", "line 3"},
+      {"ply\nformat ascii 1.0\nelement vertex 1\nproperty float128 x\nend_header\n", "line 4"},
+      {"ply\nformat ascii 1.0\nelement vertex 1\nproperty list float int x\nend_header\n",
+       "line 4"},
+      {"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+       "end_header\n1 2\n",
+       "line 3"},
+      {"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nbogus\nend_header\n",
+       "line 5"},
+      {"ply\nelement vertex 0\nend_header\n", "line 3"},
+  };
+  for (const auto& c : cases) {
+    const std::string path = WriteTempFile("bad.ply", c.contents);
+    ExpectError(ReadPointCloud(path), absl::StatusCode::kInvalidArgument, path, c.where);
+  }
+  ExpectError(ParsePly("ply\nformat ascii 1.0\n", "h.ply"), absl::StatusCode::kInvalidArgument,
+              "h.ply", "no end_header");
+}
+
+TEST(PlyReaderTest, MalformedAsciiDataNamesTheLine) {
+  std::string file = AsciiFile();
+  const size_t header_lines = 16;  // "ply", format and kHeaderTail's 14 lines
+  std::string bad = file;
+  bad.replace(bad.find("1 1 0 2"), 7, "1 one 0 2");
+  ExpectError(ParsePly(bad, "a.ply"), absl::StatusCode::kInvalidArgument, "a.ply",
+              absl::StrCat("line ", header_lines + 3));
+  bad = file;
+  bad.replace(bad.find("3 0 2 3 7"), 9, "3 0 2 5 7");
+  ExpectError(ParsePly(bad, "a.ply", Faces(4)), absl::StatusCode::kInvalidArgument, "a.ply",
+              absl::StrCat("line ", header_lines + 8));
+  ExpectError(ParsePly(file + "1\n", "a.ply"), absl::StatusCode::kInvalidArgument, "a.ply",
+              absl::StrCat("line ", header_lines + 10));
+  bad = file;
+  bad.replace(bad.find("2 0 1\n"), 6, "2 0 1 5\n");
+  ExpectError(ParsePly(bad, "a.ply"), absl::StatusCode::kInvalidArgument, "a.ply",
+              absl::StrCat("line ", header_lines + 6, ": extra value"));
+}
+
+TEST(PlyReaderTest, TruncatedBinaryNamesTheByteOffset) {
+  const std::string file = BinaryFile(false);
+  const std::string path = WriteTempFile("t.ply", file.substr(0, file.size() - 2));
+  ExpectError(ReadPointCloud(path), absl::StatusCode::kInvalidArgument, path,
+              absl::StrCat("byte offset ", file.size() - 4, ": the binary data is truncated"));
+}
+
+TEST(PlyReaderTest, HugeCountsDoNotAllocate) {
+  const std::string file =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\n"
+      "property float y\nproperty float z\nend_header\n0123456789ab";
+  const absl::StatusOr<ReadResult> r = ParsePly(file, "huge.ply");
+  ExpectError(r, absl::StatusCode::kInvalidArgument, "huge.ply", "truncated");
+}
+
+// Every prefix and random corruptions: read or rejected, never a crash (run under ASan).
+TEST(PlyReaderTest, TruncationsAndCorruptionsAreHandled) {
+  const char replacements[] = "0123456789 \n.-e#x\xff\x80";
+  uint64_t state = 5;
+  for (const std::string& file : {AsciiFile(), BinaryFile(false), BinaryFile(true)}) {
+    for (size_t n = 0; n <= file.size(); ++n) {
+      const absl::StatusOr<ReadResult> r = ParsePly(file.substr(0, n), "prefix.ply", Faces(8));
+      if (!r.ok()) {
+        EXPECT_THAT(std::string(r.status().message()), HasSubstr("prefix.ply"));
+      }
+    }
+    for (int trial = 0; trial < 2000; ++trial) {
+      std::string corrupt = file;
+      for (int e = 0; e < 3; ++e) {
+        state = state * 6364136223846793005ull + 1442695040888963407ull;
+        const char c = replacements[(state >> 17) % (sizeof replacements - 1)];
+        corrupt[(state >> 33) % corrupt.size()] = c;
+      }
+      const absl::StatusOr<ReadResult> r = ParsePly(corrupt, "corrupt.ply", Faces(8, 1));
+      if (!r.ok()) {
+        EXPECT_THAT(std::string(r.status().message()), HasSubstr("corrupt.ply"));
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace shapeid
