@@ -128,19 +128,15 @@ absl::Status Client::Call(bool retry, bool corked, const Attempt& attempt) {
   return FromGrpcStatus(status);
 }
 
-absl::StatusOr<v1::DescribeResponse> Client::Describe(const PointCloud& cloud,
-                                                      const std::string& spec,
-                                                      const std::string& gallery) {
-  v1::DescribeResponse response;
+template <typename Request, typename Response, typename Open>
+absl::StatusOr<Response> Client::SingleCloudCall(Open open, const Request& header,
+                                                 const PointCloud& cloud) {
+  Response response;
   absl::Status status = Call(true, true, [&](grpc::ClientContext& context) {
     response.Clear();
-    auto writer = stub_->Describe(&context, &response);
-    StreamWriter<v1::DescribeRequest> stream(writer.get());
-    v1::DescribeRequest header;
-    header.mutable_header()->set_descriptor_spec(spec);
-    header.mutable_header()->set_gallery(gallery);
-    header.mutable_header()->set_expected_points(cloud.size());
-    stream.Push(std::move(header), /*buffer=*/true);
+    auto writer = open(&context, &response);
+    StreamWriter<Request> stream(writer.get());
+    stream.Push(Request(header), /*buffer=*/true);
     PushCloud(stream, cloud, options_.chunk_points);
     stream.Close();
     return writer->Finish();
@@ -149,24 +145,31 @@ absl::StatusOr<v1::DescribeResponse> Client::Describe(const PointCloud& cloud,
   return response;
 }
 
+absl::StatusOr<v1::DescribeResponse> Client::Describe(const PointCloud& cloud,
+                                                      const std::string& spec,
+                                                      const std::string& gallery) {
+  v1::DescribeRequest header;
+  header.mutable_header()->set_descriptor_spec(spec);
+  header.mutable_header()->set_gallery(gallery);
+  header.mutable_header()->set_expected_points(cloud.size());
+  return SingleCloudCall<v1::DescribeRequest, v1::DescribeResponse>(
+      [&](grpc::ClientContext* context, v1::DescribeResponse* response) {
+        return stub_->Describe(context, response);
+      },
+      header, cloud);
+}
+
 absl::StatusOr<v1::ClassifyResponse> Client::Classify(const std::string& gallery,
                                                       const PointCloud& cloud, uint32_t k) {
-  v1::ClassifyResponse response;
-  absl::Status status = Call(true, true, [&](grpc::ClientContext& context) {
-    response.Clear();
-    auto writer = stub_->Classify(&context, &response);
-    StreamWriter<v1::ClassifyRequest> stream(writer.get());
-    v1::ClassifyRequest header;
-    header.mutable_header()->set_gallery(gallery);
-    header.mutable_header()->set_k(k);
-    header.mutable_header()->set_expected_points(cloud.size());
-    stream.Push(std::move(header), /*buffer=*/true);
-    PushCloud(stream, cloud, options_.chunk_points);
-    stream.Close();
-    return writer->Finish();
-  });
-  if (!status.ok()) return status;
-  return response;
+  v1::ClassifyRequest header;
+  header.mutable_header()->set_gallery(gallery);
+  header.mutable_header()->set_k(k);
+  header.mutable_header()->set_expected_points(cloud.size());
+  return SingleCloudCall<v1::ClassifyRequest, v1::ClassifyResponse>(
+      [&](grpc::ClientContext* context, v1::ClassifyResponse* response) {
+        return stub_->Classify(context, response);
+      },
+      header, cloud);
 }
 
 absl::StatusOr<v1::TrainResponse> Client::Train(const std::string& gallery,
@@ -299,8 +302,8 @@ absl::Status Client::CheckHealth() {
   });
   if (!status.ok()) return status;
   if (reply_bytes != std::string("\x08\x01", 2)) {  // status: SERVING
-    return absl::UnavailableError(absl::StrCat("shapeid server at ", options_.target,
-                                               " is not serving"));
+    return absl::UnavailableError(
+        absl::StrCat("shapeid server at ", options_.target, " is not serving"));
   }
   return absl::OkStatus();
 }

@@ -63,8 +63,8 @@ class Client {
 
   // Classifies `cloud` against `gallery` with `k` neighbours (0: the gallery's k).
   // FAILED_PRECONDITION on an empty gallery, NOT_FOUND on an unknown one.
-  absl::StatusOr<v1::ClassifyResponse> Classify(const std::string& gallery,
-                                                const PointCloud& cloud, uint32_t k = 0);
+  absl::StatusOr<v1::ClassifyResponse> Classify(const std::string& gallery, const PointCloud& cloud,
+                                                uint32_t k = 0);
 
   // Adds `samples` to `gallery` in one stream: all of them or, on any error, none.
   // InvalidArgument (before sending anything) if a sample has no cloud.
@@ -95,6 +95,11 @@ class Client {
   // deadline. `attempt` is called as grpc::Status(grpc::ClientContext&).
   template <typename Attempt>
   absl::Status Call(bool retry, bool corked, const Attempt& attempt);
+  // Describe and Classify: `header`, then `cloud` in chunks, on the client stream `open`
+  // starts (a stub method), retried like any idempotent call.
+  template <typename Request, typename Response, typename Open>
+  absl::StatusOr<Response> SingleCloudCall(Open open, const Request& header,
+                                           const PointCloud& cloud);
 
   const ClientOptions options_;
   std::shared_ptr<grpc::Channel> channel_;
