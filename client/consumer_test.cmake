@@ -23,8 +23,15 @@ set(launcher "")
 if(CXX_LAUNCHER)
   set(launcher "-DCMAKE_CXX_COMPILER_LAUNCHER=${CXX_LAUNCHER}")
 endif()
+# A sanitizer build (the dev preset) installs instrumented libraries; the consumer must link
+# the same runtime.
+set(sanitize "")
+if(SANITIZERS)
+  set(sanitize "-DCMAKE_CXX_FLAGS=-fsanitize=${SANITIZERS}"
+               "-DCMAKE_EXE_LINKER_FLAGS=-fsanitize=${SANITIZERS}")
+endif()
 run(${CMAKE_COMMAND} -S "${SOURCE_DIR}" -B "${build}" -G "${GENERATOR}"
-  "-DCMAKE_CXX_COMPILER=${CXX_COMPILER}" ${launcher}
+  "-DCMAKE_CXX_COMPILER=${CXX_COMPILER}" ${launcher} ${sanitize}
   "-DCMAKE_PREFIX_PATH=${prefix}")
 run(${CMAKE_COMMAND} --build "${build}")
 run("${build}/shapeid_consumer")

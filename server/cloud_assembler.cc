@@ -29,6 +29,9 @@ absl::Status CloudAssembler::Append(absl::string_view xyz_bytes) {
                      " bytes is not a whole number of points (12 bytes each: float32 x y z)"));
   }
   const size_t added = xyz_bytes.size() / 12;
+  // Empty chunks are allowed; returning here also keeps memcpy away from the null data()
+  // of a still-empty cloud (undefined behaviour even for 0 bytes; UBSan caught it).
+  if (added == 0) return absl::OkStatus();
   if (cloud_.size() + added > max_points_) {
     return absl::ResourceExhaustedError(absl::StrCat("the cloud has more than the limit of ",
                                                      max_points_, " points (",

@@ -30,6 +30,16 @@ TEST(CloudAssemblerTest, JoinsChunksOfAnySizeIncludingEmpty) {
   EXPECT_FALSE(assembler.started());
 }
 
+TEST(CloudAssemblerTest, AnEmptyFirstChunkIsFine) {
+  CloudAssembler assembler(10);
+  ASSERT_TRUE(assembler.Start(0).ok());
+  ASSERT_TRUE(assembler.Append("").ok());  // nothing stored yet: no copy into null storage
+  ASSERT_TRUE(assembler.Append(Bytes({1, 2, 3})).ok());
+  auto cloud = assembler.Finish();
+  ASSERT_TRUE(cloud.ok());
+  EXPECT_EQ(cloud->size(), 1u);
+}
+
 TEST(CloudAssemblerTest, ReusableForTheNextCloud) {
   CloudAssembler assembler(10);
   ASSERT_TRUE(assembler.Start(0).ok());
