@@ -6,6 +6,7 @@
 
 #include <unistd.h>
 
+#include <cstdint>
 #include <cstring>
 #include <fstream>
 #include <string>
@@ -53,6 +54,27 @@ inline void ExpectError(const absl::StatusOr<ReadResult>& result, absl::StatusCo
   EXPECT_EQ(result.status().code(), code) << result.status();
   EXPECT_THAT(std::string(result.status().message()), ::testing::HasSubstr(path));
   EXPECT_THAT(std::string(result.status().message()), ::testing::HasSubstr(where));
+}
+
+// Parses `trials` copies of `file`, each with 3 bytes replaced by characters drawn from
+// `replacements` (a seeded LCG whose state carries across calls), and checks that every
+// rejection names `name`. `parse(contents)` returns absl::StatusOr<ReadResult>. Never
+// crashing is the other half of the check: the dev preset runs this under ASan.
+template <typename Parse>
+void ExpectCorruptionsNameTheFile(const std::string& file, const std::string& name,
+                                  absl::string_view replacements, uint64_t* state, Parse parse,
+                                  int trials = 2000) {
+  for (int trial = 0; trial < trials; ++trial) {
+    std::string corrupt = file;
+    for (int e = 0; e < 3; ++e) {
+      *state = *state * 6364136223846793005ull + 1442695040888963407ull;
+      corrupt[(*state >> 33) % corrupt.size()] = replacements[(*state >> 17) % replacements.size()];
+    }
+    const absl::StatusOr<ReadResult> r = parse(corrupt);
+    if (!r.ok()) {
+      EXPECT_THAT(std::string(r.status().message()), ::testing::HasSubstr(name));
+    }
+  }
 }
 
 }  // namespace shapeid
