@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/gallery/gallery.h"
+#include "core/testing/test_clouds.h"
 #include "gmock/gmock.h"
 #include "grpcpp/grpcpp.h"
 #include "gtest/gtest.h"
@@ -22,25 +23,12 @@ namespace {
 
 using ::testing::HasSubstr;
 
-// Three shapes a descriptor tells apart: a flat box, a sphere shell, a thin rod.
+using testing_clouds::kShapeNames;
+
+// 600 points unless a test needs another size.
 PointCloud Shape(int kind, uint32_t seed, size_t n = 600) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-  std::normal_distribution<float> g;
-  PointCloud cloud;
-  for (size_t i = 0; i < n; ++i) {
-    if (kind == 0) {
-      cloud.Add(2 * u(rng), 1.5f * u(rng), 0.1f * u(rng));
-    } else if (kind == 1) {
-      Eigen::Vector3f p(g(rng), g(rng), g(rng));
-      cloud.Add(p.normalized() * (1.0f + 0.01f * u(rng)));
-    } else {
-      cloud.Add(3 * u(rng), 0.05f * u(rng), 0.05f * u(rng));
-    }
-  }
-  return cloud;
+  return testing_clouds::ShapeCloud(kind, seed, n);
 }
-const char* kShapeNames[] = {"box", "sphere", "rod"};
 
 std::string Bytes(const PointCloud& cloud, size_t first, size_t count) {
   std::string bytes(count * 12, '\0');

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/point_cloud.h"
+#include "core/testing/test_clouds.h"
 #include "gmock/gmock.h"
 #include "grpcpp/grpcpp.h"
 #include "gtest/gtest.h"
@@ -97,24 +98,8 @@ class ServerProcess {
   std::string address_;
 };
 
-PointCloud Shape(int kind, uint32_t seed, size_t n) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-  std::normal_distribution<float> g;
-  PointCloud cloud;
-  cloud.Reserve(n);
-  for (size_t i = 0; i < n; ++i) {
-    if (kind == 0) {
-      cloud.Add(2 * u(rng), 1.5f * u(rng), 0.1f * u(rng));
-    } else if (kind == 1) {
-      cloud.Add(Eigen::Vector3f(g(rng), g(rng), g(rng)).normalized());
-    } else {
-      cloud.Add(3 * u(rng), 0.05f * u(rng), 0.05f * u(rng));
-    }
-  }
-  return cloud;
-}
-const char* kLabels[] = {"box", "sphere", "rod"};
+using testing_clouds::ShapeCloud;
+constexpr auto& kLabels = testing_clouds::kShapeNames;
 
 std::string Bytes(const PointCloud& cloud, size_t first, size_t count) {
   std::string bytes(count * 12, '\0');
@@ -187,7 +172,7 @@ class ServerE2ETest : public ::testing::Test {
     std::vector<std::pair<int, PointCloud>> samples;
     for (int i = 0; i < per_shape; ++i) {
       for (int kind = 0; kind < 3; ++kind)
-        samples.emplace_back(kind, Shape(kind, 10 * i + kind, 800));
+        samples.emplace_back(kind, ShapeCloud(kind, 10 * i + kind, 800));
     }
     const grpc::Status status = Train(samples);
     ASSERT_TRUE(status.ok()) << status.error_message();
@@ -199,7 +184,7 @@ class ServerE2ETest : public ::testing::Test {
 
 TEST_F(ServerE2ETest, TwoMillionPointCloudThroughClassify) {
   TrainThreeShapes(3);
-  const PointCloud big = Shape(1, 4242, 2'000'000);  // 24 MB, far over gRPC's 4 MB default
+  const PointCloud big = ShapeCloud(1, 4242, 2'000'000);  // 24 MB, far over gRPC's 4 MB default
   v1::ClassifyResponse answer;
   const grpc::Status status = Classify(big, &answer);
   ASSERT_TRUE(status.ok()) << status.error_message();
@@ -225,7 +210,7 @@ TEST_F(ServerE2ETest, SixteenClientsTrainAndClassifyOneGallery) {
         v1::TrainRequest header, start, points;
         header.mutable_header()->set_gallery("e2e");
         start.mutable_sample()->set_label(kLabels[kind]);
-        const PointCloud cloud = Shape(kind, 1000 * c + i, 500);
+        const PointCloud cloud = ShapeCloud(kind, 1000 * c + i, 500);
         points.mutable_points()->set_xyz(Bytes(cloud, 0, cloud.size()));
         writer->Write(header);
         writer->Write(start);
@@ -238,7 +223,7 @@ TEST_F(ServerE2ETest, SixteenClientsTrainAndClassifyOneGallery) {
         auto classify = stub->Classify(&classify_context, &answer);
         v1::ClassifyRequest ch, cp;
         ch.mutable_header()->set_gallery("e2e");
-        const PointCloud query = Shape(kind, 77 * c + i + 5000, 500);
+        const PointCloud query = ShapeCloud(kind, 77 * c + i + 5000, 500);
         cp.mutable_points()->set_xyz(Bytes(query, 0, query.size()));
         classify->Write(ch);
         classify->Write(cp);
@@ -264,7 +249,7 @@ TEST_F(ServerE2ETest, AClientThatVanishesMidStreamLeavesNoTrace) {
     v1::TrainRequest header, start, points;
     header.mutable_header()->set_gallery("e2e");
     start.mutable_sample()->set_label("box");
-    const PointCloud cloud = Shape(0, 1, 2000);
+    const PointCloud cloud = ShapeCloud(0, 1, 2000);
     points.mutable_points()->set_xyz(Bytes(cloud, 0, 1000));
     writer->Write(header);
     writer->Write(start);
@@ -275,7 +260,7 @@ TEST_F(ServerE2ETest, AClientThatVanishesMidStreamLeavesNoTrace) {
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
   EXPECT_EQ(SampleCount(), 3u);
   v1::ClassifyResponse answer;
-  EXPECT_TRUE(Classify(Shape(2, 9, 800), &answer).ok());  // still serving
+  EXPECT_TRUE(Classify(ShapeCloud(2, 9, 800), &answer).ok());  // still serving
   EXPECT_EQ(server_->Terminate(std::chrono::seconds(3)), 0);
 }
 
@@ -295,7 +280,7 @@ TEST_F(ServerE2ETest, SigtermUnderLoadShutsDownCleanly) {
         auto writer = stub->Classify(&context, &answer);
         v1::ClassifyRequest header, points;
         header.mutable_header()->set_gallery("e2e");
-        const PointCloud cloud = Shape(i % 3, 31 * c + i, 20000);
+        const PointCloud cloud = ShapeCloud(i % 3, 31 * c + i, 20000);
         points.mutable_points()->set_xyz(Bytes(cloud, 0, cloud.size()));
         writer->Write(header);
         writer->Write(points);
