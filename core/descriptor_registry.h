@@ -29,6 +29,10 @@ struct DescriptorKind {
   absl::StatusOr<std::unique_ptr<Descriptor>> (*create)(const DescriptorSpec& filled);
 };
 
+// The spec used wherever a caller names none (Describe without a spec, a new gallery, the
+// CLI): RPHSD at the dissertation's best settings (complete, cubic27, M = 100).
+inline constexpr char kDefaultDescriptorSpec[] = "rphsd";
+
 // Every registered kind, in registration order.
 const std::vector<DescriptorKind>& RegisteredDescriptors();
 

@@ -4,6 +4,8 @@
 #include <cstddef>
 #include <string>
 
+#include "core/descriptor_registry.h"
+
 namespace shapeid {
 
 // What the ShapeId service accepts. Defaults suit a shared lab server; main.cc maps flags
@@ -14,7 +16,7 @@ struct ServiceOptions {
   // exhaust the server's memory.
   size_t max_points_per_cloud = 10'000'000;
   // Spec used by Describe when neither a spec nor a gallery is given.
-  std::string default_descriptor_spec = "rphsd";
+  std::string default_descriptor_spec = kDefaultDescriptorSpec;
 };
 
 }  // namespace shapeid

@@ -63,7 +63,6 @@ class StreamReactor : public grpc::ServerReadReactor<Request> {
  protected:
   virtual absl::Status OnMessage(const Request& request) = 0;
   virtual absl::Status OnEnd() = 0;
-  grpc::CallbackServerContext* context() const { return context_; }
 
  private:
   void OnReadDone(bool ok) override {

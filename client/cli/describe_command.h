@@ -8,6 +8,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/string_view.h"
 #include "absl/types/span.h"
+#include "core/descriptor_registry.h"
 
 namespace shapeid {
 
@@ -23,7 +24,7 @@ struct DescribeOptions {
   // Compute in this process. Default false, because the default will be to ask the shapeid
   // server (which holds the galleries); until the gRPC service exists, false is an error.
   bool local = false;
-  std::string spec = "rphsd";  // descriptor spec text; registry defaults fill the rest
+  std::string spec = kDefaultDescriptorSpec;  // descriptor spec text; registry defaults fill the rest
   OutputFormat format = OutputFormat::kText;
   bool drop_non_finite = false;  // ReadOptions::drop_non_finite
   std::vector<std::string> files;

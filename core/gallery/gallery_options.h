@@ -7,6 +7,7 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/string_view.h"
+#include "core/descriptor_registry.h"
 #include "core/knn/knn_options.h"
 #include "core/point_cloud.h"
 
@@ -24,9 +25,10 @@ inline constexpr size_t kMaxLabelBytes = 256;
 struct GalleryOptions {
   // Descriptor spec text (core/descriptor_spec.h), e.g. "rphsd:bins=50". Canonicalised at
   // creation through the registry (every parameter present, defaults filled), so two
-  // galleries with equal canonical specs compute identical descriptors. Default "rphsd":
-  // the published descriptor, 81 floats per cloud with its defaults.
-  std::string descriptor_spec = "rphsd";
+  // galleries with equal canonical specs compute identical descriptors. Default
+  // kDefaultDescriptorSpec ("rphsd"): the published descriptor, 81 floats per cloud with its
+  // defaults.
+  std::string descriptor_spec = kDefaultDescriptorSpec;
 
   // Neighbours, vote weighting and feature scaling (core/knn/knn_options.h). Default k = 1,
   // uniform votes, no scaling: the published setting. Larger k smooths label noise but
