@@ -15,6 +15,8 @@ packages=(
   libcli11-dev
   # LZF decompression of PCD DATA binary_compressed (core/io/pcd_reader.cc)
   liblzf-dev
+  # OBJ meshes (core/io/obj_reader.cc): a maintained OBJ parser rather than a hand-written one
+  libtinyobjloader-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   # Python interop test (tests/python): a client generated from the proto with grpc_python_plugin,

@@ -10,6 +10,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
+#include "core/io/obj_reader.h"
 #include "core/io/off_reader.h"
 #include "core/io/pcd_reader.h"
 #include "core/io/ply_reader.h"
@@ -58,12 +59,13 @@ absl::StatusOr<CloudFormat> CloudFormatForPath(absl::string_view path) {
   if (ext == ".pcd") return CloudFormat::kPcd;
   if (ext == ".ply") return CloudFormat::kPly;
   if (ext == ".off") return CloudFormat::kOff;
+  if (ext == ".obj") return CloudFormat::kObj;
   if (ext == ".xyz" || ext == ".txt") return CloudFormat::kXyz;
   if (ext == ".csv") return CloudFormat::kCsv;
   return absl::InvalidArgumentError(absl::StrCat(
       path, ": ",
       ext.empty() ? "no file extension" : absl::StrCat("unknown extension \"", ext, "\""),
-      "; supported: .pcd, .ply, .off, .xyz, .txt, .csv"));
+      "; supported: .pcd, .ply, .off, .obj, .xyz, .txt, .csv"));
 }
 
 absl::StatusOr<std::string> ReadFileContents(const std::string& path) {
@@ -113,6 +115,8 @@ absl::StatusOr<ReadResult> ParsePointCloud(absl::string_view contents, CloudForm
       return ParsePly(contents, name, options);
     case CloudFormat::kOff:
       return ParseOff(contents, name, options);
+    case CloudFormat::kObj:
+      return ParseObj(contents, name, options);
     case CloudFormat::kXyz:
       return ParseXyz(contents, name, TextDialect::kXyz, options);
     case CloudFormat::kCsv:

@@ -14,9 +14,11 @@ namespace shapeid {
 //   .ply               PLY ascii / binary little or big endian; vertices, or faces sampled
 //                      with ReadOptions::sample_faces (core/io/ply_reader.h)
 //   .off               OFF mesh, sampled to ReadOptions::sample_points (core/io/off_reader.h)
+//   .obj               Wavefront OBJ mesh, sampled like OFF; an OBJ without faces gives its
+//                      vertices (core/io/obj_reader.h)
 //   .xyz .txt          text, blank- or comma-separated (core/io/xyz_reader.h)
 //   .csv               text, comma- or semicolon-separated
-enum class CloudFormat { kPcd, kPly, kOff, kXyz, kCsv };
+enum class CloudFormat { kPcd, kPly, kOff, kObj, kXyz, kCsv };
 
 // The format for `path`'s extension; InvalidArgument listing the supported extensions.
 absl::StatusOr<CloudFormat> CloudFormatForPath(absl::string_view path);

@@ -27,21 +27,23 @@ TEST(PointCloudReaderTest, ChoosesReaderByExtension) {
   EXPECT_EQ(*CloudFormatForPath("scan.Csv"), CloudFormat::kCsv);
   EXPECT_EQ(*CloudFormatForPath("mesh.ply"), CloudFormat::kPly);
   EXPECT_EQ(*CloudFormatForPath("chair_0001.OFF"), CloudFormat::kOff);
-  for (const char* bad : {"mesh.obj", "noext", "dir.pcd/file", "trailing."}) {
+  EXPECT_EQ(*CloudFormatForPath("models/pawn.Obj"), CloudFormat::kObj);
+  for (const char* bad : {"mesh.stl", "noext", "dir.pcd/file", "trailing."}) {
     const absl::StatusOr<CloudFormat> f = CloudFormatForPath(bad);
     ASSERT_FALSE(f.ok()) << bad;
     EXPECT_EQ(f.status().code(), absl::StatusCode::kInvalidArgument);
     EXPECT_THAT(std::string(f.status().message()), HasSubstr(bad));
-    EXPECT_THAT(std::string(f.status().message()), HasSubstr(".pcd, .ply, .off, .xyz, .txt, .csv"));
+    EXPECT_THAT(std::string(f.status().message()),
+                HasSubstr(".pcd, .ply, .off, .obj, .xyz, .txt, .csv"));
   }
 }
 
 TEST(PointCloudReaderTest, UnknownExtensionFailsBeforeReading) {
-  const std::string path = WriteTempFile("cloud.obj", "1 2 3\n");
+  const std::string path = WriteTempFile("cloud.stl", "1 2 3\n");
   const absl::StatusOr<ReadResult> r = ReadPointCloud(path);
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_THAT(std::string(r.status().message()), HasSubstr("\".obj\""));
+  EXPECT_THAT(std::string(r.status().message()), HasSubstr("\".stl\""));
 }
 
 TEST(PointCloudReaderTest, MissingFileAndDirectory) {

@@ -10,7 +10,7 @@
 namespace shapeid {
 
 // How the point-cloud readers turn a file into a PointCloud. Every reader honours
-// drop_non_finite and recenter; the sample_* fields concern the mesh formats (PLY, OFF).
+// drop_non_finite and recenter; the sample_* fields concern the mesh formats (PLY, OFF, OBJ).
 struct ReadOptions {
   // Organised PCD clouds (from depth cameras) mark missing pixels with NaN points. Default
   // false: they are kept, so that describing the cloud fails and says so, rather than
@@ -26,7 +26,7 @@ struct ReadOptions {
   // keeps the file's coordinates (rounded to float), e.g. for viewing alongside other data.
   bool recenter = true;
 
-  // Meshes (PLY with faces, OFF) can be sampled to points on their surface, area-weighted:
+  // Meshes (PLY with faces, OFF, OBJ) can be sampled to points on their surface, area-weighted:
   // each point picks a triangle (polygons are split into fans) with probability proportional
   // to its area, then a uniform point in it. The PRNG is splitmix64 seeded with sample_seed,
   // so the same file, count and seed give the same points everywhere.
@@ -34,7 +34,8 @@ struct ReadOptions {
   // PLY: 0 (default) reads the vertex element as the cloud; N > 0 samples N points on the
   // faces instead (an error if the file has no face element).
   size_t sample_faces = 0;
-  // OFF: the number of points sampled on the mesh; 0 reads the vertices as the cloud.
+  // OFF and OBJ: the number of points sampled on the mesh; 0 reads the vertices as the cloud.
+  // An OBJ without faces (a point cloud saved as OBJ) gives its vertices whatever the value.
   size_t sample_points = 2048;
   // Seed for both kinds of sampling.
   uint64_t sample_seed = 0;
