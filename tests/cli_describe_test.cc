@@ -20,6 +20,7 @@
 #include "core/io/test_files.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "tests/cli_runner.h"
 
 namespace shapeid {
 namespace {
@@ -28,39 +29,6 @@ using ::testing::HasSubstr;
 using ::testing::StartsWith;
 
 constexpr char kSpec[] = "rphsd:refs=cross7,bins=10";
-
-struct RunResult {
-  int exit_code = -1;
-  std::string out;
-  std::string err;
-};
-
-std::string ShellQuote(const std::string& arg) {
-  std::string quoted = "'";
-  for (char c : arg) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return quoted + "'";
-}
-
-std::string Slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-RunResult Shapeid(const std::vector<std::string>& args) {
-  const std::string out_path = WriteTempFile("stdout", "");
-  const std::string err_path = WriteTempFile("stderr", "");
-  std::string command = ShellQuote(SHAPEID_CLI_PATH);
-  for (const std::string& arg : args) absl::StrAppend(&command, " ", ShellQuote(arg));
-  absl::StrAppend(&command, " >", ShellQuote(out_path), " 2>", ShellQuote(err_path));
-  const int status = std::system(command.c_str());
-  RunResult run;
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  run.out = Slurp(out_path);
-  run.err = Slurp(err_path);
-  return run;
-}
 
 std::vector<std::string> Lines(const std::string& text) {
   std::vector<std::string> lines = absl::StrSplit(text, '\n');
@@ -282,11 +250,19 @@ TEST(CliDescribeTest, BadSpecExitsTwoBeforeReadingFiles) {
   }
 }
 
+TEST(CliDescribeTest, WithoutLocalAskTheServerAndSayWhenItIsDown) {
+  const std::string good = WriteTempFile("good.pcd", BinaryPcd(Shape(1), 300, 1));
+  const RunResult run = Shapeid({"--server", "127.0.0.1:1", "--timeout", "2", "describe", good});
+  EXPECT_EQ(run.exit_code, 3);
+  EXPECT_EQ(run.out, "");
+  EXPECT_EQ(Lines(run.err).size(), 1u) << run.err;
+  EXPECT_THAT(run.err, HasSubstr("SHAPEID_SERVER"));
+}
+
 TEST(CliDescribeTest, UsageErrorsExitTwo) {
   const std::string good = WriteTempFile("good.pcd", BinaryPcd(Shape(1), 300, 1));
   for (const std::vector<std::string>& args : {std::vector<std::string>{},
                                                {"describe", "--local"},
-                                               {"describe", good},
                                                {"describe", "--local", "--format", "xml", good},
                                                {"frobnicate"}}) {
     const RunResult run = Shapeid(args);

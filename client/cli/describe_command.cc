@@ -7,6 +7,8 @@
 
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
+#include "client/cli/input_files.h"
+#include "client/cli/json.h"
 #include "core/descriptor.h"
 #include "core/descriptor_registry.h"
 #include "core/io/point_cloud_reader.h"
@@ -21,94 +23,7 @@ void AppendFloat(std::string* out, float value) {
   out->append(buffer, static_cast<size_t>(n));
 }
 
-// The length of the valid UTF-8 sequence at the start of `s`, or 0 (RFC 3629: no overlong
-// forms, no surrogates, nothing above U+10FFFF).
-size_t Utf8SequenceLength(absl::string_view s) {
-  const auto byte = [&](size_t i) { return static_cast<unsigned char>(s[i]); };
-  const unsigned char b0 = byte(0);
-  size_t len;
-  unsigned char lo = 0x80, hi = 0xBF;  // bounds for the second byte
-  if (b0 < 0x80) return 1;
-  if (b0 >= 0xC2 && b0 <= 0xDF) {
-    len = 2;
-  } else if (b0 >= 0xE0 && b0 <= 0xEF) {
-    len = 3;
-    if (b0 == 0xE0) lo = 0xA0;
-    if (b0 == 0xED) hi = 0x9F;
-  } else if (b0 >= 0xF0 && b0 <= 0xF4) {
-    len = 4;
-    if (b0 == 0xF0) lo = 0x90;
-    if (b0 == 0xF4) hi = 0x8F;
-  } else {
-    return 0;
-  }
-  if (s.size() < len) return 0;
-  if (byte(1) < lo || byte(1) > hi) return 0;
-  for (size_t i = 2; i < len; ++i) {
-    if (byte(i) < 0x80 || byte(i) > 0xBF) return 0;
-  }
-  return len;
-}
-
-absl::Status DescribeFile(const Descriptor& descriptor, const std::string& file,
-                          const DescribeOptions& options, std::vector<float>* values) {
-  ReadOptions read_options;
-  read_options.drop_non_finite = options.drop_non_finite;
-  SHAPEID_ASSIGN_OR_RETURN(const ReadResult read, ReadPointCloud(file, read_options));
-  return descriptor.Compute(read.cloud, values);
-}
-
 }  // namespace
-
-std::string JsonString(absl::string_view text) {
-  std::string out = "\"";
-  out.reserve(text.size() + 2);
-  while (!text.empty()) {
-    const unsigned char c = static_cast<unsigned char>(text[0]);
-    switch (c) {
-      case '"':
-        out += "\\\"";
-        break;
-      case '\\':
-        out += "\\\\";
-        break;
-      case '\b':
-        out += "\\b";
-        break;
-      case '\f':
-        out += "\\f";
-        break;
-      case '\n':
-        out += "\\n";
-        break;
-      case '\r':
-        out += "\\r";
-        break;
-      case '\t':
-        out += "\\t";
-        break;
-      default:
-        if (c < 0x20) {
-          char buffer[8];
-          std::snprintf(buffer, sizeof buffer, "\\u%04x", c);
-          out += buffer;
-        } else {
-          const size_t len = Utf8SequenceLength(text);
-          if (len == 0) {
-            out += "\\ufffd";
-            text.remove_prefix(1);
-            continue;
-          }
-          out.append(text.data(), len);
-          text.remove_prefix(len);
-          continue;
-        }
-    }
-    text.remove_prefix(1);
-  }
-  out += '"';
-  return out;
-}
 
 std::string FormatTextLine(absl::string_view file, absl::Span<const float> values) {
   std::string line(file);
@@ -145,42 +60,121 @@ std::string FileErrorLine(absl::string_view file, const absl::Status& status) {
   return absl::StrCat("shapeid: ", file, ": ", message, "\n");
 }
 
-int RunDescribe(const DescribeOptions& options, std::FILE* out, std::FILE* err) {
-  if (!options.local) {
-    std::fputs(
-        "shapeid: describe without --local needs the shapeid server, which arrives with "
-        "the gRPC service; pass --local to compute in this process\n",
-        err);
-    return kExitUsage;
-  }
-  absl::StatusOr<std::unique_ptr<Descriptor>> descriptor = CreateDescriptor(options.spec);
-  if (!descriptor.ok()) {
-    std::fputs(absl::StrCat("shapeid: --spec \"", options.spec,
-                            "\": ", descriptor.status().message(), "\n")
-                   .c_str(),
-               err);
-    return kExitUsage;
-  }
-  const std::string canonical_spec = (*descriptor)->spec().ToString();
+namespace {
 
+std::string FormatCsvLine(absl::string_view file, absl::Span<const float> values) {
+  std::string line = CsvField(file);
+  for (float v : values) {
+    line += ',';
+    AppendFloat(&line, v);
+  }
+  line += "\r\n";
+  return line;
+}
+
+}  // namespace
+
+int RunDescribe(const DescribeOptions& options, const CliContext& context) {
+  std::FILE* const out = context.out;
+  std::FILE* const err = context.err;
+  std::unique_ptr<Descriptor> local;
+  std::unique_ptr<Client> client;
+  std::string canonical_spec;
+  if (options.local) {
+    if (!options.gallery.empty()) {
+      WriteAll(err, "shapeid: describe: --gallery needs the server; drop --local\n");
+      return kExitUsage;
+    }
+    const std::string spec = options.spec.empty() ? kDefaultDescriptorSpec : options.spec;
+    absl::StatusOr<std::unique_ptr<Descriptor>> descriptor = CreateDescriptor(spec);
+    if (!descriptor.ok()) {
+      WriteAll(err, absl::StrCat("shapeid: --spec \"", spec, "\": ", descriptor.status().message(),
+                                 "\n"));
+      return kExitUsage;
+    }
+    local = std::move(descriptor).value();
+    canonical_spec = local->spec().ToString();
+  } else {
+    // The server runs the same core: a spec this build cannot parse is a usage error, said
+    // once, instead of the same refusal for every file.
+    if (!options.spec.empty()) {
+      if (absl::StatusOr<std::unique_ptr<Descriptor>> descriptor = CreateDescriptor(options.spec);
+          !descriptor.ok()) {
+        WriteAll(err, absl::StrCat("shapeid: --spec \"", options.spec,
+                                   "\": ", descriptor.status().message(), "\n"));
+        return kExitUsage;
+      }
+    }
+    client = ConnectOrReport(context);
+    if (client == nullptr) return kExitUsage;
+  }
+
+  absl::StatusOr<std::vector<std::string>> files = ExpandInputs(options.files);
+  if (!files.ok()) {
+    PrintError(err, "describe", files.status());
+    return kExitUsage;
+  }
+  ReadOptions read_options;
+  read_options.drop_non_finite = options.drop_non_finite;
   bool failed = false;
+  bool header_written = false;
   std::vector<float> values;
   std::string line;
-  for (const std::string& file : options.files) {
-    const absl::Status status = DescribeFile(**descriptor, file, options, &values);
+  Progress progress(err, context.progress, "describe", files->size());
+  for (const std::string& file : *files) {
+    absl::Status status;
+    absl::StatusOr<ReadResult> read = ReadPointCloud(file, read_options);
+    if (!read.ok()) {
+      status = read.status();
+    } else if (local != nullptr) {
+      status = local->Compute(read->cloud, &values);
+    } else {
+      absl::StatusOr<v1::DescribeResponse> response =
+          client->Describe(read->cloud, options.spec, options.gallery);
+      if (!response.ok() && StopsBatch(response.status())) {
+        progress.Finish();
+        std::fflush(out);
+        PrintError(err, "describe", response.status(), context.client.target);
+        return ExitCodeForStatus(response.status());
+      }
+      status = response.status();
+      if (response.ok()) {
+        values.assign(response->values().begin(), response->values().end());
+        canonical_spec = response->descriptor_spec();
+      }
+    }
     if (!status.ok()) {
       failed = true;
       std::fflush(out);  // keeps the two streams in file order on a terminal
       line = FileErrorLine(file, status);
-      std::fwrite(line.data(), 1, line.size(), err);
+      progress.Interrupt([&] { WriteAll(err, line); });
+      progress.Advance(1, 1);
       continue;
     }
-    line = options.format == OutputFormat::kJson ? FormatJsonLine(file, canonical_spec, values)
-                                                 : FormatTextLine(file, values);
-    std::fwrite(line.data(), 1, line.size(), out);
+    switch (context.format) {
+      case OutputFormat::kJson:
+        line = FormatJsonLine(file, canonical_spec, values);
+        break;
+      case OutputFormat::kCsv:
+        line.clear();
+        if (!header_written) {
+          line = "file";
+          for (size_t i = 0; i < values.size(); ++i) absl::StrAppend(&line, ",d", i);
+          line += "\r\n";
+          header_written = true;
+        }
+        line += FormatCsvLine(file, values);
+        break;
+      case OutputFormat::kTable:
+        line = FormatTextLine(file, values);
+        break;
+    }
+    progress.Interrupt([&] { std::fwrite(line.data(), 1, line.size(), out); });
+    progress.Advance(1, 0);
   }
+  progress.Finish();
   if (std::fflush(out) != 0 || std::ferror(out)) {
-    std::fputs("shapeid: cannot write the output\n", err);
+    WriteAll(err, "shapeid: cannot write the output\n");
     return kExitSomeFilesFailed;
   }
   return failed ? kExitSomeFilesFailed : kExitOk;
@@ -193,17 +187,22 @@ std::string DescribeHelpFooter() {
       DescribeRegistry(),
       "\n"
       "Files: .pcd (PCD v0.7: ascii, binary, binary_compressed), .ply (ascii, binary little or\n"
-      "big endian; vertices), .off (a mesh, sampled to 2,048 points, area-weighted, seeded),\n"
-      ".xyz / .txt (x y z per line, blank- or comma-separated), .csv (comma or semicolon).\n"
+      "big endian; vertices), .off and .obj (meshes, sampled to 2,048 points, area-weighted,\n"
+      "seeded), .xyz / .txt (x y z per line, blank- or comma-separated), .csv (comma or\n"
+      "semicolon). Folders are walked for these files.\n"
       "Coordinates are recentred on the bounding box before conversion to float; every\n"
       "descriptor is translation invariant.\n"
       "\n"
-      "Output: text prints one line per file, the file name and then the values (%.9g, which\n"
-      "round-trips float); json prints one JSON object per line:\n"
+      "Without --local the server computes the descriptor (--spec, or --gallery for a gallery's\n"
+      "spec); with --local this process does, with the same code.\n"
+      "\n"
+      "Output: table prints one line per file, the file name and then the values (%.9g, which\n"
+      "round-trips float); csv a header then one row per file; json one JSON object per line:\n"
       "  {\"file\":...,\"spec\":<canonical spec>,\"dimension\":N,\"descriptor\":[...]}\n"
       "\n"
       "Exit status: 0 every file described; 1 some file failed (one line each on stderr, the\n"
-      "others are still described); 2 usage error or bad --spec (no file is read).\n"
+      "others are still described); 2 usage error or bad --spec (no file is read); 3 server\n"
+      "unreachable; 4 the server refused the request.\n"
       "\n"
       "Examples:\n"
       "  shapeid describe --local chair.pcd\n"

@@ -2,31 +2,76 @@
 // code. Commands live in their own files; this file only knows CLI11.
 
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 
 #include "CLI/CLI.hpp"
+#include "client/cli/cli_common.h"
 #include "client/cli/describe_command.h"
+#include "client/cli/eval_command.h"
+#include "client/cli/gallery_commands.h"
+#include "client/cli/train_classify_commands.h"
+#include "client/cli/views_command.h"
 
 namespace {
 
-void AddDescribe(CLI::App& app, shapeid::DescribeOptions* options, std::string* format) {
-  CLI::App* describe = app.add_subcommand(
-      "describe", "Compute the shape descriptor of each point-cloud file, one line per file");
-  describe->add_flag("--local", options->local,
-                     "Compute in this process (required until the server mode exists)");
-  describe->add_option("--spec", options->spec, "Descriptor spec: KIND[:param=value,...]")
+constexpr char kMainFooter[] =
+    "Server: --server HOST:PORT, or the SHAPEID_SERVER environment variable (default\n"
+    "127.0.0.1:50051). Global flags (--server, --timeout, --format, --quiet) go before or\n"
+    "after the command.\n"
+    "\n"
+    "Output (--format): table for people (default), json (one JSON object per line) for\n"
+    "scripts, csv (header row, RFC 4180) for spreadsheets. Results go to stdout; errors and\n"
+    "progress to stderr (a live bar on a terminal, a line every 5 s otherwise; --quiet: none).\n"
+    "\n"
+    "Exit status:\n"
+    "  0  everything succeeded\n"
+    "  1  some inputs failed (one line each on stderr); the others were processed\n"
+    "  2  usage error: bad flags, spec or paths; nothing was done\n"
+    "  3  the server is unreachable or did not answer in time\n"
+    "  4  the server refused the command (unknown or existing gallery, bad argument...)\n"
+    "\n"
+    "Examples:\n"
+    "  shapeid gallery create parts --spec rphsd --k 3\n"
+    "  shapeid train --gallery parts dataset/            # dataset/<label>/... per label\n"
+    "  shapeid train --gallery parts --label bolt scans/bolt-*.pcd\n"
+    "  shapeid classify --gallery parts new-scans/\n"
+    "  shapeid eval --gallery parts --test dataset/      # dataset/<label>/test/...\n"
+    "  shapeid eval --folds 5 --spec rphsd --report report.html dataset/\n"
+    "  shapeid describe --local --spec comsd:grid=50 chair.pcd\n"
+    "Run 'shapeid COMMAND --help' for each command's flags.\n";
+
+// Flags shared by the batch commands.
+void AddBatchFlags(CLI::App* command, shapeid::BatchOptions* batch) {
+  command->add_option("--jobs,-j", batch->jobs, "Parallel streams to the server")
+      ->check(CLI::Range(1, 256))
       ->capture_default_str();
-  describe->add_option("--format", *format, "Output: text, or json (one JSON object per line)")
-      ->check(CLI::IsMember({"text", "json"}))
-      ->type_name("FORMAT")
+  command->add_flag("--drop-nonfinite", batch->read.drop_non_finite,
+                    "Remove points with NaN or infinite coordinates (organised PCD clouds) "
+                    "instead of failing on them");
+  command
+      ->add_option("--mesh-points", batch->read.sample_points,
+                   "Points sampled on each mesh file (.off, .obj)")
+      ->check(CLI::Range(size_t{1}, size_t{10000000}))
       ->capture_default_str();
-  describe->add_flag("--drop-nonfinite", options->drop_non_finite,
-                     "Remove points with NaN or infinite coordinates (organised PCD clouds) "
-                     "instead of failing on them");
-  describe->add_option("FILE", options->files, "Point-cloud files: .pcd .ply .off .xyz .txt .csv")
-      ->required()
-      ->type_name("");
-  describe->footer(shapeid::DescribeHelpFooter());
+}
+
+void AddGalleryKnobs(CLI::App* command, shapeid::GalleryCreateOptions* create) {
+  command->add_option("--spec", create->spec,
+                      "Descriptor spec, KIND[:param=value,...] (default: the server's, rphsd)");
+  command->add_option("--k", create->k, "Neighbours that vote (default 1)")
+      ->check(CLI::Range(1u, 1000000u));
+  command->add_option("--weighting", create->weighting, "Votes: uniform or distance")
+      ->check(CLI::IsMember({"uniform", "distance"}));
+  command
+      ->add_option("--scaling", create->scaling,
+                   "Per-feature scaling before distances: none, zscore or maxabs")
+      ->check(CLI::IsMember({"none", "zscore", "maxabs"}));
+  command
+      ->add_option("--reject-distance", create->reject_distance,
+                   "Answer \"unknown\" when the nearest sample is farther than this "
+                   "(0: never)")
+      ->check(CLI::NonNegativeNumber);
 }
 
 }  // namespace
@@ -35,10 +80,151 @@ int main(int argc, char** argv) {
   CLI::App app("shapeid: 3D object recognition from point clouds", "shapeid");
   app.set_version_flag("--version", std::string("shapeid ") + SHAPEID_VERSION);
   app.require_subcommand(1);
-  app.footer("Run 'shapeid describe --help' for the descriptor kinds, formats and examples.");
+  app.fallthrough();
+  app.footer(kMainFooter);
+
+  shapeid::CliContext context;
+  if (const char* server = std::getenv("SHAPEID_SERVER"); server != nullptr && *server) {
+    context.client.target = server;
+  }
+  std::string format = "table";
+  double timeout_seconds = 30;
+  bool quiet = false;
+  app.add_option("--server", context.client.target, "shapeid-server address (HOST:PORT)")
+      ->envname("SHAPEID_SERVER")
+      ->capture_default_str();
+  app.add_option("--timeout", timeout_seconds, "Seconds allowed for each call, retries included")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--format", format, "Output: table, json or csv")
+      ->check(CLI::IsMember({"table", "text", "json", "csv"}))
+      ->capture_default_str();
+  app.add_flag("--quiet,-q", quiet, "No progress or summary lines on stderr");
+
+  // describe
   shapeid::DescribeOptions describe;
-  std::string format = "text";
-  AddDescribe(app, &describe, &format);
+  CLI::App* describe_cmd = app.add_subcommand(
+      "describe", "Compute the shape descriptor of each point-cloud file, one line per file");
+  describe_cmd->fallthrough();
+  describe_cmd->add_flag("--local", describe.local,
+                         "Compute in this process instead of on the server");
+  describe_cmd->add_option("--spec", describe.spec,
+                           "Descriptor spec: KIND[:param=value,...] (default rphsd)");
+  describe_cmd->add_option("--gallery", describe.gallery,
+                           "Describe with this gallery's spec (server only)");
+  describe_cmd->add_flag("--drop-nonfinite", describe.drop_non_finite,
+                         "Remove points with NaN or infinite coordinates (organised PCD "
+                         "clouds) instead of failing on them");
+  describe_cmd
+      ->add_option("FILE", describe.files,
+                   "Point-cloud files or folders: .pcd .ply .off .obj .xyz .txt .csv")
+      ->required()
+      ->type_name("");
+  describe_cmd->footer(shapeid::DescribeHelpFooter());
+
+  // gallery create|list|show|delete|remove
+  CLI::App* gallery_cmd = app.add_subcommand("gallery", "Create, list, show and delete galleries");
+  gallery_cmd->fallthrough();
+  gallery_cmd->require_subcommand(1);
+  shapeid::GalleryCreateOptions create;
+  CLI::App* create_cmd = gallery_cmd->add_subcommand("create", "Create an empty gallery");
+  create_cmd->fallthrough();
+  create_cmd->add_option("NAME", create.name, "Gallery name")->required();
+  AddGalleryKnobs(create_cmd, &create);
+  create_cmd->add_flag("--exist-ok", create.exist_ok,
+                       "Succeed when the gallery already exists (its settings are kept)");
+  CLI::App* list_cmd = gallery_cmd->add_subcommand("list", "List the galleries");
+  list_cmd->fallthrough();
+  std::string gallery_name;
+  CLI::App* show_cmd = gallery_cmd->add_subcommand("show", "Show a gallery and its labels");
+  show_cmd->fallthrough();
+  show_cmd->add_option("NAME", gallery_name, "Gallery name")->required();
+  bool missing_ok = false;
+  CLI::App* delete_cmd =
+      gallery_cmd->add_subcommand("delete", "Delete a gallery and all its samples");
+  delete_cmd->fallthrough();
+  delete_cmd->add_option("NAME", gallery_name, "Gallery name")->required();
+  delete_cmd->add_flag("--missing-ok", missing_ok, "Succeed when the gallery does not exist");
+  shapeid::GalleryRemoveOptions remove;
+  CLI::App* remove_cmd = gallery_cmd->add_subcommand("remove", "Remove samples by label and/or id");
+  remove_cmd->fallthrough();
+  remove_cmd->add_option("NAME", remove.name, "Gallery name")->required();
+  remove_cmd->add_option("--label", remove.labels, "Remove every sample of this label");
+  remove_cmd->add_option("--id", remove.sample_ids, "Remove the sample with this id");
+
+  CLI::App* descriptors_cmd =
+      app.add_subcommand("descriptors", "List the server's descriptor kinds and parameters");
+  descriptors_cmd->fallthrough();
+  CLI::App* health_cmd =
+      app.add_subcommand("health", "Check that the server is serving (exit 0) or not (exit 3)");
+  health_cmd->fallthrough();
+
+  // train
+  shapeid::TrainOptions train;
+  CLI::App* train_cmd = app.add_subcommand(
+      "train", "Add labelled clouds to a gallery: --label L FILE..., or labelled folders");
+  train_cmd->fallthrough();
+  train_cmd->add_option("--gallery,-g", train.gallery, "Gallery to add to")->required();
+  train_cmd->add_option("--label,-l", train.label,
+                        "Label of every file given; without it each path is a folder with "
+                        "one sub-folder per label (<label>/train/ used where present)");
+  train_cmd
+      ->add_option("--batch", train.batch.train_batch,
+                   "Samples per Train stream (each stream is all-or-nothing)")
+      ->check(CLI::Range(size_t{1}, size_t{100000}))
+      ->capture_default_str();
+  AddBatchFlags(train_cmd, &train.batch);
+  train_cmd->add_option("PATH", train.paths, "Files or folders")->required()->type_name("");
+
+  // classify
+  shapeid::ClassifyOptions classify;
+  CLI::App* classify_cmd =
+      app.add_subcommand("classify", "Classify each cloud: label, confidence, nearest samples");
+  classify_cmd->fallthrough();
+  classify_cmd->add_option("--gallery,-g", classify.gallery, "Gallery to search")->required();
+  classify_cmd->add_option("--k", classify.k, "Neighbours that vote (default: the gallery's)")
+      ->check(CLI::Range(1u, 1000000u));
+  classify_cmd->add_option("--top", classify.top, "Nearest samples shown per file")
+      ->check(CLI::Range(0, 100))
+      ->capture_default_str();
+  AddBatchFlags(classify_cmd, &classify.batch);
+  classify_cmd->add_option("PATH", classify.paths, "Files or folders")->required()->type_name("");
+
+  // eval
+  shapeid::EvalOptions eval;
+  CLI::App* eval_cmd = app.add_subcommand(
+      "eval", "Accuracy on a labelled folder: hold-out, k-fold, or against a gallery");
+  eval_cmd->fallthrough();
+  eval_cmd->add_option("--gallery,-g", eval.gallery,
+                       "Test against this existing gallery (no training)");
+  eval_cmd
+      ->add_option("--test,DIR", eval.dataset,
+                   "Labelled folder: <label>/{train,test}/ (hold-out) or <label>/ "
+                   "(k-fold)")
+      ->required();
+  eval_cmd->add_option("--folds", eval.folds, "Stratified k-fold cross-validation with K folds")
+      ->check(CLI::Range(2, 100));
+  eval_cmd->add_option("--seed", eval.seed, "Seed of the k-fold shuffle")->capture_default_str();
+  AddGalleryKnobs(eval_cmd, &eval.create);
+  eval_cmd->add_option("--report", eval.report_html, "Also write a self-contained HTML report");
+  eval_cmd->add_flag("--predictions", eval.with_predictions,
+                     "json: include every test cloud's prediction");
+  eval.batch.jobs = 4;
+  AddBatchFlags(eval_cmd, &eval.batch);
+  eval_cmd->footer(
+      "Modes:\n"
+      "  eval --gallery G --test DIR   classify DIR/<label>/test/ (or DIR/<label>/) against G\n"
+      "  eval DIR                      DIR/<label>/{train,test}/: train a temporary gallery, test\n"
+      "  eval --folds K DIR            DIR/<label>/: stratified K-fold, a temporary gallery per "
+      "fold\n"
+      "Temporary galleries take --spec/--k/--weighting/--scaling and are deleted afterwards.\n");
+
+  // views
+  shapeid::ViewsOptions views;
+  CLI::App* views_cmd = app.add_subcommand(
+      "views", "Simulate depth-sensor scans of meshes: a labelled <mesh>/{train,test}/ dataset");
+  views_cmd->fallthrough();
+  shapeid::AddViewsFlags(views_cmd, &views);
 
   try {
     app.parse(argc, argv);
@@ -49,10 +235,21 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "shapeid: %s (see shapeid --help)\n", e.what());
     return shapeid::kExitUsage;
   }
-  if (app.got_subcommand("describe")) {
-    describe.format =
-        format == "json" ? shapeid::OutputFormat::kJson : shapeid::OutputFormat::kText;
-    return shapeid::RunDescribe(describe, stdout, stderr);
-  }
+  context.format = *shapeid::ParseOutputFormat(format);  // checked by IsMember above
+  context.progress = quiet ? shapeid::ProgressMode::kOff : shapeid::ProgressMode::kAuto;
+  context.client.deadline = absl::Seconds(timeout_seconds);
+
+  if (*describe_cmd) return shapeid::RunDescribe(describe, context);
+  if (*create_cmd) return shapeid::RunGalleryCreate(create, context);
+  if (*list_cmd) return shapeid::RunGalleryList(context);
+  if (*show_cmd) return shapeid::RunGalleryShow(gallery_name, context);
+  if (*delete_cmd) return shapeid::RunGalleryDelete(gallery_name, missing_ok, context);
+  if (*remove_cmd) return shapeid::RunGalleryRemove(remove, context);
+  if (*descriptors_cmd) return shapeid::RunDescriptors(context);
+  if (*health_cmd) return shapeid::RunHealth(context);
+  if (*train_cmd) return shapeid::RunTrain(train, context);
+  if (*classify_cmd) return shapeid::RunClassify(classify, context);
+  if (*eval_cmd) return shapeid::RunEval(eval, context);
+  if (*views_cmd) return shapeid::RunViews(views, context);
   return shapeid::kExitUsage;
 }

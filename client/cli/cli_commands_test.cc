@@ -1,0 +1,361 @@
+// The shapeid commands against an in-process server on a loopback port, on small labelled
+// folders written by the test: what users and scripts rely on (results, formats, exit codes,
+// a batch that keeps going past a bad file, temporary galleries cleaned up).
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
+#include "client/cli/describe_command.h"
+#include "client/cli/eval_command.h"
+#include "client/cli/gallery_commands.h"
+#include "client/cli/train_classify_commands.h"
+#include "core/io/pcd_writer.h"
+#include "core/testing/test_clouds.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "server/server.h"
+
+namespace shapeid {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::AllOf;
+using ::testing::HasSubstr;
+using ::testing::StartsWith;
+using testing_clouds::kShapeNames;
+using testing_clouds::ShapeCloud;
+
+// A FILE* whose contents tests can read back.
+class Captured {
+ public:
+  Captured() : file_(std::tmpfile()) {}
+  ~Captured() { std::fclose(file_); }
+  std::FILE* get() const { return file_; }
+  std::string contents() const {
+    std::fflush(file_);
+    std::rewind(file_);
+    std::string text;
+    char buffer[4096];
+    size_t n;
+    while ((n = std::fread(buffer, 1, sizeof buffer, file_)) > 0) text.append(buffer, n);
+    return text;
+  }
+
+ private:
+  std::FILE* file_;
+};
+
+// JSON Lines output parsed back by Debian's python3, as a script would: returns what the
+// python snippet prints for the parsed list `rows`.
+std::string PythonOnJsonLines(const std::string& text, const std::string& expression) {
+  const std::string path = ::testing::TempDir() + "/cli_json_lines.jsonl";
+  std::ofstream(path, std::ios::binary) << text;
+  const std::string command = absl::StrCat(
+      "/usr/bin/python3 -c 'import json,sys; rows=[json.loads(l) for l in open(sys.argv[1])]; "
+      "print(",
+      expression, ")' ", path, " 2>&1");
+  std::string out;
+  if (std::FILE* pipe = ::popen(command.c_str(), "r")) {
+    char buffer[4096];
+    size_t n;
+    while ((n = std::fread(buffer, 1, sizeof buffer, pipe)) > 0) out.append(buffer, n);
+    ::pclose(pipe);
+  }
+  while (!out.empty() && out.back() == '\n') out.pop_back();
+  return out;
+}
+
+class CliCommandsTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ServerOptions server_options;
+    server_options.listen = "127.0.0.1:0";
+    auto server = ShapeIdServer::Start(server_options);
+    ASSERT_TRUE(server.ok()) << server.status();
+    server_ = std::move(server).value();
+    root_ = fs::path(::testing::TempDir()) /
+            absl::StrCat("cli_commands_",
+                         ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(root_);
+    // dataset/<shape>/{train,test}/NN.pcd: 6 train and 3 test clouds per shape.
+    for (int kind = 0; kind < 3; ++kind) {
+      for (int i = 0; i < 9; ++i) {
+        const fs::path dir = root_ / "dataset" / kShapeNames[kind] / (i < 6 ? "train" : "test");
+        fs::create_directories(dir);
+        ASSERT_TRUE(WritePcd((dir / absl::StrCat(i, ".pcd")).string(),
+                             ShapeCloud(kind, 1000 * kind + i, 400))
+                        .ok());
+      }
+    }
+  }
+  void TearDown() override {
+    if (server_) server_->Shutdown(absl::ZeroDuration());
+  }
+
+  CliContext Context(OutputFormat format = OutputFormat::kTable) {
+    CliContext context;
+    context.out = out_.get();
+    context.err = err_.get();
+    context.format = format;
+    context.progress = ProgressMode::kOff;
+    context.client.target = server_->address();
+    return context;
+  }
+  std::string Path(const std::string& relative) const { return (root_ / relative).string(); }
+
+  int CreateAndTrain(const std::string& gallery) {
+    GalleryCreateOptions create;
+    create.name = gallery;
+    create.spec = "rphsd:refs=cross7,bins=10";
+    Captured out, err;
+    CliContext context = Context();
+    context.out = out.get();
+    context.err = err.get();
+    if (int code = RunGalleryCreate(create, context); code != kExitOk) return code;
+    TrainOptions train;
+    train.gallery = gallery;
+    train.paths = {Path("dataset")};
+    train.batch.train_batch = 4;
+    return RunTrain(train, context);
+  }
+
+  std::unique_ptr<ShapeIdServer> server_;
+  fs::path root_;
+  Captured out_, err_;
+};
+
+TEST_F(CliCommandsTest, GalleryLifecycleInEveryFormat) {
+  GalleryCreateOptions create;
+  create.name = "parts";
+  create.k = 3;
+  create.weighting = "distance";
+  create.scaling = "zscore";
+  ASSERT_EQ(RunGalleryCreate(create, Context()), kExitOk) << err_.contents();
+  EXPECT_THAT(out_.contents(), AllOf(HasSubstr("NAME"), HasSubstr("parts"), HasSubstr("distance"),
+                                     HasSubstr("zscore")));
+  // Exists: refused (4), unless --exist-ok.
+  EXPECT_EQ(RunGalleryCreate(create, Context()), kExitRefused);
+  EXPECT_THAT(err_.contents(), HasSubstr("parts"));
+  create.exist_ok = true;
+  EXPECT_EQ(RunGalleryCreate(create, Context()), kExitOk);
+
+  Captured json;
+  CliContext context = Context(OutputFormat::kJson);
+  context.out = json.get();
+  ASSERT_EQ(RunGalleryList(context), kExitOk);
+  EXPECT_EQ(PythonOnJsonLines(json.contents(),
+                              "[(r[\"name\"], r[\"k\"], r[\"weighting\"], r[\"sample_count\"]) "
+                              "for r in rows]"),
+            "[('parts', 3, 'distance', 0)]");
+
+  Captured csv;
+  context = Context(OutputFormat::kCsv);
+  context.out = csv.get();
+  ASSERT_EQ(RunGalleryList(context), kExitOk);
+  EXPECT_THAT(csv.contents(), StartsWith("NAME,SPEC,DIM,K,"));
+
+  EXPECT_EQ(RunGalleryShow("nope", Context()), kExitRefused);
+  EXPECT_EQ(RunGalleryDelete("nope", /*missing_ok=*/false, Context()), kExitRefused);
+  EXPECT_EQ(RunGalleryDelete("nope", /*missing_ok=*/true, Context()), kExitOk);
+  EXPECT_EQ(RunGalleryDelete("parts", false, Context()), kExitOk);
+  EXPECT_THAT(out_.contents(), HasSubstr("deleted gallery parts (0 samples)"));
+}
+
+TEST_F(CliCommandsTest, BadKnobsAreUsageErrors) {
+  GalleryCreateOptions create;
+  create.name = "x";
+  create.scaling = "log";
+  EXPECT_EQ(RunGalleryCreate(create, Context()), kExitUsage);
+  GalleryRemoveOptions remove;
+  remove.name = "x";
+  EXPECT_EQ(RunGalleryRemove(remove, Context()), kExitUsage);
+}
+
+TEST_F(CliCommandsTest, TrainFolderThenClassifyInInputOrder) {
+  ASSERT_EQ(CreateAndTrain("shapes"), kExitOk) << err_.contents();
+  Captured show;
+  CliContext context = Context();
+  context.out = show.get();
+  ASSERT_EQ(RunGalleryShow("shapes", context), kExitOk);
+  EXPECT_THAT(show.contents(),
+              AllOf(HasSubstr("samples     18 in 3 labels"), HasSubstr("rphsd:refs=cross7")));
+
+  ClassifyOptions classify;
+  classify.gallery = "shapes";
+  classify.paths = {Path("dataset/sphere/test"), Path("dataset/box/test/6.pcd")};
+  classify.batch.jobs = 3;
+  Captured json;
+  context = Context(OutputFormat::kJson);
+  context.out = json.get();
+  ASSERT_EQ(RunClassify(classify, context), kExitOk) << err_.contents();
+  EXPECT_EQ(PythonOnJsonLines(json.contents(),
+                              "[(r[\"file\"].split(\"/\")[-3:], r[\"label\"], "
+                              "len(r[\"neighbors\"])) for r in rows]"),
+            "[(['sphere', 'test', '6.pcd'], 'sphere', 1), "
+            "(['sphere', 'test', '7.pcd'], 'sphere', 1), "
+            "(['sphere', 'test', '8.pcd'], 'sphere', 1), "
+            "(['box', 'test', '6.pcd'], 'box', 1)]");
+
+  Captured table;
+  context = Context();
+  context.out = table.get();
+  classify.k = 3;
+  classify.paths = {Path("dataset/rod/test/6.pcd")};
+  ASSERT_EQ(RunClassify(classify, context), kExitOk);
+  const std::vector<std::string> lines = absl::StrSplit(table.contents(), '\n');
+  ASSERT_GE(lines.size(), 2u);
+  EXPECT_THAT(lines[0], AllOf(StartsWith("FILE"), HasSubstr("LABEL"), HasSubstr("CONFIDENCE")));
+  EXPECT_THAT(lines[1], AllOf(HasSubstr("rod"), HasSubstr("100.0%")));
+}
+
+TEST_F(CliCommandsTest, ABatchKeepsGoingPastABadFileAndExitsOne) {
+  ASSERT_EQ(CreateAndTrain("shapes"), kExitOk) << err_.contents();
+  std::ofstream(Path("dataset/box/test/broken.pcd")) << "not a pcd file\n";
+  std::ofstream(Path("dataset/box/test/tiny.xyz")) << "0 0 0\n1 1 1\n";  // too few points
+  ClassifyOptions classify;
+  classify.gallery = "shapes";
+  classify.paths = {Path("dataset/box/test")};
+  Captured csv;
+  CliContext context = Context(OutputFormat::kCsv);
+  context.out = csv.get();
+  EXPECT_EQ(RunClassify(classify, context), kExitSomeInputsFailed);
+  const std::string errors = err_.contents();
+  EXPECT_THAT(errors, HasSubstr("broken.pcd"));
+  EXPECT_THAT(errors, HasSubstr("tiny.xyz"));
+  const std::string rows = csv.contents();
+  EXPECT_THAT(rows, StartsWith("file,label,unknown,confidence,points,seconds,neighbor1_label"));
+  EXPECT_EQ(std::count(rows.begin(), rows.end(), '\n'), 4);  // header + 3 good files
+
+  // Training the same folder: the bad files are skipped and reported, the rest trained.
+  TrainOptions train;
+  train.gallery = "shapes";
+  train.label = "box";
+  train.paths = {Path("dataset/box/test")};
+  train.batch.train_batch = 8;  // bad cloud inside a batch: found by resending one by one
+  Captured summary;
+  context = Context();
+  context.out = summary.get();
+  EXPECT_EQ(RunTrain(train, context), kExitSomeInputsFailed);
+  EXPECT_THAT(summary.contents(), HasSubstr("trained 3 of 5 files into shapes"));
+}
+
+TEST_F(CliCommandsTest, ServerWideErrorsStopTheBatchWithTheirExitCode) {
+  ClassifyOptions classify;
+  classify.gallery = "missing";
+  classify.paths = {Path("dataset")};
+  EXPECT_EQ(RunClassify(classify, Context()), kExitRefused);
+  EXPECT_THAT(err_.contents(), HasSubstr("missing"));
+
+  TrainOptions train;
+  train.gallery = "missing";
+  train.paths = {Path("dataset")};
+  EXPECT_EQ(RunTrain(train, Context()), kExitRefused);
+
+  CliContext down = Context();
+  down.client.target = "127.0.0.1:1";  // nothing listens there
+  down.client.max_attempts = 1;
+  EXPECT_EQ(RunClassify(classify, down), kExitUnreachable);
+  EXPECT_EQ(RunHealth(down), kExitUnreachable);
+  EXPECT_THAT(err_.contents(), HasSubstr("SHAPEID_SERVER"));
+  EXPECT_EQ(RunHealth(Context()), kExitOk);
+  EXPECT_THAT(out_.contents(), HasSubstr("SERVING"));
+}
+
+TEST_F(CliCommandsTest, UsageErrorsBeforeTouchingTheServer) {
+  TrainOptions train;
+  train.gallery = "g";
+  train.paths = {Path("dataset/box/train/0.pcd")};  // a file without --label
+  EXPECT_EQ(RunTrain(train, Context()), kExitUsage);
+  EXPECT_THAT(err_.contents(), HasSubstr("--label"));
+  ClassifyOptions classify;
+  classify.gallery = "g";
+  fs::create_directories(root_ / "empty");
+  classify.paths = {Path("empty")};
+  EXPECT_EQ(RunClassify(classify, Context()), kExitUsage);
+  EXPECT_THAT(err_.contents(), HasSubstr("no point-cloud file"));
+}
+
+TEST_F(CliCommandsTest, EvalHoldOutAgainstTemporaryGalleryLeavesNoGallery) {
+  EvalOptions eval;
+  eval.dataset = Path("dataset");
+  eval.create.spec = "rphsd:refs=cross7,bins=10";
+  const std::string report = Path("report.html");
+  eval.report_html = report;
+  Captured json;
+  CliContext context = Context(OutputFormat::kJson);
+  context.out = json.get();
+  ASSERT_EQ(RunEval(eval, context), kExitOk) << err_.contents();
+  EXPECT_EQ(PythonOnJsonLines(json.contents(),
+                              "[(r[\"mode\"], r[\"tests\"], r[\"correct\"], r[\"train_samples\"]) "
+                              "for r in rows]"),
+            "[('holdout', 9, 9, 18)]");
+  std::ifstream html(report);
+  std::string page((std::istreambuf_iterator<char>(html)), std::istreambuf_iterator<char>());
+  EXPECT_THAT(page, AllOf(HasSubstr("<html"), HasSubstr("sphere")));
+
+  Captured list;
+  context = Context(OutputFormat::kJson);
+  context.out = list.get();
+  ASSERT_EQ(RunGalleryList(context), kExitOk);
+  EXPECT_EQ(list.contents(), "");  // the temporary gallery is gone
+}
+
+TEST_F(CliCommandsTest, EvalKFoldAndAgainstAGallery) {
+  // A flat layout (no train/test): k-fold.
+  fs::create_directories(root_ / "flat");
+  for (int kind = 0; kind < 3; ++kind) {
+    fs::rename(root_ / "dataset" / kShapeNames[kind] / "train", root_ / "flat" / kShapeNames[kind]);
+  }
+  EvalOptions eval;
+  eval.dataset = Path("flat");
+  eval.folds = 3;
+  eval.create.spec = "rphsd:refs=cross7,bins=10";
+  Captured table;
+  CliContext context = Context();
+  context.out = table.get();
+  ASSERT_EQ(RunEval(eval, context), kExitOk) << err_.contents();
+  EXPECT_THAT(table.contents(), HasSubstr("accuracy 100.00 % (18/18)"));
+
+  // Against an existing gallery trained on the flat folder: the test clouds left in dataset/.
+  GalleryCreateOptions create;
+  create.name = "flatshapes";
+  create.spec = "rphsd:refs=cross7,bins=10";
+  ASSERT_EQ(RunGalleryCreate(create, Context()), kExitOk);
+  TrainOptions train;
+  train.gallery = "flatshapes";
+  train.paths = {Path("flat")};
+  ASSERT_EQ(RunTrain(train, Context()), kExitOk) << err_.contents();
+  EvalOptions against;
+  against.dataset = Path("dataset");
+  against.gallery = "flatshapes";
+  Captured csv;
+  context = Context(OutputFormat::kCsv);
+  context.out = csv.get();
+  ASSERT_EQ(RunEval(against, context), kExitOk) << err_.contents();
+  EXPECT_THAT(csv.contents(), AllOf(HasSubstr("box,3,3,"), HasSubstr("rod,3,3,")));
+  against.gallery = "nope";
+  EXPECT_EQ(RunEval(against, Context()), kExitRefused);
+}
+
+TEST(StratifiedFoldsTest, EveryFoldGetsItsShareOfEveryClassAndTheSeedMatters) {
+  std::vector<LabelledFile> files;
+  for (int i = 0; i < 10; ++i) files.push_back({absl::StrCat("a", i), "a"});
+  for (int i = 0; i < 5; ++i) files.push_back({absl::StrCat("b", i), "b"});
+  const std::vector<int> folds = StratifiedFolds(files, 5, 42);
+  std::vector<int> a(5, 0), b(5, 0);
+  for (size_t i = 0; i < files.size(); ++i) (files[i].label == "a" ? a : b)[folds[i]]++;
+  for (int f = 0; f < 5; ++f) {
+    EXPECT_EQ(a[f], 2);
+    EXPECT_EQ(b[f], 1);
+  }
+  EXPECT_EQ(StratifiedFolds(files, 5, 42), folds);
+  EXPECT_NE(StratifiedFolds(files, 5, 43), folds);
+}
+
+}  // namespace
+}  // namespace shapeid

@@ -1,0 +1,338 @@
+#include "client/cli/gallery_commands.h"
+
+#include <ctime>
+#include <memory>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "client/cli/json.h"
+
+namespace shapeid {
+namespace {
+
+std::string Timestamp(const google::protobuf::Timestamp& t) {
+  if (t.seconds() == 0 && t.nanos() == 0) return "";
+  const std::time_t seconds = static_cast<std::time_t>(t.seconds());
+  std::tm utc;
+  gmtime_r(&seconds, &utc);
+  char buffer[32];
+  std::strftime(buffer, sizeof buffer, "%Y-%m-%dT%H:%M:%SZ", &utc);
+  return buffer;
+}
+
+std::string Number(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.9g", value);
+  return buffer;
+}
+
+// Prints a table or CSV (table formats only; json callers print their own lines).
+bool PrintRows(const Table& table, const CliContext& context) {
+  return WriteAll(context.out,
+                  context.format == OutputFormat::kCsv ? RenderCsv(table) : RenderTable(table));
+}
+
+int Finish(bool written, const CliContext& context) {
+  if (std::fflush(context.out) != 0 || !written) {
+    WriteAll(context.err, "shapeid: cannot write the output\n");
+    return kExitSomeInputsFailed;
+  }
+  return kExitOk;
+}
+
+std::vector<std::string> GalleryRow(const v1::Gallery& g) {
+  return {g.name(),
+          g.descriptor_spec(),
+          absl::StrCat(g.dimension()),
+          absl::StrCat(g.knn().k()),
+          WeightingName(g.knn().weighting()),
+          ScalingName(g.knn().scaling()),
+          absl::StrCat(g.sample_count()),
+          absl::StrCat(g.label_counts_size()),
+          Timestamp(g.update_time())};
+}
+
+const std::vector<std::string> kGalleryHeader = {
+    "NAME", "SPEC", "DIM", "K", "WEIGHTING", "SCALING", "SAMPLES", "LABELS", "UPDATED"};
+const std::vector<bool> kGalleryRightAligned = {false, false, true, true, false,
+                                                false, true,  true, false};
+
+}  // namespace
+
+std::string ScalingName(v1::FeatureScaling scaling) {
+  switch (scaling) {
+    case v1::FEATURE_SCALING_ZSCORE:
+      return "zscore";
+    case v1::FEATURE_SCALING_MAXABS:
+      return "maxabs";
+    default:
+      return "none";
+  }
+}
+
+std::string WeightingName(v1::VoteWeighting weighting) {
+  return weighting == v1::VOTE_WEIGHTING_DISTANCE ? "distance" : "uniform";
+}
+
+std::string GalleryJson(const v1::Gallery& g) {
+  std::string labels;
+  for (const v1::LabelCount& lc : g.label_counts()) {
+    if (!labels.empty()) labels += ',';
+    absl::StrAppend(&labels, "{\"label\":", JsonString(lc.label()), ",\"count\":", lc.count(), "}");
+  }
+  return absl::StrCat("{\"name\":", JsonString(g.name()),
+                      ",\"descriptor_spec\":", JsonString(g.descriptor_spec()),
+                      ",\"dimension\":", g.dimension(), ",\"k\":", g.knn().k(),
+                      ",\"weighting\":", JsonString(WeightingName(g.knn().weighting())),
+                      ",\"scaling\":", JsonString(ScalingName(g.knn().scaling())),
+                      ",\"reject_distance\":", JsonNumber(g.reject_distance()),
+                      ",\"sample_count\":", g.sample_count(), ",\"label_counts\":[", labels, "]",
+                      ",\"create_time\":", JsonString(Timestamp(g.create_time())),
+                      ",\"update_time\":", JsonString(Timestamp(g.update_time())),
+                      ",\"version\":", g.version(), "}\n");
+}
+
+absl::StatusOr<v1::CreateGalleryRequest> CreateGalleryRequestFor(
+    const GalleryCreateOptions& options) {
+  v1::CreateGalleryRequest request;
+  request.set_name(options.name);
+  request.set_descriptor_spec(options.spec);
+  request.mutable_knn()->set_k(options.k);
+  if (options.weighting == "uniform") {
+    request.mutable_knn()->set_weighting(v1::VOTE_WEIGHTING_UNIFORM);
+  } else if (options.weighting == "distance") {
+    request.mutable_knn()->set_weighting(v1::VOTE_WEIGHTING_DISTANCE);
+  } else if (!options.weighting.empty()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--weighting \"", options.weighting, "\": use uniform or distance"));
+  }
+  if (options.scaling == "none") {
+    request.mutable_knn()->set_scaling(v1::FEATURE_SCALING_NONE);
+  } else if (options.scaling == "zscore") {
+    request.mutable_knn()->set_scaling(v1::FEATURE_SCALING_ZSCORE);
+  } else if (options.scaling == "maxabs") {
+    request.mutable_knn()->set_scaling(v1::FEATURE_SCALING_MAXABS);
+  } else if (!options.scaling.empty()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--scaling \"", options.scaling, "\": use none, zscore or maxabs"));
+  }
+  request.set_reject_distance(options.reject_distance);
+  return request;
+}
+
+int RunGalleryCreate(const GalleryCreateOptions& options, const CliContext& context) {
+  absl::StatusOr<v1::CreateGalleryRequest> request = CreateGalleryRequestFor(options);
+  if (!request.ok()) {
+    PrintError(context.err, "", request.status());
+    return kExitUsage;
+  }
+  std::unique_ptr<Client> client = ConnectOrReport(context);
+  if (client == nullptr) return kExitUsage;
+  absl::StatusOr<v1::Gallery> gallery = client->CreateGallery(*request);
+  if (!gallery.ok() && options.exist_ok && absl::IsAlreadyExists(gallery.status())) {
+    gallery = client->GetGallery(options.name);
+  }
+  if (!gallery.ok()) {
+    PrintError(context.err, absl::StrCat("gallery create ", options.name), gallery.status(),
+               context.client.target);
+    return ExitCodeForStatus(gallery.status());
+  }
+  if (context.format == OutputFormat::kJson)
+    return Finish(WriteAll(context.out, GalleryJson(*gallery)), context);
+  Table table{kGalleryHeader, {GalleryRow(*gallery)}, kGalleryRightAligned};
+  return Finish(PrintRows(table, context), context);
+}
+
+int RunGalleryList(const CliContext& context) {
+  std::unique_ptr<Client> client = ConnectOrReport(context);
+  if (client == nullptr) return kExitUsage;
+  absl::StatusOr<std::vector<v1::Gallery>> galleries = client->ListGalleries();
+  if (!galleries.ok()) {
+    PrintError(context.err, "gallery list", galleries.status(), context.client.target);
+    return ExitCodeForStatus(galleries.status());
+  }
+  if (context.format == OutputFormat::kJson) {
+    bool written = true;
+    for (const v1::Gallery& g : *galleries) written &= WriteAll(context.out, GalleryJson(g));
+    return Finish(written, context);
+  }
+  Table table{kGalleryHeader, {}, kGalleryRightAligned};
+  for (const v1::Gallery& g : *galleries) table.rows.push_back(GalleryRow(g));
+  return Finish(PrintRows(table, context), context);
+}
+
+int RunGalleryShow(const std::string& name, const CliContext& context) {
+  std::unique_ptr<Client> client = ConnectOrReport(context);
+  if (client == nullptr) return kExitUsage;
+  absl::StatusOr<v1::Gallery> gallery = client->GetGallery(name);
+  if (!gallery.ok()) {
+    PrintError(context.err, absl::StrCat("gallery show ", name), gallery.status(),
+               context.client.target);
+    return ExitCodeForStatus(gallery.status());
+  }
+  const v1::Gallery& g = *gallery;
+  if (context.format == OutputFormat::kJson)
+    return Finish(WriteAll(context.out, GalleryJson(g)), context);
+  if (context.format == OutputFormat::kCsv) {
+    Table table{{"label", "count"}, {}, {}};
+    for (const v1::LabelCount& lc : g.label_counts()) {
+      table.rows.push_back({lc.label(), absl::StrCat(lc.count())});
+    }
+    return Finish(PrintRows(table, context), context);
+  }
+  std::string text = absl::StrCat(
+      "gallery     ", g.name(), "\n", "descriptor  ", g.descriptor_spec(), " (", g.dimension(),
+      " values)\n", "knn         k=", g.knn().k(), ", ", WeightingName(g.knn().weighting()),
+      " votes, ", ScalingName(g.knn().scaling()), " scaling\n", "reject      ",
+      g.reject_distance() > 0 ? absl::StrCat("beyond distance ", Number(g.reject_distance()))
+                              : std::string("never (always a label)"),
+      "\n", "samples     ", g.sample_count(), " in ", g.label_counts_size(), " labels\n",
+      "version     ", g.version(), "\n", "created     ", Timestamp(g.create_time()), "\n",
+      "updated     ", Timestamp(g.update_time()), "\n");
+  if (g.label_counts_size() > 0) {
+    Table table{{"LABEL", "SAMPLES"}, {}, {false, true}};
+    for (const v1::LabelCount& lc : g.label_counts()) {
+      table.rows.push_back({lc.label(), absl::StrCat(lc.count())});
+    }
+    absl::StrAppend(&text, "\n", RenderTable(table));
+  }
+  return Finish(WriteAll(context.out, text), context);
+}
+
+int RunGalleryDelete(const std::string& name, bool missing_ok, const CliContext& context) {
+  std::unique_ptr<Client> client = ConnectOrReport(context);
+  if (client == nullptr) return kExitUsage;
+  absl::StatusOr<uint64_t> deleted = client->DeleteGallery(name);
+  if (!deleted.ok() && missing_ok && absl::IsNotFound(deleted.status())) deleted = 0;
+  if (!deleted.ok()) {
+    PrintError(context.err, absl::StrCat("gallery delete ", name), deleted.status(),
+               context.client.target);
+    return ExitCodeForStatus(deleted.status());
+  }
+  std::string text;
+  switch (context.format) {
+    case OutputFormat::kJson:
+      text = absl::StrCat("{\"name\":", JsonString(name), ",\"samples_deleted\":", *deleted, "}\n");
+      break;
+    case OutputFormat::kCsv:
+      text = RenderCsv({{"name", "samples_deleted"}, {{name, absl::StrCat(*deleted)}}, {}});
+      break;
+    case OutputFormat::kTable:
+      text = absl::StrCat("deleted gallery ", name, " (", *deleted, " samples)\n");
+      break;
+  }
+  return Finish(WriteAll(context.out, text), context);
+}
+
+int RunGalleryRemove(const GalleryRemoveOptions& options, const CliContext& context) {
+  if (options.sample_ids.empty() && options.labels.empty()) {
+    WriteAll(context.err, "shapeid: gallery remove: give --label and/or --id (what to remove)\n");
+    return kExitUsage;
+  }
+  std::unique_ptr<Client> client = ConnectOrReport(context);
+  if (client == nullptr) return kExitUsage;
+  absl::StatusOr<v1::RemoveSamplesResponse> removed =
+      client->RemoveSamples(options.name, options.sample_ids, options.labels);
+  if (!removed.ok()) {
+    PrintError(context.err, absl::StrCat("gallery remove ", options.name), removed.status(),
+               context.client.target);
+    return ExitCodeForStatus(removed.status());
+  }
+  std::string text;
+  switch (context.format) {
+    case OutputFormat::kJson:
+      text =
+          absl::StrCat("{\"name\":", JsonString(options.name), ",\"removed\":", removed->removed(),
+                       ",\"remaining\":", removed->remaining(), "}\n");
+      break;
+    case OutputFormat::kCsv:
+      text = RenderCsv(
+          {{"name", "removed", "remaining"},
+           {{options.name, absl::StrCat(removed->removed()), absl::StrCat(removed->remaining())}},
+           {}});
+      break;
+    case OutputFormat::kTable:
+      text = absl::StrCat("removed ", removed->removed(), " samples from ", options.name, " (",
+                          removed->remaining(), " remain)\n");
+      break;
+  }
+  return Finish(WriteAll(context.out, text), context);
+}
+
+int RunDescriptors(const CliContext& context) {
+  std::unique_ptr<Client> client = ConnectOrReport(context);
+  if (client == nullptr) return kExitUsage;
+  absl::StatusOr<std::vector<v1::DescriptorKind>> kinds = client->ListDescriptors();
+  if (!kinds.ok()) {
+    PrintError(context.err, "descriptors", kinds.status(), context.client.target);
+    return ExitCodeForStatus(kinds.status());
+  }
+  if (context.format == OutputFormat::kJson) {
+    bool written = true;
+    for (const v1::DescriptorKind& kind : *kinds) {
+      std::string parameters;
+      for (const v1::DescriptorParameter& p : kind.parameters()) {
+        if (!parameters.empty()) parameters += ',';
+        absl::StrAppend(&parameters, "{\"name\":", JsonString(p.name()),
+                        ",\"default\":", JsonString(p.default_value()),
+                        ",\"help\":", JsonString(p.help()), "}");
+      }
+      written &=
+          WriteAll(context.out, absl::StrCat("{\"kind\":", JsonString(kind.kind()),
+                                             ",\"summary\":", JsonString(kind.summary()),
+                                             ",\"default_spec\":", JsonString(kind.default_spec()),
+                                             ",\"default_dimension\":", kind.default_dimension(),
+                                             ",\"parameters\":[", parameters, "]}\n"));
+    }
+    return Finish(written, context);
+  }
+  if (context.format == OutputFormat::kCsv) {
+    Table table{{"kind", "parameter", "default", "help"}, {}, {}};
+    for (const v1::DescriptorKind& kind : *kinds) {
+      for (const v1::DescriptorParameter& p : kind.parameters()) {
+        table.rows.push_back({kind.kind(), p.name(), p.default_value(), p.help()});
+      }
+    }
+    return Finish(PrintRows(table, context), context);
+  }
+  std::string text;
+  for (const v1::DescriptorKind& kind : *kinds) {
+    absl::StrAppend(&text, kind.kind(), ": ", kind.summary(), "\n  default ", kind.default_spec(),
+                    " (", kind.default_dimension(), " values)\n");
+    Table table{{"  PARAMETER", "DEFAULT", "MEANING"}, {}, {}};
+    for (const v1::DescriptorParameter& p : kind.parameters()) {
+      table.rows.push_back({absl::StrCat("  ", p.name()), p.default_value(), p.help()});
+    }
+    absl::StrAppend(&text, RenderTable(table), "\n");
+  }
+  return Finish(WriteAll(context.out, text), context);
+}
+
+int RunHealth(const CliContext& context) {
+  std::unique_ptr<Client> client = ConnectOrReport(context);
+  if (client == nullptr) return kExitUsage;
+  const absl::Status health = client->CheckHealth();
+  const std::string status = health.ok() ? "SERVING" : "NOT_SERVING";
+  std::string text;
+  switch (context.format) {
+    case OutputFormat::kJson:
+      text = absl::StrCat(
+          "{\"status\":", JsonString(status), ",\"target\":", JsonString(context.client.target),
+          health.ok() ? "" : absl::StrCat(",\"error\":", JsonString(health.message())), "}\n");
+      break;
+    case OutputFormat::kCsv:
+      text = RenderCsv({{"status", "target", "error"},
+                        {{status, context.client.target, std::string(health.message())}},
+                        {}});
+      break;
+    case OutputFormat::kTable:
+      text = absl::StrCat(status, " ", context.client.target,
+                          health.ok() ? "" : absl::StrCat(" (", health.message(), ")"), "\n");
+      break;
+  }
+  WriteAll(context.out, text);
+  std::fflush(context.out);
+  return health.ok() ? kExitOk : kExitUnreachable;
+}
+
+}  // namespace shapeid

@@ -1,0 +1,55 @@
+#ifndef SHAPEID_CLIENT_CLI_GALLERY_COMMANDS_H_
+#define SHAPEID_CLIENT_CLI_GALLERY_COMMANDS_H_
+
+// `shapeid gallery create|list|show|delete|remove`, `shapeid descriptors` and
+// `shapeid health`: one call each to the server, printed as table, json or csv.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "client/cli/cli_common.h"
+#include "shapeid/v1/shapeid.pb.h"
+
+namespace shapeid {
+
+struct GalleryCreateOptions {
+  std::string name;
+  std::string spec;            // empty: the server's default descriptor
+  uint32_t k = 0;              // 0: the server's default (1)
+  std::string weighting;       // "", "uniform" or "distance"
+  std::string scaling;         // "", "none", "zscore" or "maxabs"
+  double reject_distance = 0;  // 0: never answer "unknown"
+  bool exist_ok = false;       // an existing gallery is success (scripts re-run safely)
+};
+
+// The CreateGalleryRequest for `options`; InvalidArgument for an unknown weighting/scaling.
+absl::StatusOr<v1::CreateGalleryRequest> CreateGalleryRequestFor(
+    const GalleryCreateOptions& options);
+
+int RunGalleryCreate(const GalleryCreateOptions& options, const CliContext& context);
+int RunGalleryList(const CliContext& context);
+int RunGalleryShow(const std::string& name, const CliContext& context);
+int RunGalleryDelete(const std::string& name, bool missing_ok, const CliContext& context);
+
+struct GalleryRemoveOptions {
+  std::string name;
+  std::vector<uint64_t> sample_ids;
+  std::vector<std::string> labels;
+};
+int RunGalleryRemove(const GalleryRemoveOptions& options, const CliContext& context);
+
+int RunDescriptors(const CliContext& context);
+
+// Exit 0 when the server answers SERVING, 3 otherwise. Prints "SERVING <target>" (table),
+// {"status":"SERVING","target":...} (json) or a CSV row.
+int RunHealth(const CliContext& context);
+
+// Renderings shared with other commands and tests.
+std::string GalleryJson(const v1::Gallery& gallery);  // one line, with '\n'
+std::string ScalingName(v1::FeatureScaling scaling);
+std::string WeightingName(v1::VoteWeighting weighting);
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_CLIENT_CLI_GALLERY_COMMANDS_H_

@@ -1,0 +1,110 @@
+#include "client/cli/input_files.h"
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+
+namespace shapeid {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::ElementsAre;
+using ::testing::HasSubstr;
+
+class InputFilesTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    root_ = fs::path(::testing::TempDir()) /
+            ("input_files_" +
+             std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    fs::remove_all(root_);
+    fs::create_directories(root_);
+  }
+  void Touch(const std::string& relative) {
+    const fs::path path = root_ / relative;
+    fs::create_directories(path.parent_path());
+    std::ofstream(path) << "0 0 0\n";
+  }
+  std::string P(const std::string& relative) const { return (root_ / relative).string(); }
+  fs::path root_;
+};
+
+TEST_F(InputFilesTest, RecognisesPointCloudExtensions) {
+  for (const char* name : {"a.pcd", "b.PLY", "c.off", "d.obj", "e.xyz", "f.txt", "g.csv"}) {
+    EXPECT_TRUE(IsPointCloudFile(name)) << name;
+  }
+  for (const char* name : {"readme.md", "noext", "x.pcd.bak"}) {
+    EXPECT_FALSE(IsPointCloudFile(name)) << name;
+  }
+}
+
+TEST_F(InputFilesTest, ExpandsFoldersRecursivelySortedSkippingHiddenAndOtherFiles) {
+  Touch("scans/b.pcd");
+  Touch("scans/a.pcd");
+  Touch("scans/sub/c.xyz");
+  Touch("scans/notes.md");
+  Touch("scans/.hidden/d.pcd");
+  Touch("scans/.e.pcd");
+  Touch("single.ply");
+  const auto files = ExpandInputs({P("single.ply"), P("scans")});
+  ASSERT_TRUE(files.ok()) << files.status();
+  EXPECT_THAT(*files, ElementsAre(P("single.ply"), P("scans/a.pcd"), P("scans/b.pcd"),
+                                  P("scans/sub/c.xyz")));
+}
+
+TEST_F(InputFilesTest, ExpandKeepsMissingFilesAndRejectsEmptyFolders) {
+  // A missing path stays: the reader reports it as one failed file of the batch.
+  EXPECT_THAT(*ExpandInputs({P("nope")}), ElementsAre(P("nope")));
+  fs::create_directories(root_ / "empty");
+  const auto empty = ExpandInputs({P("empty")});
+  EXPECT_TRUE(absl::IsInvalidArgument(empty.status()));
+  EXPECT_THAT(empty.status().message(), HasSubstr("no point-cloud file"));
+  // A file given by name stays, whatever its extension: the reader will say what is wrong.
+  Touch("weird.dat");
+  EXPECT_THAT(*ExpandInputs({P("weird.dat")}), ElementsAre(P("weird.dat")));
+}
+
+TEST_F(InputFilesTest, LabelledFoldersWithAndWithoutTrainTestSplit) {
+  Touch("flat/chair/1.pcd");
+  Touch("flat/chair/2.pcd");
+  Touch("flat/table/deep/3.pcd");
+  EXPECT_FALSE(HasTrainTestSplit(P("flat")));
+  auto flat = LabelledFiles(P("flat"), Split::kAll);
+  ASSERT_TRUE(flat.ok()) << flat.status();
+  ASSERT_EQ(flat->size(), 3u);
+  EXPECT_EQ((*flat)[0].label, "chair");
+  EXPECT_EQ((*flat)[2].label, "table");
+  EXPECT_EQ((*flat)[2].path, P("flat/table/deep/3.pcd"));
+  // No test/ folders: the test split is empty, which is an error naming the layout.
+  const auto no_test = LabelledFiles(P("flat"), Split::kTest);
+  EXPECT_TRUE(absl::IsInvalidArgument(no_test.status()));
+  EXPECT_THAT(no_test.status().message(), HasSubstr("<label>/test/"));
+
+  Touch("split/chair/train/1.pcd");
+  Touch("split/chair/test/2.pcd");
+  Touch("split/table/train/3.pcd");
+  Touch("split/table/test/4.pcd");
+  Touch("split/table/test/5.pcd");
+  EXPECT_TRUE(HasTrainTestSplit(P("split")));
+  auto train = LabelledFiles(P("split"), Split::kTrain);
+  auto test = LabelledFiles(P("split"), Split::kTest);
+  ASSERT_TRUE(train.ok() && test.ok());
+  EXPECT_EQ(train->size(), 2u);
+  EXPECT_EQ(test->size(), 3u);
+  EXPECT_EQ((*test)[2].label, "table");
+  EXPECT_EQ(LabelledFiles(P("split"), Split::kAll)->size(), 5u);
+}
+
+TEST_F(InputFilesTest, LabelledFilesErrors) {
+  EXPECT_TRUE(absl::IsNotFound(LabelledFiles(P("missing"), Split::kAll).status()));
+  Touch("file.pcd");
+  EXPECT_TRUE(absl::IsInvalidArgument(LabelledFiles(P("file.pcd"), Split::kAll).status()));
+  Touch("nolabels/a.pcd");  // files directly in the root: no label folders
+  EXPECT_TRUE(absl::IsInvalidArgument(LabelledFiles(P("nolabels"), Split::kAll).status()));
+}
+
+}  // namespace
+}  // namespace shapeid
