@@ -22,81 +22,12 @@
 #include "grpcpp/grpcpp.h"
 #include "gtest/gtest.h"
 #include "shapeid/v1/shapeid.grpc.pb.h"
-
-extern char** environ;
+#include "tests/server_process.h"
 
 namespace shapeid {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-// A shapeid-server child process; killed (SIGKILL) if a test leaves it running.
-class ServerProcess {
- public:
-  ServerProcess() {
-    int out[2];
-    if (pipe(out) != 0) return;
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_adddup2(&actions, out[1], STDOUT_FILENO);
-    posix_spawn_file_actions_addclose(&actions, out[0]);
-    std::string binary = SHAPEID_SERVER_PATH;
-    std::string listen = "--listen=127.0.0.1:0";
-    std::string grace = "--shutdown_grace_seconds=10";
-    char* argv[] = {binary.data(), listen.data(), grace.data(), nullptr};
-    if (posix_spawn(&pid_, binary.c_str(), &actions, nullptr, argv, environ) != 0) pid_ = -1;
-    posix_spawn_file_actions_destroy(&actions);
-    close(out[1]);
-    // Read "listening on HOST:PORT\n", for at most 10 s.
-    std::string line;
-    const auto deadline = Clock::now() + std::chrono::seconds(10);
-    fcntl(out[0], F_SETFL, O_NONBLOCK);
-    while (Clock::now() < deadline && line.find('\n') == std::string::npos) {
-      char buf[256];
-      const ssize_t n = read(out[0], buf, sizeof(buf));
-      if (n > 0) {
-        line.append(buf, static_cast<size_t>(n));
-      } else {
-        std::this_thread::sleep_for(std::chrono::milliseconds(10));
-      }
-    }
-    close(out[0]);
-    const std::string prefix = "listening on ";
-    if (line.rfind(prefix, 0) == 0)
-      address_ = line.substr(prefix.size(), line.find('\n') - prefix.size());
-  }
-
-  ~ServerProcess() {
-    if (pid_ > 0 && !exited_) {
-      kill(pid_, SIGKILL);
-      waitpid(pid_, nullptr, 0);
-    }
-  }
-
-  const std::string& address() const { return address_; }
-
-  // Sends SIGTERM and returns the exit status (-1 if it did not exit within `timeout`).
-  // Idle client channels stay open meanwhile, as robots' do; the server must not wait for
-  // them (its grace is 10 s, the tests allow 3 s).
-  int Terminate(std::chrono::seconds timeout) {
-    kill(pid_, SIGTERM);
-    const auto deadline = Clock::now() + timeout;
-    while (Clock::now() < deadline) {
-      int status = 0;
-      if (waitpid(pid_, &status, WNOHANG) == pid_) {
-        exited_ = true;
-        return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-    return -1;
-  }
-
- private:
-  pid_t pid_ = -1;
-  bool exited_ = false;
-  std::string address_;
-};
 
 using testing_clouds::ShapeCloud;
 constexpr auto& kLabels = testing_clouds::kShapeNames;

@@ -1,0 +1,179 @@
+// End-to-end: the real `shapeid` CLI against the real shapeid-server on loopback, as a user
+// would run them: make a labelled dataset from meshes with `shapeid views`, create and train a
+// gallery from the folder, batch-classify, evaluate, and check what scripts rely on: JSON
+// that parses, CSV, and every documented exit code.
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "tests/cli_runner.h"
+#include "tests/server_process.h"
+
+namespace shapeid {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::AllOf;
+using ::testing::HasSubstr;
+using ::testing::StartsWith;
+
+// Evaluates a python expression over `rows`, the JSON Lines in `text`, with Debian's python3.
+std::string Python(const std::string& text, const std::string& expression) {
+  const std::string path = WriteTempFile("lines.jsonl", text);
+  const std::string script =
+      WriteTempFile("check.py", absl::StrCat("import json, sys\nrows = [json.loads(l) for l in "
+                                             "open(sys.argv[1])]\nprint((",
+                                             expression, "))\n"));
+  const std::string out_path = WriteTempFile("python.out", "");
+  const std::string command = absl::StrCat("/usr/bin/python3 ", ShellQuote(script), " ",
+                                           ShellQuote(path), " >", ShellQuote(out_path), " 2>&1");
+  std::system(command.c_str());
+  std::string out = Slurp(out_path);
+  while (!out.empty() && out.back() == '\n') out.pop_back();
+  return out;
+}
+
+// Three meshes a sensor tells apart from any side: a cube, a long bar and a pyramid.
+void WriteMeshes(const fs::path& dir) {
+  fs::create_directories(dir);
+  const auto box = [](double x, double y, double z) {
+    return absl::StrCat("OFF\n8 6 0\n", -x, " ", -y, " ", -z, "\n", x, " ", -y, " ", -z, "\n", x,
+                        " ", y, " ", -z, "\n", -x, " ", y, " ", -z, "\n", -x, " ", -y, " ", z, "\n",
+                        x, " ", -y, " ", z, "\n", x, " ", y, " ", z, "\n", -x, " ", y, " ", z,
+                        "\n4 0 3 2 1\n4 4 5 6 7\n4 0 1 5 4\n4 2 3 7 6\n4 1 2 6 5\n4 0 4 7 3\n");
+  };
+  std::ofstream(dir / "cube.off") << box(1, 1, 1);
+  std::ofstream(dir / "bar.off") << box(3, 0.4, 0.4);
+  std::ofstream(dir / "pyramid.off") << "OFF\n5 5 0\n-1 -1 0\n1 -1 0\n1 1 0\n-1 1 0\n0 0 2\n"
+                                        "4 0 3 2 1\n3 0 1 4\n3 1 2 4\n3 2 3 4\n3 3 0 4\n";
+}
+
+class CliE2ETest : public ::testing::Test {
+ protected:
+  // The dataset is made once, by the first test (WriteTempFile needs a running test).
+  static void MakeDataset() {
+    if (root_ != nullptr) return;
+    root_ = new fs::path(fs::path(::testing::TempDir()) / "cli_e2e");
+    fs::remove_all(*root_);
+    WriteMeshes(*root_ / "meshes");
+    const RunResult views =
+        Shapeid({"views", "--quiet", "--out", (*root_ / "data").string(), "--train-views", "8",
+                 "--test-views", "4", "--up", "z", (*root_ / "meshes/cube.off").string(),
+                 (*root_ / "meshes/bar.off").string(), (*root_ / "meshes/pyramid.off").string()});
+    ASSERT_EQ(views.exit_code, 0) << views.err;
+  }
+  static void TearDownTestSuite() {
+    delete root_;
+    root_ = nullptr;
+  }
+  void SetUp() override {
+    MakeDataset();
+    ASSERT_FALSE(server_.address().empty()) << "shapeid-server did not start";
+  }
+
+  RunResult Run(std::vector<std::string> args) {
+    args.insert(args.begin(), {"--server", server_.address(), "--quiet"});
+    return Shapeid(args);
+  }
+  static std::string Data(const std::string& relative = "") {
+    return (*root_ / "data" / relative).string();
+  }
+
+  static fs::path* root_;
+  ServerProcess server_;
+};
+fs::path* CliE2ETest::root_ = nullptr;
+
+TEST_F(CliE2ETest, ViewsMakeALabelledTrainTestLayout) {
+  for (const char* label : {"cube", "bar", "pyramid"}) {
+    EXPECT_TRUE(fs::exists(Data(absl::StrCat(label, "/train/view-007.pcd")))) << label;
+    EXPECT_TRUE(fs::exists(Data(absl::StrCat(label, "/test/view-003.pcd")))) << label;
+    EXPECT_FALSE(fs::exists(Data(absl::StrCat(label, "/test/view-004.pcd")))) << label;
+  }
+}
+
+TEST_F(CliE2ETest, CreateTrainClassifyEvaluate) {
+  RunResult created = Run({"gallery", "create", "demo", "--spec", "rphsd:refs=cross7,bins=10"});
+  ASSERT_EQ(created.exit_code, 0) << created.err;
+
+  RunResult trained = Run({"train", "--gallery", "demo", "--jobs", "2", Data()});
+  ASSERT_EQ(trained.exit_code, 0) << trained.err;
+  EXPECT_THAT(trained.out, HasSubstr("trained 24 of 24 files into demo"));
+
+  RunResult classified =
+      Run({"classify", "--gallery", "demo", "--format", "json", Data("pyramid/test")});
+  ASSERT_EQ(classified.exit_code, 0) << classified.err;
+  EXPECT_EQ(Python(classified.out,
+                   "len(rows), set(r['label'] for r in rows) <= "
+                   "{'bar', 'cube', 'pyramid'}, all(r['points'] > 100 for r in "
+                   "rows), [len(r['neighbors']) for r in rows]"),
+            "(4, True, True, [1, 1, 1, 1])");
+
+  RunResult evaluated =
+      Run({"eval", "--gallery", "demo", "--test", Data(), "--format", "json", "--predictions"});
+  ASSERT_EQ(evaluated.exit_code, 0) << evaluated.err;
+  EXPECT_EQ(Python(evaluated.out,
+                   "rows[0]['mode'], rows[0]['tests'], "
+                   "rows[0]['accuracy'] >= 0.75, len(rows[0]['predictions'])"),
+            "('gallery', 12, True, 12)");
+
+  RunResult table = Run({"eval", "--gallery", "demo", "--test", Data()});
+  ASSERT_EQ(table.exit_code, 0) << table.err;
+  EXPECT_THAT(table.out, AllOf(HasSubstr("accuracy"), HasSubstr("pyramid")));
+
+  RunResult csv = Run({"gallery", "list", "--format", "csv"});
+  ASSERT_EQ(csv.exit_code, 0);
+  EXPECT_THAT(csv.out,
+              AllOf(StartsWith("NAME,SPEC,"), HasSubstr("\r\ndemo,\"rphsd:refs=cross7,bins=10")));
+}
+
+TEST_F(CliE2ETest, ExitCodesAsDocumented) {
+  ASSERT_EQ(Run({"gallery", "create", "g"}).exit_code, 0);
+  ASSERT_EQ(Run({"train", "--gallery", "g", Data()}).exit_code, 0);
+
+  // 1: a bad file among good ones; the good ones are still classified.
+  const std::string bad = WriteTempFile("bad.pcd", "VERSION 0.7\nFIELDS x y z\ngarbage\n");
+  RunResult some = Run({"classify", "--gallery", "g", bad, Data("cube/test/view-000.pcd")});
+  EXPECT_EQ(some.exit_code, 1);
+  EXPECT_THAT(some.err, HasSubstr("bad.pcd"));
+  EXPECT_THAT(some.out, HasSubstr("view-000.pcd"));
+
+  // 2: usage.
+  EXPECT_EQ(Run({"classify", "--gallery", "g"}).exit_code, 2);
+  EXPECT_EQ(Run({"classify", "--gallery", "g", "--no-such-flag", Data()}).exit_code, 2);
+  EXPECT_EQ(Run({"frobnicate"}).exit_code, 2);
+
+  // 3: unreachable.
+  RunResult down = Shapeid({"--server", "127.0.0.1:1", "--timeout", "2", "health"});
+  EXPECT_EQ(down.exit_code, 3);
+  RunResult down_classify =
+      Shapeid({"--server", "127.0.0.1:1", "--timeout", "2", "classify", "--gallery", "g", Data()});
+  EXPECT_EQ(down_classify.exit_code, 3);
+  EXPECT_THAT(down_classify.err, HasSubstr("SHAPEID_SERVER"));
+
+  // 4: refused.
+  EXPECT_EQ(Run({"gallery", "show", "missing"}).exit_code, 4);
+  EXPECT_EQ(Run({"gallery", "create", "g"}).exit_code, 4);
+  EXPECT_EQ(Run({"gallery", "create", "g", "--exist-ok"}).exit_code, 0);
+
+  // 0 and the server's health.
+  RunResult health = Run({"health"});
+  EXPECT_EQ(health.exit_code, 0);
+  EXPECT_THAT(health.out, StartsWith("SERVING"));
+  RunResult describe = Run({"describe", "--gallery", "g", Data("bar/test/view-000.pcd")});
+  EXPECT_EQ(describe.exit_code, 0) << describe.err;
+}
+
+TEST_F(CliE2ETest, ServerFromTheEnvironment) {
+  const std::string command =
+      absl::StrCat("SHAPEID_SERVER=", server_.address(), " ", SHAPEID_CLI_PATH, " health");
+  EXPECT_EQ(std::system((command + " >/dev/null").c_str()), 0);
+}
+
+}  // namespace
+}  // namespace shapeid

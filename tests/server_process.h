@@ -1,0 +1,97 @@
+#ifndef SHAPEID_TESTS_SERVER_PROCESS_H_
+#define SHAPEID_TESTS_SERVER_PROCESS_H_
+
+// The real shapeid-server binary as a child process, for end-to-end tests. Needs
+// SHAPEID_SERVER_PATH defined by the build.
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <string>
+#include <thread>
+#include <vector>
+
+extern char** environ;
+
+namespace shapeid {
+
+// A shapeid-server child process; killed (SIGKILL) if a test leaves it running.
+class ServerProcess {
+ public:
+  using Clock = std::chrono::steady_clock;
+
+  // Starts SHAPEID_SERVER_PATH on 127.0.0.1:0 with `extra_flags`.
+  explicit ServerProcess(std::vector<std::string> extra_flags = {}) {
+    int out[2];
+    if (pipe(out) != 0) return;
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_adddup2(&actions, out[1], STDOUT_FILENO);
+    posix_spawn_file_actions_addclose(&actions, out[0]);
+    std::string binary = SHAPEID_SERVER_PATH;
+    std::vector<std::string> args = {binary, "--listen=127.0.0.1:0", "--shutdown_grace_seconds=10"};
+    args.insert(args.end(), extra_flags.begin(), extra_flags.end());
+    std::vector<char*> argv;
+    for (std::string& arg : args) argv.push_back(arg.data());
+    argv.push_back(nullptr);
+    if (posix_spawn(&pid_, binary.c_str(), &actions, nullptr, argv.data(), environ) != 0) pid_ = -1;
+    posix_spawn_file_actions_destroy(&actions);
+    close(out[1]);
+    // Read "listening on HOST:PORT\n", for at most 10 s.
+    std::string line;
+    const auto deadline = Clock::now() + std::chrono::seconds(10);
+    fcntl(out[0], F_SETFL, O_NONBLOCK);
+    while (Clock::now() < deadline && line.find('\n') == std::string::npos) {
+      char buf[256];
+      const ssize_t n = read(out[0], buf, sizeof(buf));
+      if (n > 0) {
+        line.append(buf, static_cast<size_t>(n));
+      } else {
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      }
+    }
+    close(out[0]);
+    const std::string prefix = "listening on ";
+    if (line.rfind(prefix, 0) == 0)
+      address_ = line.substr(prefix.size(), line.find('\n') - prefix.size());
+  }
+
+  ~ServerProcess() {
+    if (pid_ > 0 && !exited_) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, nullptr, 0);
+    }
+  }
+
+  const std::string& address() const { return address_; }
+
+  // Sends SIGTERM and returns the exit status (-1 if it did not exit within `timeout`).
+  // Idle client channels stay open meanwhile, as robots' do; the server must not wait for
+  // them (its grace is 10 s, the tests allow 3 s).
+  int Terminate(std::chrono::seconds timeout) {
+    kill(pid_, SIGTERM);
+    const auto deadline = Clock::now() + timeout;
+    while (Clock::now() < deadline) {
+      int status = 0;
+      if (waitpid(pid_, &status, WNOHANG) == pid_) {
+        exited_ = true;
+        return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return -1;
+  }
+
+ private:
+  pid_t pid_ = -1;
+  bool exited_ = false;
+  std::string address_;
+};
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_TESTS_SERVER_PROCESS_H_
