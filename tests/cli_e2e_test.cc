@@ -3,6 +3,8 @@
 // gallery from the folder, batch-classify, evaluate, and check what scripts rely on: JSON
 // that parses, CSV, and every documented exit code.
 
+#include <unistd.h>
+
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -58,7 +60,9 @@ class CliE2ETest : public ::testing::Test {
   // The dataset is made once, by the first test (WriteTempFile needs a running test).
   static void MakeDataset() {
     if (root_ != nullptr) return;
-    root_ = new fs::path(fs::path(::testing::TempDir()) / "cli_e2e");
+    // One folder per process: ctest runs each test of this file as its own process, in
+    // parallel.
+    root_ = new fs::path(fs::path(::testing::TempDir()) / absl::StrCat("cli_e2e_", ::getpid()));
     fs::remove_all(*root_);
     WriteMeshes(*root_ / "meshes");
     const RunResult views =
@@ -68,6 +72,9 @@ class CliE2ETest : public ::testing::Test {
     ASSERT_EQ(views.exit_code, 0) << views.err;
   }
   static void TearDownTestSuite() {
+    if (root_ == nullptr) return;
+    std::error_code ignored;
+    fs::remove_all(*root_, ignored);
     delete root_;
     root_ = nullptr;
   }
