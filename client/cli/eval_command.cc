@@ -10,7 +10,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "client/cli/describe_command.h"
-#include "core/io/mesh_sampler.h"
+#include "core/random.h"
 
 namespace shapeid {
 namespace {

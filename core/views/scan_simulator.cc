@@ -9,7 +9,7 @@
 
 #include "Eigen/Geometry"
 #include "absl/strings/str_cat.h"
-#include "core/io/mesh_sampler.h"  // SplitMix64, the project's seeded generator
+#include "core/random.h"
 #include "core/views/sample_spacing.h"
 
 namespace shapeid {
