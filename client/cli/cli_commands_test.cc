@@ -2,6 +2,8 @@
 // folders written by the test: what users and scripts rely on (results, formats, exit codes,
 // a batch that keeps going past a bad file, temporary galleries cleaned up).
 
+#include <unistd.h>
+
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -53,7 +55,10 @@ class Captured {
 // JSON Lines output parsed back by Debian's python3, as a script would: returns what the
 // python snippet prints for the parsed list `rows`.
 std::string PythonOnJsonLines(const std::string& text, const std::string& expression) {
-  const std::string path = ::testing::TempDir() + "/cli_json_lines.jsonl";
+  // One file per process and test: ctest runs the tests of this file in parallel processes.
+  const std::string path =
+      absl::StrCat(::testing::TempDir(), "/cli_json_lines_", ::getpid(), "_",
+                   ::testing::UnitTest::GetInstance()->current_test_info()->name(), ".jsonl");
   std::ofstream(path, std::ios::binary) << text;
   const std::string command = absl::StrCat(
       "/usr/bin/python3 -c 'import json,sys; rows=[json.loads(l) for l in open(sys.argv[1])]; "
