@@ -12,26 +12,10 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "absl/types/span.h"
+#include "core/io/errno_status.h"
 
 namespace shapeid {
 namespace {
-
-absl::Status WriteError(const std::string& path, absl::string_view what, int err) {
-  const std::string message = absl::StrCat(path, ": ", what, ": ", std::strerror(err));
-  switch (err) {
-    case ENOENT:
-    case ENOTDIR:
-      return absl::NotFoundError(message);
-    case EACCES:
-    case EPERM:
-    case EROFS:
-      return absl::PermissionDeniedError(message);
-    case EISDIR:
-      return absl::InvalidArgumentError(message);
-    default:
-      return absl::UnknownError(message);
-  }
-}
 
 // Writes all of `bytes`, resuming after signals and short writes; false with errno set.
 bool WriteAll(int fd, absl::string_view bytes) {
@@ -82,20 +66,20 @@ absl::Status WritePcd(const std::string& path, const PointCloud& cloud, PcdEncod
   do {
     fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
   } while (fd < 0 && errno == EINTR);
-  if (fd < 0) return WriteError(path, absl::StrCat("cannot create ", tmp), errno);
+  if (fd < 0) return ErrnoStatus(path, absl::StrCat("cannot create ", tmp), errno);
 
   // fsync before rename: otherwise a crash soon after could leave `path` renamed but empty.
   absl::Status status;
   if (!WriteAll(fd, bytes)) {
-    status = WriteError(path, absl::StrCat("cannot write ", tmp), errno);
+    status = ErrnoStatus(path, absl::StrCat("cannot write ", tmp), errno);
   } else if (::fsync(fd) != 0) {
-    status = WriteError(path, absl::StrCat("cannot flush ", tmp), errno);
+    status = ErrnoStatus(path, absl::StrCat("cannot flush ", tmp), errno);
   }
   if (::close(fd) != 0 && status.ok()) {
-    status = WriteError(path, absl::StrCat("cannot close ", tmp), errno);
+    status = ErrnoStatus(path, absl::StrCat("cannot close ", tmp), errno);
   }
   if (status.ok() && std::rename(tmp.c_str(), path.c_str()) != 0) {
-    status = WriteError(path, absl::StrCat("cannot rename ", tmp, " to it"), errno);
+    status = ErrnoStatus(path, absl::StrCat("cannot rename ", tmp, " to it"), errno);
   }
   if (!status.ok()) ::unlink(tmp.c_str());
   return status;

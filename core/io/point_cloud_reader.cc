@@ -10,6 +10,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
+#include "core/io/errno_status.h"
 #include "core/io/obj_reader.h"
 #include "core/io/off_reader.h"
 #include "core/io/pcd_reader.h"
@@ -19,22 +20,6 @@
 
 namespace shapeid {
 namespace {
-
-absl::Status ErrnoError(const std::string& path, absl::string_view what, int err) {
-  const std::string message = absl::StrCat(path, ": ", what, ": ", std::strerror(err));
-  switch (err) {
-    case ENOENT:
-    case ENOTDIR:
-      return absl::NotFoundError(message);
-    case EACCES:
-    case EPERM:
-      return absl::PermissionDeniedError(message);
-    case EISDIR:
-      return absl::InvalidArgumentError(message);
-    default:
-      return absl::UnknownError(message);
-  }
-}
 
 // Closes a file descriptor on every path out of ReadFileContents.
 class FdCloser {
@@ -73,11 +58,11 @@ absl::StatusOr<std::string> ReadFileContents(const std::string& path) {
   do {
     fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   } while (fd < 0 && errno == EINTR);
-  if (fd < 0) return ErrnoError(path, "cannot open", errno);
+  if (fd < 0) return ErrnoStatus(path, "cannot open", errno);
   FdCloser closer(fd);
   struct stat st;
-  if (::fstat(fd, &st) != 0) return ErrnoError(path, "cannot stat", errno);
-  if (S_ISDIR(st.st_mode)) return ErrnoError(path, "cannot read", EISDIR);
+  if (::fstat(fd, &st) != 0) return ErrnoStatus(path, "cannot stat", errno);
+  if (S_ISDIR(st.st_mode)) return ErrnoStatus(path, "cannot read", EISDIR);
 
   // The size is a hint: a file that grows or is not regular (a pipe) is read to its end
   // through `probe`, which also confirms the end of a regular file without a larger buffer.
@@ -91,7 +76,7 @@ absl::StatusOr<std::string> ReadFileContents(const std::string& path) {
     const ssize_t got = ::read(fd, dst, room);
     if (got < 0) {
       if (errno == EINTR) continue;
-      return ErrnoError(path, "cannot read", errno);
+      return ErrnoStatus(path, "cannot read", errno);
     }
     if (got == 0) break;
     if (in_place) {
