@@ -1,6 +1,7 @@
 #ifndef SHAPEID_CORE_DESCRIPTOR_REGISTRY_H_
 #define SHAPEID_CORE_DESCRIPTOR_REGISTRY_H_
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -27,6 +28,11 @@ struct DescriptorKind {
   // Builds the descriptor from a spec whose keys are all known and all present (defaults
   // filled). Returns InvalidArgument for values out of range.
   absl::StatusOr<std::unique_ptr<Descriptor>> (*create)(const DescriptorSpec& filled);
+  // The algorithm's version. Bump it in the same commit as any change that alters the
+  // output of some spec of this kind, even by one ulp: stored galleries record it, and a
+  // server refuses to add to (or classify against) a gallery made by another version rather
+  // than mix descriptors that are not comparable.
+  uint32_t version = 1;
 };
 
 // The spec used wherever a caller names none (Describe without a spec, a new gallery, the

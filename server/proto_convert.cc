@@ -78,8 +78,8 @@ void ToProto(absl::Time t, google::protobuf::Timestamp* out) {
 
 void ToProto(const GallerySnapshot& snapshot, v1::Gallery* out) {
   out->set_name(snapshot.name());
-  out->set_descriptor_spec(snapshot.descriptor().spec().ToString());
-  out->set_dimension(static_cast<uint32_t>(snapshot.descriptor().dimension()));
+  out->set_descriptor_spec(snapshot.options().descriptor_spec);
+  out->set_dimension(static_cast<uint32_t>(snapshot.dimension()));
   *out->mutable_knn() = ToProto(snapshot.options().knn);
   out->set_reject_distance(snapshot.options().reject_distance);
   out->set_sample_count(static_cast<uint64_t>(snapshot.num_samples()));

@@ -7,6 +7,7 @@
 #include "absl/strings/str_cat.h"
 #include "core/descriptor_registry.h"
 #include "core/status_macros.h"
+#include "core/version.h"
 
 namespace shapeid {
 
@@ -32,6 +33,9 @@ absl::Status TrainBatch::Fail(absl::Status status) {
 absl::Status TrainBatch::AddSample(uint64_t id, std::string label, const PointCloud& cloud) {
   if (!error_.ok()) return error_;
   if (committed_) return absl::FailedPreconditionError("batch was already committed");
+  if (descriptor_ == nullptr) {
+    return Fail(absl::FailedPreconditionError(gallery_->Snapshot()->incompatible()));
+  }
   const std::string where = absl::StrCat("sample ", samples_.size(), ": ");
   const GalleryLimits& limits = gallery_->limits();
   if (size() + 1 > limits.max_samples_per_gallery) {
@@ -93,9 +97,58 @@ absl::StatusOr<std::unique_ptr<GallerySnapshot>> Gallery::EmptySnapshot(
   canonical.descriptor_spec = descriptor->spec().ToString();
   SHAPEID_ASSIGN_OR_RETURN(KnnIndex index,
                            KnnIndex::Create(static_cast<int>(descriptor->dimension())));
+  const DescriptorKind* kind = FindDescriptorKind(descriptor->spec().kind);
+  const uint32_t descriptor_version = kind != nullptr ? kind->version : 0;
   return std::unique_ptr<GallerySnapshot>(new GallerySnapshot(
       std::move(name), std::move(canonical),
-      std::shared_ptr<const Descriptor>(std::move(descriptor)), std::move(index), created));
+      std::shared_ptr<const Descriptor>(std::move(descriptor)), std::move(index), created,
+      descriptor_version, kShapeidVersion));
+}
+
+absl::StatusOr<std::unique_ptr<GallerySnapshot>> Gallery::StoredSnapshot(
+    const StoredGallery& stored) {
+  SHAPEID_RETURN_IF_ERROR(ValidateGalleryName(stored.name));
+  SHAPEID_RETURN_IF_ERROR(ValidateGalleryOptions(stored.options));
+  absl::StatusOr<std::unique_ptr<Descriptor>> descriptor =
+      CreateDescriptor(stored.options.descriptor_spec);
+  std::string incompatible;
+  if (!descriptor.ok()) {
+    incompatible = absl::StrCat("gallery '", stored.name, "' was made with descriptor spec '",
+                                stored.options.descriptor_spec, "' by shapeid ",
+                                stored.software_version, ", which this server (shapeid ",
+                                kShapeidVersion, ") cannot compute: ", descriptor.status().message(),
+                                ". Export it to a server that can, or retrain it");
+  } else {
+    const DescriptorKind* kind = FindDescriptorKind((*descriptor)->spec().kind);
+    const uint32_t ours = kind != nullptr ? kind->version : 0;
+    if (ours != stored.descriptor_version) {
+      incompatible = absl::StrCat(
+          "gallery '", stored.name, "' holds descriptors of ", (*descriptor)->spec().kind,
+          " version ", stored.descriptor_version, " (made by shapeid ", stored.software_version,
+          "); this server (shapeid ", kShapeidVersion, ") computes version ", ours,
+          ", and the two are not comparable. Classify on a server running shapeid ",
+          stored.software_version, ", or retrain the gallery");
+    } else if (static_cast<int>((*descriptor)->dimension()) != stored.dimension) {
+      incompatible = absl::StrCat("gallery '", stored.name, "' stores ", stored.dimension,
+                                  " features per sample but its spec '",
+                                  stored.options.descriptor_spec, "' computes ",
+                                  (*descriptor)->dimension(), " here. Retrain the gallery");
+    }
+  }
+  SHAPEID_ASSIGN_OR_RETURN(KnnIndex index, KnnIndex::Create(stored.dimension));
+  GalleryOptions options = stored.options;
+  std::shared_ptr<const Descriptor> shared;
+  if (incompatible.empty()) {
+    // Same kind version: the stored spec and today's canonical spelling (which may list a
+    // parameter added since, at a default that reproduces the old output) are one descriptor.
+    options.descriptor_spec = (*descriptor)->spec().ToString();
+    shared = *std::move(descriptor);
+  }
+  auto snapshot = std::unique_ptr<GallerySnapshot>(new GallerySnapshot(
+      stored.name, std::move(options), std::move(shared), std::move(index), stored.created,
+      stored.descriptor_version, stored.software_version));
+  snapshot->incompatible_ = std::move(incompatible);
+  return snapshot;
 }
 
 absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Create(std::string name,
@@ -113,12 +166,14 @@ absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Restore(const StoredGallery& s
                                                           const GalleryLimits& limits,
                                                           std::shared_ptr<GalleryStore> store) {
   const std::string where = absl::StrCat("restoring gallery '", stored.name, "': ");
-  absl::StatusOr<std::unique_ptr<GallerySnapshot>> empty =
-      EmptySnapshot(stored.name, stored.options, stored.created);
+  absl::StatusOr<std::unique_ptr<GallerySnapshot>> empty = StoredSnapshot(stored);
   if (!empty.ok()) return Prefixed(where, empty.status());
   std::unique_ptr<GallerySnapshot> snapshot = *std::move(empty);
   uint64_t next_assigned = kFirstAssignedId;
   for (const StoredSample& sample : stored.samples) {
+    if (sample.id == 0) {
+      return absl::DataLossError(absl::StrCat(where, "a sample has id 0, which is never stored"));
+    }
     if (absl::Status s = ValidateLabel(sample.label); !s.ok()) return Prefixed(where, s);
     if (absl::Status s = snapshot->index_.Add(sample.id, sample.label, sample.features); !s.ok()) {
       return Prefixed(absl::StrCat(where, "sample id ", sample.id, ": "), s);
@@ -173,6 +228,8 @@ absl::StatusOr<CommitResult> Gallery::CommitBatch(std::vector<StoredSample>& sam
   std::lock_guard<std::mutex> lock(writer_mu_);
   if (deleted_) return DeletedError();
   const std::shared_ptr<const GallerySnapshot> current = Snapshot();
+  // Never mix descriptors of another version into a gallery.
+  SHAPEID_RETURN_IF_ERROR(current->CheckCompatible());
   CommitResult result;
   if (samples.empty()) {
     result.version = current->version();

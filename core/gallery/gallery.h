@@ -115,8 +115,12 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
                                                          const GalleryLimits& limits,
                                                          std::shared_ptr<GalleryStore> store,
                                                          absl::Time created = absl::Now());
-  // A gallery rebuilt from what a store saved, without writing to the store. Assigned ids
-  // continue above the largest stored assigned id.
+  // A gallery rebuilt from what a store saved (or an export held), without writing to the
+  // store; the samples keep their order, so answers are bit for bit those before. Assigned
+  // ids continue above the largest stored assigned id. A gallery this server cannot compute
+  // descriptors for loads all the same, marked GallerySnapshot::incompatible(). Errors, each
+  // naming the gallery: a bad name or options (InvalidArgument); a bad label, id or feature
+  // vector (InvalidArgument, AlreadyExists; DataLoss for id 0).
   static absl::StatusOr<std::shared_ptr<Gallery>> Restore(const StoredGallery& stored,
                                                           const GalleryLimits& limits,
                                                           std::shared_ptr<GalleryStore> store);
@@ -151,6 +155,10 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
 
   static absl::StatusOr<std::unique_ptr<GallerySnapshot>> EmptySnapshot(
       std::string name, const GalleryOptions& options, absl::Time created);
+  // An empty snapshot with the stored options and versions, marked incompatible() when this
+  // server cannot compute the stored spec's descriptors identically.
+  static absl::StatusOr<std::unique_ptr<GallerySnapshot>> StoredSnapshot(
+      const StoredGallery& stored);
 
   absl::StatusOr<CommitResult> CommitBatch(std::vector<StoredSample>& samples);
   absl::StatusOr<int64_t> RemoveLocked(const GallerySnapshot& current, std::vector<uint64_t> ids)

@@ -57,9 +57,37 @@ absl::StatusOr<std::shared_ptr<Gallery>> GalleryRegistry::Create(absl::string_vi
         absl::StrCat("cannot create gallery '", name, "': ", galleries_.size(),
                      " galleries exist, the limit (max_galleries) is ", limits_.max_galleries));
   }
-  const std::shared_ptr<const GallerySnapshot> snapshot = gallery->Snapshot();
-  SHAPEID_RETURN_IF_ERROR(store_->SaveGallery(name, snapshot->options(), snapshot->created()));
+  SHAPEID_RETURN_IF_ERROR(store_->SaveGallery(gallery->Snapshot()->ToStored()));
   galleries_.emplace(std::string(name), gallery);
+  return gallery;
+}
+
+absl::StatusOr<std::shared_ptr<Gallery>> GalleryRegistry::Import(const StoredGallery& stored) {
+  if (static_cast<int64_t>(stored.samples.size()) > limits_.max_samples_per_gallery) {
+    return absl::ResourceExhaustedError(absl::StrCat(
+        "cannot import gallery '", stored.name, "': it holds ", stored.samples.size(),
+        " samples, more than max_samples_per_gallery = ", limits_.max_samples_per_gallery));
+  }
+  // Validation and the index build need no lock.
+  SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<Gallery> gallery,
+                           Gallery::Restore(stored, limits_, store_));
+  const std::shared_ptr<const GallerySnapshot> snapshot = gallery->Snapshot();
+  if (!snapshot->incompatible().empty()) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("cannot import: ", snapshot->incompatible()));
+  }
+  std::lock_guard<std::mutex> lock(mu_);
+  if (galleries_.count(stored.name) != 0) {
+    return absl::AlreadyExistsError(absl::StrCat(
+        "gallery '", stored.name, "' already exists; import under another name or delete it"));
+  }
+  if (galleries_.size() >= limits_.max_galleries) {
+    return absl::ResourceExhaustedError(absl::StrCat(
+        "cannot import gallery '", stored.name, "': ", galleries_.size(),
+        " galleries exist, the limit (max_galleries) is ", limits_.max_galleries));
+  }
+  SHAPEID_RETURN_IF_ERROR(store_->SaveGallery(stored));
+  galleries_.emplace(stored.name, gallery);
   return gallery;
 }
 

@@ -43,6 +43,12 @@ class GalleryRegistry {
   absl::StatusOr<std::shared_ptr<Gallery>> Create(absl::string_view name,
                                                   const GalleryOptions& options);
 
+  // Adds a whole gallery (an import, under stored.name), samples and times as given, in one
+  // store write. Errors: Gallery::Restore's; FailedPrecondition if this server cannot
+  // compute its descriptors (GallerySnapshot::incompatible()); AlreadyExists;
+  // ResourceExhausted over max_galleries or max_samples_per_gallery; the store's error.
+  absl::StatusOr<std::shared_ptr<Gallery>> Import(const StoredGallery& stored);
+
   // NotFound naming `name` (and no other gallery).
   absl::StatusOr<std::shared_ptr<Gallery>> Get(absl::string_view name) const;
 

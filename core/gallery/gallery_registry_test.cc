@@ -164,5 +164,46 @@ TEST(GalleryRegistryTest, LoadFromStoreRestoresEveryGallery) {
   EXPECT_EQ(second.size(), 2u);
 }
 
+TEST(GalleryRegistryTest, ImportAddsAWholeGalleryInOneStoreWrite) {
+  auto store = std::make_shared<InMemoryGalleryStore>();
+  GalleryRegistry source;
+  auto a = source.Create("a", {});
+  ASSERT_TRUE(a.ok());
+  ASSERT_TRUE((*a)->Train({{5, "box", Box(1)}, {0, "sphere", Sphere(1)}}).ok());
+  StoredGallery exported = (*a)->Snapshot()->ToStored();
+
+  GalleryRegistry target({}, store);
+  exported.name = "copy";
+  auto imported = target.Import(exported);
+  ASSERT_TRUE(imported.ok()) << imported.status();
+  EXPECT_EQ(store->NumSamples("copy"), 2);
+  EXPECT_EQ((*imported)->Snapshot()->created(), (*a)->Snapshot()->created());
+  EXPECT_EQ((*imported)->Snapshot()->Classify(Sphere(4))->label, "sphere");
+
+  EXPECT_EQ(target.Import(exported).status().code(), absl::StatusCode::kAlreadyExists);
+
+  StoredGallery other = exported;
+  other.name = "other";
+  other.descriptor_version += 7;
+  const auto refused = target.Import(other);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(refused.status().message(), HasSubstr("cannot import"));
+
+  other.descriptor_version = exported.descriptor_version;
+  other.samples[1].id = other.samples[0].id;
+  EXPECT_EQ(target.Import(other).status().code(), absl::StatusCode::kAlreadyExists);
+
+  GalleryLimits small;
+  small.max_samples_per_gallery = 1;
+  GalleryRegistry tiny(small, store);
+  EXPECT_EQ(tiny.Import(exported).status().code(), absl::StatusCode::kResourceExhausted);
+
+  store->SetFailure(absl::ResourceExhaustedError("disk full"));
+  other = exported;
+  other.name = "third";
+  EXPECT_EQ(target.Import(other).status(), absl::ResourceExhaustedError("disk full"));
+  EXPECT_THAT(target.List(), ElementsAre("copy"));
+}
+
 }  // namespace
 }  // namespace shapeid

@@ -15,14 +15,41 @@ std::map<std::string, int64_t> GallerySnapshot::LabelCounts() const {
   return counts;
 }
 
+StoredGallery GallerySnapshot::ToStored() const {
+  StoredGallery stored;
+  stored.name = name_;
+  stored.options = options_;
+  stored.created = created_;
+  stored.updated = updated_;
+  stored.descriptor_version = descriptor_version_;
+  stored.software_version = software_version_;
+  stored.dimension = index_.dimension();
+  stored.samples.resize(static_cast<size_t>(index_.size()));
+  for (int64_t slot = 0; slot < index_.size(); ++slot) {
+    StoredSample& sample = stored.samples[static_cast<size_t>(slot)];
+    sample.id = index_.IdAt(slot);
+    sample.label = index_.LabelAt(slot);
+    sample.features.resize(static_cast<size_t>(index_.dimension()));
+    index_.CopyFeatures(slot, sample.features.data());
+  }
+  return stored;
+}
+
+absl::Status GallerySnapshot::CheckCompatible() const {
+  if (incompatible_.empty()) return absl::OkStatus();
+  return absl::FailedPreconditionError(incompatible_);
+}
+
 absl::StatusOr<std::vector<float>> GallerySnapshot::Describe(const PointCloud& cloud,
                                                              const CloudLimits& limits) const {
+  SHAPEID_RETURN_IF_ERROR(CheckCompatible());
   return descriptor_->Compute(cloud, limits);
 }
 
 absl::StatusOr<GalleryClassification> GallerySnapshot::Classify(const PointCloud& cloud,
                                                                 const CloudLimits& limits,
                                                                 int k) const {
+  SHAPEID_RETURN_IF_ERROR(CheckCompatible());
   if (empty()) {
     return absl::FailedPreconditionError(
         absl::StrCat("gallery '", name_, "' has no samples; train it before classifying"));
@@ -39,6 +66,7 @@ absl::StatusOr<GalleryClassification> GallerySnapshot::Classify(const PointCloud
 
 absl::StatusOr<GalleryClassification> GallerySnapshot::ClassifyFeatures(
     absl::Span<const float> features, int k) const {
+  SHAPEID_RETURN_IF_ERROR(CheckCompatible());
   if (empty()) {
     return absl::FailedPreconditionError(
         absl::StrCat("gallery '", name_, "' has no samples; train it before classifying"));

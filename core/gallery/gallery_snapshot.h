@@ -14,6 +14,7 @@
 #include "absl/types/span.h"
 #include "core/descriptor.h"
 #include "core/gallery/gallery_options.h"
+#include "core/gallery/gallery_store.h"
 #include "core/knn/knn_index.h"
 #include "core/point_cloud.h"
 
@@ -42,8 +43,23 @@ class GallerySnapshot {
   const std::string& name() const { return name_; }
   // Canonical: descriptor_spec as the registry spells it, every parameter present.
   const GalleryOptions& options() const { return options_; }
-  const Descriptor& descriptor() const { return *descriptor_; }
+  // Null when incompatible() (the spec could not be built here).
   const std::shared_ptr<const Descriptor>& shared_descriptor() const { return descriptor_; }
+  // Features per sample.
+  int dimension() const { return index_.dimension(); }
+
+  // Empty, or why this server cannot compute descriptors comparable to the stored ones (an
+  // unknown descriptor kind, or another DescriptorKind::version). An incompatible gallery
+  // loads so that nothing is lost and it can be exported or deleted, but Describe, Classify
+  // and training refuse it with FailedPrecondition and this text.
+  const std::string& incompatible() const { return incompatible_; }
+  // DescriptorKind::version and kShapeidVersion of whatever made the gallery.
+  uint32_t descriptor_version() const { return descriptor_version_; }
+  const std::string& software_version() const { return software_version_; }
+
+  // Everything a store or an export needs to rebuild this snapshot bit for bit: options,
+  // times, versions and every sample in training order. O(num_samples * dimension).
+  StoredGallery ToStored() const;
   const KnnIndex& index() const { return index_; }
 
   int64_t num_samples() const { return index_.size(); }
@@ -85,13 +101,16 @@ class GallerySnapshot {
   friend class Gallery;
 
   GallerySnapshot(std::string name, GalleryOptions options,
-                  std::shared_ptr<const Descriptor> descriptor, KnnIndex index, absl::Time created)
+                  std::shared_ptr<const Descriptor> descriptor, KnnIndex index, absl::Time created,
+                  uint32_t descriptor_version, std::string software_version)
       : name_(std::move(name)),
         options_(std::move(options)),
         descriptor_(std::move(descriptor)),
         index_(std::move(index)),
         created_(created),
-        updated_(created) {}
+        updated_(created),
+        descriptor_version_(descriptor_version),
+        software_version_(std::move(software_version)) {}
   // Writers build the next snapshot from a copy of the current one; nobody else copies.
   GallerySnapshot(const GallerySnapshot&) = default;
   GallerySnapshot& operator=(const GallerySnapshot&) = delete;
@@ -100,6 +119,8 @@ class GallerySnapshot {
   KnnOptions KnnFor(int k) const;
   // Applies the reject rule to a kNN result.
   GalleryClassification Answer(KnnResult knn) const;
+  // FailedPrecondition when incompatible(), else OK.
+  absl::Status CheckCompatible() const;
 
   std::string name_;
   GalleryOptions options_;
@@ -110,6 +131,9 @@ class GallerySnapshot {
   absl::Time updated_;
   uint64_t version_ = 0;
   uint64_t next_assigned_id_ = uint64_t{1} << 63;  // kFirstAssignedId
+  uint32_t descriptor_version_ = 0;
+  std::string software_version_;
+  std::string incompatible_;
 };
 
 }  // namespace shapeid

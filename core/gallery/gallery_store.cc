@@ -16,12 +16,10 @@ absl::Status NotStored(absl::string_view name) {
 
 }  // namespace
 
-absl::Status InMemoryGalleryStore::SaveGallery(absl::string_view name,
-                                               const GalleryOptions& options, absl::Time created) {
+absl::Status InMemoryGalleryStore::SaveGallery(const StoredGallery& gallery) {
   std::lock_guard<std::mutex> lock(mu_);
   if (!failure_.ok()) return failure_;
-  StoredGallery& g = galleries_[std::string(name)];
-  g = StoredGallery{std::string(name), options, created, created, {}};
+  galleries_[gallery.name] = gallery;
   return absl::OkStatus();
 }
 

@@ -31,6 +31,14 @@ struct StoredGallery {
   GalleryOptions options;  // canonical
   absl::Time created;
   absl::Time updated;
+  // What made the descriptors: DescriptorKind::version of the spec's kind, and the shapeid
+  // version (kShapeidVersion). A server whose descriptor version differs cannot add to the
+  // gallery or classify against it (see GallerySnapshot::incompatible()).
+  uint32_t descriptor_version = 0;
+  std::string software_version;
+  // Features per sample. Stored so that a gallery whose spec this server cannot build still
+  // loads (and can be exported or deleted).
+  int dimension = 0;
   std::vector<StoredSample> samples;  // in training order (the kNN tie-break order)
 };
 
@@ -46,9 +54,9 @@ class GalleryStore {
  public:
   virtual ~GalleryStore() = default;
 
-  // A new, empty gallery. Called once per name between DeleteGallery calls.
-  virtual absl::Status SaveGallery(absl::string_view name, const GalleryOptions& options,
-                                   absl::Time created) = 0;
+  // A new gallery with its first samples (none for CreateGallery, all of them for an
+  // import), all or nothing. Called once per name between DeleteGallery calls.
+  virtual absl::Status SaveGallery(const StoredGallery& gallery) = 0;
   virtual absl::Status DeleteGallery(absl::string_view name) = 0;
   // One committed training batch, all or nothing; ids are final (assigned ones filled in).
   virtual absl::Status AppendSamples(absl::string_view name, absl::Span<const StoredSample> batch,
@@ -63,9 +71,7 @@ class GalleryStore {
 // Persists nothing: the server's store until persistence lands (a later issue).
 class NullGalleryStore final : public GalleryStore {
  public:
-  absl::Status SaveGallery(absl::string_view, const GalleryOptions&, absl::Time) override {
-    return absl::OkStatus();
-  }
+  absl::Status SaveGallery(const StoredGallery&) override { return absl::OkStatus(); }
   absl::Status DeleteGallery(absl::string_view) override { return absl::OkStatus(); }
   absl::Status AppendSamples(absl::string_view, absl::Span<const StoredSample>,
                              absl::Time) override {
@@ -83,8 +89,7 @@ class NullGalleryStore final : public GalleryStore {
 // would have received, restore a registry from it, and inject failures.
 class InMemoryGalleryStore final : public GalleryStore {
  public:
-  absl::Status SaveGallery(absl::string_view name, const GalleryOptions& options,
-                           absl::Time created) override;
+  absl::Status SaveGallery(const StoredGallery& gallery) override;
   absl::Status DeleteGallery(absl::string_view name) override;
   absl::Status AppendSamples(absl::string_view name, absl::Span<const StoredSample> batch,
                              absl::Time updated) override;

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <memory>
 #include <random>
 #include <string>
@@ -13,6 +14,7 @@
 #include "core/descriptor_registry.h"
 #include "core/gallery/gallery_store.h"
 #include "core/gallery/gallery_test_shapes.h"
+#include "core/version.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 
@@ -37,6 +39,12 @@ std::shared_ptr<Gallery> MakeGallery(GalleryOptions options = {}, GalleryLimits 
 }
 
 // Three boxes (ids 1-3), three spheres (4-6), three lines (7-9), seeds 1-3.
+StoredGallery EmptyStored(std::string name) {
+  StoredGallery stored;
+  stored.name = std::move(name);
+  return stored;
+}
+
 std::vector<LabelledCloud> ThreeShapes() {
   std::vector<LabelledCloud> samples;
   uint64_t id = 1;
@@ -194,7 +202,7 @@ TEST(GalleryTest, ClassifyPassesCloudErrorsThrough) {
   ASSERT_TRUE(g->Train(ThreeShapes()).ok());
   auto snap = g->Snapshot();
   const PointCloud bad = BoxWithNaN(1, 17);
-  EXPECT_EQ(snap->Classify(bad).status(), snap->descriptor().Compute(bad).status());
+  EXPECT_EQ(snap->Classify(bad).status(), snap->shared_descriptor()->Compute(bad).status());
   EXPECT_THAT(snap->Classify(bad).status().message(), HasSubstr("point 17"));
   auto big = snap->Classify(Box(1), CloudLimits{100});
   EXPECT_EQ(big.status().code(), absl::StatusCode::kResourceExhausted);
@@ -243,7 +251,7 @@ TEST(GalleryTest, BadLabelsAndCloudsFailAtTheirSample) {
 
 TEST(GalleryTest, DroppedBatchLeavesNoTrace) {
   auto store = std::make_shared<InMemoryGalleryStore>();
-  ASSERT_TRUE(store->SaveGallery("shapes", {}, absl::Now()).ok());
+  ASSERT_TRUE(store->SaveGallery(EmptyStored("shapes")).ok());
   auto g = MakeGallery({}, {}, store);
   const auto before = g->Snapshot();
   {
@@ -313,7 +321,7 @@ TEST(GalleryTest, AssignedIdsNeverCollideAndAreNotReused) {
 
 TEST(GalleryTest, RemoveByIdAndByLabel) {
   auto store = std::make_shared<InMemoryGalleryStore>();
-  ASSERT_TRUE(store->SaveGallery("shapes", {}, absl::Now()).ok());
+  ASSERT_TRUE(store->SaveGallery(EmptyStored("shapes")).ok());
   auto g = MakeGallery({}, {}, store);
   ASSERT_TRUE(g->Train(ThreeShapes()).ok());
   EXPECT_EQ(store->NumSamples("shapes"), 9);
@@ -385,7 +393,7 @@ TEST(GalleryTest, LimitsAreResourceExhaustedWithTheNumbers) {
 
 TEST(GalleryTest, StoreFailurePublishesNothing) {
   auto store = std::make_shared<InMemoryGalleryStore>();
-  ASSERT_TRUE(store->SaveGallery("shapes", {}, absl::Now()).ok());
+  ASSERT_TRUE(store->SaveGallery(EmptyStored("shapes")).ok());
   auto g = MakeGallery({}, {}, store);
   ASSERT_TRUE(g->Train({{0, "box", Box(1)}, {0, "sphere", Sphere(1)}}).ok());
   const auto before = g->Snapshot();
@@ -408,8 +416,7 @@ TEST(GalleryTest, RestoreRebuildsFromTheStore) {
   GalleryOptions options;
   options.knn.k = 3;
   auto g = MakeGallery(options, {}, store);
-  ASSERT_TRUE(
-      store->SaveGallery("shapes", g->Snapshot()->options(), g->Snapshot()->created()).ok());
+  ASSERT_TRUE(store->SaveGallery(g->Snapshot()->ToStored()).ok());
   ASSERT_TRUE(g->Train(ThreeShapes()).ok());
   ASSERT_TRUE(g->RemoveSamples({9}).ok());
 
@@ -447,6 +454,74 @@ TEST(GalleryTest, RestoreRebuildsFromTheStore) {
               AllOf(HasSubstr("restoring gallery 'shapes'"), HasSubstr("sample id 3")));
 }
 
+TEST(GalleryTest, ToStoredRestoresBitForBit) {
+  GalleryOptions options;
+  options.knn.k = 3;
+  options.knn.scaling = FeatureScaling::kZScore;
+  auto g = MakeGallery(options);
+  ASSERT_TRUE(g->Train(ThreeShapes()).ok());
+  ASSERT_TRUE(g->RemoveSamples({2}).ok());
+  ASSERT_TRUE(g->Train({{0, "box", Box(7)}}).ok());
+  const auto a = g->Snapshot();
+  const StoredGallery stored = a->ToStored();
+  EXPECT_EQ(stored.dimension, a->dimension());
+  EXPECT_EQ(stored.descriptor_version, FindDescriptorKind("rphsd")->version);
+  EXPECT_EQ(stored.software_version, kShapeidVersion);
+  ASSERT_EQ(stored.samples.size(), static_cast<size_t>(a->num_samples()));
+  EXPECT_EQ(stored.samples.back().id, kFirstAssignedId);
+
+  auto restored = Gallery::Restore(stored, {}, nullptr);
+  ASSERT_TRUE(restored.ok()) << restored.status();
+  const auto b = (*restored)->Snapshot();
+  EXPECT_TRUE(b->incompatible().empty());
+  EXPECT_EQ(b->ToStored().samples.size(), stored.samples.size());
+  for (uint32_t q = 0; q < 6; ++q) {
+    auto qa = a->Classify(q % 2 ? Sphere(q + 20) : Box(q + 20));
+    auto qb = b->Classify(q % 2 ? Sphere(q + 20) : Box(q + 20));
+    ASSERT_TRUE(qa.ok() && qb.ok());
+    ASSERT_EQ(qa->knn.neighbors.size(), qb->knn.neighbors.size());
+    for (size_t i = 0; i < qa->knn.neighbors.size(); ++i) {
+      EXPECT_EQ(qa->knn.neighbors[i].id, qb->knn.neighbors[i].id);
+      // Bitwise: a restart must not change a single distance.
+      EXPECT_EQ(std::memcmp(&qa->knn.neighbors[i].distance, &qb->knn.neighbors[i].distance,
+                            sizeof(double)),
+                0);
+    }
+  }
+  // Assigned ids continue where they stopped.
+  auto more = (*restored)->Train({{0, "box", Box(8)}});
+  ASSERT_TRUE(more.ok());
+  EXPECT_THAT(more->ids, ElementsAre(kFirstAssignedId + 1));
+}
+
+TEST(GalleryTest, IncompatibleDescriptorLoadsButRefusesWork) {
+  auto g = MakeGallery();
+  ASSERT_TRUE(g->Train(ThreeShapes()).ok());
+  StoredGallery other_version = g->Snapshot()->ToStored();
+  other_version.descriptor_version += 1;
+  other_version.software_version = "9.9.9";
+  auto restored = Gallery::Restore(other_version, {}, nullptr);
+  ASSERT_TRUE(restored.ok()) << restored.status();
+  const auto snap = (*restored)->Snapshot();
+  EXPECT_THAT(snap->incompatible(),
+              AllOf(HasSubstr("rphsd version"), HasSubstr("9.9.9"), HasSubstr("not comparable")));
+  EXPECT_EQ(snap->num_samples(), 9);  // nothing dropped
+  EXPECT_EQ(snap->Classify(Box(3)).status().code(), absl::StatusCode::kFailedPrecondition);
+  auto train = (*restored)->Train({{0, "box", Box(3)}});
+  EXPECT_EQ(train.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_EQ((*restored)->Snapshot()->num_samples(), 9);
+  // Removal and export still work: the operator can salvage or prune it.
+  EXPECT_TRUE((*restored)->RemoveSamples({1}).ok());
+  EXPECT_EQ((*restored)->Snapshot()->ToStored().descriptor_version, other_version.descriptor_version);
+
+  StoredGallery unknown = g->Snapshot()->ToStored();
+  unknown.options.descriptor_spec = "esf:bins=10";
+  auto unknown_restored = Gallery::Restore(unknown, {}, nullptr);
+  ASSERT_TRUE(unknown_restored.ok()) << unknown_restored.status();
+  EXPECT_THAT((*unknown_restored)->Snapshot()->incompatible(), HasSubstr("cannot compute"));
+  EXPECT_EQ((*unknown_restored)->Snapshot()->options().descriptor_spec, "esf:bins=10");
+}
+
 // Not a test: the cost of committing one sample into a large gallery (the index copy).
 // Run with --gtest_also_run_disabled_tests --gtest_filter=*CommitCost*.
 TEST(GalleryCostTest, DISABLED_CommitCost) {
@@ -459,6 +534,8 @@ TEST(GalleryCostTest, DISABLED_CommitCost) {
     const auto descriptor = CreateDescriptor(stored.options.descriptor_spec);
     ASSERT_TRUE(descriptor.ok());
     const size_t d = (*descriptor)->dimension();
+    stored.dimension = static_cast<int>(d);
+    stored.descriptor_version = FindDescriptorKind("rphsd")->version;
     for (int64_t i = 0; i < n; ++i) {
       StoredSample s{static_cast<uint64_t>(i + 1), absl::StrCat("c", i % 40),
                      std::vector<float>(d)};

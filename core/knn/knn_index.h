@@ -90,6 +90,17 @@ class KnnIndex {
   // Distinct labels currently in the index.
   int num_labels() const { return static_cast<int>(labels_.size()); }
 
+  // The sample in `slot` (0 <= slot < size(), insertion order): what a store or an export
+  // needs to rebuild this index bit for bit by Add-ing the slots in order.
+  uint64_t IdAt(int64_t slot) const { return ids_[static_cast<size_t>(slot)]; }
+  const std::string& LabelAt(int64_t slot) const {
+    return labels_[static_cast<size_t>(label_of_slot_[static_cast<size_t>(slot)])];
+  }
+  // Writes the slot's dimension() features to `out`, which must hold that many.
+  void CopyFeatures(int64_t slot, float* out) const {
+    for (int j = 0; j < dim_; ++j) out[j] = Feature(slot, j);
+  }
+
   // Appends one sample. Errors, with nothing changed: InvalidArgument if features.size() is
   // not dimension(), a feature is NaN or infinite, or the label is empty; AlreadyExists if
   // the id is present. O(dimension) amortised.
