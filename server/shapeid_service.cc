@@ -19,13 +19,14 @@
 namespace shapeid {
 namespace {
 
-// Finishes a unary call with the status `handler` returns (UNAVAILABLE while draining).
+// Finishes a unary call with the status `handler` returns (UNAVAILABLE while loading or
+// draining).
 template <typename Handler>
 grpc::ServerUnaryReactor* Unary(grpc::CallbackServerContext* context, CallTracker& tracker,
                                 Handler handler) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   if (!tracker.Enter()) {
-    reactor->Finish(CallTracker::Refusal());
+    reactor->Finish(tracker.Refusal());
     return reactor;
   }
   reactor->Finish(ToGrpcStatus(handler()));

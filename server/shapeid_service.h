@@ -48,6 +48,10 @@ class ShapeIdService final : public v1::ShapeId::CallbackService {
                                             const v1::ListDescriptorsRequest* request,
                                             v1::ListDescriptorsResponse* response) override;
 
+  // Refuses every call with UNAVAILABLE "loading" until StartServing (a new service serves
+  // at once; the server holds it while it loads galleries from the store).
+  void HoldUntilLoaded() { tracker_.SetState(CallTracker::State::kLoading); }
+  void StartServing() { tracker_.SetState(CallTracker::State::kServing); }
   // Refuses new calls (UNAVAILABLE) from now on; calls already running continue.
   void StartDraining() { tracker_.StartDraining(); }
   int64_t calls_in_flight() const { return tracker_.in_flight(); }

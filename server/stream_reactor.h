@@ -10,33 +10,48 @@
 
 namespace shapeid {
 
-// Counts the calls in progress so a shutdown can drain them: once draining starts, new calls
-// are refused with UNAVAILABLE and the server waits only for the calls already running.
-// (gRPC's own Server::Shutdown(deadline) also waits for idle client connections, which robots
-// keep open, so on its own it would always take the full grace period.)
+// Counts the calls in progress so a shutdown can drain them, and refuses calls while the
+// server is not ready: before its galleries are loaded (a client must not see an empty
+// registry and conclude a gallery is gone) and once draining has started (the server waits
+// only for the calls already running). gRPC's own Server::Shutdown(deadline) also waits for
+// idle client connections, which robots keep open, so on its own it would always take the full
+// grace period.
 class CallTracker {
  public:
-  // Registers a call; false (and nothing registered) once draining has started.
+  enum class State { kLoading, kServing, kDraining };
+
+  // Registers a call; false (and nothing registered) unless serving.
   bool Enter() {
     in_flight_.fetch_add(1);
-    if (draining_.load()) {
+    if (state_.load() != State::kServing) {
       Exit();
       return false;
     }
     return true;
   }
   void Exit() { in_flight_.fetch_sub(1); }
-  void StartDraining() { draining_.store(true); }
+  // kLoading -> kServing; draining is final.
+  void SetState(State state) {
+    State expected = state_.load();
+    while (expected != State::kDraining && !state_.compare_exchange_weak(expected, state)) {
+    }
+  }
+  void StartDraining() { state_.store(State::kDraining); }
   int64_t in_flight() const { return in_flight_.load(); }
 
-  static grpc::Status Refusal() {
+  // The status a refused call gets.
+  grpc::Status Refusal() const {
+    if (state_.load() == State::kLoading) {
+      return grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                          "the server is loading its galleries; retry shortly");
+    }
     return grpc::Status(grpc::StatusCode::UNAVAILABLE,
                         "the server is shutting down; retry on another replica or shortly");
   }
 
  private:
   std::atomic<int64_t> in_flight_{0};
-  std::atomic<bool> draining_{false};
+  std::atomic<State> state_{State::kServing};
 };
 
 // The shape every client-streaming RPC of the service shares: read messages one by one,
@@ -56,7 +71,7 @@ class StreamReactor : public grpc::ServerReadReactor<Request> {
     if (entered_) {
       this->StartRead(&request_);
     } else {
-      this->Finish(CallTracker::Refusal());
+      this->Finish(tracker_->Refusal());
     }
   }
 
