@@ -25,6 +25,13 @@ ABSL_FLAG(int64_t, max_points_per_cloud, 10'000'000,
 ABSL_FLAG(int32_t, max_message_bytes, 16 << 20,
           "largest single gRPC message (clouds stream in chunks, so this bounds a chunk). "
           "Env: SHAPEID_MAX_MESSAGE_BYTES");
+ABSL_FLAG(std::string, data_dir, "shapeid-data",
+          "directory where galleries persist (created if missing; one server per directory). "
+          "Empty: keep galleries in memory only, lost at exit. Env: SHAPEID_DATA_DIR");
+ABSL_FLAG(bool, set_aside_damaged, false,
+          "start even if some gallery files are damaged: move them to <data_dir>/damaged/ and "
+          "serve the rest (without it, a damaged gallery stops start-up with an error naming "
+          "the file). Env: SHAPEID_SET_ASIDE_DAMAGED");
 ABSL_FLAG(int32_t, shutdown_grace_seconds, 10,
           "on SIGTERM/SIGINT, how long in-flight calls may run before they are cancelled. "
           "Env: SHAPEID_SHUTDOWN_GRACE_SECONDS");
@@ -41,7 +48,8 @@ void OnStopSignal(int signal) {
 // Every flag may come from SHAPEID_<FLAG NAME IN CAPITALS>; a command-line flag wins.
 bool ApplyEnvironment() {
   for (const char* name :
-       {"listen", "max_points_per_cloud", "max_message_bytes", "shutdown_grace_seconds"}) {
+       {"listen", "data_dir", "set_aside_damaged", "max_points_per_cloud", "max_message_bytes",
+        "shutdown_grace_seconds"}) {
     const std::string var = absl::StrCat("SHAPEID_", absl::AsciiStrToUpper(name));
     const char* value = std::getenv(var.c_str());
     if (value == nullptr) continue;
@@ -76,6 +84,8 @@ int main(int argc, char** argv) {
   options.service.max_points_per_cloud =
       static_cast<size_t>(absl::GetFlag(FLAGS_max_points_per_cloud));
   options.max_message_bytes = absl::GetFlag(FLAGS_max_message_bytes);
+  options.data_dir = absl::GetFlag(FLAGS_data_dir);
+  options.set_aside_damaged = absl::GetFlag(FLAGS_set_aside_damaged);
 
   // gRPC may own threads whose signal mask we do not control, so a stop signal can land on
   // any thread: the handler only writes the signal number to a pipe that main waits on.
@@ -89,11 +99,48 @@ int main(int argc, char** argv) {
   sigaction(SIGTERM, &action, nullptr);
   sigaction(SIGINT, &action, nullptr);
 
-  auto server = shapeid::ShapeIdServer::Start(options);
+  auto server = shapeid::ShapeIdServer::Bind(options);
   if (!server.ok()) {
     std::fprintf(stderr, "shapeid-server: %s\n", std::string(server.status().message()).c_str());
     return 1;
   }
+  // Listening already (health answers NOT_SERVING) while the galleries load.
+  std::fprintf(stderr, "shapeid-server: bound %s; loading galleries from %s\n",
+               (*server)->address().c_str(),
+               options.data_dir.empty() ? "nowhere (in-memory)" : options.data_dir.c_str());
+  absl::StatusOr<shapeid::LoadReport> loaded = (*server)->LoadGalleries();
+  if (!loaded.ok()) {
+    std::fprintf(stderr, "shapeid-server: %s\n", std::string(loaded.status().message()).c_str());
+    if (loaded.status().code() == absl::StatusCode::kDataLoss ||
+        loaded.status().code() == absl::StatusCode::kFailedPrecondition) {
+      std::fprintf(stderr,
+                   "shapeid-server: refusing to start rather than serve without that gallery. "
+                   "Restore it from an export, or start with --set_aside_damaged to move it to "
+                   "%s/damaged/ and serve the others.\n",
+                   options.data_dir.c_str());
+    }
+    (*server)->Shutdown(absl::ZeroDuration());
+    return 1;
+  }
+  for (const auto& aside : loaded->set_aside) {
+    std::fprintf(stderr, "shapeid-server: WARNING: gallery '%s' set aside to %s: %s\n",
+                 aside.name.c_str(), aside.moved_to.c_str(), aside.reason.c_str());
+  }
+  if (!loaded->persistent) {
+    std::fprintf(stderr,
+                 "shapeid-server: WARNING: --data_dir is empty: galleries live in memory only "
+                 "and are lost when the server stops\n");
+  }
+  if (loaded->read_only) {
+    std::fprintf(stderr,
+                 "shapeid-server: WARNING: %s is read-only: galleries are served, every change "
+                 "fails UNAVAILABLE\n",
+                 options.data_dir.c_str());
+  }
+  std::fprintf(stderr, "shapeid-server: loaded %lld galleries (%lld samples) in %s\n",
+               static_cast<long long>(loaded->galleries), static_cast<long long>(loaded->samples),
+               absl::FormatDuration(loaded->elapsed).c_str());
+  // The line scripts wait for: from here on, every RPC is served.
   std::printf("listening on %s\n", (*server)->address().c_str());
   std::fflush(stdout);
 

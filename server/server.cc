@@ -1,6 +1,7 @@
 #include "server/server.h"
 
 #include <chrono>
+#include <string>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -11,15 +12,31 @@
 namespace shapeid {
 
 absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Start(const ServerOptions& options) {
+  absl::StatusOr<std::unique_ptr<ShapeIdServer>> server = Bind(options);
+  if (!server.ok()) return server.status();
+  if (absl::StatusOr<LoadReport> loaded = (*server)->LoadGalleries(); !loaded.ok()) {
+    return loaded.status();
+  }
+  return server;
+}
+
+absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerOptions& options) {
   // Both must be set before the builder exists.
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
 
   std::unique_ptr<ShapeIdServer> server(new ShapeIdServer);
+  if (!options.data_dir.empty()) {
+    absl::StatusOr<std::unique_ptr<SqliteGalleryStore>> store = SqliteGalleryStore::Open(
+        SqliteGalleryStoreOptions{options.data_dir, options.set_aside_damaged});
+    if (!store.ok()) return store.status();
+    server->store_ = *std::move(store);
+  }
   GalleryLimits limits = options.gallery_limits;
   limits.max_points_per_cloud = options.service.max_points_per_cloud;
-  server->registry_ = std::make_shared<GalleryRegistry>(limits);
+  server->registry_ = std::make_shared<GalleryRegistry>(limits, server->store_);
   server->service_ = std::make_unique<ShapeIdService>(options.service, server->registry_);
+  server->service_->HoldUntilLoaded();
 
   grpc::ServerBuilder builder;
   // TLS arrives with the security issue; until then the server must only be exposed where
@@ -37,8 +54,34 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Start(const Server
   }
   const size_t colon = options.listen.rfind(':');
   server->address_ = absl::StrCat(options.listen.substr(0, colon), ":", server->port_);
-  server->server_->GetHealthCheckService()->SetServingStatus(true);
+  // The default health service starts out SERVING; say otherwise until the galleries are
+  // loaded. (A probe in the microseconds between the two would see SERVING, but every RPC
+  // is refused "loading" until LoadGalleries is done, so nothing can be served early.)
+  server->server_->GetHealthCheckService()->SetServingStatus(false);
   return server;
+}
+
+absl::StatusOr<LoadReport> ShapeIdServer::LoadGalleries() {
+  LoadReport report;
+  const absl::Time start = absl::Now();
+  if (absl::Status status = registry_->LoadFromStore(); !status.ok()) return status;
+  report.elapsed = absl::Now() - start;
+  report.persistent = store_ != nullptr;
+  if (store_ != nullptr) {
+    report.read_only = store_->read_only();
+    report.set_aside = store_->set_aside();
+  }
+  for (const std::string& name : registry_->List()) {
+    absl::StatusOr<std::shared_ptr<Gallery>> gallery = registry_->Get(name);
+    if (!gallery.ok()) continue;
+    ++report.galleries;
+    report.samples += (*gallery)->Snapshot()->num_samples();
+  }
+  load_report_ = report;
+  if (shut_down_) return report;
+  service_->StartServing();
+  server_->GetHealthCheckService()->SetServingStatus(true);
+  return report;
 }
 
 void ShapeIdServer::Shutdown(absl::Duration grace) {

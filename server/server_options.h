@@ -17,6 +17,14 @@ struct ServerOptions {
   // Largest single gRPC message. Clouds stream in chunks, so this bounds one chunk, not a
   // cloud; 16 MiB leaves clients room for chunks far above the recommended 192 KiB.
   int max_message_bytes = 16 << 20;
+  // Where galleries persist (server/storage/sqlite_gallery_store.h); created if missing.
+  // Empty, the default for embedding (tests, benchmarks): galleries live in memory only and
+  // are lost when the server stops. shapeid-server's --data_dir defaults to "shapeid-data".
+  std::string data_dir;
+  // Start even if some gallery files cannot be loaded, moving them to <data_dir>/damaged/
+  // (reported at start-up). Off by default: a damaged store stops the server, so that no
+  // gallery silently disappears from service.
+  bool set_aside_damaged = false;
   ServiceOptions service;
   // Samples per gallery and number of galleries; points per cloud comes from `service`.
   GalleryLimits gallery_limits;

@@ -10,10 +10,14 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
+#include <cstdlib>
 #include <string>
 #include <thread>
 #include <vector>
+
+#include "gtest/gtest.h"
 
 extern char** environ;
 
@@ -24,8 +28,20 @@ class ServerProcess {
  public:
   using Clock = std::chrono::steady_clock;
 
-  // Starts SHAPEID_SERVER_PATH on 127.0.0.1:0 with `extra_flags`.
+  // Starts SHAPEID_SERVER_PATH on 127.0.0.1:0 with `extra_flags`. Without a --data_dir flag
+  // there, the server gets a fresh data directory of its own (removed with this object), so
+  // that servers of tests running in parallel never share one.
   explicit ServerProcess(std::vector<std::string> extra_flags = {}) {
+    bool has_data_dir = false;
+    for (const std::string& flag : extra_flags) {
+      if (flag.rfind("--data_dir", 0) == 0) has_data_dir = true;
+    }
+    if (!has_data_dir) {
+      static std::atomic<int> counter{0};
+      owned_data_dir_ = ::testing::TempDir() + "/shapeid_server_" + std::to_string(getpid()) +
+                        "_" + std::to_string(counter++);
+      extra_flags.push_back("--data_dir=" + owned_data_dir_);
+    }
     int out[2];
     if (pipe(out) != 0) return;
     posix_spawn_file_actions_t actions;
@@ -41,7 +57,8 @@ class ServerProcess {
     if (posix_spawn(&pid_, binary.c_str(), &actions, nullptr, argv.data(), environ) != 0) pid_ = -1;
     posix_spawn_file_actions_destroy(&actions);
     close(out[1]);
-    // Read "listening on HOST:PORT\n", for at most 10 s.
+    // Read "listening on HOST:PORT\n" (printed once the galleries are loaded), for at most
+    // 10 s.
     std::string line;
     const auto deadline = Clock::now() + std::chrono::seconds(10);
     fcntl(out[0], F_SETFL, O_NONBLOCK);
@@ -61,13 +78,23 @@ class ServerProcess {
   }
 
   ~ServerProcess() {
-    if (pid_ > 0 && !exited_) {
-      kill(pid_, SIGKILL);
-      waitpid(pid_, nullptr, 0);
+    Kill();
+    if (!owned_data_dir_.empty()) {
+      std::system(("rm -rf '" + owned_data_dir_ + "'").c_str());
     }
   }
 
   const std::string& address() const { return address_; }
+  pid_t pid() const { return pid_; }
+
+  // SIGKILL, as a crash or a power cut would stop it (nothing flushed, no shutdown).
+  void Kill() {
+    if (pid_ > 0 && !exited_) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, nullptr, 0);
+      exited_ = true;
+    }
+  }
 
   // Sends SIGTERM and returns the exit status (-1 if it did not exit within `timeout`).
   // Idle client channels stay open meanwhile, as robots' do; the server must not wait for
@@ -90,6 +117,7 @@ class ServerProcess {
   pid_t pid_ = -1;
   bool exited_ = false;
   std::string address_;
+  std::string owned_data_dir_;
 };
 
 }  // namespace shapeid

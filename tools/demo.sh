@@ -101,7 +101,10 @@ echo "views made in $(since "$t")"
 # --- The server ------------------------------------------------------------------------------
 step "Starting shapeid-server (built-in store, loopback, a free port)"
 log=$demo/server.log
-"$server_bin" --listen=127.0.0.1:0 >"$log" 2>&1 &
+# The built-in store: galleries persist in $demo/data (SQLite, one file per gallery). The demo
+# starts from an empty store each run so that its figures are reproducible.
+rm -rf "$demo/data"
+"$server_bin" --listen=127.0.0.1:0 --data_dir="$demo/data" >"$log" 2>&1 &
 server_pid=$!
 trap 'kill "$server_pid" 2>/dev/null; wait "$server_pid" 2>/dev/null || true' EXIT
 for _ in $(seq 100); do

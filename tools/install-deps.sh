@@ -11,12 +11,15 @@ packages=(
   libeigen3-dev libnanoflann-dev libabsl-dev
   # RPC stack (server, client library)
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
+  zlib1g-dev  # CRC-32 of gallery exports (server/gallery_export.cc); gRPC pulls it in too
   # CLI argument parsing: subcommands with typed options and generated --help
   libcli11-dev
   # LZF decompression of PCD DATA binary_compressed (core/io/pcd_reader.cc)
   liblzf-dev
   # OBJ meshes (core/io/obj_reader.cc): a maintained OBJ parser rather than a hand-written one
   libtinyobjloader-dev
+  # the embedded gallery store (server/storage): SQLite, WAL mode, synchronous commits
+  libsqlite3-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   # Python interop test (tests/python): a client generated from the proto with grpc_python_plugin,

@@ -109,7 +109,10 @@ class ServerProcess:
 
     def __init__(self, binary, start_timeout=15.0):
         self.stderr = tempfile.TemporaryFile()
-        self.proc = subprocess.Popen([binary, "--listen=127.0.0.1:0"], stdout=subprocess.PIPE,
+        # A data directory of its own, removed with the process object (TemporaryDirectory).
+        self.data_dir = tempfile.TemporaryDirectory(prefix="shapeid_interop_")
+        self.proc = subprocess.Popen([binary, "--listen=127.0.0.1:0",
+                                      "--data_dir=" + self.data_dir.name], stdout=subprocess.PIPE,
                                      stderr=self.stderr, stdin=subprocess.DEVNULL)
         lines = queue.Queue()
         threading.Thread(target=self._pump, args=(lines,), daemon=True).start()

@@ -1,0 +1,586 @@
+#include "server/storage/sqlite_gallery_store.h"
+
+#include <fcntl.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <utility>
+
+#include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/strings/strip.h"
+#include "absl/time/clock.h"
+#include "core/gallery/gallery_options.h"
+#include "core/status_macros.h"
+#include "server/storage/file_util.h"
+#include "server/storage/sample_checksum.h"
+
+namespace shapeid {
+
+namespace {
+
+// PRAGMA application_id: "SHID". Lets `file` and our loader tell a gallery from any other
+// SQLite database.
+constexpr int32_t kApplicationId = 0x53484944;
+constexpr absl::string_view kGallerySuffix = ".gallery";
+
+// Per connection: synchronous=FULL makes every COMMIT fsync the WAL before it returns, which
+// is the durability contract; cell_size_check catches more damage when pages are read.
+constexpr absl::string_view kConnectionPragmas =
+    "PRAGMA synchronous=FULL; PRAGMA cell_size_check=ON; PRAGMA trusted_schema=OFF;";
+
+// One row describes the gallery; samples are rows in training order (seq). Ids are uint64
+// stored as the int64 with the same bits. Every row carries a CRC-32 of its content.
+constexpr absl::string_view kSchema = R"sql(
+CREATE TABLE gallery(
+  singleton INTEGER PRIMARY KEY CHECK (singleton = 1),
+  name TEXT NOT NULL,
+  descriptor_spec TEXT NOT NULL,
+  dimension INTEGER NOT NULL,
+  knn_k INTEGER NOT NULL,
+  knn_weighting TEXT NOT NULL,
+  knn_scaling TEXT NOT NULL,
+  reject_distance REAL NOT NULL,
+  descriptor_version INTEGER NOT NULL,
+  software_version TEXT NOT NULL,
+  created_unix_ns INTEGER NOT NULL,
+  updated_unix_ns INTEGER NOT NULL,
+  crc INTEGER NOT NULL);
+CREATE TABLE samples(
+  seq INTEGER PRIMARY KEY,
+  id INTEGER NOT NULL UNIQUE,
+  label TEXT NOT NULL,
+  features BLOB NOT NULL,
+  crc INTEGER NOT NULL);
+)sql";
+
+constexpr absl::string_view kGalleryColumns =
+    "name, descriptor_spec, dimension, knn_k, knn_weighting, knn_scaling, reject_distance, "
+    "descriptor_version, software_version, created_unix_ns, updated_unix_ns, crc";
+
+uint32_t GalleryRowCrc(const StoredGallery& g) {
+  uint64_t reject_bits;
+  std::memcpy(&reject_bits, &g.options.reject_distance, sizeof(reject_bits));
+  const std::string text = absl::StrCat(
+      g.name, "\n", g.options.descriptor_spec, "\n", g.dimension, "\n", g.options.knn.k, "\n",
+      VoteWeightingName(g.options.knn.weighting), "\n", FeatureScalingName(g.options.knn.scaling),
+      "\n", reject_bits, "\n", g.descriptor_version, "\n", g.software_version, "\n",
+      absl::ToUnixNanos(g.created), "\n", absl::ToUnixNanos(g.updated));
+  return static_cast<uint32_t>(
+      crc32_z(0, reinterpret_cast<const Bytef*>(text.data()), text.size()));
+}
+
+int64_t AsStoredId(uint64_t id) { return static_cast<int64_t>(id); }
+uint64_t FromStoredId(int64_t id) { return static_cast<uint64_t>(id); }
+
+void BindGalleryRow(SqliteStatement& s, const StoredGallery& g) {
+  s.BindText(1, g.name);
+  s.BindText(2, g.options.descriptor_spec);
+  s.BindInt64(3, g.dimension);
+  s.BindInt64(4, g.options.knn.k);
+  s.BindText(5, VoteWeightingName(g.options.knn.weighting));
+  s.BindText(6, FeatureScalingName(g.options.knn.scaling));
+  s.BindDouble(7, g.options.reject_distance);
+  s.BindInt64(8, g.descriptor_version);
+  s.BindText(9, g.software_version);
+  s.BindInt64(10, absl::ToUnixNanos(g.created));
+  s.BindInt64(11, absl::ToUnixNanos(g.updated));
+  s.BindInt64(12, GalleryRowCrc(g));
+}
+
+absl::Status InsertSample(SqliteStatement& insert, const StoredSample& sample) {
+  insert.BindInt64(1, AsStoredId(sample.id));
+  insert.BindText(2, sample.label);
+  insert.BindBlob(3, FeatureBytes(sample.features));
+  insert.BindInt64(4, SampleCrc32(0, sample.id, sample.label, sample.features));
+  return insert.Run();
+}
+
+std::string UtcStamp() {
+  return absl::FormatTime("%Y%m%dT%H%M%SZ", absl::Now(), absl::UTCTimeZone());
+}
+
+}  // namespace
+
+// One gallery's open database and its prepared writes. `header` mirrors the gallery row
+// (without samples) so an update can recompute the row's CRC.
+struct SqliteGalleryStore::OpenGallery {
+  std::mutex mu;
+  std::unique_ptr<SqliteDb> db ABSL_GUARDED_BY(mu);
+  SqliteStatement insert ABSL_GUARDED_BY(mu);
+  SqliteStatement remove ABSL_GUARDED_BY(mu);
+  SqliteStatement touch ABSL_GUARDED_BY(mu);
+  StoredGallery header ABSL_GUARDED_BY(mu);
+  // Set after a failed fsync; every later write fails with it.
+  absl::Status broken ABSL_GUARDED_BY(mu);
+};
+
+absl::StatusOr<std::unique_ptr<SqliteGalleryStore>> SqliteGalleryStore::Open(
+    SqliteGalleryStoreOptions options) {
+  if (options.data_dir.empty()) return absl::InvalidArgumentError("data_dir is empty");
+  while (options.data_dir.size() > 1 && options.data_dir.back() == '/') {
+    options.data_dir.pop_back();
+  }
+  // access() reports EROFS even to root, whose permission checks it otherwise skips.
+  std::string read_only;
+  if (access(options.data_dir.c_str(), W_OK) != 0 && errno == EROFS) {
+    read_only = absl::StrCat("the data directory ", options.data_dir,
+                             " is on a read-only file system; galleries are served but cannot "
+                             "change");
+  } else {
+    SHAPEID_RETURN_IF_ERROR(MakeDirectories(options.data_dir + "/galleries"));
+  }
+  const std::string lock_path = options.data_dir + "/LOCK";
+  const int fd = open(lock_path.c_str(), (read_only.empty() ? O_RDWR | O_CREAT : O_RDONLY) | O_CLOEXEC,
+                      0644);
+  if (fd < 0 && !(errno == ENOENT && !read_only.empty())) {
+    return absl::UnavailableError(
+        absl::StrCat("cannot open ", lock_path, ": ", std::strerror(errno)));
+  }
+  // Exclusive for a writer; shared among read-only servers, which cannot disturb each other.
+  if (fd >= 0 && flock(fd, (read_only.empty() ? LOCK_EX : LOCK_SH) | LOCK_NB) != 0) {
+    char pid[32] = {};
+    [[maybe_unused]] const ssize_t n = pread(fd, pid, sizeof(pid) - 1, 0);
+    close(fd);
+    return absl::FailedPreconditionError(absl::StrCat(
+        "data directory ", options.data_dir, " is in use by another shapeid-server (pid ",
+        absl::StripAsciiWhitespace(pid), " per ", lock_path,
+        "); two servers must never share one directory"));
+  }
+  if (read_only.empty()) {
+    // The pid is only a hint for the message above; the lock is what matters.
+    const std::string pid = absl::StrCat(getpid(), "\n");
+    if (ftruncate(fd, 0) != 0 || pwrite(fd, pid.data(), pid.size(), 0) < 0) {
+    }
+  }
+  return std::unique_ptr<SqliteGalleryStore>(
+      new SqliteGalleryStore(std::move(options), fd, std::move(read_only)));
+}
+
+SqliteGalleryStore::SqliteGalleryStore(SqliteGalleryStoreOptions options, int lock_fd,
+                                       std::string read_only)
+    : options_(std::move(options)),
+      galleries_dir_(options_.data_dir + "/galleries"),
+      lock_fd_(lock_fd),
+      read_only_(std::move(read_only)) {}
+
+absl::Status SqliteGalleryStore::CheckWritable(absl::string_view what) const {
+  if (read_only_.empty()) return absl::OkStatus();
+  return absl::UnavailableError(absl::StrCat("cannot ", what, ": ", read_only_));
+}
+
+SqliteGalleryStore::~SqliteGalleryStore() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    open_.clear();  // closes (and checkpoints) every database before the lock is released
+  }
+  if (lock_fd_ >= 0) close(lock_fd_);
+}
+
+std::string SqliteGalleryStore::GalleryPath(absl::string_view name) const {
+  return absl::StrCat(galleries_dir_, "/", name, kGallerySuffix);
+}
+
+std::vector<SqliteGalleryStore::SetAside> SqliteGalleryStore::set_aside() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return set_aside_;
+}
+
+absl::StatusOr<std::shared_ptr<SqliteGalleryStore::OpenGallery>> SqliteGalleryStore::Find(
+    absl::string_view name) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = open_.find(name);
+  if (it == open_.end()) {
+    return absl::InternalError(absl::StrCat("the store holds no gallery '", name, "'"));
+  }
+  return it->second;
+}
+
+namespace {
+
+// Opens a gallery's database for writing: pragmas and the prepared statements.
+absl::Status PrepareWrites(const std::string& path, std::unique_ptr<SqliteDb>* db,
+                           SqliteStatement* insert, SqliteStatement* remove,
+                           SqliteStatement* touch) {
+  if (*db == nullptr) {
+    SHAPEID_ASSIGN_OR_RETURN(*db, SqliteDb::Open(path, SqliteDb::Mode::kReadWrite));
+  }
+  SHAPEID_RETURN_IF_ERROR((*db)->Exec(kConnectionPragmas));
+  SHAPEID_ASSIGN_OR_RETURN(
+      *insert, (*db)->Prepare("INSERT INTO samples(id, label, features, crc) VALUES(?,?,?,?)"));
+  SHAPEID_ASSIGN_OR_RETURN(*remove, (*db)->Prepare("DELETE FROM samples WHERE id = ?"));
+  SHAPEID_ASSIGN_OR_RETURN(
+      *touch, (*db)->Prepare("UPDATE gallery SET updated_unix_ns = ?, crc = ? WHERE singleton = 1"));
+  return absl::OkStatus();
+}
+
+// Commits `body` as one transaction, or rolls it back.
+template <typename Body>
+absl::Status Transaction(SqliteDb& db, Body body) {
+  SHAPEID_RETURN_IF_ERROR(db.Exec("BEGIN IMMEDIATE"));
+  absl::Status status = body();
+  if (status.ok()) status = db.Exec("COMMIT");
+  if (!status.ok()) db.RollbackIfOpen();
+  return status;
+}
+
+// After a failed fsync the page cache may no longer match the disk (the kernel can drop
+// dirty pages it failed to write), so nothing but a fresh load can be trusted.
+bool IsFsyncFailure(SqliteDb& db) {
+  const int code = sqlite3_extended_errcode(db.raw());
+  return code == SQLITE_IOERR_FSYNC || code == SQLITE_IOERR_DIR_FSYNC;
+}
+
+}  // namespace
+
+absl::Status SqliteGalleryStore::SaveGallery(const StoredGallery& gallery) {
+  SHAPEID_RETURN_IF_ERROR(CheckWritable(absl::StrCat("store gallery '", gallery.name, "'")));
+  if (absl::Status s = ValidateGalleryName(gallery.name); !s.ok()) return s;
+  const std::string final_path = GalleryPath(gallery.name);
+  const std::string tmp_path = absl::StrCat(galleries_dir_, "/.", gallery.name, ".tmp");
+  const auto remove_tmp = [&] {
+    for (const char* suffix : {"", "-wal", "-shm", "-journal"}) {
+      (void)RemoveFileIfExists(tmp_path + suffix);
+    }
+  };
+  const std::string where = absl::StrCat("cannot store gallery '", gallery.name, "'");
+  remove_tmp();
+  if (FileExists(final_path)) {
+    return absl::InternalError(absl::StrCat(where, ": ", final_path, " already exists"));
+  }
+
+  // The whole gallery goes into a temporary file first: a crash leaves either no gallery or
+  // all of it, never an empty shell with half its samples.
+  absl::Status status = [&]() -> absl::Status {
+    SHAPEID_ASSIGN_OR_RETURN(std::unique_ptr<SqliteDb> db, SqliteDb::Open(tmp_path, SqliteDb::Mode::kCreate));
+    SHAPEID_RETURN_IF_ERROR(db->Exec(absl::StrCat(
+        "PRAGMA application_id=", kApplicationId, "; PRAGMA user_version=", kFormatVersion,
+        "; PRAGMA journal_mode=WAL;", kConnectionPragmas)));
+    const absl::Status written = Transaction(*db, [&]() -> absl::Status {
+      SHAPEID_RETURN_IF_ERROR(db->Exec(kSchema));
+      SHAPEID_ASSIGN_OR_RETURN(
+          SqliteStatement row,
+          db->Prepare(absl::StrCat("INSERT INTO gallery(singleton, ", kGalleryColumns,
+                                   ") VALUES(1,?,?,?,?,?,?,?,?,?,?,?,?)")));
+      BindGalleryRow(row, gallery);
+      SHAPEID_RETURN_IF_ERROR(row.Run());
+      SHAPEID_ASSIGN_OR_RETURN(
+          SqliteStatement insert,
+          db->Prepare("INSERT INTO samples(id, label, features, crc) VALUES(?,?,?,?)"));
+      for (const StoredSample& sample : gallery.samples) {
+        SHAPEID_RETURN_IF_ERROR(InsertSample(insert, sample));
+      }
+      return absl::OkStatus();
+    });
+    SHAPEID_RETURN_IF_ERROR(written);
+    // Closing the last connection checkpoints the WAL into the file and removes the -wal.
+    SHAPEID_RETURN_IF_ERROR(db->Close());
+    SHAPEID_RETURN_IF_ERROR(SyncFile(tmp_path));
+    // A -wal or -shm left by an earlier gallery of this name must not be replayed into it.
+    SHAPEID_RETURN_IF_ERROR(RemoveFileIfExists(final_path + "-wal"));
+    SHAPEID_RETURN_IF_ERROR(RemoveFileIfExists(final_path + "-shm"));
+    SHAPEID_RETURN_IF_ERROR(RenameFile(tmp_path, final_path));
+    return SyncDirectory(galleries_dir_);  // the durable point
+  }();
+  if (!status.ok()) {
+    remove_tmp();
+    return absl::Status(status.code(), absl::StrCat(where, ": ", status.message()));
+  }
+
+  auto open = std::make_shared<OpenGallery>();
+  std::lock_guard<std::mutex> gallery_lock(open->mu);
+  status = PrepareWrites(final_path, &open->db, &open->insert, &open->remove, &open->touch);
+  if (!status.ok()) {
+    // Stored but not writable: undo, so that the failed call leaves no gallery behind.
+    open->db.reset();
+    (void)RemoveFileIfExists(final_path);
+    (void)SyncDirectory(galleries_dir_);
+    return absl::Status(status.code(), absl::StrCat(where, ": ", status.message()));
+  }
+  open->header = gallery;
+  open->header.samples.clear();
+  std::lock_guard<std::mutex> lock(mu_);
+  open_[gallery.name] = std::move(open);
+  return absl::OkStatus();
+}
+
+absl::Status SqliteGalleryStore::AppendSamples(absl::string_view name,
+                                               absl::Span<const StoredSample> batch,
+                                               absl::Time updated) {
+  SHAPEID_RETURN_IF_ERROR(
+      CheckWritable(absl::StrCat("store ", batch.size(), " samples in gallery '", name, "'")));
+  SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<OpenGallery> g, Find(name));
+  std::lock_guard<std::mutex> lock(g->mu);
+  SHAPEID_RETURN_IF_ERROR(g->broken);
+  StoredGallery header = g->header;
+  header.updated = updated;
+  absl::Status status = Transaction(*g->db, [&]() -> absl::Status {
+    for (const StoredSample& sample : batch) {
+      SHAPEID_RETURN_IF_ERROR(InsertSample(g->insert, sample));
+    }
+    g->touch.BindInt64(1, absl::ToUnixNanos(updated));
+    g->touch.BindInt64(2, GalleryRowCrc(header));
+    return g->touch.Run();
+  });
+  if (!status.ok()) {
+    status = absl::Status(status.code(), absl::StrCat("cannot store ", batch.size(),
+                                                      " samples in gallery '", name, "': ",
+                                                      status.message()));
+    if (IsFsyncFailure(*g->db)) g->broken = status;
+    return status;
+  }
+  g->header = std::move(header);
+  return absl::OkStatus();
+}
+
+absl::Status SqliteGalleryStore::RemoveSamples(absl::string_view name,
+                                               absl::Span<const uint64_t> ids,
+                                               absl::Time updated) {
+  SHAPEID_RETURN_IF_ERROR(
+      CheckWritable(absl::StrCat("remove samples from gallery '", name, "'")));
+  SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<OpenGallery> g, Find(name));
+  std::lock_guard<std::mutex> lock(g->mu);
+  SHAPEID_RETURN_IF_ERROR(g->broken);
+  StoredGallery header = g->header;
+  header.updated = updated;
+  absl::Status status = Transaction(*g->db, [&]() -> absl::Status {
+    for (uint64_t id : ids) {
+      g->remove.BindInt64(1, AsStoredId(id));
+      SHAPEID_RETURN_IF_ERROR(g->remove.Run());
+      if (sqlite3_changes(g->db->raw()) != 1) {
+        return absl::InternalError(absl::StrCat("sample id ", id, " is not stored"));
+      }
+    }
+    g->touch.BindInt64(1, absl::ToUnixNanos(updated));
+    g->touch.BindInt64(2, GalleryRowCrc(header));
+    return g->touch.Run();
+  });
+  if (!status.ok()) {
+    status = absl::Status(status.code(), absl::StrCat("cannot remove ", ids.size(),
+                                                      " samples from gallery '", name, "': ",
+                                                      status.message()));
+    if (IsFsyncFailure(*g->db)) g->broken = status;
+    return status;
+  }
+  g->header = std::move(header);
+  return absl::OkStatus();
+}
+
+absl::Status SqliteGalleryStore::DeleteGallery(absl::string_view name) {
+  SHAPEID_RETURN_IF_ERROR(CheckWritable(absl::StrCat("delete gallery '", name, "'")));
+  SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<OpenGallery> g, Find(name));
+  std::lock_guard<std::mutex> lock(g->mu);
+  const std::string path = GalleryPath(name);
+  const std::string doomed = absl::StrCat(galleries_dir_, "/.", name, ".deleted");
+  // Checkpoint and close first, so the -wal holds nothing the rename would orphan. If the
+  // close fails, the rename below still removes the gallery; its -wal goes with it.
+  (void)g->db->Close();
+  g->db.reset();
+  absl::Status status = RenameFile(path, doomed);
+  if (status.ok()) status = SyncDirectory(galleries_dir_);  // the durable point
+  if (!status.ok()) {
+    // Still stored: reopen so the gallery stays writable, as the registry keeps it.
+    g->broken = PrepareWrites(path, &g->db, &g->insert, &g->remove, &g->touch);
+    return absl::Status(status.code(), absl::StrCat("cannot delete gallery '", name,
+                                                    "': ", status.message()));
+  }
+  {
+    std::lock_guard<std::mutex> store_lock(mu_);
+    open_.erase(std::string(name));
+  }
+  // Best effort: start-up removes whatever a crash leaves here.
+  for (const std::string& leftover : {doomed, path + "-wal", path + "-shm"}) {
+    (void)RemoveFileIfExists(leftover);
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<StoredGallery> SqliteGalleryStore::LoadFile(const std::string& name,
+                                                           std::shared_ptr<OpenGallery>* out) {
+  absl::StatusOr<StoredGallery> loaded = ReadFile(name, out);
+  if (loaded.status().code() == absl::StatusCode::kDataLoss &&
+      !absl::StrContains(loaded.status().message(), "damaged") &&
+      !absl::StrContains(loaded.status().message(), "not a shapeid gallery")) {
+    // SQLite's own words ("database disk image is malformed") with ours in front.
+    absl::string_view detail = loaded.status().message();
+    absl::ConsumePrefix(&detail, absl::StrCat(GalleryPath(name), ": "));
+    return absl::DataLossError(
+        absl::StrCat("gallery file ", GalleryPath(name), " is damaged: ", detail));
+  }
+  return loaded;
+}
+
+absl::StatusOr<StoredGallery> SqliteGalleryStore::ReadFile(const std::string& name,
+                                                           std::shared_ptr<OpenGallery>* out) {
+  const std::string path = GalleryPath(name);
+  const auto damaged = [&](absl::string_view what) {
+    return absl::DataLossError(absl::StrCat("gallery file ", path, " is damaged: ", what));
+  };
+  if (absl::Status s = ValidateGalleryName(name); !s.ok()) {
+    return absl::DataLossError(absl::StrCat(path, " is not named after a valid gallery: ",
+                                            s.message()));
+  }
+  std::unique_ptr<SqliteDb> db;
+  if (read_only()) {
+    // An immutable open ignores the -wal, so changes there would silently vanish.
+    struct stat wal;
+    if (stat((path + "-wal").c_str(), &wal) == 0 && wal.st_size > 0) {
+      return absl::UnavailableError(absl::StrCat(
+          path, "-wal holds changes not yet checkpointed into the gallery, which a read-only "
+                "data directory cannot recover; start a server on it read-write once"));
+    }
+    SHAPEID_ASSIGN_OR_RETURN(db, SqliteDb::Open(path, SqliteDb::Mode::kReadOnlyImmutable));
+  } else {
+    SHAPEID_ASSIGN_OR_RETURN(db, SqliteDb::Open(path, SqliteDb::Mode::kReadWrite));
+  }
+
+  // What the file is, before trusting anything in it.
+  SHAPEID_ASSIGN_OR_RETURN(const int64_t application_id, db->QueryInt("PRAGMA application_id"));
+  if (application_id != kApplicationId) {
+    return absl::DataLossError(absl::StrCat(path, " is not a shapeid gallery (SQLite application_id ",
+                                            application_id, ", expected ", kApplicationId, ")"));
+  }
+  SHAPEID_ASSIGN_OR_RETURN(const int64_t format, db->QueryInt("PRAGMA user_version"));
+  if (format > kFormatVersion) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        path, " has format version ", format, ", written by a newer shapeid; this server reads "
+        "up to version ", kFormatVersion, ". Run the newer release, or export the gallery with it"));
+  }
+  if (format < 1) return damaged(absl::StrCat("format version ", format));
+  // quick_check: every page and b-tree structure (a truncated or overwritten file), in
+  // O(file size); CRCs below catch damage inside the rows.
+  SHAPEID_ASSIGN_OR_RETURN(const std::string check, db->QueryText("PRAGMA quick_check"));
+  if (check != "ok") return damaged(absl::StrCat("SQLite integrity check: ", check));
+
+  StoredGallery g;
+  {
+    SHAPEID_ASSIGN_OR_RETURN(SqliteStatement row,
+                             db->Prepare(absl::StrCat("SELECT ", kGalleryColumns, " FROM gallery")));
+    SHAPEID_ASSIGN_OR_RETURN(const bool found, row.Step());
+    if (!found) return damaged("the gallery row is missing");
+    g.name = row.ColumnText(0);
+    g.options.descriptor_spec = row.ColumnText(1);
+    g.dimension = static_cast<int>(row.ColumnInt64(2));
+    g.options.knn.k = static_cast<int>(row.ColumnInt64(3));
+    absl::StatusOr<VoteWeighting> weighting = ParseVoteWeighting(row.ColumnText(4));
+    absl::StatusOr<FeatureScaling> scaling = ParseFeatureScaling(row.ColumnText(5));
+    g.options.reject_distance = row.ColumnDouble(6);
+    g.descriptor_version = static_cast<uint32_t>(row.ColumnInt64(7));
+    g.software_version = row.ColumnText(8);
+    g.created = absl::FromUnixNanos(row.ColumnInt64(9));
+    g.updated = absl::FromUnixNanos(row.ColumnInt64(10));
+    const uint32_t crc = static_cast<uint32_t>(row.ColumnInt64(11));
+    if (!weighting.ok() || !scaling.ok()) return damaged("unreadable kNN options");
+    g.options.knn.weighting = *weighting;
+    g.options.knn.scaling = *scaling;
+    if (GalleryRowCrc(g) != crc) return damaged("checksum mismatch in the gallery row");
+    if (g.name != name) {
+      return damaged(absl::StrCat("it holds gallery '", g.name, "', not '", name, "'"));
+    }
+    if (g.dimension < 1) return damaged(absl::StrCat("dimension ", g.dimension));
+  }
+  {
+    SHAPEID_ASSIGN_OR_RETURN(const int64_t count, db->QueryInt("SELECT count(*) FROM samples"));
+    g.samples.reserve(static_cast<size_t>(count));
+    SHAPEID_ASSIGN_OR_RETURN(
+        SqliteStatement rows,
+        db->Prepare("SELECT seq, id, label, features, crc FROM samples ORDER BY seq"));
+    const size_t bytes = static_cast<size_t>(g.dimension) * sizeof(float);
+    while (true) {
+      SHAPEID_ASSIGN_OR_RETURN(const bool more, rows.Step());
+      if (!more) break;
+      StoredSample sample;
+      sample.id = FromStoredId(rows.ColumnInt64(1));
+      sample.label = rows.ColumnText(2);
+      const absl::Span<const uint8_t> blob = rows.ColumnBlob(3);
+      const std::string at = absl::StrCat("sample id ", sample.id, " (row ", rows.ColumnInt64(0), ")");
+      if (blob.size() != bytes) {
+        return damaged(absl::StrCat(at, " has ", blob.size(), " bytes of features, expected ",
+                                    bytes));
+      }
+      FeaturesFromBytes(blob, &sample.features);
+      if (SampleCrc32(0, sample.id, sample.label, sample.features) !=
+          static_cast<uint32_t>(rows.ColumnInt64(4))) {
+        return damaged(absl::StrCat(at, ": checksum mismatch"));
+      }
+      g.samples.push_back(std::move(sample));
+    }
+  }
+
+  auto open = std::make_shared<OpenGallery>();
+  std::lock_guard<std::mutex> lock(open->mu);
+  if (!read_only()) {  // a read-only store never writes, so it keeps no connection
+    open->db = std::move(db);
+    SHAPEID_RETURN_IF_ERROR(
+        PrepareWrites(path, &open->db, &open->insert, &open->remove, &open->touch));
+  }
+  open->header = g;
+  open->header.samples.clear();
+  *out = std::move(open);
+  return g;
+}
+
+absl::Status SqliteGalleryStore::SetAsideFile(const std::string& name, const absl::Status& reason) {
+  const std::string damaged_dir = options_.data_dir + "/damaged";
+  SHAPEID_RETURN_IF_ERROR(MakeDirectories(damaged_dir));
+  const std::string from = GalleryPath(name);
+  const std::string to = absl::StrCat(damaged_dir, "/", name, ".", UtcStamp(), kGallerySuffix);
+  // The -wal first: once the main file has moved, a -wal left behind would be replayed into
+  // a new gallery of the same name.
+  if (FileExists(from + "-wal")) SHAPEID_RETURN_IF_ERROR(RenameFile(from + "-wal", to + "-wal"));
+  SHAPEID_RETURN_IF_ERROR(RemoveFileIfExists(from + "-shm"));
+  SHAPEID_RETURN_IF_ERROR(RenameFile(from, to));
+  SHAPEID_RETURN_IF_ERROR(SyncDirectory(damaged_dir));
+  SHAPEID_RETURN_IF_ERROR(SyncDirectory(galleries_dir_));
+  std::lock_guard<std::mutex> lock(mu_);
+  set_aside_.push_back(SetAside{name, to, std::string(reason.message())});
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::vector<StoredGallery>> SqliteGalleryStore::LoadAll() {
+  if (read_only() && !FileExists(galleries_dir_)) return std::vector<StoredGallery>{};
+  SHAPEID_ASSIGN_OR_RETURN(const std::vector<std::string> entries, ListDirectory(galleries_dir_));
+  // Finish what a crash interrupted: a deletion past its durable point, or a gallery that
+  // was still being written (never acknowledged). Read-only, they are only skipped.
+  bool cleaned = false;
+  for (const std::string& entry : entries) {
+    if (!read_only() && absl::StartsWith(entry, ".") &&
+        (absl::StrContains(entry, ".deleted") || absl::StrContains(entry, ".tmp"))) {
+      SHAPEID_RETURN_IF_ERROR(RemoveFileIfExists(absl::StrCat(galleries_dir_, "/", entry)));
+      cleaned = true;
+    }
+  }
+  if (cleaned) SHAPEID_RETURN_IF_ERROR(SyncDirectory(galleries_dir_));
+
+  std::vector<StoredGallery> galleries;
+  for (const std::string& entry : entries) {
+    if (absl::StartsWith(entry, ".") || !absl::EndsWith(entry, kGallerySuffix)) continue;
+    const std::string name = entry.substr(0, entry.size() - kGallerySuffix.size());
+    std::shared_ptr<OpenGallery> open;
+    absl::StatusOr<StoredGallery> loaded = LoadFile(name, &open);
+    if (!loaded.ok()) {
+      if (!options_.set_aside_damaged || read_only()) {
+        return absl::Status(loaded.status().code(),
+                            absl::StrCat("cannot load gallery '", name,
+                                         "': ", loaded.status().message()));
+      }
+      open.reset();  // close before moving the file
+      SHAPEID_RETURN_IF_ERROR(SetAsideFile(name, loaded.status()));
+      continue;
+    }
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      open_[name] = std::move(open);
+    }
+    galleries.push_back(*std::move(loaded));
+  }
+  return galleries;
+}
+
+}  // namespace shapeid

@@ -1,0 +1,122 @@
+#ifndef SHAPEID_SERVER_STORAGE_SQLITE_GALLERY_STORE_H_
+#define SHAPEID_SERVER_STORAGE_SQLITE_GALLERY_STORE_H_
+
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "absl/base/thread_annotations.h"
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
+#include "core/gallery/gallery_store.h"
+#include "server/storage/sqlite_db.h"
+
+namespace shapeid {
+
+struct SqliteGalleryStoreOptions {
+  // Where galleries live; created (with parents) if missing. Layout:
+  //   LOCK                       held (flock) by the one server using the directory
+  //   galleries/NAME.gallery     one SQLite database per gallery (+ -wal, -shm while open)
+  //   damaged/NAME.TIME.gallery  galleries set aside by set_aside_damaged
+  std::string data_dir;
+  // What start-up does with a gallery file it cannot load (damaged, truncated, not a shapeid
+  // file, a format from a newer release). false, the default: LoadAll fails with DataLoss
+  // (or FailedPrecondition for a newer format) naming the file and what is wrong, and the
+  // server refuses to start; nothing is touched. true: the file is moved into damaged/ with
+  // its -wal, the reason is reported by set_aside(), and the other galleries load.
+  bool set_aside_damaged = false;
+};
+
+// The embedded gallery store: one SQLite database per gallery, in WAL mode with
+// synchronous=FULL, so every write below is committed and fsynced before it returns OK. One
+// file per gallery keeps damage to one gallery from taking the others down and makes
+// deleting a gallery a rename.
+//
+// Durability of each call (GalleryStore's contract):
+//  - SaveGallery writes the whole new gallery into a temporary file, syncs it, renames it into
+//    place and syncs the directory: the gallery exists completely or not at all.
+//  - AppendSamples / RemoveSamples are one SQLite transaction each.
+//  - DeleteGallery renames the file out of the way and syncs the directory (the durable
+//    point), then unlinks it; start-up finishes any interrupted deletion.
+// Every stored row carries a CRC-32 (as in the export format), checked at load together with
+// SQLite's quick_check, so bit rot is reported rather than served.
+//
+// Errors: ResourceExhausted when the disk is full; Unavailable for I/O errors and read-only
+// or vanished files; DataLoss for damage; each message names the gallery and the file. After
+// a failed fsync the gallery's writes fail until restart: the kernel may have dropped the
+// unsynced pages, so only a reload can tell what is on disk.
+//
+// A data directory on a read-only file system (a volume mounted read-only, say for a
+// classify-only replica) opens read-only: galleries load and serve, and every write fails
+// Unavailable saying why. Several read-only servers may share such a directory; a writable
+// server excludes all others.
+//
+// Thread-safe. Calls for different galleries run concurrently.
+class SqliteGalleryStore final : public GalleryStore {
+ public:
+  // Galleries' on-disk format; stored as PRAGMA user_version. Bump on any schema change and
+  // teach LoadAll to read the old one.
+  static constexpr int kFormatVersion = 1;
+
+  // Creates the directories and takes the directory's lock. Unavailable naming the path if a
+  // directory cannot be created or written; FailedPrecondition if another process holds the
+  // lock (two servers on one directory would corrupt each other's view).
+  static absl::StatusOr<std::unique_ptr<SqliteGalleryStore>> Open(
+      SqliteGalleryStoreOptions options);
+
+  ~SqliteGalleryStore() override;
+
+  absl::Status SaveGallery(const StoredGallery& gallery) override;
+  absl::Status DeleteGallery(absl::string_view name) override;
+  absl::Status AppendSamples(absl::string_view name, absl::Span<const StoredSample> batch,
+                             absl::Time updated) override;
+  absl::Status RemoveSamples(absl::string_view name, absl::Span<const uint64_t> ids,
+                             absl::Time updated) override;
+  // Verifies and reads every gallery file, sorted by name; keeps each open for later writes.
+  // Call once, before any write.
+  absl::StatusOr<std::vector<StoredGallery>> LoadAll() override;
+
+  struct SetAside {
+    std::string name;    // gallery
+    std::string moved_to;  // path under damaged/
+    std::string reason;  // the error that made it unloadable
+  };
+  // What the last LoadAll moved aside (set_aside_damaged only).
+  std::vector<SetAside> set_aside() const;
+
+  const std::string& data_dir() const { return options_.data_dir; }
+  // True when the data directory's file system is read-only (see the class comment).
+  bool read_only() const { return !read_only_.empty(); }
+  // The database file of gallery `name` (which may not exist).
+  std::string GalleryPath(absl::string_view name) const;
+
+ private:
+  struct OpenGallery;
+
+  SqliteGalleryStore(SqliteGalleryStoreOptions options, int lock_fd, std::string read_only);
+
+  // Unavailable when read-only: "cannot <what>: <why>".
+  absl::Status CheckWritable(absl::string_view what) const;
+
+  absl::StatusOr<std::shared_ptr<OpenGallery>> Find(absl::string_view name) const;
+  // Verifies and reads one gallery file (LoadFile adds "is damaged" to SQLite's reports).
+  absl::StatusOr<StoredGallery> LoadFile(const std::string& name, std::shared_ptr<OpenGallery>* out);
+  absl::StatusOr<StoredGallery> ReadFile(const std::string& name, std::shared_ptr<OpenGallery>* out);
+  absl::Status SetAsideFile(const std::string& name, const absl::Status& reason);
+
+  const SqliteGalleryStoreOptions options_;
+  const std::string galleries_dir_;
+  const int lock_fd_;        // -1 when a read-only directory has no LOCK file
+  const std::string read_only_;  // empty, or why the directory cannot be written
+
+  mutable std::mutex mu_;
+  std::map<std::string, std::shared_ptr<OpenGallery>, std::less<>> open_ ABSL_GUARDED_BY(mu_);
+  std::vector<SetAside> set_aside_ ABSL_GUARDED_BY(mu_);
+};
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_SERVER_STORAGE_SQLITE_GALLERY_STORE_H_
