@@ -12,6 +12,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <string>
 #include <thread>
@@ -36,18 +37,22 @@ class ServerProcess {
     for (const std::string& flag : extra_flags) {
       if (flag.rfind("--data_dir", 0) == 0) has_data_dir = true;
     }
+    static std::atomic<int> counter{0};
+    const std::string scratch = ::testing::TempDir() + "/shapeid_server_" +
+                                std::to_string(getpid()) + "_" + std::to_string(counter++);
     if (!has_data_dir) {
-      static std::atomic<int> counter{0};
-      owned_data_dir_ = ::testing::TempDir() + "/shapeid_server_" + std::to_string(getpid()) +
-                        "_" + std::to_string(counter++);
+      owned_data_dir_ = scratch;
       extra_flags.push_back("--data_dir=" + owned_data_dir_);
     }
+    stderr_path_ = scratch + ".stderr";
     int out[2];
     if (pipe(out) != 0) return;
     posix_spawn_file_actions_t actions;
     posix_spawn_file_actions_init(&actions);
     posix_spawn_file_actions_adddup2(&actions, out[1], STDOUT_FILENO);
     posix_spawn_file_actions_addclose(&actions, out[0]);
+    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, stderr_path_.c_str(),
+                                     O_WRONLY | O_CREAT | O_TRUNC, 0644);
     std::string binary = SHAPEID_SERVER_PATH;
     std::vector<std::string> args = {binary, "--listen=127.0.0.1:0", "--shutdown_grace_seconds=10"};
     args.insert(args.end(), extra_flags.begin(), extra_flags.end());
@@ -67,6 +72,8 @@ class ServerProcess {
       const ssize_t n = read(out[0], buf, sizeof(buf));
       if (n > 0) {
         line.append(buf, static_cast<size_t>(n));
+      } else if (n == 0) {
+        break;  // the server exited (a start-up error: see StderrText)
       } else {
         std::this_thread::sleep_for(std::chrono::milliseconds(10));
       }
@@ -82,6 +89,33 @@ class ServerProcess {
     if (!owned_data_dir_.empty()) {
       std::system(("rm -rf '" + owned_data_dir_ + "'").c_str());
     }
+    unlink(stderr_path_.c_str());
+  }
+
+  // What the server wrote to stderr so far (its start-up report, warnings, errors).
+  std::string StderrText() const {
+    std::string text;
+    if (FILE* f = std::fopen(stderr_path_.c_str(), "r")) {
+      char buf[4096];
+      size_t n;
+      while ((n = std::fread(buf, 1, sizeof(buf), f)) > 0) text.append(buf, n);
+      std::fclose(f);
+    }
+    return text;
+  }
+
+  // Waits for the process to exit by itself; its exit status, or -1 after `timeout`.
+  int WaitForExit(std::chrono::seconds timeout) {
+    const auto deadline = Clock::now() + timeout;
+    while (Clock::now() < deadline) {
+      int status = 0;
+      if (waitpid(pid_, &status, WNOHANG) == pid_) {
+        exited_ = true;
+        return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return -1;
   }
 
   const std::string& address() const { return address_; }
@@ -118,6 +152,7 @@ class ServerProcess {
   bool exited_ = false;
   std::string address_;
   std::string owned_data_dir_;
+  std::string stderr_path_;
 };
 
 }  // namespace shapeid
