@@ -108,13 +108,15 @@ Client::Client(ClientOptions options)
 Client::~Client() = default;
 
 template <typename Attempt>
-absl::Status Client::Call(bool retry, bool corked, const Attempt& attempt) {
+absl::Status Client::Call(bool retry, bool corked, const Attempt& attempt,
+                          const std::function<bool()>& may_retry) {
   const absl::Time deadline = absl::Now() + options_.deadline;
   absl::Duration backoff = options_.initial_backoff;
   const int attempts = retry ? options_.max_attempts : 1;
   grpc::Status status;
   for (int i = 0; i < attempts; ++i) {
     if (i > 0) {
+      if (may_retry && !may_retry()) break;
       if (absl::Now() + backoff >= deadline) break;  // the last answer is UNAVAILABLE
       std::this_thread::sleep_for(absl::ToChronoNanoseconds(backoff));
       backoff *= 2;
@@ -267,6 +269,63 @@ absl::StatusOr<std::vector<v1::DescriptorKind>> Client::ListDescriptors() {
   if (!status.ok()) return status;
   return std::vector<v1::DescriptorKind>(response.descriptors().begin(),
                                          response.descriptors().end());
+}
+
+absl::Status Client::ExportGallery(
+    const std::string& name,
+    const std::function<absl::Status(const v1::GalleryExportChunk&)>& sink) {
+  v1::ExportGalleryRequest request;
+  request.set_name(name);
+  bool delivered = false;  // a chunk reached the sink: a retry would repeat it
+  absl::Status sink_error;
+  absl::Status status = Call(
+      true, false,
+      [&](grpc::ClientContext& context) {
+        auto reader = stub_->ExportGallery(&context, request);
+        v1::GalleryExportChunk chunk;
+        while (reader->Read(&chunk)) {
+          delivered = true;
+          sink_error = sink(chunk);
+          if (!sink_error.ok()) {
+            context.TryCancel();
+            break;
+          }
+        }
+        return reader->Finish();
+      },
+      [&] { return !delivered; });
+  if (!sink_error.ok()) return sink_error;
+  return status;
+}
+
+absl::StatusOr<v1::Gallery> Client::ImportGallery(
+    const std::function<absl::StatusOr<bool>(v1::GalleryExportChunk*)>& source,
+    const std::string& new_name) {
+  v1::Gallery response;
+  absl::Status source_error;
+  absl::Status status = Call(false, false, [&](grpc::ClientContext& context) {
+    auto writer = stub_->ImportGallery(&context, &response);
+    v1::ImportGalleryRequest request;
+    request.set_name(new_name);  // read from the first message only
+    for (bool open = true; open;) {
+      absl::StatusOr<bool> more = source(request.mutable_chunk());
+      if (!more.ok()) {
+        // Cancel rather than half-close: the server must not take what was sent so far for
+        // a whole export (it would fail it anyway, but as truncated, not with our reason).
+        source_error = more.status();
+        context.TryCancel();
+        return writer->Finish();
+      }
+      if (!*more) break;
+      open = writer->Write(request);  // false: the server has answered (an error)
+      request.Clear();
+    }
+    writer->WritesDone();
+    return writer->Finish();
+  });
+  if (!source_error.ok()) return source_error;
+  if (!status.ok()) return status;
+  return response;
 }
 
 absl::Status Client::CheckHealth() {

@@ -19,6 +19,7 @@
 // once. Calls block the calling thread until the reply, the error or the deadline.
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -83,6 +84,29 @@ class Client {
                                                           absl::Span<const std::string> labels);
   absl::StatusOr<std::vector<v1::DescriptorKind>> ListDescriptors();
 
+  // Streams gallery `name` out of the server: `sink` receives every chunk in order (the
+  // header, runs of samples, the trailer; see GalleryExportChunk in the proto) and returns
+  // OK to go on. The server streams one snapshot, so training meanwhile does not tear the
+  // export. The chunks are not interpreted here: keep them all, in order, and check the call's
+  // status: only OK means the sink saw the whole export. An error from `sink` cancels the
+  // call and is returned as it is. Retried on UNAVAILABLE only while no chunk has reached
+  // the sink. The whole stream must fit options().deadline: raise it for very large
+  // galleries (1,000,000 x 81 floats is 336 MB; about 0.7 s over loopback).
+  absl::Status ExportGallery(
+      const std::string& name,
+      const std::function<absl::Status(const v1::GalleryExportChunk&)>& sink);
+
+  // Streams an export back in, all-or-nothing, and returns the new gallery. `source` fills
+  // the next chunk and returns true, returns false at the end, or an error, which cancels
+  // the call (nothing is imported) and is returned as it is. `new_name` non-empty imports
+  // under that name instead of the exported one. Server errors: ALREADY_EXISTS (name
+  // taken), FAILED_PRECONDITION (another descriptor version), INVALID_ARGUMENT / DATA_LOSS
+  // (malformed, truncated or damaged export). Never retried: a repeated import of a
+  // committed gallery would fail ALREADY_EXISTS and hide the first answer.
+  absl::StatusOr<v1::Gallery> ImportGallery(
+      const std::function<absl::StatusOr<bool>(v1::GalleryExportChunk*)>& source,
+      const std::string& new_name = "");
+
   // grpc.health.v1 Check of the whole server: OK when it answers SERVING, UNAVAILABLE when
   // it answers anything else or cannot be reached.
   absl::Status CheckHealth();
@@ -93,8 +117,10 @@ class Client {
   // Runs `attempt` (one RPC on a fresh context) up to options_.max_attempts times while it
   // returns UNAVAILABLE and `retry` is true, with exponential backoff, all within one
   // deadline. `attempt` is called as grpc::Status(grpc::ClientContext&).
+  // `may_retry`, when given, is asked before each further attempt too (false: stop).
   template <typename Attempt>
-  absl::Status Call(bool retry, bool corked, const Attempt& attempt);
+  absl::Status Call(bool retry, bool corked, const Attempt& attempt,
+                    const std::function<bool()>& may_retry = nullptr);
   // Describe and Classify: `header`, then `cloud` in chunks, on the client stream `open`
   // starts (a stub method), retried like any idempotent call.
   template <typename Request, typename Response, typename Open>

@@ -19,8 +19,9 @@ struct ClientOptions {
 
   // Attempts per call when the server is UNAVAILABLE (1: no retry). Only calls that are safe
   // to repeat are retried: Describe, Classify, GetGallery, ListGalleries, ListDescriptors,
-  // CheckHealth, and Train when every sample carries a client-chosen id (so a repeated stream
-  // cannot add a sample twice). CreateGallery, DeleteGallery and RemoveSamples are sent once.
+  // CheckHealth, ExportGallery until its first chunk reached the caller, and Train when every
+  // sample carries a client-chosen id (so a repeated stream cannot add a sample twice).
+  // CreateGallery, DeleteGallery, RemoveSamples and ImportGallery are sent once.
   int max_attempts = 3;
 
   // Wait before the second attempt; doubled before each further one (bounded by the deadline).

@@ -1,5 +1,6 @@
 // shapeid::Client against an in-process ShapeIdServer on a loopback port: every call, chunking
-// of a big cloud, error codes, retries with backoff, deadlines, concurrent use.
+// of a big cloud, export and import, error codes, retries with backoff, deadlines, concurrent
+// use.
 
 #include "client/client.h"
 
@@ -181,6 +182,81 @@ TEST_F(ClientTest, ErrorsKeepCodeAndMessage) {
   EXPECT_EQ(client_->GetGallery("g")->sample_count(), 1u);
 }
 
+TEST_F(ClientTest, ExportThenImportUnderANewName) {
+  CreateTrained("parts");
+  std::vector<v1::GalleryExportChunk> chunks;
+  ASSERT_TRUE(client_
+                  ->ExportGallery("parts",
+                                  [&](const v1::GalleryExportChunk& chunk) {
+                                    chunks.push_back(chunk);
+                                    return absl::OkStatus();
+                                  })
+                  .ok());
+  ASSERT_GE(chunks.size(), 3u);
+  EXPECT_TRUE(chunks.front().has_header());
+  EXPECT_TRUE(chunks.back().has_trailer());
+
+  size_t next = 0;
+  const auto source = [&](v1::GalleryExportChunk* chunk) -> absl::StatusOr<bool> {
+    if (next == chunks.size()) return false;
+    *chunk = chunks[next++];
+    return true;
+  };
+  auto imported = client_->ImportGallery(source, "parts-copy");
+  ASSERT_TRUE(imported.ok()) << imported.status();
+  EXPECT_EQ(imported->name(), "parts-copy");
+  EXPECT_EQ(imported->sample_count(), 6u);
+  auto a = client_->Classify("parts", Shape(1, 31), 3);
+  auto b = client_->Classify("parts-copy", Shape(1, 31), 3);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_EQ(a->label(), b->label());
+  ASSERT_EQ(a->neighbors_size(), b->neighbors_size());
+  for (int i = 0; i < a->neighbors_size(); ++i) {
+    EXPECT_EQ(a->neighbors(i).sample_id(), b->neighbors(i).sample_id());
+    EXPECT_EQ(a->neighbors(i).distance(), b->neighbors(i).distance());
+  }
+
+  // Under the exported name, which is taken: the server's answer, as it is.
+  next = 0;
+  EXPECT_TRUE(absl::IsAlreadyExists(client_->ImportGallery(source).status()));
+}
+
+TEST_F(ClientTest, SinkAndSourceErrorsStopTheStream) {
+  CreateTrained("parts");
+  int calls = 0;
+  const absl::Status full = client_->ExportGallery("parts", [&](const v1::GalleryExportChunk&) {
+    ++calls;
+    return absl::ResourceExhaustedError("disk full");
+  });
+  EXPECT_EQ(full, absl::ResourceExhaustedError("disk full"));
+  EXPECT_EQ(calls, 1);
+  EXPECT_TRUE(absl::IsNotFound(
+      client_->ExportGallery("nope", [](const auto&) { return absl::OkStatus(); })));
+
+  // The source fails after the header: the import is cancelled, not taken as truncated.
+  std::vector<v1::GalleryExportChunk> chunks;
+  ASSERT_TRUE(client_
+                  ->ExportGallery("parts",
+                                  [&](const v1::GalleryExportChunk& chunk) {
+                                    chunks.push_back(chunk);
+                                    return absl::OkStatus();
+                                  })
+                  .ok());
+  size_t next = 0;
+  const absl::Status cut = client_
+                               ->ImportGallery(
+                                   [&](v1::GalleryExportChunk* chunk) -> absl::StatusOr<bool> {
+                                     if (next == 1)
+                                       return absl::DataLossError("backup.shapeid is truncated");
+                                     *chunk = chunks[next++];
+                                     return true;
+                                   },
+                                   "cut")
+                               .status();
+  EXPECT_EQ(cut, absl::DataLossError("backup.shapeid is truncated"));
+  EXPECT_TRUE(absl::IsNotFound(client_->GetGallery("cut").status()));
+}
+
 TEST(ClientRetryTest, UnavailableAfterBoundedRetries) {
   ClientOptions options;
   options.target = "127.0.0.1:1";  // nothing listens
@@ -196,11 +272,19 @@ TEST(ClientRetryTest, UnavailableAfterBoundedRetries) {
   EXPECT_LT(took, absl::Seconds(5));
   EXPECT_TRUE(absl::IsUnavailable((*client)->CheckHealth()));
 
+  // An export that delivered nothing yet is retried like any read.
+  const absl::Time start3 = absl::Now();
+  EXPECT_TRUE(absl::IsUnavailable(
+      (*client)->ExportGallery("g", [](const auto&) { return absl::OkStatus(); })));
+  EXPECT_GE(absl::Now() - start3, absl::Milliseconds(300));
+
   // Not idempotent: one attempt, no backoff.
   const absl::Time start2 = absl::Now();
   v1::CreateGalleryRequest request;
   request.set_name("g");
   EXPECT_TRUE(absl::IsUnavailable((*client)->CreateGallery(request).status()));
+  const auto no_chunks = [](v1::GalleryExportChunk*) -> absl::StatusOr<bool> { return false; };
+  EXPECT_TRUE(absl::IsUnavailable((*client)->ImportGallery(no_chunks).status()));
   EXPECT_LT(absl::Now() - start2, absl::Milliseconds(100));
 }
 

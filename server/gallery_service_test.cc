@@ -1,8 +1,10 @@
 // The gallery RPCs of the ShapeId service through a real gRPC server on a loopback port:
 // create / get / list / delete, Train streams (bulk, all-or-nothing, cut), Classify,
-// RemoveSamples, every error code the issue names, and concurrent clients.
+// RemoveSamples, export and import, every error code the issues name, and concurrent clients.
 
+#include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <random>
@@ -10,6 +12,8 @@
 #include <thread>
 #include <vector>
 
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
 #include "core/gallery/gallery.h"
 #include "core/testing/test_clouds.h"
 #include "gmock/gmock.h"
@@ -101,9 +105,10 @@ class GalleryServiceTest : public ::testing::Test {
   }
 
   grpc::Status Classify(const std::string& gallery, const PointCloud& cloud,
-                        v1::ClassifyResponse* response, uint32_t k = 0) {
+                        v1::ClassifyResponse* response, uint32_t k = 0,
+                        v1::ShapeId::Stub* stub = nullptr) {
     grpc::ClientContext context;
-    auto writer = stub_->Classify(&context, response);
+    auto writer = (stub != nullptr ? stub : stub_.get())->Classify(&context, response);
     v1::ClassifyRequest header;
     header.mutable_header()->set_gallery(gallery);
     header.mutable_header()->set_k(k);
@@ -127,9 +132,78 @@ class GalleryServiceTest : public ::testing::Test {
     return samples;
   }
 
+  // Every chunk of one ExportGallery call, in order.
+  grpc::Status Export(const std::string& gallery, std::vector<v1::GalleryExportChunk>* chunks) {
+    grpc::ClientContext context;
+    v1::ExportGalleryRequest request;
+    request.set_name(gallery);
+    auto reader = stub_->ExportGallery(&context, request);
+    chunks->clear();
+    for (v1::GalleryExportChunk chunk; reader->Read(&chunk);) chunks->push_back(chunk);
+    return reader->Finish();
+  }
+
+  // One ImportGallery stream of `chunks`, `name` on the first message.
+  static grpc::Status Import(v1::ShapeId::Stub& stub,
+                             const std::vector<v1::GalleryExportChunk>& chunks,
+                             const std::string& name = "", v1::Gallery* out = nullptr,
+                             const std::string& second_name = "") {
+    grpc::ClientContext context;
+    v1::Gallery response;
+    auto writer = stub.ImportGallery(&context, &response);
+    for (size_t i = 0; i < chunks.size(); ++i) {
+      v1::ImportGalleryRequest request;
+      request.set_name(i == 0 ? name : (i == 1 ? second_name : ""));
+      *request.mutable_chunk() = chunks[i];
+      if (!writer->Write(request)) break;
+    }
+    writer->WritesDone();
+    const grpc::Status status = writer->Finish();
+    if (out != nullptr) *out = response;
+    return status;
+  }
+
+  // A second, empty server: where galleries are moved to.
+  v1::ShapeId::Stub& Other() {
+    if (other_stub_ == nullptr) {
+      ServerOptions options;
+      options.listen = "127.0.0.1:0";
+      other_ = std::move(ShapeIdServer::Start(options)).value();
+      other_stub_ = v1::ShapeId::NewStub(
+          grpc::CreateChannel(other_->address(), grpc::InsecureChannelCredentials()));
+    }
+    return *other_stub_;
+  }
+
   std::unique_ptr<ShapeIdServer> server_;
   std::unique_ptr<v1::ShapeId::Stub> stub_;
+  std::unique_ptr<ShapeIdServer> other_;
+  std::unique_ptr<v1::ShapeId::Stub> other_stub_;
 };
+
+uint64_t Bits(double d) {
+  uint64_t bits;
+  std::memcpy(&bits, &d, sizeof bits);
+  return bits;
+}
+
+// The same answer, bit for bit: label, votes, neighbour ids, labels and distances.
+void ExpectSameAnswer(const v1::ClassifyResponse& a, const v1::ClassifyResponse& b) {
+  EXPECT_EQ(a.label(), b.label());
+  EXPECT_EQ(a.unknown(), b.unknown());
+  EXPECT_EQ(Bits(a.confidence()), Bits(b.confidence()));
+  ASSERT_EQ(a.neighbors_size(), b.neighbors_size());
+  for (int i = 0; i < a.neighbors_size(); ++i) {
+    EXPECT_EQ(a.neighbors(i).sample_id(), b.neighbors(i).sample_id()) << i;
+    EXPECT_EQ(a.neighbors(i).label(), b.neighbors(i).label()) << i;
+    EXPECT_EQ(Bits(a.neighbors(i).distance()), Bits(b.neighbors(i).distance())) << i;
+  }
+  ASSERT_EQ(a.votes_size(), b.votes_size());
+  for (int i = 0; i < a.votes_size(); ++i) {
+    EXPECT_EQ(a.votes(i).label(), b.votes(i).label());
+    EXPECT_EQ(Bits(a.votes(i).weight()), Bits(b.votes(i).weight()));
+  }
+}
 
 TEST_F(GalleryServiceTest, CreateGetListDeleteWithEveryError) {
   v1::Gallery created;
@@ -353,6 +427,167 @@ TEST_F(GalleryServiceTest, DescribeWithAGallerySpec) {
   ASSERT_TRUE(writer->Finish().ok());
   EXPECT_EQ(response.descriptor_spec(), "comsd:grid=20");
   EXPECT_EQ(response.values_size(), 91);
+}
+
+TEST_F(GalleryServiceTest, ExportThenImportElsewhereAnswersBitForBit) {
+  grpc::ClientContext create_context;
+  v1::CreateGalleryRequest create;
+  create.set_name("shapes");
+  create.set_descriptor_spec("rphsd:refs=cubic27,bins=30");
+  create.mutable_knn()->set_k(3);
+  create.mutable_knn()->set_weighting(v1::VOTE_WEIGHTING_DISTANCE);
+  create.mutable_knn()->set_scaling(v1::FEATURE_SCALING_ZSCORE);
+  v1::Gallery created;
+  ASSERT_TRUE(stub_->CreateGallery(&create_context, create, &created).ok());
+  std::vector<Sample> samples = TrainingSet(5, 300);
+  samples[4].id = 7;  // a client id among assigned ones
+  v1::TrainResponse trained;
+  ASSERT_TRUE(Train("shapes", samples, &trained).ok());
+
+  std::vector<v1::GalleryExportChunk> chunks;
+  const grpc::Status exported = Export("shapes", &chunks);
+  ASSERT_TRUE(exported.ok()) << exported.error_message();
+  ASSERT_GE(chunks.size(), 3u);
+  EXPECT_EQ(chunks.front().header().sample_count(), 15u);
+  EXPECT_EQ(chunks.back().trailer().sample_count(), 15u);
+
+  v1::Gallery moved;
+  const grpc::Status imported = Import(Other(), chunks, "", &moved);
+  ASSERT_TRUE(imported.ok()) << imported.error_message();
+  const v1::Gallery original = Get("shapes");
+  EXPECT_EQ(moved.name(), "shapes");
+  EXPECT_EQ(moved.descriptor_spec(), original.descriptor_spec());
+  EXPECT_EQ(moved.knn().SerializeAsString(), original.knn().SerializeAsString());
+  EXPECT_EQ(moved.sample_count(), 15u);
+  EXPECT_EQ(moved.create_time().SerializeAsString(), original.create_time().SerializeAsString());
+  EXPECT_EQ(moved.update_time().SerializeAsString(), original.update_time().SerializeAsString());
+  EXPECT_EQ(moved.descriptor_version(), original.descriptor_version());
+  EXPECT_GT(original.descriptor_version(), 0u);
+  EXPECT_EQ(moved.software_version(), original.software_version());
+  EXPECT_FALSE(original.software_version().empty());
+  EXPECT_EQ(moved.incompatible(), "");
+
+  // A copy on the same server, under a new name.
+  v1::Gallery copy;
+  ASSERT_TRUE(Import(*stub_, chunks, "copy", &copy).ok());
+  EXPECT_EQ(copy.name(), "copy");
+  for (int kind = 0; kind < 3; ++kind) {
+    const PointCloud query = Shape(kind, 4242 + kind, 1500);
+    v1::ClassifyResponse here, there, copied;
+    ASSERT_TRUE(Classify("shapes", query, &here, 5).ok());
+    ASSERT_TRUE(Classify("shapes", query, &there, 5, &Other()).ok());
+    ASSERT_TRUE(Classify("copy", query, &copied, 5).ok());
+    EXPECT_EQ(here.label(), kShapeNames[kind]);
+    ExpectSameAnswer(here, there);
+    ExpectSameAnswer(here, copied);
+  }
+
+  // The name is taken now: refused, and the copy is unchanged.
+  const grpc::Status again = Import(*stub_, chunks, "copy");
+  EXPECT_EQ(again.error_code(), grpc::StatusCode::ALREADY_EXISTS);
+  EXPECT_THAT(again.error_message(), HasSubstr("'copy' already exists"));
+  EXPECT_EQ(Get("copy").version(), copy.version());
+}
+
+TEST_F(GalleryServiceTest, ImportRefusesBadStreamsAndCreatesNothing) {
+  ASSERT_TRUE(Create("g", "rphsd:refs=cross7,bins=10").ok());
+  v1::TrainResponse trained;
+  ASSERT_TRUE(Train("g", TrainingSet(2, 11), &trained).ok());
+  std::vector<v1::GalleryExportChunk> chunks;
+  ASSERT_TRUE(Export("g", &chunks).ok());
+  ASSERT_EQ(chunks.size(), 3u);  // header, one run of 6 samples, trailer
+
+  auto damaged = chunks;
+  float* feature = damaged[1].mutable_samples()->mutable_features()->Mutable(5);
+  *feature = std::nextafter(*feature, 2.0f);
+  grpc::Status status = Import(*stub_, damaged, "damaged");
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::DATA_LOSS);
+  EXPECT_THAT(status.error_message(), HasSubstr("export damaged: checksum mismatch"));
+
+  const std::vector<v1::GalleryExportChunk> truncated(chunks.begin(), chunks.end() - 1);
+  status = Import(*stub_, truncated, "truncated");
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::DATA_LOSS);
+  EXPECT_THAT(status.error_message(), HasSubstr("export truncated: 6 of 6 samples, no trailer"));
+
+  const std::vector<v1::GalleryExportChunk> reordered = {chunks[1], chunks[0], chunks[2]};
+  status = Import(*stub_, reordered, "reordered");
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(), HasSubstr("samples before the header"));
+
+  auto future = chunks;
+  future[0].mutable_header()->set_format_version(2);
+  EXPECT_EQ(Import(*stub_, future, "future").error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+  EXPECT_EQ(Import(*stub_, chunks, "no spaces").error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(Import(*stub_, {}, "empty").error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  const grpc::Status renamed = Import(*stub_, chunks, "first", nullptr, "second");
+  EXPECT_EQ(renamed.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(renamed.error_message(), HasSubstr("read from the first message only"));
+  EXPECT_EQ(Import(*stub_, chunks).error_code(), grpc::StatusCode::ALREADY_EXISTS);  // "g"
+
+  grpc::ClientContext context;
+  v1::ListGalleriesResponse list;
+  ASSERT_TRUE(stub_->ListGalleries(&context, {}, &list).ok());
+  ASSERT_EQ(list.galleries_size(), 1);  // every refused import left nothing behind
+  EXPECT_EQ(list.galleries(0).name(), "g");
+}
+
+TEST_F(GalleryServiceTest, ExportErrorsAndCancellation) {
+  std::vector<v1::GalleryExportChunk> chunks;
+  const grpc::Status missing = Export("nope", &chunks);
+  EXPECT_EQ(missing.error_code(), grpc::StatusCode::NOT_FOUND);
+  EXPECT_THAT(missing.error_message(), HasSubstr("nope"));
+  EXPECT_TRUE(chunks.empty());
+  EXPECT_EQ(Export("", &chunks).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+
+  // A client that goes away after the first chunk ends the call on the server too: the
+  // shutdown below would otherwise wait its whole grace period for it.
+  ASSERT_TRUE(Create("g").ok());
+  v1::TrainResponse trained;
+  ASSERT_TRUE(Train("g", TrainingSet(2, 3), &trained).ok());
+  grpc::ClientContext context;
+  v1::ExportGalleryRequest request;
+  request.set_name("g");
+  auto reader = stub_->ExportGallery(&context, request);
+  v1::GalleryExportChunk first;
+  ASSERT_TRUE(reader->Read(&first));
+  EXPECT_TRUE(first.has_header());
+  context.TryCancel();
+  EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::CANCELLED);
+  const absl::Time start = absl::Now();
+  server_->Shutdown(absl::Seconds(20));
+  EXPECT_LT(absl::Now() - start, absl::Seconds(5));
+}
+
+TEST_F(GalleryServiceTest, AnExportDuringTrainingIsOneConsistentSnapshot) {
+  ASSERT_TRUE(Create("live", "rphsd:refs=cross7,bins=10").ok());
+  v1::TrainResponse trained;
+  ASSERT_TRUE(Train("live", TrainingSet(1, 1), &trained).ok());  // batches of 3 samples
+  std::atomic<bool> done{false};
+  std::thread trainer([&] {
+    for (uint32_t i = 0; i < 15; ++i) {
+      v1::TrainResponse response;
+      EXPECT_TRUE(Train("live", TrainingSet(1, 100 + i), &response).ok());
+    }
+    done = true;
+  });
+  std::vector<uint64_t> counts;
+  for (int e = 0; e < 40 && (e < 3 || !done); ++e) {
+    std::vector<v1::GalleryExportChunk> chunks;
+    const grpc::Status status = Export("live", &chunks);
+    ASSERT_TRUE(status.ok()) << status.error_message();
+    const uint64_t announced = chunks.front().header().sample_count();
+    uint64_t carried = 0;
+    for (const auto& chunk : chunks) carried += chunk.samples().sample_ids_size();
+    EXPECT_EQ(carried, announced);
+    EXPECT_EQ(chunks.back().trailer().sample_count(), announced);
+    EXPECT_EQ(announced % 3, 0u) << "a Train batch was torn";
+    counts.push_back(announced);
+    // The server's own checks (order, count, checksum) accept it.
+    const grpc::Status imported = Import(Other(), chunks, absl::StrCat("snap-", e));
+    EXPECT_TRUE(imported.ok()) << imported.error_message();
+  }
+  trainer.join();
+  EXPECT_TRUE(std::is_sorted(counts.begin(), counts.end()));
 }
 
 }  // namespace

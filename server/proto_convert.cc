@@ -76,6 +76,10 @@ void ToProto(absl::Time t, google::protobuf::Timestamp* out) {
   out->set_nanos(static_cast<int32_t>(nanos % 1'000'000'000));
 }
 
+absl::Time FromProto(const google::protobuf::Timestamp& t) {
+  return absl::FromUnixSeconds(t.seconds()) + absl::Nanoseconds(t.nanos());
+}
+
 void ToProto(const GallerySnapshot& snapshot, v1::Gallery* out) {
   out->set_name(snapshot.name());
   out->set_descriptor_spec(snapshot.options().descriptor_spec);
@@ -91,6 +95,9 @@ void ToProto(const GallerySnapshot& snapshot, v1::Gallery* out) {
   ToProto(snapshot.created(), out->mutable_create_time());
   ToProto(snapshot.updated(), out->mutable_update_time());
   out->set_version(snapshot.version());
+  out->set_descriptor_version(snapshot.descriptor_version());
+  out->set_software_version(snapshot.software_version());
+  out->set_incompatible(snapshot.incompatible());
 }
 
 void ToProto(const GalleryClassification& answer, size_t num_points, v1::ClassifyResponse* out) {

@@ -18,13 +18,15 @@ v1::KnnOptions ToProto(const KnnOptions& knn);
 
 absl::StatusOr<GalleryOptions> GalleryOptionsFromProto(const v1::CreateGalleryRequest& request);
 
-// The gallery as GetGallery / ListGalleries report it.
+// The gallery as GetGallery / ListGalleries report it, versions and incompatibility included.
 void ToProto(const GallerySnapshot& snapshot, v1::Gallery* out);
 
 void ToProto(const GalleryClassification& answer, size_t num_points, v1::ClassifyResponse* out);
 
 void ToProto(absl::Duration d, google::protobuf::Duration* out);
 void ToProto(absl::Time t, google::protobuf::Timestamp* out);
+// Exact inverse of ToProto for any time it produced (nanosecond resolution).
+absl::Time FromProto(const google::protobuf::Timestamp& t);
 
 }  // namespace shapeid
 

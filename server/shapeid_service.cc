@@ -12,6 +12,7 @@
 #include "core/gallery/gallery.h"
 #include "core/status_macros.h"
 #include "server/cloud_assembler.h"
+#include "server/gallery_export.h"
 #include "server/grpc_status.h"
 #include "server/proto_convert.h"
 #include "server/stream_reactor.h"
@@ -255,6 +256,102 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest> {
   int k_ = 0;
 };
 
+// Streams one snapshot of a gallery, one chunk in flight at a time (gRPC's flow control
+// paces the writes), so memory stays at one chunk whatever the gallery's size.
+class ExportReactor final : public grpc::ServerWriteReactor<v1::GalleryExportChunk> {
+ public:
+  ExportReactor(CallTracker* tracker, const GalleryRegistry& registry,
+                const v1::ExportGalleryRequest& request)
+      : tracker_(tracker), entered_(tracker->Enter()) {
+    if (!entered_) {
+      Finish(tracker_->Refusal());
+      return;
+    }
+    const absl::Status started = Start(registry, request.name());
+    if (!started.ok()) {
+      Finish(ToGrpcStatus(started));
+      return;
+    }
+    WriteNext();
+  }
+
+ private:
+  absl::Status Start(const GalleryRegistry& registry, const std::string& name) {
+    SHAPEID_RETURN_IF_ERROR(RequireGalleryName("ExportGallery", name));
+    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry.Get(name));
+    exporter_ = std::make_unique<GalleryExporter>(gallery->Snapshot());
+    return absl::OkStatus();
+  }
+
+  void WriteNext() {
+    if (exporter_->Next(&chunk_)) {
+      StartWrite(&chunk_);
+    } else {
+      Finish(grpc::Status::OK);
+    }
+  }
+
+  void OnWriteDone(bool ok) override {
+    if (!ok) {  // cancelled, past its deadline, or the client went away: stop streaming
+      Finish(grpc::Status(grpc::StatusCode::CANCELLED, "the export was cancelled"));
+      return;
+    }
+    WriteNext();
+  }
+
+  void OnDone() override {
+    if (entered_) tracker_->Exit();
+    delete this;
+  }
+
+  CallTracker* const tracker_;
+  const bool entered_;
+  std::unique_ptr<GalleryExporter> exporter_;
+  v1::GalleryExportChunk chunk_;
+};
+
+// ImportGallery: the chunks go into a GalleryImportAssembler as they arrive, so a malformed
+// export fails at its first bad chunk; the registry sees the gallery only when the stream
+// ends complete and undamaged.
+class ImportReactor final : public StreamReactor<v1::ImportGalleryRequest> {
+ public:
+  ImportReactor(grpc::CallbackServerContext* context, CallTracker* tracker,
+                GalleryRegistry& registry, v1::Gallery* response)
+      : StreamReactor(context, tracker),
+        registry_(registry),
+        response_(response),
+        assembler_(registry.limits().max_samples_per_gallery) {
+    StartReading();
+  }
+
+ private:
+  absl::Status OnMessage(const v1::ImportGalleryRequest& request) override {
+    if (messages_++ == 0) {
+      name_ = request.name();
+      if (!request.has_chunk() && !name_.empty()) return absl::OkStatus();  // a name alone
+    } else if (!request.name().empty() && request.name() != name_) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("ImportGallery: message ", messages_ - 1, " names '", request.name(),
+                       "'; the name is read from the first message only"));
+    }
+    return assembler_.Add(request.chunk());
+  }
+
+  absl::Status OnEnd() override {
+    SHAPEID_ASSIGN_OR_RETURN(StoredGallery stored, assembler_.Finish());
+    if (!name_.empty()) stored.name = name_;
+    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry_.Import(stored));
+    ToProto(*gallery->Snapshot(), response_);
+    return absl::OkStatus();
+  }
+
+  GalleryRegistry& registry_;
+  v1::Gallery* response_;
+  GalleryImportAssembler assembler_;
+  std::string name_;
+  int64_t messages_ = 0;
+};
+
 }  // namespace
 
 grpc::ServerReadReactor<v1::DescribeRequest>* ShapeIdService::Describe(
@@ -351,6 +448,16 @@ grpc::ServerUnaryReactor* ShapeIdService::RemoveSamples(grpc::CallbackServerCont
     response->set_remaining(static_cast<uint64_t>(gallery->Snapshot()->num_samples()));
     return absl::OkStatus();
   });
+}
+
+grpc::ServerWriteReactor<v1::GalleryExportChunk>* ShapeIdService::ExportGallery(
+    grpc::CallbackServerContext* /*context*/, const v1::ExportGalleryRequest* request) {
+  return new ExportReactor(&tracker_, *registry_, *request);
+}
+
+grpc::ServerReadReactor<v1::ImportGalleryRequest>* ShapeIdService::ImportGallery(
+    grpc::CallbackServerContext* context, v1::Gallery* response) {
+  return new ImportReactor(context, &tracker_, *registry_, response);
 }
 
 grpc::ServerUnaryReactor* ShapeIdService::ListDescriptors(

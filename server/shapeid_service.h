@@ -44,6 +44,15 @@ class ShapeIdService final : public v1::ShapeId::CallbackService {
   grpc::ServerUnaryReactor* RemoveSamples(grpc::CallbackServerContext* context,
                                           const v1::RemoveSamplesRequest* request,
                                           v1::RemoveSamplesResponse* response) override;
+  // Streams one snapshot of the gallery (server/gallery_export.h), so training during the
+  // export does not tear it; stops at the first failed write (client gone, deadline).
+  grpc::ServerWriteReactor<v1::GalleryExportChunk>* ExportGallery(
+      grpc::CallbackServerContext* context, const v1::ExportGalleryRequest* request) override;
+  // Assembles and checks the export as it arrives (the first error ends the call), then
+  // GalleryRegistry::Import: all-or-nothing.
+  grpc::ServerReadReactor<v1::ImportGalleryRequest>* ImportGallery(
+      grpc::CallbackServerContext* context, v1::Gallery* response) override;
+
   grpc::ServerUnaryReactor* ListDescriptors(grpc::CallbackServerContext* context,
                                             const v1::ListDescriptorsRequest* request,
                                             v1::ListDescriptorsResponse* response) override;

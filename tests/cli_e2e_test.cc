@@ -1,7 +1,7 @@
 // End-to-end: the real `shapeid` CLI against the real shapeid-server on loopback, as a user
 // would run them: make a labelled dataset from meshes with `shapeid views`, create and train a
-// gallery from the folder, batch-classify, evaluate, and check what scripts rely on: JSON
-// that parses, CSV, and every documented exit code.
+// gallery from the folder, batch-classify, evaluate, export and import, and check what scripts
+// rely on: JSON that parses, CSV, and every documented exit code.
 
 #include <unistd.h>
 
@@ -174,6 +174,53 @@ TEST_F(CliE2ETest, ExitCodesAsDocumented) {
   EXPECT_THAT(health.out, StartsWith("SERVING"));
   RunResult describe = Run({"describe", "--gallery", "g", Data("bar/test/view-000.pcd")});
   EXPECT_EQ(describe.exit_code, 0) << describe.err;
+}
+
+TEST_F(CliE2ETest, ExportImportClassifiesAlikeAndATruncatedFileIsRefused) {
+  ASSERT_EQ(Run({"gallery", "create", "orig", "--spec", "rphsd:refs=cross7,bins=10", "--k", "3"})
+                .exit_code,
+            0);
+  ASSERT_EQ(Run({"train", "--gallery", "orig", Data()}).exit_code, 0);
+  const std::string file = WriteTempFile("orig.shapeid", "old contents, replaced");
+  RunResult exported = Run({"gallery", "export", "orig", file, "--format", "json"});
+  ASSERT_EQ(exported.exit_code, 0) << exported.err;
+  EXPECT_EQ(Python(exported.out, "rows[0]['samples'], rows[0]['bytes']"),
+            absl::StrCat("(24, ", fs::file_size(file), ")"));
+
+  RunResult imported = Run({"gallery", "import", file, "--name", "copy"});
+  ASSERT_EQ(imported.exit_code, 0) << imported.err;
+  EXPECT_THAT(imported.out,
+              AllOf(HasSubstr("gallery     copy"), HasSubstr("samples     24 in 3 labels")));
+  // Through a pipe too: export to stdout, import from stdin.
+  const std::string pipe =
+      absl::StrCat(SHAPEID_CLI_PATH, " --server ", server_.address(),
+                   " --quiet gallery export orig - | ", SHAPEID_CLI_PATH, " --server ",
+                   server_.address(), " --quiet gallery import - --name piped", " >/dev/null");
+  ASSERT_EQ(std::system(pipe.c_str()), 0);
+
+  std::string predictions[3];
+  const char* galleries[] = {"orig", "copy", "piped"};
+  for (int g = 0; g < 3; ++g) {
+    RunResult classified = Run({"classify", "--gallery", galleries[g], "--k", "3", "--top", "3",
+                                "--format", "json", Data()});
+    ASSERT_EQ(classified.exit_code, 0) << classified.err;
+    predictions[g] = Python(classified.out,
+                            "[(r['file'], r['label'], [(n['sample_id'], n['distance']) for n in "
+                            "r['neighbors']]) for r in rows]");
+  }
+  EXPECT_THAT(predictions[0], HasSubstr("pyramid"));
+  EXPECT_EQ(predictions[1], predictions[0]);
+  EXPECT_EQ(predictions[2], predictions[0]);
+
+  // Half a file: refused with a clear message, exit 4, and no gallery appears.
+  const std::string whole = Slurp(file);
+  const std::string half = WriteTempFile("half.shapeid", whole.substr(0, whole.size() / 2));
+  RunResult cut = Run({"gallery", "import", half, "--name", "half"});
+  EXPECT_EQ(cut.exit_code, 4);
+  EXPECT_THAT(cut.err, AllOf(HasSubstr("half.shapeid is truncated"), HasSubstr("gallery import")));
+  EXPECT_EQ(Run({"gallery", "show", "half"}).exit_code, 4);
+  RunResult list = Run({"gallery", "list", "--format", "json"});
+  EXPECT_EQ(Python(list.out, "sorted(r['name'] for r in rows)"), "['copy', 'orig', 'piped']");
 }
 
 TEST_F(CliE2ETest, ServerFromTheEnvironment) {

@@ -1,6 +1,6 @@
 // The shapeid commands against an in-process server on a loopback port, on small labelled
 // folders written by the test: what users and scripts rely on (results, formats, exit codes,
-// a batch that keeps going past a bad file, temporary galleries cleaned up).
+// a batch that keeps going past a bad file, temporary galleries cleaned up, export / import).
 
 #include <unistd.h>
 
@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
 #include "client/cli/describe_command.h"
 #include "client/cli/eval_command.h"
@@ -345,6 +346,85 @@ TEST_F(CliCommandsTest, EvalKFoldAndAgainstAGallery) {
   EXPECT_THAT(csv.contents(), AllOf(HasSubstr("box,3,3,"), HasSubstr("rod,3,3,")));
   against.gallery = "nope";
   EXPECT_EQ(RunEval(against, Context()), kExitRefused);
+}
+
+TEST_F(CliCommandsTest, ExportThenImportUnderANewNameClassifiesAlike) {
+  ASSERT_EQ(CreateAndTrain("shapes"), kExitOk) << err_.contents();
+  Captured exported;
+  CliContext context = Context(OutputFormat::kJson);
+  context.out = exported.get();
+  ASSERT_EQ(RunGalleryExport("shapes", Path("shapes.shapeid"), context), kExitOk)
+      << err_.contents();
+  EXPECT_EQ(
+      PythonOnJsonLines(exported.contents(), "[(r[\"samples\"], r[\"bytes\"]) for r in rows]"),
+      absl::StrCat("[(18, ", fs::file_size(Path("shapes.shapeid")), ")]"));
+
+  Captured shown;
+  context = Context();
+  context.out = shown.get();
+  ASSERT_EQ(RunGalleryImport(Path("shapes.shapeid"), "copy", context), kExitOk) << err_.contents();
+  EXPECT_THAT(shown.contents(),
+              AllOf(HasSubstr("gallery     copy"), HasSubstr("samples     18 in 3 labels"),
+                    HasSubstr("made by     descriptor version 1, shapeid "),
+                    ::testing::Not(HasSubstr("UNUSABLE"))));
+
+  std::string answers[2];
+  for (const char* gallery : {"shapes", "copy"}) {
+    ClassifyOptions classify;
+    classify.gallery = gallery;
+    classify.k = 3;
+    classify.paths = {Path("dataset")};
+    Captured csv;
+    context = Context(OutputFormat::kCsv);
+    context.out = csv.get();
+    ASSERT_EQ(RunClassify(classify, context), kExitOk) << err_.contents();
+    // Everything but the timing column.
+    std::string rows;
+    for (absl::string_view line : absl::StrSplit(csv.contents(), '\n')) {
+      std::vector<absl::string_view> fields = absl::StrSplit(line, ',');
+      if (fields.size() > 5) fields.erase(fields.begin() + 5);
+      absl::StrAppend(&rows, absl::StrJoin(fields, ","), "\n");
+    }
+    answers[std::string(gallery) == "copy"] = rows;
+  }
+  EXPECT_EQ(answers[0], answers[1]);
+  EXPECT_THAT(answers[0], HasSubstr("sphere"));
+
+  Captured json;
+  context = Context(OutputFormat::kJson);
+  context.out = json.get();
+  ASSERT_EQ(RunGalleryShow("copy", context), kExitOk);
+  EXPECT_EQ(PythonOnJsonLines(json.contents(),
+                              "[(r[\"descriptor_version\"], bool(r[\"software_version\"]), "
+                              "\"incompatible\" in r) for r in rows]"),
+            "[(1, True, False)]");
+}
+
+TEST_F(CliCommandsTest, ExportAndImportErrorsHaveTheirExitCodes) {
+  ASSERT_EQ(CreateAndTrain("shapes"), kExitOk) << err_.contents();
+  // Export: a missing gallery is refused (and leaves no file), a missing directory is usage.
+  EXPECT_EQ(RunGalleryExport("nope", Path("nope.shapeid"), Context()), kExitRefused);
+  EXPECT_FALSE(fs::exists(Path("nope.shapeid")));
+  EXPECT_EQ(RunGalleryExport("shapes", Path("no/such/dir/g.shapeid"), Context()), kExitUsage);
+  CliContext talkative = Context();
+  talkative.progress = ProgressMode::kAuto;  // the summary line is not --quiet
+  ASSERT_EQ(RunGalleryExport("shapes", Path("g.shapeid"), talkative), kExitOk);
+  EXPECT_THAT(err_.contents(), HasSubstr("exported gallery 'shapes': 18 samples to "));
+
+  // Import: a file that is not there or not an export is usage; the rest are refusals.
+  EXPECT_EQ(RunGalleryImport(Path("missing.shapeid"), "", Context()), kExitUsage);
+  EXPECT_EQ(RunGalleryImport(Path("dataset/box/train/0.pcd"), "", Context()), kExitUsage);
+  EXPECT_THAT(err_.contents(), HasSubstr("0.pcd is not a shapeid gallery export (bad magic)"));
+  EXPECT_EQ(RunGalleryImport(Path("g.shapeid"), "", Context()), kExitRefused);  // "shapes" exists
+  EXPECT_THAT(err_.contents(), HasSubstr("already exists"));
+  const std::string whole = [&] {
+    std::ifstream in(Path("g.shapeid"), std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  }();
+  std::ofstream(Path("half.shapeid"), std::ios::binary) << whole.substr(0, whole.size() / 2);
+  EXPECT_EQ(RunGalleryImport(Path("half.shapeid"), "half", Context()), kExitRefused);
+  EXPECT_THAT(err_.contents(), HasSubstr("half.shapeid is truncated"));
+  EXPECT_EQ(RunGalleryShow("half", Context()), kExitRefused);  // nothing was created
 }
 
 TEST(StratifiedFoldsTest, EveryFoldGetsItsShareOfEveryClassAndTheSeedMatters) {

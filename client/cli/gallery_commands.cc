@@ -6,6 +6,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "client/cli/json.h"
+#include "client/gallery_file.h"
 
 namespace shapeid {
 namespace {
@@ -57,6 +58,40 @@ const std::vector<std::string> kGalleryHeader = {
 const std::vector<bool> kGalleryRightAligned = {false, false, true, true, false,
                                                 false, true,  true, false};
 
+// The gallery as `gallery show` prints it: a summary and its labels (table), one JSON
+// object, or the label counts (csv).
+int PrintGallery(const v1::Gallery& g, const CliContext& context) {
+  if (context.format == OutputFormat::kJson)
+    return Finish(WriteAll(context.out, GalleryJson(g)), context);
+  if (context.format == OutputFormat::kCsv) {
+    Table table{{"label", "count"}, {}, {}};
+    for (const v1::LabelCount& lc : g.label_counts()) {
+      table.rows.push_back({lc.label(), absl::StrCat(lc.count())});
+    }
+    return Finish(PrintRows(table, context), context);
+  }
+  std::string text = absl::StrCat(
+      "gallery     ", g.name(), "\n", "descriptor  ", g.descriptor_spec(), " (", g.dimension(),
+      " values)\n", "knn         k=", g.knn().k(), ", ", WeightingName(g.knn().weighting()),
+      " votes, ", ScalingName(g.knn().scaling()), " scaling\n", "reject      ",
+      g.reject_distance() > 0 ? absl::StrCat("beyond distance ", Number(g.reject_distance()))
+                              : std::string("never (always a label)"),
+      "\n", "samples     ", g.sample_count(), " in ", g.label_counts_size(), " labels\n",
+      "version     ", g.version(), "\n", "created     ", Timestamp(g.create_time()), "\n",
+      "updated     ", Timestamp(g.update_time()), "\n", "made by     descriptor version ",
+      g.descriptor_version(), ", shapeid ", g.software_version(), "\n",
+      g.incompatible().empty() ? std::string()
+                               : absl::StrCat("UNUSABLE    ", g.incompatible(), "\n"));
+  if (g.label_counts_size() > 0) {
+    Table table{{"LABEL", "SAMPLES"}, {}, {false, true}};
+    for (const v1::LabelCount& lc : g.label_counts()) {
+      table.rows.push_back({lc.label(), absl::StrCat(lc.count())});
+    }
+    absl::StrAppend(&text, "\n", RenderTable(table));
+  }
+  return Finish(WriteAll(context.out, text), context);
+}
+
 }  // namespace
 
 std::string ScalingName(v1::FeatureScaling scaling) {
@@ -80,16 +115,20 @@ std::string GalleryJson(const v1::Gallery& g) {
     if (!labels.empty()) labels += ',';
     absl::StrAppend(&labels, "{\"label\":", JsonString(lc.label()), ",\"count\":", lc.count(), "}");
   }
-  return absl::StrCat("{\"name\":", JsonString(g.name()),
-                      ",\"descriptor_spec\":", JsonString(g.descriptor_spec()),
-                      ",\"dimension\":", g.dimension(), ",\"k\":", g.knn().k(),
-                      ",\"weighting\":", JsonString(WeightingName(g.knn().weighting())),
-                      ",\"scaling\":", JsonString(ScalingName(g.knn().scaling())),
-                      ",\"reject_distance\":", JsonNumber(g.reject_distance()),
-                      ",\"sample_count\":", g.sample_count(), ",\"label_counts\":[", labels, "]",
-                      ",\"create_time\":", JsonString(Timestamp(g.create_time())),
-                      ",\"update_time\":", JsonString(Timestamp(g.update_time())),
-                      ",\"version\":", g.version(), "}\n");
+  return absl::StrCat(
+      "{\"name\":", JsonString(g.name()), ",\"descriptor_spec\":", JsonString(g.descriptor_spec()),
+      ",\"dimension\":", g.dimension(), ",\"k\":", g.knn().k(),
+      ",\"weighting\":", JsonString(WeightingName(g.knn().weighting())),
+      ",\"scaling\":", JsonString(ScalingName(g.knn().scaling())),
+      ",\"reject_distance\":", JsonNumber(g.reject_distance()),
+      ",\"sample_count\":", g.sample_count(), ",\"label_counts\":[", labels, "]",
+      ",\"create_time\":", JsonString(Timestamp(g.create_time())),
+      ",\"update_time\":", JsonString(Timestamp(g.update_time())), ",\"version\":", g.version(),
+      ",\"descriptor_version\":", g.descriptor_version(),
+      ",\"software_version\":", JsonString(g.software_version()),
+      g.incompatible().empty() ? std::string()
+                               : absl::StrCat(",\"incompatible\":", JsonString(g.incompatible())),
+      "}\n");
 }
 
 absl::StatusOr<v1::CreateGalleryRequest> CreateGalleryRequestFor(
@@ -170,33 +209,7 @@ int RunGalleryShow(const std::string& name, const CliContext& context) {
                context.client.target);
     return ExitCodeForStatus(gallery.status());
   }
-  const v1::Gallery& g = *gallery;
-  if (context.format == OutputFormat::kJson)
-    return Finish(WriteAll(context.out, GalleryJson(g)), context);
-  if (context.format == OutputFormat::kCsv) {
-    Table table{{"label", "count"}, {}, {}};
-    for (const v1::LabelCount& lc : g.label_counts()) {
-      table.rows.push_back({lc.label(), absl::StrCat(lc.count())});
-    }
-    return Finish(PrintRows(table, context), context);
-  }
-  std::string text = absl::StrCat(
-      "gallery     ", g.name(), "\n", "descriptor  ", g.descriptor_spec(), " (", g.dimension(),
-      " values)\n", "knn         k=", g.knn().k(), ", ", WeightingName(g.knn().weighting()),
-      " votes, ", ScalingName(g.knn().scaling()), " scaling\n", "reject      ",
-      g.reject_distance() > 0 ? absl::StrCat("beyond distance ", Number(g.reject_distance()))
-                              : std::string("never (always a label)"),
-      "\n", "samples     ", g.sample_count(), " in ", g.label_counts_size(), " labels\n",
-      "version     ", g.version(), "\n", "created     ", Timestamp(g.create_time()), "\n",
-      "updated     ", Timestamp(g.update_time()), "\n");
-  if (g.label_counts_size() > 0) {
-    Table table{{"LABEL", "SAMPLES"}, {}, {false, true}};
-    for (const v1::LabelCount& lc : g.label_counts()) {
-      table.rows.push_back({lc.label(), absl::StrCat(lc.count())});
-    }
-    absl::StrAppend(&text, "\n", RenderTable(table));
-  }
-  return Finish(WriteAll(context.out, text), context);
+  return PrintGallery(*gallery, context);
 }
 
 int RunGalleryDelete(const std::string& name, bool missing_ok, const CliContext& context) {
@@ -257,6 +270,84 @@ int RunGalleryRemove(const GalleryRemoveOptions& options, const CliContext& cont
       break;
   }
   return Finish(WriteAll(context.out, text), context);
+}
+
+int RunGalleryExport(const std::string& name, const std::string& file, const CliContext& context) {
+  const std::string what = absl::StrCat("gallery export ", name);
+  std::unique_ptr<Client> client = ConnectOrReport(context);
+  if (client == nullptr) return kExitUsage;
+  absl::StatusOr<std::unique_ptr<GalleryFileWriter>> writer = GalleryFileWriter::Open(file);
+  if (!writer.ok()) {
+    PrintError(context.err, what, writer.status());
+    return kExitUsage;
+  }
+  uint64_t samples = 0;
+  absl::Status file_error;
+  absl::Status status = client->ExportGallery(name, [&](const v1::GalleryExportChunk& chunk) {
+    if (chunk.has_samples()) samples += static_cast<uint64_t>(chunk.samples().sample_ids_size());
+    file_error = (*writer)->Write(chunk);
+    return file_error;
+  });
+  if (status.ok()) status = file_error = (*writer)->Commit();
+  if (!file_error.ok()) {  // the server was fine; the file was not
+    PrintError(context.err, what, file_error);
+    return kExitSomeInputsFailed;
+  }
+  if (!status.ok()) {  // `file` is left as it was
+    PrintError(context.err, what, status, context.client.target);
+    return ExitCodeForStatus(status);
+  }
+  // The summary must not mix with an export written to stdout.
+  std::FILE* out = file == "-" ? context.err : context.out;
+  const std::string shown = file == "-" ? "stdout" : file;
+  const uint64_t bytes = (*writer)->bytes_written();
+  switch (context.format) {
+    case OutputFormat::kJson:
+      return Finish(WriteAll(out, absl::StrCat("{\"name\":", JsonString(name), ",\"file\":",
+                                               JsonString(shown), ",\"samples\":", samples,
+                                               ",\"bytes\":", bytes, "}\n")),
+                    context);
+    case OutputFormat::kCsv:
+      return Finish(
+          WriteAll(out, RenderCsv({{"name", "file", "samples", "bytes"},
+                                   {{name, shown, absl::StrCat(samples), absl::StrCat(bytes)}},
+                                   {}})),
+          context);
+    case OutputFormat::kTable:
+      break;
+  }
+  if (context.progress != ProgressMode::kOff) {
+    WriteAll(context.err, absl::StrCat("exported gallery '", name, "': ", samples, " samples to ",
+                                       shown, " (", bytes, " bytes)\n"));
+  }
+  return kExitOk;
+}
+
+int RunGalleryImport(const std::string& file, const std::string& new_name,
+                     const CliContext& context) {
+  // Errors of the file name it; the server's do not.
+  absl::StatusOr<std::unique_ptr<GalleryFileReader>> reader = GalleryFileReader::Open(file);
+  if (!reader.ok()) {
+    PrintError(context.err, "gallery import", reader.status());
+    return kExitUsage;
+  }
+  std::unique_ptr<Client> client = ConnectOrReport(context);
+  if (client == nullptr) return kExitUsage;
+  bool read_failed = false;
+  absl::StatusOr<v1::Gallery> gallery = client->ImportGallery(
+      [&](v1::GalleryExportChunk* chunk) {
+        absl::StatusOr<bool> more = (*reader)->Next(chunk);
+        read_failed = !more.ok();
+        return more;
+      },
+      new_name);
+  if (!gallery.ok()) {
+    // A damaged file (DATA_LOSS, from the reader or the server) is a refusal too: exit 4.
+    PrintError(context.err, read_failed ? "gallery import" : absl::StrCat("gallery import ", file),
+               gallery.status(), context.client.target);
+    return ExitCodeForStatus(gallery.status());
+  }
+  return PrintGallery(*gallery, context);
 }
 
 int RunDescriptors(const CliContext& context) {

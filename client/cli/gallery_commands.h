@@ -1,7 +1,7 @@
 #ifndef SHAPEID_CLIENT_CLI_GALLERY_COMMANDS_H_
 #define SHAPEID_CLIENT_CLI_GALLERY_COMMANDS_H_
 
-// `shapeid gallery create|list|show|delete|remove`, `shapeid descriptors` and
+// `shapeid gallery create|list|show|delete|remove|export|import`, `shapeid descriptors` and
 // `shapeid health`: one call each to the server, printed as table, json or csv.
 
 #include <cstdint>
@@ -38,6 +38,19 @@ struct GalleryRemoveOptions {
   std::vector<std::string> labels;
 };
 int RunGalleryRemove(const GalleryRemoveOptions& options, const CliContext& context);
+
+// Writes gallery `name` to `file` (client/gallery_file.h; "-": stdout), replacing it only
+// once the whole export has arrived. Table format: "exported gallery 'NAME': N samples to
+// FILE (B bytes)" on stderr unless --quiet; json and csv: the same facts on stdout (on stderr
+// when the export itself goes to stdout). Exit 2 when FILE cannot be created, 1 when it
+// cannot be written, else as ExitCodeForStatus.
+int RunGalleryExport(const std::string& name, const std::string& file, const CliContext& context);
+// Streams `file` ("-": stdin) to the server as a new gallery, named `new_name` or, when
+// empty, as exported; prints it as `gallery show` does. Exit 2 when FILE cannot be opened or
+// is not an export; 4 when the server refuses the import (name taken, another descriptor
+// version) or the export is damaged or truncated, whether the client or the server finds out.
+int RunGalleryImport(const std::string& file, const std::string& new_name,
+                     const CliContext& context);
 
 int RunDescriptors(const CliContext& context);
 

@@ -123,7 +123,7 @@ int main(int argc, char** argv) {
   describe_cmd->footer(shapeid::DescribeHelpFooter());
 
   // gallery create|list|show|delete|remove
-  CLI::App* gallery_cmd = app.add_subcommand("gallery", "Create, list, show and delete galleries");
+  CLI::App* gallery_cmd = app.add_subcommand("gallery", "Create, list, show, delete, export and import galleries");
   gallery_cmd->fallthrough();
   gallery_cmd->require_subcommand(1);
   shapeid::GalleryCreateOptions create;
@@ -151,6 +151,18 @@ int main(int argc, char** argv) {
   remove_cmd->add_option("NAME", remove.name, "Gallery name")->required();
   remove_cmd->add_option("--label", remove.labels, "Remove every sample of this label");
   remove_cmd->add_option("--id", remove.sample_ids, "Remove the sample with this id");
+  std::string gallery_file, import_name;
+  CLI::App* export_cmd = gallery_cmd->add_subcommand(
+      "export", "Write a gallery to a portable file (a backup, or to move it to another server)");
+  export_cmd->fallthrough();
+  export_cmd->add_option("NAME", gallery_name, "Gallery name")->required();
+  export_cmd->add_option("FILE", gallery_file, "File to write ('-': stdout)")->required();
+  CLI::App* import_cmd = gallery_cmd->add_subcommand(
+      "import", "Create a gallery from a file written by 'gallery export'");
+  import_cmd->fallthrough();
+  import_cmd->add_option("FILE", gallery_file, "File to read ('-': stdin)")->required();
+  import_cmd->add_option("--name", import_name,
+                         "Import under this name instead of the exported one");
 
   CLI::App* descriptors_cmd =
       app.add_subcommand("descriptors", "List the server's descriptor kinds and parameters");
@@ -245,6 +257,8 @@ int main(int argc, char** argv) {
   if (*show_cmd) return shapeid::RunGalleryShow(gallery_name, context);
   if (*delete_cmd) return shapeid::RunGalleryDelete(gallery_name, missing_ok, context);
   if (*remove_cmd) return shapeid::RunGalleryRemove(remove, context);
+  if (*export_cmd) return shapeid::RunGalleryExport(gallery_name, gallery_file, context);
+  if (*import_cmd) return shapeid::RunGalleryImport(gallery_file, import_name, context);
   if (*descriptors_cmd) return shapeid::RunDescriptors(context);
   if (*health_cmd) return shapeid::RunHealth(context);
   if (*train_cmd) return shapeid::RunTrain(train, context);

@@ -35,13 +35,17 @@ inline void FeaturesFromBytes(absl::Span<const uint8_t> bytes, std::vector<float
 // GalleryExportTrailer.crc32 in the proto, so a store row and an export agree.
 inline uint32_t SampleCrc32(uint32_t crc, uint64_t id, absl::string_view label,
                             absl::Span<const float> features) {
+  // zlib restarts at 0 when handed a null buffer, whatever the length (an empty label or
+  // span may have a null data()): empty parts are skipped.
+  const auto extend = [](uLong c, const void* data, size_t size) {
+    return size == 0 ? c : crc32_z(c, static_cast<const Bytef*>(data), size);
+  };
   uint8_t id_bytes[8];
   for (int i = 0; i < 8; ++i) id_bytes[i] = static_cast<uint8_t>(id >> (8 * i));
-  uLong c = crc;
-  c = crc32_z(c, id_bytes, sizeof(id_bytes));
-  c = crc32_z(c, reinterpret_cast<const Bytef*>(label.data()), label.size());
+  uLong c = extend(crc, id_bytes, sizeof(id_bytes));
+  c = extend(c, label.data(), label.size());
   const absl::Span<const uint8_t> bytes = FeatureBytes(features);
-  c = crc32_z(c, bytes.data(), bytes.size());
+  c = extend(c, bytes.data(), bytes.size());
   return static_cast<uint32_t>(c);
 }
 

@@ -1,0 +1,277 @@
+#include "server/gallery_export.h"
+
+#include <zlib.h>
+
+#include <algorithm>
+#include <cstring>
+#include <limits>
+#include <string>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "core/status_macros.h"
+#include "server/proto_convert.h"
+#include "server/storage/sample_checksum.h"
+
+// The trailer's CRC covers float32 and the id little-endian; the features are hashed as they
+// lie in memory.
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
+#error "gallery_export.cc hashes floats in memory order: add a byte swap for big-endian hosts"
+#endif
+
+namespace shapeid {
+namespace {
+
+v1::GalleryExportHeader HeaderFor(const std::string& name, const GalleryOptions& options,
+                                  absl::Time created, absl::Time updated,
+                                  uint32_t descriptor_version, const std::string& software_version,
+                                  int dimension, int64_t num_samples) {
+  v1::GalleryExportHeader header;
+  header.set_format_version(kGalleryExportFormatVersion);
+  header.set_name(name);
+  header.set_descriptor_spec(options.descriptor_spec);
+  header.set_dimension(static_cast<uint32_t>(dimension));
+  *header.mutable_knn() = ToProto(options.knn);
+  header.set_reject_distance(options.reject_distance);
+  ToProto(created, header.mutable_create_time());
+  ToProto(updated, header.mutable_update_time());
+  header.set_descriptor_version(descriptor_version);
+  header.set_software_version(software_version);
+  header.set_sample_count(static_cast<uint64_t>(num_samples));
+  return header;
+}
+
+void AppendTo(v1::ExportedSamples* out, uint64_t id, const std::string& label) {
+  out->add_sample_ids(id);
+  out->add_labels(label);
+}
+
+// Serialized bytes one sample adds to an ExportedSamples message, at most: a 10-byte
+// varint id, the label with its tag and length, the packed features.
+size_t SampleBytes(size_t label_bytes, int dimension) {
+  return 10 + 1 + 5 + label_bytes + 4 * static_cast<size_t>(dimension);
+}
+
+}  // namespace
+
+uint32_t ExportCrc(uint32_t crc, uint64_t id, absl::string_view label,
+                   absl::Span<const float> features) {
+  // One definition for store rows and exports, so a stored sample and its export agree.
+  return SampleCrc32(crc, id, label, features);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Export
+
+GalleryExporter::GalleryExporter(std::shared_ptr<const GallerySnapshot> snapshot,
+                                 size_t chunk_bytes)
+    : header_(HeaderFor(snapshot->name(), snapshot->options(), snapshot->created(),
+                        snapshot->updated(), snapshot->descriptor_version(),
+                        snapshot->software_version(), snapshot->dimension(),
+                        snapshot->num_samples())),
+      append_([index = &snapshot->index()](int64_t slot, v1::ExportedSamples* out) {
+        AppendTo(out, index->IdAt(slot), index->LabelAt(slot));
+        const int d = index->dimension();
+        const int old_size = out->features_size();
+        out->mutable_features()->Resize(old_size + d, 0.0f);
+        index->CopyFeatures(slot, out->mutable_features()->mutable_data() + old_size);
+      }),
+      chunk_bytes_(chunk_bytes),
+      keep_alive_(std::move(snapshot)) {}
+
+GalleryExporter::GalleryExporter(StoredGallery gallery, size_t chunk_bytes)
+    : GalleryExporter(std::make_shared<const StoredGallery>(std::move(gallery)), chunk_bytes) {}
+
+GalleryExporter::GalleryExporter(std::shared_ptr<const StoredGallery> gallery, size_t chunk_bytes)
+    : header_(HeaderFor(gallery->name, gallery->options, gallery->created, gallery->updated,
+                        gallery->descriptor_version, gallery->software_version, gallery->dimension,
+                        static_cast<int64_t>(gallery->samples.size()))),
+      append_([samples = &gallery->samples](int64_t slot, v1::ExportedSamples* out) {
+        const StoredSample& sample = (*samples)[static_cast<size_t>(slot)];
+        AppendTo(out, sample.id, sample.label);
+        out->mutable_features()->Add(sample.features.begin(), sample.features.end());
+      }),
+      chunk_bytes_(chunk_bytes),
+      keep_alive_(std::move(gallery)) {}
+
+bool GalleryExporter::Next(v1::GalleryExportChunk* chunk) {
+  chunk->Clear();
+  const auto num_samples = static_cast<int64_t>(header_.sample_count());
+  switch (stage_) {
+    case Stage::kHeader:
+      *chunk->mutable_header() = header_;
+      stage_ = num_samples > 0 ? Stage::kSamples : Stage::kTrailer;
+      return true;
+    case Stage::kSamples:
+      FillSamples(chunk->mutable_samples());
+      if (next_slot_ == num_samples) stage_ = Stage::kTrailer;
+      return true;
+    case Stage::kTrailer:
+      chunk->mutable_trailer()->set_sample_count(header_.sample_count());
+      chunk->mutable_trailer()->set_crc32(crc_);
+      stage_ = Stage::kDone;
+      return true;
+    case Stage::kDone:
+      break;
+  }
+  return false;
+}
+
+void GalleryExporter::FillSamples(v1::ExportedSamples* out) {
+  const auto num_samples = static_cast<int64_t>(header_.sample_count());
+  const int dimension = static_cast<int>(header_.dimension());
+  size_t bytes = 0;
+  while (next_slot_ < num_samples && bytes < chunk_bytes_) {
+    append_(next_slot_, out);
+    const int i = out->sample_ids_size() - 1;
+    const absl::Span<const float> features(out->features().data() + int64_t{i} * dimension,
+                                           static_cast<size_t>(dimension));
+    crc_ = ExportCrc(crc_, out->sample_ids(i), out->labels(i), features);
+    bytes += SampleBytes(out->labels(i).size(), dimension);
+    ++next_slot_;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Import
+
+GalleryImportAssembler::GalleryImportAssembler(int64_t max_samples) : max_samples_(max_samples) {}
+
+absl::Status GalleryImportAssembler::Fail(absl::Status status) {
+  error_ = absl::Status(status.code(), absl::StrCat(status.message(), " (chunk ", chunks_, ")"));
+  return error_;
+}
+
+absl::Status GalleryImportAssembler::Add(const v1::GalleryExportChunk& chunk) {
+  if (!error_.ok()) return error_;
+  absl::Status status;
+  if (finished_) {
+    status = absl::FailedPreconditionError("the import was already finished");
+  } else if (have_trailer_) {
+    status = absl::InvalidArgumentError("a chunk after the trailer, which ends an export");
+  } else {
+    switch (chunk.kind_case()) {
+      case v1::GalleryExportChunk::kHeader:
+        status = AddHeader(chunk.header());
+        break;
+      case v1::GalleryExportChunk::kSamples:
+        status = AddSamples(chunk.samples());
+        break;
+      case v1::GalleryExportChunk::kTrailer:
+        status = AddTrailer(chunk.trailer());
+        break;
+      case v1::GalleryExportChunk::KIND_NOT_SET:
+        status = absl::InvalidArgumentError("a chunk with no header, samples or trailer");
+        break;
+    }
+  }
+  if (!status.ok()) return Fail(std::move(status));
+  ++chunks_;
+  return absl::OkStatus();
+}
+
+absl::Status GalleryImportAssembler::AddHeader(const v1::GalleryExportHeader& header) {
+  if (have_header_) {
+    return absl::InvalidArgumentError("a second header; an export has exactly one, first");
+  }
+  if (header.format_version() != kGalleryExportFormatVersion) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "export format version ", header.format_version(), "; this server reads version ",
+        kGalleryExportFormatVersion, " (export the gallery again with a matching shapeid)"));
+  }
+  if (header.dimension() == 0 ||
+      header.dimension() > static_cast<uint32_t>(std::numeric_limits<int>::max())) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("the header gives dimension ", header.dimension(), "; it must be > 0"));
+  }
+  if (header.sample_count() > static_cast<uint64_t>(max_samples_)) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat("the export holds ", header.sample_count(),
+                     " samples, more than max_samples_per_gallery = ", max_samples_));
+  }
+  absl::StatusOr<KnnOptions> knn = FromProto(header.knn());
+  if (!knn.ok())
+    return absl::InvalidArgumentError(absl::StrCat("header: ", knn.status().message()));
+
+  gallery_.name = header.name();
+  gallery_.options.descriptor_spec = header.descriptor_spec();
+  gallery_.options.knn = *knn;
+  gallery_.options.reject_distance = header.reject_distance();
+  gallery_.created = FromProto(header.create_time());
+  gallery_.updated = FromProto(header.update_time());
+  gallery_.descriptor_version = header.descriptor_version();
+  gallery_.software_version = header.software_version();
+  gallery_.dimension = static_cast<int>(header.dimension());
+  announced_ = header.sample_count();
+  // Not all of it up front: a 100-byte header must not pin megabytes before any sample came.
+  gallery_.samples.reserve(static_cast<size_t>(std::min<uint64_t>(announced_, 1 << 16)));
+  have_header_ = true;
+  return absl::OkStatus();
+}
+
+absl::Status GalleryImportAssembler::AddSamples(const v1::ExportedSamples& samples) {
+  if (!have_header_) {
+    return absl::InvalidArgumentError("samples before the header; an export starts with it");
+  }
+  const auto n = static_cast<uint64_t>(samples.sample_ids_size());
+  const auto dimension = static_cast<uint64_t>(gallery_.dimension);
+  if (static_cast<uint64_t>(samples.labels_size()) != n) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(n, " sample ids but ", samples.labels_size(), " labels"));
+  }
+  if (static_cast<uint64_t>(samples.features_size()) != n * dimension) {
+    return absl::InvalidArgumentError(absl::StrCat(n, " samples of dimension ", dimension, " need ",
+                                                   n * dimension, " features, got ",
+                                                   samples.features_size()));
+  }
+  const auto received = static_cast<uint64_t>(gallery_.samples.size());
+  if (received + n > announced_) {
+    return absl::InvalidArgumentError(absl::StrCat("more samples than the header announced (",
+                                                   announced_, "): ", received + n, " so far"));
+  }
+  for (uint64_t i = 0; i < n; ++i) {
+    StoredSample& sample = gallery_.samples.emplace_back();
+    sample.id = samples.sample_ids(static_cast<int>(i));
+    sample.label = samples.labels(static_cast<int>(i));
+    const float* first = samples.features().data() + i * dimension;
+    sample.features.assign(first, first + dimension);
+    crc_ = ExportCrc(crc_, sample.id, sample.label, sample.features);
+  }
+  return absl::OkStatus();
+}
+
+absl::Status GalleryImportAssembler::AddTrailer(const v1::GalleryExportTrailer& trailer) {
+  if (!have_header_) {
+    return absl::InvalidArgumentError("a trailer before the header; an export starts with it");
+  }
+  const auto received = static_cast<uint64_t>(gallery_.samples.size());
+  if (received != announced_ || trailer.sample_count() != received) {
+    return absl::DataLossError(absl::StrCat("export damaged: the header announced ", announced_,
+                                            " samples, the trailer counts ", trailer.sample_count(),
+                                            ", ", received, " arrived"));
+  }
+  if (trailer.crc32() != crc_) {
+    return absl::DataLossError(absl::StrCat("export damaged: checksum mismatch over the ", received,
+                                            " samples (the trailer says ", trailer.crc32(),
+                                            ", the samples give ", crc_, ")"));
+  }
+  have_trailer_ = true;
+  return absl::OkStatus();
+}
+
+absl::StatusOr<StoredGallery> GalleryImportAssembler::Finish() {
+  if (!error_.ok()) return error_;
+  if (finished_) return absl::FailedPreconditionError("the import was already finished");
+  if (!have_header_) {
+    return absl::InvalidArgumentError("the export is empty: no header arrived");
+  }
+  if (!have_trailer_) {
+    error_ = absl::DataLossError(absl::StrCat("export truncated: ", gallery_.samples.size(), " of ",
+                                              announced_, " samples, no trailer"));
+    return error_;
+  }
+  finished_ = true;
+  return std::move(gallery_);
+}
+
+}  // namespace shapeid

@@ -1,0 +1,290 @@
+// The export stream of a gallery and its assembler: a round trip keeps every bit, chunks stay
+// under their byte budget, the CRC is the one the proto defines, and every malformed or
+// damaged stream fails with the documented code at the first bad chunk.
+
+#include "server/gallery_export.h"
+
+#include <zlib.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "core/descriptor_registry.h"
+#include "core/gallery/gallery.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+
+namespace shapeid {
+namespace {
+
+using ::testing::HasSubstr;
+
+// A gallery with awkward values everywhere a copy could lose them: float bit patterns
+// (negative zero, subnormals, extremes), ids above 2^63, multi-byte labels, nanosecond times.
+StoredGallery OddGallery(int num_samples, int dimension = 21) {
+  StoredGallery g;
+  g.name = "odd.gallery-1";
+  g.options.descriptor_spec = "rphsd:refs=cross7,bins=100,variant=complete";
+  g.options.knn.k = 5;
+  g.options.knn.weighting = VoteWeighting::kDistance;
+  g.options.knn.scaling = FeatureScaling::kZScore;
+  g.options.reject_distance = 0.125;
+  g.created = absl::FromUnixNanos(1'700'000'000'123'456'789);
+  g.updated = absl::FromUnixNanos(1'700'000'100'987'654'321);
+  g.descriptor_version = FindDescriptorKind("rphsd")->version;
+  g.software_version = "0.1.0";
+  g.dimension = dimension;
+  const float odd[] = {-0.0f, std::numeric_limits<float>::denorm_min(),
+                       std::numeric_limits<float>::max(), -1e-38f, 0.1f};
+  for (int i = 0; i < num_samples; ++i) {
+    StoredSample s;
+    s.id = i % 2 == 0 ? static_cast<uint64_t>(i + 1) : kFirstAssignedId + static_cast<uint64_t>(i);
+    s.label = i % 3 == 0 ? "t\xC3\xAA"
+                           "te"
+                         : (i % 3 == 1 ? "box" : "a-long-label-for-a-chair");
+    for (int j = 0; j < dimension; ++j)
+      s.features.push_back(odd[(i + j) % 5] / static_cast<float>(1 + i));
+    g.samples.push_back(std::move(s));
+  }
+  return g;
+}
+
+std::vector<v1::GalleryExportChunk> Export(GalleryExporter& exporter) {
+  std::vector<v1::GalleryExportChunk> chunks;
+  v1::GalleryExportChunk chunk;
+  while (exporter.Next(&chunk)) chunks.push_back(chunk);
+  EXPECT_TRUE(exporter.done());
+  return chunks;
+}
+
+absl::StatusOr<StoredGallery> Assemble(const std::vector<v1::GalleryExportChunk>& chunks,
+                                       int64_t max_samples = 1'000'000) {
+  GalleryImportAssembler assembler(max_samples);
+  for (const auto& chunk : chunks) {
+    if (absl::Status s = assembler.Add(chunk); !s.ok()) return s;
+  }
+  return assembler.Finish();
+}
+
+void ExpectIdentical(const StoredGallery& a, const StoredGallery& b) {
+  EXPECT_EQ(a.name, b.name);
+  EXPECT_EQ(a.options.descriptor_spec, b.options.descriptor_spec);
+  EXPECT_EQ(a.options.knn.k, b.options.knn.k);
+  EXPECT_EQ(a.options.knn.weighting, b.options.knn.weighting);
+  EXPECT_EQ(a.options.knn.scaling, b.options.knn.scaling);
+  EXPECT_EQ(a.options.reject_distance, b.options.reject_distance);
+  EXPECT_EQ(a.created, b.created);
+  EXPECT_EQ(a.updated, b.updated);
+  EXPECT_EQ(a.descriptor_version, b.descriptor_version);
+  EXPECT_EQ(a.software_version, b.software_version);
+  EXPECT_EQ(a.dimension, b.dimension);
+  ASSERT_EQ(a.samples.size(), b.samples.size());
+  for (size_t i = 0; i < a.samples.size(); ++i) {
+    EXPECT_EQ(a.samples[i].id, b.samples[i].id) << i;
+    EXPECT_EQ(a.samples[i].label, b.samples[i].label) << i;
+    ASSERT_EQ(a.samples[i].features.size(), b.samples[i].features.size()) << i;
+    EXPECT_EQ(std::memcmp(a.samples[i].features.data(), b.samples[i].features.data(),
+                          a.samples[i].features.size() * sizeof(float)),
+              0)
+        << "sample " << i << " lost float bits";
+  }
+}
+
+TEST(GalleryExportTest, RoundTripKeepsEveryBitAndTheOrder) {
+  const StoredGallery original = OddGallery(50);
+  GalleryExporter exporter(original, /*chunk_bytes=*/1000);
+  const std::vector<v1::GalleryExportChunk> chunks = Export(exporter);
+  ASSERT_GE(chunks.size(), 4u);
+  EXPECT_TRUE(chunks.front().has_header());
+  EXPECT_EQ(chunks.front().header().format_version(), kGalleryExportFormatVersion);
+  EXPECT_EQ(chunks.front().header().sample_count(), 50u);
+  EXPECT_EQ(chunks.front().header().knn().scaling(), v1::FEATURE_SCALING_ZSCORE);
+  EXPECT_TRUE(chunks.back().has_trailer());
+  EXPECT_EQ(chunks.back().trailer().sample_count(), 50u);
+  const size_t one_sample = chunks[1].samples().ByteSizeLong() /
+                            static_cast<size_t>(chunks[1].samples().sample_ids_size());
+  for (size_t i = 1; i + 1 < chunks.size(); ++i) {
+    ASSERT_TRUE(chunks[i].has_samples()) << i;
+    EXPECT_LE(chunks[i].ByteSizeLong(), 1000 + 2 * one_sample) << "chunk " << i;
+  }
+  absl::StatusOr<StoredGallery> imported = Assemble(chunks);
+  ASSERT_TRUE(imported.ok()) << imported.status();
+  ExpectIdentical(original, *imported);
+}
+
+TEST(GalleryExportTest, DefaultChunksStayFarBelowTheGrpcLimit) {
+  const StoredGallery big = OddGallery(20'000, 81);  // 6.5 MB of features
+  GalleryExporter exporter(big);
+  const std::vector<v1::GalleryExportChunk> chunks = Export(exporter);
+  EXPECT_EQ(chunks.size(), 2u + 7u);  // header, 7 runs of ~1 MiB, trailer
+  for (const auto& chunk : chunks) EXPECT_LT(chunk.ByteSizeLong(), kExportChunkBytes + 1024);
+  absl::StatusOr<StoredGallery> imported = Assemble(chunks);
+  ASSERT_TRUE(imported.ok()) << imported.status();
+  EXPECT_EQ(imported->samples.size(), 20'000u);
+}
+
+TEST(GalleryExportTest, AnEmptyGalleryIsAHeaderAndATrailer) {
+  const StoredGallery empty = OddGallery(0);
+  GalleryExporter exporter(empty);
+  const std::vector<v1::GalleryExportChunk> chunks = Export(exporter);
+  ASSERT_EQ(chunks.size(), 2u);
+  EXPECT_EQ(chunks[1].trailer().crc32(), 0u);
+  absl::StatusOr<StoredGallery> imported = Assemble(chunks);
+  ASSERT_TRUE(imported.ok()) << imported.status();
+  ExpectIdentical(empty, *imported);
+}
+
+TEST(GalleryExportTest, ASnapshotExportsLikeItsStoredForm) {
+  const StoredGallery original = OddGallery(30);
+  auto gallery = Gallery::Restore(original, {}, nullptr);
+  ASSERT_TRUE(gallery.ok()) << gallery.status();
+  ASSERT_EQ((*gallery)->Snapshot()->incompatible(), "");
+  GalleryExporter from_snapshot((*gallery)->Snapshot(), 700);
+  GalleryExporter from_stored(original, 700);
+  const auto a = Export(from_snapshot);
+  const auto b = Export(from_stored);
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].SerializeAsString(), b[i].SerializeAsString()) << "chunk " << i;
+  }
+}
+
+TEST(GalleryExportTest, CrcIsZlibsOverIdLabelAndFeaturesLittleEndian) {
+  const float features[] = {1.0f, -2.5f};
+  std::string bytes("\x01\x02\x03\x04\x05\x06\x07\x08", 8);
+  bytes += "ab";
+  bytes.append("\x00\x00\x80\x3f\x00\x00\x20\xc0", 8);
+  const uLong expected =
+      crc32(crc32(0, nullptr, 0), reinterpret_cast<const Bytef*>(bytes.data()), bytes.size());
+  EXPECT_EQ(ExportCrc(0, 0x0807060504030201u, "ab", features), expected);
+  // Chaining sample by sample is one CRC over the concatenation.
+  EXPECT_EQ(ExportCrc(ExportCrc(0, 1, "a", {}), 2, "b", {}),
+            crc32(0, reinterpret_cast<const Bytef*>("\1\0\0\0\0\0\0\0a\2\0\0\0\0\0\0\0b"), 18));
+}
+
+class AssemblerErrorTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    GalleryExporter exporter(OddGallery(12), 300);
+    chunks_ = Export(exporter);
+    ASSERT_GE(chunks_.size(), 5u);  // header, >= 3 sample runs, trailer
+  }
+  absl::Status Error(const std::vector<v1::GalleryExportChunk>& chunks, int64_t max = 1000) {
+    return Assemble(chunks, max).status();
+  }
+  std::vector<v1::GalleryExportChunk> chunks_;
+};
+
+TEST_F(AssemblerErrorTest, OrderOfChunks) {
+  auto samples_first = chunks_;
+  samples_first.erase(samples_first.begin());
+  absl::Status s = Error(samples_first);
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(s.message()),
+              HasSubstr("samples before the header; an export starts with it (chunk 0)"));
+
+  auto two_headers = chunks_;
+  two_headers.insert(two_headers.begin() + 2, chunks_[0]);
+  s = Error(two_headers);
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(s.message()), HasSubstr("a second header"));
+
+  auto after_trailer = chunks_;
+  after_trailer.push_back(chunks_[1]);
+  s = Error(after_trailer);
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(s.message()), HasSubstr("after the trailer"));
+
+  EXPECT_EQ(Error({}).code(), absl::StatusCode::kInvalidArgument);
+  auto blank = chunks_;
+  blank[1].Clear();
+  EXPECT_THAT(std::string(Error(blank).message()),
+              HasSubstr("no header, samples or trailer (chunk 1)"));
+}
+
+TEST_F(AssemblerErrorTest, HeaderChecks) {
+  auto version = chunks_;
+  version[0].mutable_header()->set_format_version(2);
+  absl::Status s = Error(version);
+  EXPECT_EQ(s.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(std::string(s.message()), HasSubstr("export format version 2"));
+
+  auto no_dimension = chunks_;
+  no_dimension[0].mutable_header()->set_dimension(0);
+  EXPECT_EQ(Error(no_dimension).code(), absl::StatusCode::kInvalidArgument);
+
+  auto bad_enum = chunks_;
+  bad_enum[0].mutable_header()->mutable_knn()->set_scaling(static_cast<v1::FeatureScaling>(9));
+  s = Error(bad_enum);
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(s.message()), HasSubstr("feature scaling 9"));
+
+  s = Error(chunks_, /*max=*/11);
+  EXPECT_EQ(s.code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_THAT(std::string(s.message()), HasSubstr("12 samples"));
+}
+
+TEST_F(AssemblerErrorTest, SampleCounts) {
+  auto labels = chunks_;
+  labels[1].mutable_samples()->mutable_labels()->RemoveLast();
+  EXPECT_THAT(std::string(Error(labels).message()), HasSubstr("labels (chunk 1)"));
+
+  auto features = chunks_;
+  features[2].mutable_samples()->mutable_features()->RemoveLast();
+  absl::Status s = Error(features);
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(s.message()), HasSubstr("features, got"));
+
+  auto more = chunks_;
+  more.insert(more.begin() + 1, chunks_[1]);
+  s = Error(more);
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(s.message()), HasSubstr("more samples than the header announced (12)"));
+}
+
+TEST_F(AssemblerErrorTest, DamageAndTruncationAreDataLoss) {
+  auto flipped = chunks_;
+  float& f = *flipped[2].mutable_samples()->mutable_features()->Mutable(3);
+  uint32_t bits;
+  std::memcpy(&bits, &f, 4);
+  bits ^= 1;  // one bit, still a finite float
+  std::memcpy(&f, &bits, 4);
+  absl::Status s = Error(flipped);
+  EXPECT_EQ(s.code(), absl::StatusCode::kDataLoss);
+  EXPECT_THAT(std::string(s.message()), HasSubstr("export damaged: checksum mismatch"));
+
+  auto missing_run = chunks_;
+  missing_run.erase(missing_run.begin() + 2);
+  s = Error(missing_run);
+  EXPECT_EQ(s.code(), absl::StatusCode::kDataLoss);
+  EXPECT_THAT(std::string(s.message()), HasSubstr("the header announced 12 samples"));
+
+  auto truncated = chunks_;
+  truncated.resize(2);
+  const int64_t first_run = chunks_[1].samples().sample_ids_size();
+  s = Error(truncated);
+  EXPECT_EQ(s.code(), absl::StatusCode::kDataLoss);
+  EXPECT_EQ(s.message(),
+            absl::StrCat("export truncated: ", first_run, " of 12 samples, no trailer"));
+}
+
+TEST_F(AssemblerErrorTest, TheFirstErrorSticksAndFinishRunsOnce) {
+  GalleryImportAssembler assembler(1000);
+  const absl::Status first = assembler.Add(chunks_[1]);
+  ASSERT_FALSE(first.ok());
+  EXPECT_EQ(assembler.Add(chunks_[0]), first);
+  EXPECT_EQ(assembler.Finish().status(), first);
+
+  GalleryImportAssembler ok(1000);
+  for (const auto& chunk : chunks_) ASSERT_TRUE(ok.Add(chunk).ok());
+  EXPECT_EQ(ok.num_samples(), 12);
+  ASSERT_TRUE(ok.Finish().ok());
+  EXPECT_EQ(ok.Finish().status().code(), absl::StatusCode::kFailedPrecondition);
+}
+
+}  // namespace
+}  // namespace shapeid
