@@ -5,6 +5,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -65,10 +66,18 @@ class GalleryRegistry {
   const GalleryLimits limits_;
   const std::shared_ptr<GalleryStore> store_;
 
-  // std::mutex, not absl::Mutex: see Gallery. Held across store calls so that the store
-  // sees creates and deletes of one name in order; they are rare and cheap in memory.
+  // Publishes a validated new gallery: reserves the name, saves it to the store without the
+  // lock, then publishes. `verb` and `exists_hint` shape the error messages.
+  absl::StatusOr<std::shared_ptr<Gallery>> Add(std::shared_ptr<Gallery> gallery,
+                                               const StoredGallery& stored, absl::string_view verb,
+                                               absl::string_view exists_hint);
+
+  // std::mutex, not absl::Mutex: see Gallery. Not held while a new gallery is written to the
+  // store (pending_ reserves its name); held across a delete's store call, which is a rename.
   mutable std::mutex mu_;
   std::map<std::string, std::shared_ptr<Gallery>, std::less<>> galleries_ ABSL_GUARDED_BY(mu_);
+  // Names being created or imported: taken, but not yet published.
+  std::set<std::string, std::less<>> pending_ ABSL_GUARDED_BY(mu_);
 };
 
 }  // namespace shapeid

@@ -1,6 +1,9 @@
 #include "core/gallery/gallery_registry.h"
 
+#include <condition_variable>
 #include <memory>
+#include <mutex>
+#include <thread>
 #include <string>
 #include <vector>
 
@@ -203,6 +206,63 @@ TEST(GalleryRegistryTest, ImportAddsAWholeGalleryInOneStoreWrite) {
   other.name = "third";
   EXPECT_EQ(target.Import(other).status(), absl::ResourceExhaustedError("disk full"));
   EXPECT_THAT(target.List(), ElementsAre("copy"));
+}
+
+// A store whose SaveGallery waits until released: a large import being written.
+class SlowSaveStore final : public GalleryStore {
+ public:
+  absl::Status SaveGallery(const StoredGallery& gallery) override {
+    {
+      std::unique_lock<std::mutex> lock(mu_);
+      saving_ = true;
+      cv_.notify_all();
+      cv_.wait(lock, [&] { return released_; });
+    }
+    return inner_.SaveGallery(gallery);
+  }
+  absl::Status DeleteGallery(absl::string_view name) override { return inner_.DeleteGallery(name); }
+  absl::Status AppendSamples(absl::string_view name, absl::Span<const StoredSample> batch,
+                             absl::Time updated) override {
+    return inner_.AppendSamples(name, batch, updated);
+  }
+  absl::Status RemoveSamples(absl::string_view name, absl::Span<const uint64_t> ids,
+                             absl::Time updated) override {
+    return inner_.RemoveSamples(name, ids, updated);
+  }
+  absl::StatusOr<std::vector<StoredGallery>> LoadAll() override { return inner_.LoadAll(); }
+
+  void WaitUntilSaving() {
+    std::unique_lock<std::mutex> lock(mu_);
+    cv_.wait(lock, [&] { return saving_; });
+  }
+  void Release() {
+    std::lock_guard<std::mutex> lock(mu_);
+    released_ = true;
+    cv_.notify_all();
+  }
+
+ private:
+  InMemoryGalleryStore inner_;
+  std::mutex mu_;
+  std::condition_variable cv_;
+  bool saving_ = false;
+  bool released_ = false;
+};
+
+TEST(GalleryRegistryTest, ASlowStoreWriteBlocksNeitherLookupsNorOtherNames) {
+  auto slow_store = std::make_shared<SlowSaveStore>();
+  GalleryRegistry slow({}, slow_store);
+  std::thread creator([&] { EXPECT_TRUE(slow.Create("big", {}).ok()); });
+  slow_store->WaitUntilSaving();
+  // While "big" is being written: lookups answer (they would hang if the registry's lock were
+  // held across the write), the name is taken, and it is not listed yet.
+  EXPECT_EQ(slow.Get("big").status().code(), absl::StatusCode::kNotFound);
+  EXPECT_THAT(slow.List(), IsEmpty());
+  EXPECT_EQ(slow.Create("big", {}).status().code(), absl::StatusCode::kAlreadyExists);
+  EXPECT_EQ(slow.Delete("big").code(), absl::StatusCode::kNotFound);
+  slow_store->Release();
+  creator.join();
+  EXPECT_THAT(slow.List(), ElementsAre("big"));
 }
 
 }  // namespace
