@@ -1,6 +1,7 @@
 #ifndef SHAPEID_SERVER_STORAGE_SQLITE_GALLERY_STORE_H_
 #define SHAPEID_SERVER_STORAGE_SQLITE_GALLERY_STORE_H_
 
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -102,6 +103,10 @@ class SqliteGalleryStore final : public GalleryStore {
   absl::Status CheckWritable(absl::string_view what) const;
 
   absl::StatusOr<std::shared_ptr<OpenGallery>> Find(absl::string_view name) const;
+  // The one write path of AppendSamples and RemoveSamples: `change` and the gallery row's
+  // update time in one transaction; errors say "cannot <what> gallery 'NAME'".
+  absl::Status ChangeSamples(absl::string_view name, absl::string_view what, absl::Time updated,
+                             const std::function<absl::Status(OpenGallery&)>& change);
   // Verifies and reads one gallery file (LoadFile adds "is damaged" to SQLite's reports).
   absl::StatusOr<StoredGallery> LoadFile(const std::string& name, std::shared_ptr<OpenGallery>* out);
   absl::StatusOr<StoredGallery> ReadFile(const std::string& name, std::shared_ptr<OpenGallery>* out);
