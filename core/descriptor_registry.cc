@@ -4,6 +4,7 @@
 #include "absl/strings/str_join.h"
 #include "core/descriptors/cnsd.h"
 #include "core/descriptors/comsd.h"
+#include "core/descriptors/dfsd.h"
 #include "core/descriptors/rphsd.h"
 #include "core/status_macros.h"
 
@@ -14,6 +15,7 @@ const std::vector<DescriptorKind>& RegisteredDescriptors() {
       RphsdKind(),
       ComsdKind(),
       CnsdKind(),
+      DfsdKind(),
   };
   return *kinds;
 }

@@ -1,6 +1,8 @@
 #include "core/descriptor_spec.h"
 
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 
 #include "absl/strings/ascii.h"
 #include "absl/strings/numbers.h"
@@ -151,6 +153,16 @@ absl::StatusOr<std::string> SpecParams::Choice(
   }
   return absl::InvalidArgumentError(absl::StrCat(spec_.kind, ": ", key, "=", *text,
                                                  " is not one of ", absl::StrJoin(choices, ", ")));
+}
+
+std::string FormatSpecNumber(double value) {
+  if (value == 0) value = 0;  // no "-0"
+  char buffer[32];
+  for (int precision = 1; precision <= 17; ++precision) {
+    std::snprintf(buffer, sizeof(buffer), "%.*g", precision, value);
+    if (std::strtod(buffer, nullptr) == value) break;
+  }
+  return buffer;
 }
 
 }  // namespace shapeid

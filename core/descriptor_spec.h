@@ -37,6 +37,10 @@ struct DescriptorSpec {
   }
 };
 
+// The shortest text that reads back as exactly `value` (%.Ng with the least N), never "-0":
+// the canonical form of a real-valued parameter.
+std::string FormatSpecNumber(double value);
+
 // Typed access to a spec whose parameters have all been checked against the kind's schema
 // and filled with defaults. Every error names the kind, the parameter and the bad value.
 class SpecParams {

@@ -31,6 +31,8 @@ struct Avx2Ops {
   static Vec Sub(Vec a, Vec b) { return _mm256_sub_ps(a, b); }
   static Vec Mul(Vec a, Vec b) { return _mm256_mul_ps(a, b); }
   static Vec Max(Vec a, Vec b) { return _mm256_max_ps(a, b); }
+  static Vec Min(Vec a, Vec b) { return _mm256_min_ps(a, b); }
+  static void Store(float* p, Vec v) { _mm256_storeu_ps(p, v); }
   static Vec Sqrt(Vec a) { return _mm256_sqrt_ps(a); }
   static IVec Truncate(Vec a) { return _mm256_cvttps_epi32(a); }  // toward zero
   // 32-bit integer lanes; int32_t and uint32_t arrays alike.
@@ -71,6 +73,8 @@ struct Avx512Ops {
   static Vec Sub(Vec a, Vec b) { return _mm512_sub_ps(a, b); }
   static Vec Mul(Vec a, Vec b) { return _mm512_mul_ps(a, b); }
   static Vec Max(Vec a, Vec b) { return _mm512_max_ps(a, b); }
+  static Vec Min(Vec a, Vec b) { return _mm512_min_ps(a, b); }
+  static void Store(float* p, Vec v) { _mm512_storeu_ps(p, v); }
   static Vec Sqrt(Vec a) { return _mm512_sqrt_ps(a); }
   static IVec Truncate(Vec a) { return _mm512_cvttps_epi32(a); }
   static IVec Set1I(uint32_t v) { return _mm512_set1_epi32(static_cast<int>(v)); }

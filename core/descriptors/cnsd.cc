@@ -48,16 +48,6 @@ namespace shapeid {
 namespace cnsd_internal {
 namespace {
 
-std::string FormatDouble(double value) {
-  if (value == 0) value = 0;  // no "-0"
-  char buffer[32];
-  for (int precision = 1; precision <= 17; ++precision) {
-    std::snprintf(buffer, sizeof(buffer), "%.*g", precision, value);
-    if (std::strtod(buffer, nullptr) == value) break;
-  }
-  return buffer;
-}
-
 }  // namespace
 
 std::vector<double> Thresholds(double t_start, double t_end, double t_step) {
@@ -205,14 +195,14 @@ absl::StatusOr<std::unique_ptr<Descriptor>> CreateCnsd(const DescriptorSpec& fil
                            params.Int("seed", 0, std::numeric_limits<int64_t>::max()));
   if (t_start > t_end) {
     return absl::InvalidArgumentError(
-        absl::StrCat("cnsd: t_start=", cnsd_internal::FormatDouble(t_start),
-                     " is greater than t_end=", cnsd_internal::FormatDouble(t_end)));
+        absl::StrCat("cnsd: t_start=", FormatSpecNumber(t_start),
+                     " is greater than t_end=", FormatSpecNumber(t_end)));
   }
   std::vector<double> thresholds = cnsd_internal::Thresholds(t_start, t_end, t_step);
   DescriptorSpec canonical{"cnsd",
-                           {{"t_start", cnsd_internal::FormatDouble(t_start)},
-                            {"t_end", cnsd_internal::FormatDouble(t_end)},
-                            {"t_step", cnsd_internal::FormatDouble(t_step)},
+                           {{"t_start", FormatSpecNumber(t_start)},
+                            {"t_end", FormatSpecNumber(t_end)},
+                            {"t_step", FormatSpecNumber(t_step)},
                             {"max_points", absl::StrCat(max_points)},
                             {"downsample", downsample},
                             {"seed", absl::StrCat(seed)}}};

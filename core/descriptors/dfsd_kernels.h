@@ -1,0 +1,41 @@
+#ifndef SHAPEID_CORE_DESCRIPTORS_DFSD_KERNELS_H_
+#define SHAPEID_CORE_DESCRIPTORS_DFSD_KERNELS_H_
+
+// The DFSD hot loop: the squared distance from every cell centre of a G^3 grid to the nearest
+// point of the cloud. Internal to core; exposed for tests and benchmarks that compare SIMD
+// levels.
+
+#include <cstddef>
+
+#include "core/simd.h"
+
+namespace shapeid::dfsd_internal {
+
+// Points are stored structure-of-arrays, padded to a multiple of this many lanes so every SIMD
+// level loads whole vectors. Padding entries hold kFarSquared, which no real point exceeds
+// (coordinates are normalised to [-1, 1]), so padding never wins a minimum.
+inline constexpr size_t kPointLanes = 16;
+inline constexpr float kFarSquared = 1e30f;
+
+// The grid is separable: |c - p|^2 = (c_x - p_x)^2 + (c_y - p_y)^2 + (c_z - p_z)^2, and the
+// cell centres take only G values per axis. So the caller tabulates, per axis a and centre
+// coordinate u_i, the squared differences to every point once (G * n values per axis), and
+// a cell costs two additions and a minimum per point instead of a full distance.
+struct FieldInput {
+  // Row i (0 <= i < grid) of each table starts at i * stride: (u_i - p_a)^2 for every point
+  // p, then kFarSquared up to the stride.
+  const float* dx2 = nullptr;
+  const float* dy2 = nullptr;
+  const float* dz2 = nullptr;
+  size_t stride = 0;  // padded point count, a positive multiple of kPointLanes
+  int grid = 0;       // G
+};
+
+// out[(i * G + j) * G + k] = min over points p of (dx2[i][p] + dy2[j][p]) + dz2[k][p], in
+// that float order on every level. Minima are exact, so all levels give identical bits.
+// `level` must not exceed DetectedSimdLevel().
+void NearestSquaredDistances(const FieldInput& input, float* out, SimdLevel level);
+
+}  // namespace shapeid::dfsd_internal
+
+#endif  // SHAPEID_CORE_DESCRIPTORS_DFSD_KERNELS_H_

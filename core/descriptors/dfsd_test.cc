@@ -1,0 +1,273 @@
+#include "core/descriptors/dfsd.h"
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "Eigen/Geometry"
+#include "absl/status/status.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "core/descriptor.h"
+#include "core/descriptor_registry.h"
+#include "core/descriptors/dfsd_kernels.h"
+#include "core/point_cloud.h"
+#include "core/simd.h"
+#include "core/testing/test_clouds.h"
+
+namespace shapeid {
+namespace {
+
+using ::testing::HasSubstr;
+using dfsd_internal::Frequency;
+using dfsd_internal::KeptFrequencies;
+
+std::unique_ptr<Descriptor> MustCreate(const std::string& spec) {
+  absl::StatusOr<std::unique_ptr<Descriptor>> d = CreateDescriptor(spec);
+  EXPECT_TRUE(d.ok()) << spec << ": " << d.status();
+  return d.ok() ? std::move(d).value() : nullptr;
+}
+
+std::vector<float> MustCompute(const Descriptor& d, const PointCloud& cloud) {
+  absl::StatusOr<std::vector<float>> v = d.Compute(cloud);
+  EXPECT_TRUE(v.ok()) << v.status();
+  return v.ok() ? *v : std::vector<float>{};
+}
+
+// A cloud with three different spreads and skewed along its first two principal axes, so its
+// principal frame is well defined (what the pca frame needs to be stable).
+PointCloud SkewedCloud(size_t n, uint32_t seed) {
+  const PointCloud base = testing_clouds::UniformCloud(n, seed);
+  PointCloud cloud;
+  for (size_t i = 0; i < base.size(); ++i) {
+    const Eigen::Vector3f p = base.point(i);
+    const float y = 0.25f * (p.y() + 2) * (p.y() + 2) - 2;  // skewed towards -y
+    const float x = 0.5f * (p.x() + 1) * (p.x() + 1) - 1;   // skewed towards -x
+    cloud.Add(x, y, p.z());
+  }
+  return cloud;
+}
+
+PointCloud Transformed(const PointCloud& cloud, const Eigen::Matrix3f& rotation,
+                       const Eigen::Vector3f& shift, float scale) {
+  PointCloud out;
+  for (size_t i = 0; i < cloud.size(); ++i) out.Add(scale * (rotation * cloud.point(i)) + shift);
+  return out;
+}
+
+// The definition, straight from docs/descriptors.md section 4, in double: every cell against
+// every point, then the full triple sum of the DCT. Axes frame.
+std::vector<double> ReferenceDfsd(const PointCloud& cloud, int g, int order, bool isotropic_first,
+                                  int fields) {
+  Eigen::Vector3d lo = cloud.point(0).cast<double>(), hi = lo;
+  for (size_t p = 0; p < cloud.size(); ++p) {
+    lo = lo.cwiseMin(cloud.point(p).cast<double>());
+    hi = hi.cwiseMax(cloud.point(p).cast<double>());
+  }
+  const Eigen::Vector3d centre = 0.5 * (lo + hi), half = 0.5 * (hi - lo);
+  std::vector<double> out;
+  for (int f = 0; f < fields; ++f) {
+    const bool isotropic = f == 0 ? isotropic_first : !isotropic_first;
+    Eigen::Vector3d scale;
+    for (int a = 0; a < 3; ++a) scale[a] = 1.0 / (isotropic ? half.maxCoeff() : half[a]);
+    std::vector<double> field(static_cast<size_t>(g) * g * g);
+    for (int i = 0; i < g; ++i) {
+      for (int j = 0; j < g; ++j) {
+        for (int k = 0; k < g; ++k) {
+          const Eigen::Vector3d c((2.0 * i + 1) / g - 1, (2.0 * j + 1) / g - 1, (2.0 * k + 1) / g - 1);
+          double best = 1e300;
+          for (size_t p = 0; p < cloud.size(); ++p) {
+            const Eigen::Vector3d v = (cloud.point(p).cast<double>() - centre).cwiseProduct(scale);
+            best = std::min(best, (v - c).norm());
+          }
+          field[(static_cast<size_t>(i) * g + j) * g + k] = std::sqrt(best) / std::pow(g, 1.5);
+        }
+      }
+    }
+    const auto basis = [g](int freq, int i) {
+      return std::sqrt((freq == 0 ? 1.0 : 2.0) / g) * std::cos(M_PI * (2 * i + 1) * freq / (2.0 * g));
+    };
+    for (const Frequency& q : KeptFrequencies(g, order)) {
+      double sum = 0;
+      for (int i = 0; i < g; ++i) {
+        for (int j = 0; j < g; ++j) {
+          for (int k = 0; k < g; ++k) {
+            sum += field[(static_cast<size_t>(i) * g + j) * g + k] * basis(q.a, i) *
+                   basis(q.b, j) * basis(q.c, k);
+          }
+        }
+      }
+      out.push_back(sum);
+    }
+  }
+  return out;
+}
+
+TEST(DfsdTest, DefaultSpecIsCanonicalAndHas240Values) {
+  auto d = MustCreate("dfsd");
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(d->spec().ToString(), "dfsd:grid=12,order=8,frame=axes,fields=both,size=0");
+  EXPECT_EQ(d->dimension(), 240u);
+  EXPECT_EQ(MustCreate("dfsd:fields=isotropic")->dimension(), 120u);
+  EXPECT_EQ(MustCreate("dfsd:size=0.15")->dimension(), 243u);
+  EXPECT_EQ(MustCreate("dfsd:size=0.150")->spec().ToString(),
+            "dfsd:grid=12,order=8,frame=axes,fields=both,size=0.15");
+}
+
+TEST(DfsdTest, KeptFrequenciesAreTheLowPassInOrder) {
+  const std::vector<Frequency> kept = KeptFrequencies(12, 8);
+  ASSERT_EQ(kept.size(), 120u);  // C(8 + 2, 3)
+  EXPECT_EQ(kept[0].a + kept[0].b + kept[0].c, 0);
+  for (size_t q = 1; q < kept.size(); ++q) {
+    const int prev = kept[q - 1].a + kept[q - 1].b + kept[q - 1].c;
+    const int cur = kept[q].a + kept[q].b + kept[q].c;
+    EXPECT_LE(prev, cur);
+    EXPECT_LT(cur, 8);
+  }
+  // An order past what the grid holds keeps every frequency exactly once.
+  EXPECT_EQ(KeptFrequencies(4, 10).size(), 64u);
+  EXPECT_EQ(KeptFrequencies(5, 3).size(), 10u);
+}
+
+TEST(DfsdTest, MatchesTheDefinitionComputedInDouble) {
+  const PointCloud cloud = SkewedCloud(300, 7);
+  for (const auto& [spec, isotropic_first, fields] :
+       std::vector<std::tuple<std::string, bool, int>>{
+           {"dfsd:grid=6,order=5", true, 2},
+           {"dfsd:grid=7,order=19,fields=anisotropic", false, 1},
+           {"dfsd:grid=5,order=1,fields=isotropic", true, 1}}) {
+    SCOPED_TRACE(spec);
+    auto d = MustCreate(spec);
+    ASSERT_NE(d, nullptr);
+    const std::vector<float> got = MustCompute(*d, cloud);
+    const int g = std::stoi(d->spec().Find("grid")->c_str());
+    const int order = std::stoi(d->spec().Find("order")->c_str());
+    const std::vector<double> want = ReferenceDfsd(cloud, g, order, isotropic_first, fields);
+    ASSERT_EQ(got.size(), want.size());
+    for (size_t q = 0; q < want.size(); ++q) EXPECT_NEAR(got[q], want[q], 2e-6) << q;
+  }
+}
+
+TEST(DfsdTest, EverySimdLevelGivesTheSameBits) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(0.0f, 4.0f);
+  for (int g : {4, 5, 7, 12}) {
+    for (size_t n : {size_t{3}, size_t{16}, size_t{37}}) {
+      const size_t stride = (n + dfsd_internal::kPointLanes - 1) / dfsd_internal::kPointLanes *
+                            dfsd_internal::kPointLanes;
+      std::vector<float> tables(3 * g * stride, dfsd_internal::kFarSquared);
+      for (int a = 0; a < 3 * g; ++a) {
+        for (size_t p = 0; p < n; ++p) tables[a * stride + p] = u(rng);
+      }
+      dfsd_internal::FieldInput in;
+      in.dx2 = tables.data();
+      in.dy2 = in.dx2 + g * stride;
+      in.dz2 = in.dy2 + g * stride;
+      in.stride = stride;
+      in.grid = g;
+      std::vector<float> scalar(g * g * g), vector(g * g * g);
+      dfsd_internal::NearestSquaredDistances(in, scalar.data(), SimdLevel::kScalar);
+      // Spot check against the plain definition.
+      EXPECT_EQ(scalar[0], [&] {
+        float m = dfsd_internal::kFarSquared;
+        for (size_t p = 0; p < n; ++p) m = std::min(m, (in.dx2[p] + in.dy2[p]) + in.dz2[p]);
+        return m;
+      }());
+      for (SimdLevel level : {SimdLevel::kAvx2, SimdLevel::kAvx512}) {
+        if (level > DetectedSimdLevel()) continue;
+        dfsd_internal::NearestSquaredDistances(in, vector.data(), level);
+        EXPECT_EQ(0, std::memcmp(scalar.data(), vector.data(), scalar.size() * sizeof(float)))
+            << "grid " << g << " points " << n << " level " << SimdLevelName(level);
+      }
+    }
+  }
+}
+
+TEST(DfsdTest, AxesFrameIgnoresPointOrderShiftAndScaleButNotRotation) {
+  auto d = MustCreate("dfsd");
+  const PointCloud cloud = SkewedCloud(1024, 11);
+  const std::vector<float> base = MustCompute(*d, cloud);
+  PointCloud reversed;
+  for (size_t i = cloud.size(); i-- > 0;) reversed.Add(cloud.point(i));
+  EXPECT_EQ(MustCompute(*d, reversed), base);  // minima and box do not depend on order
+  const std::vector<float> moved = MustCompute(
+      *d, Transformed(cloud, Eigen::Matrix3f::Identity(), Eigen::Vector3f(5, -3, 2), 4.0f));
+  for (size_t q = 0; q < base.size(); ++q) EXPECT_NEAR(moved[q], base[q], 1e-5) << q;
+  const Eigen::Matrix3f turn =
+      Eigen::AngleAxisf(0.7f, Eigen::Vector3f(1, 2, 3).normalized()).toRotationMatrix();
+  const std::vector<float> turned =
+      MustCompute(*d, Transformed(cloud, turn, Eigen::Vector3f::Zero(), 1.0f));
+  double diff = 0;
+  for (size_t q = 0; q < base.size(); ++q) diff += std::abs(turned[q] - base[q]);
+  EXPECT_GT(diff, 1e-2);
+}
+
+TEST(DfsdTest, PcaFrameIsRotationInvariant) {
+  auto pca = MustCreate("dfsd:frame=pca");
+  const PointCloud cloud = SkewedCloud(1024, 5);
+  const std::vector<float> base = MustCompute(*pca, cloud);
+  std::mt19937 rng(9);
+  std::normal_distribution<float> g;
+  for (int trial = 0; trial < 5; ++trial) {
+    const Eigen::Quaternionf q(g(rng), g(rng), g(rng), g(rng));
+    const std::vector<float> turned = MustCompute(
+        *pca, Transformed(cloud, q.normalized().toRotationMatrix(), Eigen::Vector3f(1, 2, 3), 2));
+    for (size_t k = 0; k < base.size(); ++k) EXPECT_NEAR(turned[k], base[k], 2e-4) << k;
+  }
+}
+
+TEST(DfsdTest, SizeBlockCarriesTheLogExtentsLargestFirst) {
+  auto d = MustCreate("dfsd:size=0.5");
+  const PointCloud cloud = testing_clouds::UniformCloud(2000, 1);  // extents ~2, 4, 1
+  const std::vector<float> small = MustCompute(*d, cloud);
+  const std::vector<float> large =
+      MustCompute(*d, Transformed(cloud, Eigen::Matrix3f::Identity(), Eigen::Vector3f::Zero(), 3));
+  const size_t n = small.size();
+  ASSERT_EQ(n, 243u);
+  EXPECT_NEAR(small[n - 3], 0.5 * std::log(4.0), 0.01);
+  EXPECT_NEAR(small[n - 2], 0.5 * std::log(2.0), 0.01);
+  EXPECT_NEAR(small[n - 1], 0.5 * std::log(1.0), 0.01);
+  for (size_t q = 0; q < n - 3; ++q) EXPECT_NEAR(large[q], small[q], 1e-5);
+  for (size_t q = n - 3; q < n; ++q) EXPECT_NEAR(large[q] - small[q], 0.5 * std::log(3.0), 1e-5);
+}
+
+TEST(DfsdTest, FlatAndStraightCloudsGiveFiniteValues) {
+  PointCloud flat, line;
+  for (int i = 0; i < 50; ++i) {
+    flat.Add(static_cast<float>(i % 7), static_cast<float>(i / 7), 0.0f);
+    line.Add(static_cast<float>(i), 0.0f, 0.0f);
+  }
+  for (const char* spec : {"dfsd:size=1", "dfsd:frame=pca,size=1"}) {
+    auto d = MustCreate(spec);
+    for (const PointCloud* cloud : {&flat, &line}) {
+      for (float v : MustCompute(*d, *cloud)) ASSERT_TRUE(std::isfinite(v)) << spec;
+    }
+  }
+}
+
+TEST(DfsdTest, BadParametersAndCloudsAreRefusedByName) {
+  for (const auto& [spec, fragment] : std::vector<std::pair<std::string, std::string>>{
+           {"dfsd:grid=3", "grid"},
+           {"dfsd:grid=33", "grid"},
+           {"dfsd:order=0", "order"},
+           {"dfsd:grid=4,order=11", "order"},
+           {"dfsd:frame=world", "frame"},
+           {"dfsd:fields=all", "fields"},
+           {"dfsd:size=-1", "size"},
+           {"dfsd:size=nan", "size"}}) {
+    absl::StatusOr<std::unique_ptr<Descriptor>> d = CreateDescriptor(spec);
+    ASSERT_FALSE(d.ok()) << spec;
+    EXPECT_EQ(d.status().code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_THAT(d.status().message(), HasSubstr(fragment)) << spec;
+  }
+  auto d = MustCreate("dfsd");
+  EXPECT_EQ(d->Compute(PointCloud{{0, 0, 0}, {1, 1, 1}}).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+}  // namespace
+}  // namespace shapeid
