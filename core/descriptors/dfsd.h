@@ -1,7 +1,7 @@
 #ifndef SHAPEID_CORE_DESCRIPTORS_DFSD_H_
 #define SHAPEID_CORE_DESCRIPTORS_DFSD_H_
 
-// DFSD, the Distance-Field Spectrum Shape Descriptor (docs/descriptors.md section 4): how far
+// DFSD, the Distance-Field Spectrum Shape Descriptor (docs/descriptors.md section 5): how far
 // each cell of a G^3 grid over the object lies from its nearest point, seen through the
 // low-frequency end of a 3D cosine transform. Not from the dissertation: shapeid's own
 // descriptor, measured against the dissertation's on the same protocol in docs/accuracy.md.

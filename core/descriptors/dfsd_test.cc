@@ -59,7 +59,7 @@ PointCloud Transformed(const PointCloud& cloud, const Eigen::Matrix3f& rotation,
   return out;
 }
 
-// The definition, straight from docs/descriptors.md section 4, in double: every cell against
+// The definition, straight from docs/descriptors.md section 5, in double: every cell against
 // every point, then the full triple sum of the DCT. Axes frame.
 std::vector<double> ReferenceDfsd(const PointCloud& cloud, int g, int order, bool isotropic_first,
                                   int fields) {
