@@ -184,6 +184,8 @@ BENCHMARK_CAPTURE(DescribeBench, comsd_n50_100k, std::string("comsd:grid=50"), 1
     ->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(DescribeBench, cnsd_default_8k, std::string("cnsd"), 8000)
     ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(DescribeBench, dfsd_default_100k, std::string("dfsd"), 100000)
+    ->Unit(benchmark::kMillisecond);
 // Per-cloud time on real ModelNet10 clouds (1,024 points): the first 10 test files of each
 // class from ../shared/data, described in turn. Where the data is absent, synthetic
 // 1,024-point clouds stand in and the label says so.
@@ -244,6 +246,9 @@ BENCHMARK_CAPTURE(ModelNetCloudBench, rphsd_reduced_cross7_m10,
     ->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(ModelNetCloudBench, comsd, std::string("comsd"))->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(ModelNetCloudBench, cnsd, std::string("cnsd"))->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(ModelNetCloudBench, dfsd, std::string("dfsd"))->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(ModelNetCloudBench, dfsd_pca, std::string("dfsd:frame=pca"))
+    ->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace shapeid
