@@ -10,7 +10,7 @@ namespace {
 
 using ::testing::HasSubstr;
 
-TEST(DescriptorRegistryTest, OffersTheThreeSeedDescriptorsWithDocumentedParameters) {
+TEST(DescriptorRegistryTest, OffersTheSeedDescriptorsAndDfsdWithDocumentedParameters) {
   std::set<std::string> kinds;
   for (const DescriptorKind& kind : RegisteredDescriptors()) {
     kinds.insert(kind.kind);
@@ -21,7 +21,7 @@ TEST(DescriptorRegistryTest, OffersTheThreeSeedDescriptorsWithDocumentedParamete
     }
     EXPECT_EQ(FindDescriptorKind(kind.kind), &kind);
   }
-  EXPECT_EQ(kinds, (std::set<std::string>{"rphsd", "comsd", "cnsd"}));
+  EXPECT_EQ(kinds, (std::set<std::string>{"rphsd", "comsd", "cnsd", "dfsd"}));
   EXPECT_EQ(FindDescriptorKind("esf"), nullptr);
 }
 

@@ -226,9 +226,12 @@ class InteropTest(unittest.TestCase):
     def test_list_descriptors_has_every_kind_with_defaults(self):
         reply = self.stub.ListDescriptors(pb.ListDescriptorsRequest(), timeout=CALL_TIMEOUT)
         kinds = {d.kind: d for d in reply.descriptors}
-        self.assertEqual(set(kinds), {"rphsd", "comsd", "cnsd"})
+        self.assertEqual(set(kinds), {"rphsd", "comsd", "cnsd", "dfsd"})
         self.assertEqual(kinds["rphsd"].default_spec, "rphsd:refs=cubic27,bins=100,variant=complete")
         self.assertEqual(kinds["rphsd"].default_dimension, 81)
+        self.assertEqual(kinds["dfsd"].default_spec,
+                         "dfsd:grid=12,order=8,frame=axes,fields=both,size=0")
+        self.assertEqual(kinds["dfsd"].default_dimension, 240)
         self.assertEqual(kinds["comsd"].default_spec, "comsd:grid=50")
         self.assertEqual(kinds["comsd"].default_dimension, 91)
         self.assertEqual(kinds["cnsd"].default_spec,
