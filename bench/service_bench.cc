@@ -1,6 +1,6 @@
 // Service speed (issue 3, "Speed"): Classify latency and throughput through a real gRPC server
-// on a loopback TCP port, against a 4,000-sample gallery of the default spec (rphsd, cubic27,
-// M = 100), and the same work in-process for the RPC overhead ratio.
+// on a loopback TCP port, against a 4,000-sample gallery of one spec (--spec; default the
+// server's default, dfsd), and the same work in-process for the RPC overhead ratio.
 //
 //   service_bench                 full run (~30 s): single-client latency, in-process latency,
 //                                 1 / 4 / 16 concurrent clients (shared channel and one
@@ -398,11 +398,13 @@ LoadResult Load(const std::string& address, const std::vector<Query>& queries, i
 
 // ----------------------------------------------------------------------------- setup
 
-bool CreateAndTrain(v1::ShapeId::Stub& stub, const std::vector<Sample>& train, int streams) {
+bool CreateAndTrain(v1::ShapeId::Stub& stub, const std::string& spec,
+                    const std::vector<Sample>& train, int streams) {
   {
     grpc::ClientContext context;
     v1::CreateGalleryRequest request;
-    request.set_name(kGalleryName);  // default spec: rphsd (cubic27, M = 100), k = 1
+    request.set_name(kGalleryName);  // k = 1
+    request.set_descriptor_spec(spec);  // empty: the server's default
     v1::Gallery gallery;
     const grpc::Status status = stub.CreateGallery(&context, request, &gallery);
     if (!status.ok()) {
@@ -462,6 +464,8 @@ int Run(int argc, char** argv) {
   std::string write_mode_name = "plain";
   app.add_option("--data", data_dir, "ModelNet10 folder with <class>/{train,test}/*.pcd")->capture_default_str();
   app.add_flag("--quick", quick, "tiny numbers for a CI smoke (~2 s)");
+  std::string spec;
+  app.add_option("--spec", spec, "descriptor spec of the gallery (default: the server's default)");
   app.add_option("--seconds", seconds, "duration of each concurrent-load run")->capture_default_str();
   app.add_option("--gallery_size", gallery_size, "samples in the gallery")->capture_default_str();
   app.add_option("--clouds", num_clouds, "distinct query clouds (cycled)")->capture_default_str();
@@ -503,14 +507,16 @@ int Run(int argc, char** argv) {
   auto channel = MakeChannel(server->address(), false);
   auto stub = v1::ShapeId::NewStub(channel);
   const auto train_start = Clock::now();
-  if (!CreateAndTrain(*stub, data.train, train_streams)) return 1;
+  if (!CreateAndTrain(*stub, spec, data.train, train_streams)) return 1;
   std::printf("trained %zu samples over %d Train streams on %s in %.2f s\n", data.train.size(),
               train_streams, server->address().c_str(),
               std::chrono::duration<double>(Clock::now() - train_start).count());
 
   // The in-process twin: an identical gallery (same spec, same samples in the same order).
   GalleryRegistry registry(options.gallery_limits);
-  auto gallery = registry.Create(kGalleryName, GalleryOptions{});
+  GalleryOptions gallery_options;
+  if (!spec.empty()) gallery_options.descriptor_spec = spec;
+  auto gallery = registry.Create(kGalleryName, gallery_options);
   if (!gallery.ok()) {
     std::fprintf(stderr, "%s\n", gallery.status().ToString().c_str());
     return 1;

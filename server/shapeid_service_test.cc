@@ -110,14 +110,14 @@ TEST_F(ShapeIdServiceTest, DescribeOverChunksEqualsInProcessBitForBit) {
   }
 }
 
-TEST_F(ShapeIdServiceTest, DescribeDefaultsToRphsd) {
+TEST_F(ShapeIdServiceTest, DescribeDefaultsToDfsd) {
   const PointCloud cloud = BlobCloud(500, 2);
   std::vector<v1::DescribeRequest> messages = {Header("")};
   for (auto& chunk : Chunks(cloud, 500)) messages.push_back(chunk);
   v1::DescribeResponse response;
   ASSERT_TRUE(DescribeStream(messages, &response).ok());
-  EXPECT_EQ(response.descriptor_spec(), "rphsd:refs=cubic27,bins=100,variant=complete");
-  EXPECT_EQ(response.values_size(), 81);
+  EXPECT_EQ(response.descriptor_spec(), "dfsd:grid=12,order=8,frame=axes,fields=both,size=0");
+  EXPECT_EQ(response.values_size(), 240);
 }
 
 TEST_F(ShapeIdServiceTest, EveryMalformedStreamGetsAPreciseError) {

@@ -26,8 +26,7 @@ struct GalleryOptions {
   // Descriptor spec text (core/descriptor_spec.h), e.g. "rphsd:bins=50". Canonicalised at
   // creation through the registry (every parameter present, defaults filled), so two
   // galleries with equal canonical specs compute identical descriptors. Default
-  // kDefaultDescriptorSpec ("rphsd"): the published descriptor, 81 floats per cloud with its
-  // defaults.
+  // kDefaultDescriptorSpec ("dfsd"): 240 floats per cloud with its defaults.
   std::string descriptor_spec = kDefaultDescriptorSpec;
 
   // Neighbours, vote weighting and feature scaling (core/knn/knn_options.h). Default k = 1,

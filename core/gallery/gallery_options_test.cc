@@ -63,7 +63,7 @@ TEST(ValidateLabelTest, RejectsEmptyLongInvalidAndReserved) {
 
 TEST(ValidateGalleryOptionsTest, DefaultsAreValid) {
   const GalleryOptions options;
-  EXPECT_EQ(options.descriptor_spec, "rphsd");
+  EXPECT_EQ(options.descriptor_spec, "dfsd");
   EXPECT_EQ(options.knn.k, 1);
   EXPECT_EQ(options.reject_distance, 0.0);
   EXPECT_TRUE(ValidateGalleryOptions(options).ok());

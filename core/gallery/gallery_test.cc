@@ -57,10 +57,10 @@ std::vector<LabelledCloud> ThreeShapes() {
 TEST(GalleryTest, CreateCanonicalisesTheSpec) {
   auto g = MakeGallery();
   auto snap = g->Snapshot();
-  auto expected = CreateDescriptor("rphsd");
+  auto expected = CreateDescriptor(kDefaultDescriptorSpec);
   ASSERT_TRUE(expected.ok());
   EXPECT_EQ(snap->options().descriptor_spec, (*expected)->spec().ToString());
-  EXPECT_NE(snap->options().descriptor_spec, "rphsd");  // parameters filled in
+  EXPECT_NE(snap->options().descriptor_spec, kDefaultDescriptorSpec);  // parameters filled in
   EXPECT_EQ(snap->index().dimension(), static_cast<int>((*expected)->dimension()));
   EXPECT_EQ(snap->name(), "shapes");
   EXPECT_EQ(snap->version(), 0u);
@@ -504,7 +504,7 @@ TEST(GalleryTest, IncompatibleDescriptorLoadsButRefusesWork) {
   ASSERT_TRUE(restored.ok()) << restored.status();
   const auto snap = (*restored)->Snapshot();
   EXPECT_THAT(snap->incompatible(),
-              AllOf(HasSubstr("rphsd version"), HasSubstr("9.9.9"), HasSubstr("not comparable")));
+              AllOf(HasSubstr("dfsd version"), HasSubstr("9.9.9"), HasSubstr("not comparable")));
   EXPECT_EQ(snap->num_samples(), 9);  // nothing dropped
   EXPECT_EQ(snap->Classify(Box(3)).status().code(), absl::StatusCode::kFailedPrecondition);
   auto train = (*restored)->Train({{0, "box", Box(3)}});
