@@ -427,20 +427,5 @@ TEST_F(CliCommandsTest, ExportAndImportErrorsHaveTheirExitCodes) {
   EXPECT_EQ(RunGalleryShow("half", Context()), kExitRefused);  // nothing was created
 }
 
-TEST(StratifiedFoldsTest, EveryFoldGetsItsShareOfEveryClassAndTheSeedMatters) {
-  std::vector<LabelledFile> files;
-  for (int i = 0; i < 10; ++i) files.push_back({absl::StrCat("a", i), "a"});
-  for (int i = 0; i < 5; ++i) files.push_back({absl::StrCat("b", i), "b"});
-  const std::vector<int> folds = StratifiedFolds(files, 5, 42);
-  std::vector<int> a(5, 0), b(5, 0);
-  for (size_t i = 0; i < files.size(); ++i) (files[i].label == "a" ? a : b)[folds[i]]++;
-  for (int f = 0; f < 5; ++f) {
-    EXPECT_EQ(a[f], 2);
-    EXPECT_EQ(b[f], 1);
-  }
-  EXPECT_EQ(StratifiedFolds(files, 5, 42), folds);
-  EXPECT_NE(StratifiedFolds(files, 5, 43), folds);
-}
-
 }  // namespace
 }  // namespace shapeid

@@ -1,13 +1,15 @@
 #ifndef SHAPEID_CLIENT_CLI_EVAL_COMMAND_H_
 #define SHAPEID_CLIENT_CLI_EVAL_COMMAND_H_
 
-// `shapeid eval`: how often the server is right on a labelled folder.
+// `shapeid eval`: how often the classifier is right on a labelled folder.
 //   eval --gallery G --test DIR   classify DIR's clouds against an existing gallery
 //   eval DIR                      DIR/<label>/{train,test}: train a temporary gallery on the
 //                                 train clouds, classify the test clouds (hold-out)
 //   eval --folds K DIR            DIR/<label>/: stratified K-fold cross-validation, seeded,
 //                                 one temporary gallery per fold
-// Temporary galleries are deleted afterwards, also when the evaluation fails.
+// On a server (the default) temporary galleries are deleted afterwards, also when the
+// evaluation fails. With `local` the same rounds run in this process on core galleries
+// (eval_local.h): no server, the same descriptors and kNN, so the same predictions.
 
 #include <cstdint>
 #include <string>
@@ -15,6 +17,7 @@
 #include "client/cli/batch.h"
 #include "client/cli/cli_common.h"
 #include "client/cli/eval_metrics.h"
+#include "client/cli/eval_rounds.h"
 #include "client/cli/gallery_commands.h"
 #include "client/cli/input_files.h"
 
@@ -28,17 +31,20 @@ struct EvalOptions {
   // Settings of the temporary galleries (ignored with --gallery): spec, k, weighting,
   // scaling, reject distance. `k` also overrides the gallery's k when testing.
   GalleryCreateOptions create;
+  // Train and classify in this process, no server. Incompatible with `gallery` (a usage
+  // error). `batch.jobs` is then the number of threads describing clouds.
+  bool local = false;
   std::string report_html;        // write the HTML report here
   bool with_predictions = false;  // json: include every prediction
   BatchOptions batch;
 };
 
+// Runs the evaluation and prints it (context.format) and, if asked, the HTML report. Usage
+// errors (bad options, folder, spec with `local`) are found before any file is read. Returns
+// kExitOk; kExitSomeInputsFailed when a file failed (one line on stderr each; the evaluation
+// goes on without it) or the output could not be written; kExitUsage; or, when the server
+// refuses or no training file of a round can be used, ExitCodeForStatus of that error.
 int RunEval(const EvalOptions& options, const CliContext& context);
-
-// Stratified fold assignment: within each label, files are shuffled with `seed`
-// (Fisher-Yates over splitmix64, the same on every platform) and dealt round-robin into
-// `folds` folds, so each fold holds ~1/folds of every class. Returns the fold of each file.
-std::vector<int> StratifiedFolds(const std::vector<LabelledFile>& files, int folds, uint64_t seed);
 
 }  // namespace shapeid
 

@@ -58,7 +58,7 @@ void AddBatchFlags(CLI::App* command, shapeid::BatchOptions* batch) {
 
 void AddGalleryKnobs(CLI::App* command, shapeid::GalleryCreateOptions* create) {
   command->add_option("--spec", create->spec,
-                      "Descriptor spec, KIND[:param=value,...] (default: the server's, rphsd)");
+                      "Descriptor spec, KIND[:param=value,...] (default: the server's, dfsd)");
   command->add_option("--k", create->k, "Neighbours that vote (default 1)")
       ->check(CLI::Range(1u, 1000000u));
   command->add_option("--weighting", create->weighting, "Votes: uniform or distance")
@@ -109,7 +109,7 @@ int main(int argc, char** argv) {
   describe_cmd->add_flag("--local", describe.local,
                          "Compute in this process instead of on the server");
   describe_cmd->add_option("--spec", describe.spec,
-                           "Descriptor spec: KIND[:param=value,...] (default rphsd)");
+                           "Descriptor spec: KIND[:param=value,...] (default dfsd)");
   describe_cmd->add_option("--gallery", describe.gallery,
                            "Describe with this gallery's spec (server only)");
   describe_cmd->add_flag("--drop-nonfinite", describe.drop_non_finite,
@@ -208,7 +208,10 @@ int main(int argc, char** argv) {
       "eval", "Accuracy on a labelled folder: hold-out, k-fold, or against a gallery");
   eval_cmd->fallthrough();
   eval_cmd->add_option("--gallery,-g", eval.gallery,
-                       "Test against this existing gallery (no training)");
+                       "Test against this existing gallery (no training; server only)");
+  eval_cmd->add_flag("--local", eval.local,
+                     "Train and classify in this process on temporary galleries: no server, "
+                     "the same results; --jobs threads");
   eval_cmd
       ->add_option("--test,DIR", eval.dataset,
                    "Labelled folder: <label>/{train,test}/ (hold-out) or <label>/ "
@@ -229,7 +232,15 @@ int main(int argc, char** argv) {
       "  eval DIR                      DIR/<label>/{train,test}/: train a temporary gallery, test\n"
       "  eval --folds K DIR            DIR/<label>/: stratified K-fold, a temporary gallery per "
       "fold\n"
-      "Temporary galleries take --spec/--k/--weighting/--scaling and are deleted afterwards.\n");
+      "Temporary galleries take --spec/--k/--weighting/--scaling/--reject-distance and are\n"
+      "deleted afterwards.\n"
+      "\n"
+      "--local runs the hold-out or k-fold rounds in this process with the server's own gallery\n"
+      "code (no server needed): the same predictions, --jobs threads describing clouds,\n"
+      "samples added in file order; without --spec, this build's default descriptor. Not with\n"
+      "--gallery.\n"
+      "  shapeid eval --local --spec rphsd ../shared/data/modelnet10\n"
+      "  shapeid eval --local --folds 5 --report report.html dataset/\n");
 
   // views
   shapeid::ViewsOptions views;

@@ -1,0 +1,123 @@
+// `shapeid eval` on a server and in-process (--local) side by side: the same folder and
+// options must give the same output, every prediction included, except for the timings.
+// The server runs in this process on a loopback port.
+
+#include "client/cli/eval_command.h"
+
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
+
+#include "absl/strings/str_cat.h"
+#include "client/cli/eval_test_data.h"
+#include "client/cli/gallery_commands.h"
+#include "core/descriptor_registry.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "server/server.h"
+
+namespace shapeid {
+namespace {
+
+namespace fs = std::filesystem;
+using eval_testing::Captured;
+using eval_testing::WithoutTimes;
+using ::testing::HasSubstr;
+using ::testing::Not;
+
+// In z-scored rphsd:bins=20 space, nearest-neighbour distances of these clouds straddle it.
+constexpr double kRejectDistance = 3.0;
+
+class EvalCommandTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ServerOptions server_options;
+    server_options.listen = "127.0.0.1:0";
+    auto server = ShapeIdServer::Start(server_options);
+    ASSERT_TRUE(server.ok()) << server.status();
+    server_ = std::move(server).value();
+    root_ = eval_testing::ScratchDir("eval_command");
+  }
+  void TearDown() override {
+    if (server_) server_->Shutdown(absl::ZeroDuration());
+    fs::remove_all(root_);
+  }
+
+  CliContext Context(Captured& out, Captured& err) {
+    CliContext context;
+    context.out = out.get();
+    context.err = err.get();
+    context.format = OutputFormat::kJson;
+    context.progress = ProgressMode::kOff;
+    context.client.target = server_->address();
+    return context;
+  }
+
+  // Runs `eval` on the server, then with --local, and returns both JSON outputs. The server
+  // trains on one stream at a time, so that its galleries hold the samples in file order as
+  // the local ones do (the kNN tie-break order, and the order of z-score's sums).
+  struct Both {
+    std::string server, local;
+  };
+  Both ServerThenLocal(EvalOptions eval, int expected_exit = kExitOk) {
+    Both both;
+    eval.with_predictions = true;
+    Captured server_out, server_err, local_out, local_err;
+    eval.local = false;
+    eval.batch.jobs = 1;
+    EXPECT_EQ(RunEval(eval, Context(server_out, server_err)), expected_exit)
+        << server_err.contents();
+    eval.local = true;
+    eval.batch.jobs = 3;
+    EXPECT_EQ(RunEval(eval, Context(local_out, local_err)), expected_exit) << local_err.contents();
+    both.server = server_out.contents();
+    both.local = local_out.contents();
+    return both;
+  }
+
+  std::unique_ptr<ShapeIdServer> server_;
+  fs::path root_;
+};
+
+TEST_F(EvalCommandTest, HoldOutGivesTheServersPredictionsForEveryFile) {
+  eval_testing::WriteLabelledDataset(root_ / "split", /*split=*/true, /*per_label=*/15);
+  EvalOptions eval;
+  eval.dataset = (root_ / "split").string();
+  eval.create.spec = "rphsd:refs=cross7,bins=10";
+  const Both both = ServerThenLocal(eval);
+  EXPECT_THAT(both.local, HasSubstr("\"mode\":\"holdout\""));
+  EXPECT_THAT(both.local, HasSubstr("\"tests\":15,"));
+  EXPECT_THAT(both.local, Not(HasSubstr("\"correct\":15,")));  // mistakes to agree on
+  EXPECT_EQ(WithoutTimes(both.local), WithoutTimes(both.server));
+}
+
+TEST_F(EvalCommandTest, KFoldWithEveryKnobGivesTheServersPredictions) {
+  eval_testing::WriteLabelledDataset(root_ / "flat", /*split=*/false, /*per_label=*/12);
+  // A bad file in each: both count it once per round it is in, in the same order.
+  std::ofstream((root_ / "flat/sphere/broken.pcd").string()) << "not a pcd file\n";
+  EvalOptions eval;
+  eval.dataset = (root_ / "flat").string();
+  eval.folds = 3;
+  eval.seed = 11;
+  eval.create.spec = "rphsd:refs=cubic27,bins=20";
+  eval.create.k = 5;
+  eval.create.weighting = "distance";
+  eval.create.scaling = "zscore";
+  eval.create.reject_distance = kRejectDistance;
+  const Both both = ServerThenLocal(eval, kExitSomeInputsFailed);
+  EXPECT_THAT(both.local, HasSubstr("\"mode\":\"kfold\""));
+  EXPECT_THAT(both.local, HasSubstr("\"predicted\":\"unknown\""));  // some are rejected
+  EXPECT_THAT(both.local, HasSubstr("broken.pcd\",\""));            // in more than one round
+  EXPECT_EQ(WithoutTimes(both.local), WithoutTimes(both.server));
+
+  // The same with the server's defaults for every knob.
+  eval.create = GalleryCreateOptions();
+  const Both defaults = ServerThenLocal(eval, kExitSomeInputsFailed);
+  EXPECT_THAT(defaults.local,
+              HasSubstr(absl::StrCat("\"descriptor_spec\":\"", kDefaultDescriptorSpec)));
+  EXPECT_EQ(WithoutTimes(defaults.local), WithoutTimes(defaults.server));
+}
+
+}  // namespace
+}  // namespace shapeid

@@ -1,0 +1,171 @@
+// `shapeid eval --local`: the evaluation in this process, no server anywhere. Hold-out and
+// k-fold on a small labelled folder, every output format, answers that do not depend on the
+// number of threads, bad files counted, and the usage errors.
+
+#include "client/cli/eval_local.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+
+#include "client/cli/eval_command.h"
+#include "client/cli/eval_test_data.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+
+namespace shapeid {
+namespace {
+
+namespace fs = std::filesystem;
+using eval_testing::Captured;
+using eval_testing::WithoutTimes;
+using ::testing::AllOf;
+using ::testing::HasSubstr;
+using ::testing::Not;
+using ::testing::StartsWith;
+
+class EvalLocalTest : public ::testing::Test {
+ protected:
+  void SetUp() override { root_ = eval_testing::ScratchDir("eval_local"); }
+  void TearDown() override { fs::remove_all(root_); }
+
+  // Nothing listens at this address: a local evaluation must not need it.
+  CliContext Context(Captured& out, OutputFormat format = OutputFormat::kJson) {
+    CliContext context;
+    context.out = out.get();
+    context.err = err_.get();
+    context.format = format;
+    context.progress = ProgressMode::kOff;
+    context.client.target = "127.0.0.1:1";
+    return context;
+  }
+  EvalOptions Local(const std::string& dataset) {
+    EvalOptions eval;
+    eval.local = true;
+    eval.dataset = (root_ / dataset).string();
+    eval.create.spec = "rphsd:refs=cross7,bins=10";
+    eval.with_predictions = true;
+    return eval;
+  }
+
+  fs::path root_;
+  Captured err_;
+};
+
+TEST_F(EvalLocalTest, HoldOutInEveryFormatWithoutAServer) {
+  eval_testing::WriteLabelledDataset(root_ / "split", /*split=*/true);
+  EvalOptions eval = Local("split");
+  eval.report_html = (root_ / "report.html").string();
+  Captured json;
+  ASSERT_EQ(RunEval(eval, Context(json)), kExitOk) << err_.contents();
+  const std::string text = json.contents();
+  // 9 clouds per label: 6 train, 3 test.
+  EXPECT_THAT(text, AllOf(StartsWith("{\"mode\":\"holdout\""),
+                          HasSubstr("\"descriptor_spec\":\"rphsd:refs=cross7,bins=10,"),
+                          HasSubstr("\"k\":1,\"folds\":1,"), HasSubstr("\"tests\":9,"),
+                          HasSubstr("\"train_samples\":18,"), HasSubstr("\"failed_files\":[]"),
+                          HasSubstr("\"predictions\":[{\"file\":")));
+  // Times are measured: the predictions' own describe + classify, and both phases.
+  EXPECT_THAT(text, Not(HasSubstr("\"median_call_seconds\":0,")));
+  EXPECT_THAT(text, Not(HasSubstr("\"train_seconds\":0,")));
+  EXPECT_THAT(text, Not(HasSubstr("\"test_seconds\":0,")));
+  std::ifstream html(eval.report_html);
+  const std::string page((std::istreambuf_iterator<char>(html)), std::istreambuf_iterator<char>());
+  EXPECT_THAT(page, AllOf(HasSubstr("<html"), HasSubstr("holdout"), HasSubstr("sphere")));
+
+  Captured table, csv;
+  eval.report_html.clear();
+  ASSERT_EQ(RunEval(eval, Context(table, OutputFormat::kTable)), kExitOk);
+  EXPECT_THAT(table.contents(),
+              AllOf(StartsWith("eval holdout  dataset "), HasSubstr("confusion matrix"),
+                    HasSubstr("training 18 samples")));
+  ASSERT_EQ(RunEval(eval, Context(csv, OutputFormat::kCsv)), kExitOk);
+  EXPECT_THAT(csv.contents(), AllOf(StartsWith("label,tests,correct,recall,precision\n"),
+                                    HasSubstr("\n__overall__,9,")));
+  EXPECT_EQ(err_.contents(), "");
+}
+
+TEST_F(EvalLocalTest, KFoldTestsEveryFileOnceAndTheAnswersDoNotDependOnTheThreads) {
+  eval_testing::WriteLabelledDataset(root_ / "flat", /*split=*/false, /*per_label=*/12);
+  EvalOptions eval = Local("flat");
+  eval.folds = 4;
+  eval.seed = 3;
+  eval.create.k = 3;
+  eval.create.weighting = "distance";
+  eval.batch.jobs = 1;
+  Captured one;
+  ASSERT_EQ(RunEval(eval, Context(one)), kExitOk) << err_.contents();
+  EXPECT_THAT(one.contents(), AllOf(StartsWith("{\"mode\":\"kfold\""),
+                                    HasSubstr("\"k\":3,\"folds\":4,\"seed\":3,\"tests\":36,"),
+                                    HasSubstr("\"train_samples\":108,")));
+  // The label noise makes mistakes: the comparisons below are not between two perfect runs.
+  EXPECT_THAT(one.contents(), Not(HasSubstr("\"correct\":36,")));
+  for (int jobs : {2, 5}) {
+    eval.batch.jobs = jobs;
+    Captured many;
+    ASSERT_EQ(RunEval(eval, Context(many)), kExitOk) << err_.contents();
+    EXPECT_EQ(WithoutTimes(many.contents()), WithoutTimes(one.contents())) << jobs << " jobs";
+  }
+}
+
+TEST_F(EvalLocalTest, ABadFileIsCountedAndTheEvaluationGoesOn) {
+  eval_testing::WriteLabelledDataset(root_ / "split", /*split=*/true);
+  std::ofstream((root_ / "split/box/train/broken.pcd").string()) << "not a pcd file\n";
+  std::ofstream((root_ / "split/rod/test/tiny.xyz").string()) << "0 0 0\n1 1 1\n";  // 2 points
+  EvalOptions eval = Local("split");
+  eval.batch.jobs = 3;
+  Captured json;
+  EXPECT_EQ(RunEval(eval, Context(json)), kExitSomeInputsFailed);
+  const std::string errors = err_.contents();
+  EXPECT_THAT(errors, AllOf(HasSubstr("broken.pcd"), HasSubstr("tiny.xyz")));
+  EXPECT_EQ(std::count(errors.begin(), errors.end(), '\n'), 2) << errors;  // one line each
+  EXPECT_THAT(
+      json.contents(),
+      AllOf(HasSubstr("\"tests\":9,"), HasSubstr("\"train_samples\":18,"),
+            HasSubstr("\"failed_files\":[\"" + (root_ / "split/box/train/broken.pcd").string() +
+                      "\",\"" + (root_ / "split/rod/test/tiny.xyz").string() + "\"]")));
+}
+
+TEST_F(EvalLocalTest, UsageErrorsBeforeAnyFileIsRead) {
+  eval_testing::WriteLabelledDataset(root_ / "split", /*split=*/true);
+  Captured out;
+  EvalOptions eval = Local("split");
+  eval.gallery = "parts";
+  EXPECT_EQ(RunEval(eval, Context(out)), kExitUsage);
+  EXPECT_EQ(err_.contents(),
+            "shapeid: eval: --gallery needs the server; drop --local (or drop --gallery to "
+            "evaluate on temporary in-process galleries)\n");
+
+  eval.gallery.clear();
+  eval.create.spec = "nosuchdescriptor";
+  EXPECT_EQ(RunEval(eval, Context(out)), kExitUsage);
+  EXPECT_THAT(err_.contents(), HasSubstr("nosuchdescriptor"));
+  eval.create.spec.clear();
+  eval.create.scaling = "log";
+  EXPECT_EQ(RunEval(eval, Context(out)), kExitUsage);
+  EXPECT_THAT(err_.contents(), HasSubstr("--scaling \"log\""));
+  eval.create.scaling.clear();
+  eval.folds = 100;
+  EXPECT_EQ(RunEval(eval, Context(out)), kExitUsage);
+  EXPECT_THAT(err_.contents(), HasSubstr("cannot make 100 folds"));
+  EXPECT_EQ(out.contents(), "");
+}
+
+TEST_F(EvalLocalTest, NoUsableTrainingFileStopsTheEvaluation) {
+  for (const char* label : {"a", "b"}) {
+    for (const char* part : {"train", "test"}) {
+      fs::create_directories(root_ / "bad" / label / part);
+      std::ofstream((root_ / "bad" / label / part / "0.xyz").string()) << "0 0 0\n";
+    }
+  }
+  Captured out;
+  EXPECT_EQ(RunEval(Local("bad"), Context(out)), kExitRefused);
+  EXPECT_THAT(err_.contents(),
+              HasSubstr("shapeid: eval: no training file could be used; nothing to evaluate"));
+  EXPECT_EQ(out.contents(), "");
+}
+
+}  // namespace
+}  // namespace shapeid

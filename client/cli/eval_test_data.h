@@ -1,0 +1,86 @@
+#ifndef SHAPEID_CLIENT_CLI_EVAL_TEST_DATA_H_
+#define SHAPEID_CLIENT_CLI_EVAL_TEST_DATA_H_
+
+// Test-only helpers for the `shapeid eval` tests: a scratch folder per process and test, a
+// small labelled dataset a classifier gets partly wrong, captured output streams, and the
+// JSON output with its timings blanked (the one part that differs from run to run).
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <regex>
+#include <string>
+
+#include "absl/strings/str_cat.h"
+#include "core/io/pcd_writer.h"
+#include "core/testing/test_clouds.h"
+#include "gtest/gtest.h"
+
+namespace shapeid::eval_testing {
+
+namespace fs = std::filesystem;
+
+// A fresh folder unique to this process and test (ctest runs tests in parallel processes).
+inline fs::path ScratchDir(const std::string& prefix) {
+  const fs::path dir =
+      fs::path(::testing::TempDir()) /
+      absl::StrCat(prefix, "_", ::getpid(), "_",
+                   ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// DIR/<label>/{train,test}/NN.pcd (split) or DIR/<label>/NN.pcd, `per_label` clouds per label
+// (a third of them test clouds when split), labels box, sphere and rod
+// (testing_clouds::ShapeCloud), 150 to 350 points. Every fourth cloud has the shape of the
+// next label: label noise, so that the predictions include mistakes.
+inline void WriteLabelledDataset(const fs::path& dir, bool split, int per_label = 9) {
+  for (int label = 0; label < 3; ++label) {
+    for (int i = 0; i < per_label; ++i) {
+      fs::path folder = dir / testing_clouds::kShapeNames[label];
+      if (split) folder /= (i % 3 == 2 ? "test" : "train");
+      fs::create_directories(folder);
+      const int shape = i % 4 == 3 ? (label + 1) % 3 : label;
+      const uint32_t seed = static_cast<uint32_t>(100 * label + i + 1);
+      const size_t points = 150 + static_cast<size_t>((37 * i + 11 * label) % 201);
+      const absl::Status written =
+          WritePcd((folder / absl::StrCat(i / 10, i % 10, ".pcd")).string(),
+                   testing_clouds::ShapeCloud(shape, seed, points));
+      ASSERT_TRUE(written.ok()) << written;
+    }
+  }
+}
+
+// A FILE* whose contents tests can read back.
+class Captured {
+ public:
+  Captured() : file_(std::tmpfile()) {}
+  ~Captured() { std::fclose(file_); }
+  Captured(const Captured&) = delete;
+  Captured& operator=(const Captured&) = delete;
+  std::FILE* get() const { return file_; }
+  std::string contents() const {
+    std::fflush(file_);
+    std::rewind(file_);
+    std::string text;
+    char buffer[4096];
+    size_t n;
+    while ((n = std::fread(buffer, 1, sizeof buffer, file_)) > 0) text.append(buffer, n);
+    return text;
+  }
+
+ private:
+  std::FILE* file_;
+};
+
+// `json` with every "...seconds" value replaced by 0: what two equal evaluations share.
+inline std::string WithoutTimes(const std::string& json) {
+  static const std::regex kSeconds(R"re(("[a-z_]*seconds[a-z_]*"):[-+0-9.eE]+)re");
+  return std::regex_replace(json, kSeconds, "$1:0");
+}
+
+}  // namespace shapeid::eval_testing
+
+#endif  // SHAPEID_CLIENT_CLI_EVAL_TEST_DATA_H_
