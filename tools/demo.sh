@@ -117,9 +117,9 @@ address=$(sed -n 's/^listening on //p' "$log" | head -1)
 export SHAPEID_SERVER=$address
 "$shapeid" health
 
-step "Creating gallery 'objects' (RPHSD, the dissertation's descriptor; 1-NN)"
+step "Creating gallery 'objects' (the default descriptor, DFSD; 1-NN)"
 "$shapeid" gallery delete objects --missing-ok >/dev/null
-"$shapeid" gallery create objects --spec rphsd
+"$shapeid" gallery create objects
 
 step "Training: every training view, 4 parallel streams"
 "$shapeid" train --gallery objects --jobs 4 "$views"
@@ -135,9 +135,9 @@ step "Accuracy on the held-out views"
 if [ "$modelnet" = 1 ]; then
   data=$repo/../shared/data/modelnet10
   if [ -d "$data" ]; then
-    step "ModelNet10, official split (3,991 train / 908 test clouds), RPHSD 1-NN"
+    step "ModelNet10, official split (3,991 train / 908 test clouds), DFSD 1-NN"
     "$shapeid" gallery delete modelnet10 --missing-ok >/dev/null
-    "$shapeid" gallery create modelnet10 --spec rphsd >/dev/null
+    "$shapeid" gallery create modelnet10 >/dev/null
     "$shapeid" train --gallery modelnet10 --jobs 4 "$data"
     "$shapeid" eval --gallery modelnet10 --test "$data" --jobs 4 \
       --report "$demo/modelnet10-report.html"
