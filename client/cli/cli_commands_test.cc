@@ -13,6 +13,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
+#include "client/cli/cli_testing.h"
 #include "client/cli/describe_command.h"
 #include "client/cli/eval_command.h"
 #include "client/cli/gallery_commands.h"
@@ -27,31 +28,12 @@ namespace shapeid {
 namespace {
 
 namespace fs = std::filesystem;
+using cli_testing::Captured;
 using ::testing::AllOf;
 using ::testing::HasSubstr;
 using ::testing::StartsWith;
 using testing_clouds::kShapeNames;
 using testing_clouds::ShapeCloud;
-
-// A FILE* whose contents tests can read back.
-class Captured {
- public:
-  Captured() : file_(std::tmpfile()) {}
-  ~Captured() { std::fclose(file_); }
-  std::FILE* get() const { return file_; }
-  std::string contents() const {
-    std::fflush(file_);
-    std::rewind(file_);
-    std::string text;
-    char buffer[4096];
-    size_t n;
-    while ((n = std::fread(buffer, 1, sizeof buffer, file_)) > 0) text.append(buffer, n);
-    return text;
-  }
-
- private:
-  std::FILE* file_;
-};
 
 // JSON Lines output parsed back by Debian's python3, as a script would: returns what the
 // python snippet prints for the parsed list `rows`.
@@ -84,10 +66,7 @@ class CliCommandsTest : public ::testing::Test {
     auto server = ShapeIdServer::Start(server_options);
     ASSERT_TRUE(server.ok()) << server.status();
     server_ = std::move(server).value();
-    root_ = fs::path(::testing::TempDir()) /
-            absl::StrCat("cli_commands_",
-                         ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(root_);
+    root_ = cli_testing::ScratchDir("cli_commands");
     // dataset/<shape>/{train,test}/NN.pcd: 6 train and 3 test clouds per shape.
     for (int kind = 0; kind < 3; ++kind) {
       for (int i = 0; i < 9; ++i) {

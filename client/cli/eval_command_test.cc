@@ -10,7 +10,7 @@
 #include <string>
 
 #include "absl/strings/str_cat.h"
-#include "client/cli/eval_test_data.h"
+#include "client/cli/cli_testing.h"
 #include "client/cli/gallery_commands.h"
 #include "core/descriptor_registry.h"
 #include "gmock/gmock.h"
@@ -21,8 +21,8 @@ namespace shapeid {
 namespace {
 
 namespace fs = std::filesystem;
-using eval_testing::Captured;
-using eval_testing::WithoutTimes;
+using cli_testing::Captured;
+using cli_testing::WithoutTimes;
 using ::testing::HasSubstr;
 using ::testing::Not;
 
@@ -37,7 +37,7 @@ class EvalCommandTest : public ::testing::Test {
     auto server = ShapeIdServer::Start(server_options);
     ASSERT_TRUE(server.ok()) << server.status();
     server_ = std::move(server).value();
-    root_ = eval_testing::ScratchDir("eval_command");
+    root_ = cli_testing::ScratchDir("eval_command");
   }
   void TearDown() override {
     if (server_) server_->Shutdown(absl::ZeroDuration());
@@ -81,7 +81,7 @@ class EvalCommandTest : public ::testing::Test {
 };
 
 TEST_F(EvalCommandTest, HoldOutGivesTheServersPredictionsForEveryFile) {
-  eval_testing::WriteLabelledDataset(root_ / "split", /*split=*/true, /*per_label=*/15);
+  cli_testing::WriteLabelledDataset(root_ / "split", /*split=*/true, /*per_label=*/15);
   EvalOptions eval;
   eval.dataset = (root_ / "split").string();
   eval.create.spec = "rphsd:refs=cross7,bins=10";
@@ -93,7 +93,7 @@ TEST_F(EvalCommandTest, HoldOutGivesTheServersPredictionsForEveryFile) {
 }
 
 TEST_F(EvalCommandTest, KFoldWithEveryKnobGivesTheServersPredictions) {
-  eval_testing::WriteLabelledDataset(root_ / "flat", /*split=*/false, /*per_label=*/12);
+  cli_testing::WriteLabelledDataset(root_ / "flat", /*split=*/false, /*per_label=*/12);
   // A bad file in each: both count it once per round it is in, in the same order.
   std::ofstream((root_ / "flat/sphere/broken.pcd").string()) << "not a pcd file\n";
   EvalOptions eval;

@@ -11,7 +11,7 @@
 #include <string>
 
 #include "client/cli/eval_command.h"
-#include "client/cli/eval_test_data.h"
+#include "client/cli/cli_testing.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 
@@ -19,8 +19,8 @@ namespace shapeid {
 namespace {
 
 namespace fs = std::filesystem;
-using eval_testing::Captured;
-using eval_testing::WithoutTimes;
+using cli_testing::Captured;
+using cli_testing::WithoutTimes;
 using ::testing::AllOf;
 using ::testing::HasSubstr;
 using ::testing::Not;
@@ -28,7 +28,7 @@ using ::testing::StartsWith;
 
 class EvalLocalTest : public ::testing::Test {
  protected:
-  void SetUp() override { root_ = eval_testing::ScratchDir("eval_local"); }
+  void SetUp() override { root_ = cli_testing::ScratchDir("eval_local"); }
   void TearDown() override { fs::remove_all(root_); }
 
   // Nothing listens at this address: a local evaluation must not need it.
@@ -55,7 +55,7 @@ class EvalLocalTest : public ::testing::Test {
 };
 
 TEST_F(EvalLocalTest, HoldOutInEveryFormatWithoutAServer) {
-  eval_testing::WriteLabelledDataset(root_ / "split", /*split=*/true);
+  cli_testing::WriteLabelledDataset(root_ / "split", /*split=*/true);
   EvalOptions eval = Local("split");
   eval.report_html = (root_ / "report.html").string();
   Captured json;
@@ -88,7 +88,7 @@ TEST_F(EvalLocalTest, HoldOutInEveryFormatWithoutAServer) {
 }
 
 TEST_F(EvalLocalTest, KFoldTestsEveryFileOnceAndTheAnswersDoNotDependOnTheThreads) {
-  eval_testing::WriteLabelledDataset(root_ / "flat", /*split=*/false, /*per_label=*/12);
+  cli_testing::WriteLabelledDataset(root_ / "flat", /*split=*/false, /*per_label=*/12);
   EvalOptions eval = Local("flat");
   eval.folds = 4;
   eval.seed = 3;
@@ -111,7 +111,7 @@ TEST_F(EvalLocalTest, KFoldTestsEveryFileOnceAndTheAnswersDoNotDependOnTheThread
 }
 
 TEST_F(EvalLocalTest, ABadFileIsCountedAndTheEvaluationGoesOn) {
-  eval_testing::WriteLabelledDataset(root_ / "split", /*split=*/true);
+  cli_testing::WriteLabelledDataset(root_ / "split", /*split=*/true);
   std::ofstream((root_ / "split/box/train/broken.pcd").string()) << "not a pcd file\n";
   std::ofstream((root_ / "split/rod/test/tiny.xyz").string()) << "0 0 0\n1 1 1\n";  // 2 points
   EvalOptions eval = Local("split");
@@ -129,7 +129,7 @@ TEST_F(EvalLocalTest, ABadFileIsCountedAndTheEvaluationGoesOn) {
 }
 
 TEST_F(EvalLocalTest, UsageErrorsBeforeAnyFileIsRead) {
-  eval_testing::WriteLabelledDataset(root_ / "split", /*split=*/true);
+  cli_testing::WriteLabelledDataset(root_ / "split", /*split=*/true);
   Captured out;
   EvalOptions eval = Local("split");
   eval.gallery = "parts";

@@ -1,9 +1,9 @@
-#ifndef SHAPEID_CLIENT_CLI_EVAL_TEST_DATA_H_
-#define SHAPEID_CLIENT_CLI_EVAL_TEST_DATA_H_
+#ifndef SHAPEID_CLIENT_CLI_CLI_TESTING_H_
+#define SHAPEID_CLIENT_CLI_CLI_TESTING_H_
 
-// Test-only helpers for the `shapeid eval` tests: a scratch folder per process and test, a
-// small labelled dataset a classifier gets partly wrong, captured output streams, and the
-// JSON output with its timings blanked (the one part that differs from run to run).
+// Test-only helpers for the CLI's tests: a scratch folder per process and test, a small
+// labelled dataset a classifier gets partly wrong, captured output streams, and eval's JSON
+// output with its timings blanked (the one part that differs from run to run).
 
 #include <unistd.h>
 
@@ -17,7 +17,7 @@
 #include "core/testing/test_clouds.h"
 #include "gtest/gtest.h"
 
-namespace shapeid::eval_testing {
+namespace shapeid::cli_testing {
 
 namespace fs = std::filesystem;
 
@@ -81,6 +81,6 @@ inline std::string WithoutTimes(const std::string& json) {
   return std::regex_replace(json, kSeconds, "$1:0");
 }
 
-}  // namespace shapeid::eval_testing
+}  // namespace shapeid::cli_testing
 
-#endif  // SHAPEID_CLIENT_CLI_EVAL_TEST_DATA_H_
+#endif  // SHAPEID_CLIENT_CLI_CLI_TESTING_H_
