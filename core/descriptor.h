@@ -39,6 +39,19 @@ class Descriptor {
   absl::StatusOr<std::vector<float>> Compute(const PointCloud& cloud,
                                              const CloudLimits& limits = {}) const;
 
+  // Compute, and also the cloud's pose variants: the descriptors of the same object in the
+  // other poses that this descriptor's canonical frame cannot tell apart. A frame fixed by
+  // the shape alone (DFSD's frame=box) is ambiguous where two box extents are nearly equal
+  // (which axis comes first?) or the points are nearly symmetric along an axis (which way
+  // does it point?); the variants are the descriptor under those other axis orders and
+  // signs. `variants` gets m * dimension() floats, m >= 0 (0 for descriptors without a
+  // frame, or when the frame is clear). Match a query by the least distance over itself and
+  // its variants: a wrong guess of the frame then costs nothing, because the right pose is
+  // among those tried. Same errors as Compute.
+  absl::Status ComputeWithPoseVariants(const PointCloud& cloud, std::vector<float>* out,
+                                       std::vector<float>* variants,
+                                       const CloudLimits& limits = {}) const;
+
  protected:
   Descriptor(DescriptorSpec canonical_spec, size_t dimension)
       : spec_(std::move(canonical_spec)), dimension_(dimension) {}
@@ -46,6 +59,15 @@ class Descriptor {
   // Computes the descriptor of a cloud that passed validation; `out` has dimension() floats.
   virtual absl::Status ComputeValidated(const PointCloud& cloud, const CloudStats& stats,
                                         absl::Span<float> out) const = 0;
+  // ComputeValidated, plus the pose variants appended to `variants` (empty on entry). The
+  // default has none.
+  virtual absl::Status ComputeValidatedWithPoseVariants(const PointCloud& cloud,
+                                                        const CloudStats& stats,
+                                                        absl::Span<float> out,
+                                                        std::vector<float>* variants) const {
+    (void)variants;
+    return ComputeValidated(cloud, stats, out);
+  }
 
  private:
   DescriptorSpec spec_;

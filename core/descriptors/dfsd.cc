@@ -9,7 +9,10 @@
 #include "core/descriptors/dfsd.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <limits>
+#include <map>
 #include <string>
 #include <utility>
 
@@ -29,9 +32,23 @@ constexpr double kPi = 3.14159265358979323846;
 // A zero extent (a flat or straight cloud) would make ln(extent) infinite; such an axis
 // counts as this fraction of the largest extent instead.
 constexpr double kMinRelativeExtent = 1e-6;
+// frame=box pose variants: two axes whose box extents differ by less than this fraction may
+// come in either order, and an axis whose skewness is below kSkewnessTolerance may point
+// either way. Chosen on ModelNet10 (docs/accuracy.md): wider tolerances try more poses
+// (slower queries) for no measurable gain, narrower ones miss right poses.
+constexpr double kAxisOrderTolerance = 0.2;
+constexpr double kSkewnessTolerance = 0.3;
 
 absl::string_view FrameName(DfsdOptions::Frame frame) {
-  return frame == DfsdOptions::Frame::kPca ? "pca" : "axes";
+  switch (frame) {
+    case DfsdOptions::Frame::kPca:
+      return "pca";
+    case DfsdOptions::Frame::kBox:
+      return "box";
+    case DfsdOptions::Frame::kAxes:
+      break;
+  }
+  return "axes";
 }
 
 absl::string_view FieldsName(DfsdOptions::Fields fields) {
@@ -53,7 +70,132 @@ int NumFields(DfsdOptions::Fields fields) { return fields == DfsdOptions::Fields
 struct FramedCloud {
   std::vector<double> coord[3];
   Eigen::Vector3d half_extent = Eigen::Vector3d::Zero();
+  // frame=box only: |third moment| / second moment^1.5 of the points along each axis,
+  // about their centroid (0 for an axis without spread). Near 0, the axis's sign is a guess.
+  Eigen::Vector3d skewness = Eigen::Vector3d::Zero();
 };
+
+// ---- frame=box (docs/descriptors.md section 5.2)
+
+// The convex hull of 2D points, counter-clockwise, without collinear points (Andrew's
+// monotone chain). Sorts `points`.
+std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d>& points) {
+  std::sort(points.begin(), points.end(), [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
+  });
+  const auto turn = [](const Eigen::Vector2d& o, const Eigen::Vector2d& a,
+                       const Eigen::Vector2d& b) {
+    return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
+  };
+  std::vector<Eigen::Vector2d> hull(2 * points.size());
+  size_t h = 0;
+  for (const Eigen::Vector2d& p : points) {  // lower hull
+    while (h >= 2 && turn(hull[h - 2], hull[h - 1], p) <= 0) --h;
+    hull[h++] = p;
+  }
+  const size_t lower = h + 1;
+  for (size_t i = points.size(); i-- > 0;) {  // upper hull
+    while (h >= lower && turn(hull[h - 2], hull[h - 1], points[i]) <= 0) --h;
+    hull[h++] = points[i];
+  }
+  hull.resize(h > 1 ? h - 1 : h);  // the last point repeats the first
+  return hull;
+}
+
+// The direction (unit 2D vector) of the smallest-area rectangle around a convex polygon:
+// some side of that rectangle lies along a polygon edge (Freeman and Shapira 1975), so
+// trying every edge direction is exact. Returns false for fewer than 3 hull points.
+bool MinAreaRectangle(const std::vector<Eigen::Vector2d>& hull, Eigen::Vector2d* direction,
+                      double* area) {
+  if (hull.size() < 3) return false;
+  *area = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i < hull.size(); ++i) {
+    Eigen::Vector2d e = hull[(i + 1) % hull.size()] - hull[i];
+    const double length = e.norm();
+    if (length == 0) continue;
+    e /= length;
+    double lo_u = std::numeric_limits<double>::infinity(), hi_u = -lo_u, lo_v = lo_u, hi_v = -lo_u;
+    for (const Eigen::Vector2d& q : hull) {
+      const double u = q.dot(e), v = e.x() * q.y() - e.y() * q.x();
+      lo_u = std::min(lo_u, u);
+      hi_u = std::max(hi_u, u);
+      lo_v = std::min(lo_v, v);
+      hi_v = std::max(hi_v, v);
+    }
+    const double a = (hi_u - lo_u) * (hi_v - lo_v);
+    if (a < *area) {
+      *area = a;
+      *direction = e;
+    }
+  }
+  return std::isfinite(*area);
+}
+
+// Volume of the box around the centred points `d` (3 x n) along the columns of `axes`.
+double BoxVolume(const Eigen::Matrix3Xd& d, const Eigen::Matrix3d& axes) {
+  const Eigen::Matrix3Xd q = axes.transpose() * d;
+  return (q.rowwise().maxCoeff() - q.rowwise().minCoeff()).prod();
+}
+
+// The box frame: starting from the principal axes, twice over, each axis in turn is held
+// and the other two turned to the smallest-area rectangle around the points' projection;
+// the smallest box found wins. Principal axes tilt on L-shaped or asymmetric objects (a
+// chair's back pulls them); the tightest box lines up with the flat sides that man-made
+// objects and buildings have. Then the axes are ordered by box extent, largest first, and
+// each points to the side its points are skewed to (a right- or left-handed frame: a mirror
+// image gets the mirrored frame, hence the same descriptor). Uses + - * / sqrt and Eigen's
+// symmetric eigensolver only, so a build gives the same frame on every CPU.
+Eigen::Matrix3d BoxAxes(const PointCloud& cloud, const Eigen::Vector3d& centroid,
+                        Eigen::Vector3d* skewness) {
+  const size_t n = cloud.size();
+  Eigen::Matrix3Xd d(3, static_cast<Eigen::Index>(n));
+  for (size_t p = 0; p < n; ++p) {
+    d.col(static_cast<Eigen::Index>(p)) = cloud.point(p).cast<double>() - centroid;
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(d * d.transpose());
+  Eigen::Matrix3d best;
+  for (int a = 0; a < 3; ++a) best.col(a) = solver.eigenvectors().col(2 - a);  // descending
+  double best_volume = BoxVolume(d, best);
+  std::vector<Eigen::Vector2d> projected(n);
+  for (int round = 0; round < 2; ++round) {
+    const Eigen::Matrix3d start = best;
+    for (int held = 0; held < 3; ++held) {
+      const Eigen::Vector3d u = start.col((held + 1) % 3), v = start.col((held + 2) % 3);
+      for (size_t p = 0; p < n; ++p) {
+        const auto point = d.col(static_cast<Eigen::Index>(p));
+        projected[p] = Eigen::Vector2d(point.dot(u), point.dot(v));
+      }
+      Eigen::Vector2d e;
+      double area;
+      if (!MinAreaRectangle(ConvexHull(projected), &e, &area)) continue;
+      const Eigen::RowVectorXd along = start.col(held).transpose() * d;
+      const double volume = area * (along.maxCoeff() - along.minCoeff());
+      if (volume < best_volume) {
+        best_volume = volume;
+        best.col(0) = start.col(held);
+        best.col(1) = e.x() * u + e.y() * v;
+        best.col(2) = e.x() * v - e.y() * u;
+      }
+    }
+  }
+  // Order by extent, largest first (stable: equal extents keep their order).
+  const Eigen::Matrix3Xd q = best.transpose() * d;
+  const Eigen::Vector3d extent = q.rowwise().maxCoeff() - q.rowwise().minCoeff();
+  int order[3] = {0, 1, 2};
+  std::stable_sort(order, order + 3, [&](int a, int b) { return extent[a] > extent[b]; });
+  Eigen::Matrix3d axes;
+  for (int a = 0; a < 3; ++a) {
+    const Eigen::RowVectorXd c = q.row(order[a]);
+    const double m2 = c.array().square().sum();
+    const double m3 = c.array().cube().sum();
+    const double sign = m3 < 0 ? -1.0 : 1.0;
+    axes.col(a) = sign * best.col(order[a]);
+    const double nd = static_cast<double>(n);
+    const double variance = m2 / nd;
+    (*skewness)[a] = variance > 0 ? std::abs(m3 / nd) / (variance * std::sqrt(variance)) : 0.0;
+  }
+  return axes;
+}
 
 // The principal axes of the points, as the columns of a rotation (largest spread first),
 // each pointing to the side where the cubed coordinates sum positive, the third then made
@@ -86,8 +228,10 @@ FramedCloud Frame(const PointCloud& cloud, const CloudStats& stats, DfsdOptions:
   for (auto& axis : framed.coord) axis.resize(n);
   Eigen::Vector3d lo = stats.min;
   Eigen::Vector3d hi = stats.max;
-  if (frame == DfsdOptions::Frame::kPca) {
-    const Eigen::Matrix3d axes = PrincipalFrame(cloud, stats.centroid);
+  if (frame != DfsdOptions::Frame::kAxes) {
+    const Eigen::Matrix3d axes = frame == DfsdOptions::Frame::kPca
+                                     ? PrincipalFrame(cloud, stats.centroid)
+                                     : BoxAxes(cloud, stats.centroid, &framed.skewness);
     lo.setConstant(std::numeric_limits<double>::infinity());
     hi = -lo;
     for (size_t p = 0; p < n; ++p) {
@@ -116,6 +260,9 @@ class DfsdDescriptor : public Descriptor {
       : Descriptor(std::move(canonical), DfsdDimension(options)),
         options_(options),
         kept_(KeptFrequencies(options.grid, options.order)) {
+    if (options.frame == DfsdOptions::Frame::kBox) {
+      poses_ = MakePoses(options);
+    }
     const int g = options.grid;
     cosines_.resize(static_cast<size_t>(g) * g);
     for (int a = 0; a < g; ++a) {
@@ -133,12 +280,73 @@ class DfsdDescriptor : public Descriptor {
  protected:
   absl::Status ComputeValidated(const PointCloud& cloud, const CloudStats& stats,
                                 absl::Span<float> out) const override {
+    ComputeFramed(Frame(cloud, stats, options_.frame), out);
+    return absl::OkStatus();
+  }
+
+  absl::Status ComputeValidatedWithPoseVariants(const PointCloud& cloud, const CloudStats& stats,
+                                                absl::Span<float> out,
+                                                std::vector<float>* variants) const override {
+    const FramedCloud framed = Frame(cloud, stats, options_.frame);
+    ComputeFramed(framed, out);
+    if (options_.frame == DfsdOptions::Frame::kBox) AppendPoseVariants(framed, out, variants);
+    return absl::OkStatus();
+  }
+
+ private:
+  // A pose of the box frame other than the canonical one (see PoseMap).
+  struct Pose {
+    std::array<int, 3> axis_of;
+    int flips;
+    std::vector<int> source;
+    std::vector<float> sign;
+  };
+
+  static std::vector<Pose> MakePoses(const DfsdOptions& options) {
+    std::array<int, 3> axis_of = {0, 1, 2};
+    std::vector<Pose> poses;
+    do {
+      for (int flips = 0; flips < 8; ++flips) {
+        if (flips == 0 && axis_of == std::array<int, 3>{0, 1, 2}) continue;  // canonical
+        Pose pose{axis_of, flips, {}, {}};
+        PoseMap(options, axis_of, flips, &pose.source, &pose.sign);
+        poses.push_back(std::move(pose));
+      }
+    } while (std::next_permutation(axis_of.begin(), axis_of.end()));
+    return poses;
+  }
+
+  // Appends the descriptor in every pose the frame could as well have chosen: axes whose
+  // extents are within kAxisOrderTolerance of each other may come in either order, and an
+  // axis whose skewness is below kSkewnessTolerance may point either way.
+  void AppendPoseVariants(const FramedCloud& framed, absl::Span<const float> canonical,
+                          std::vector<float>* variants) const {
+    const Eigen::Vector3d extent = 2.0 * framed.half_extent;
+    for (const Pose& pose : poses_) {
+      bool plausible = true;
+      for (int i = 0; i < 3 && plausible; ++i) {
+        for (int j = i + 1; j < 3 && plausible; ++j) {
+          // Pose axis i comes before pose axis j: fine unless its extent is clearly smaller.
+          plausible = extent[pose.axis_of[i]] * (1 + kAxisOrderTolerance) >=
+                      extent[pose.axis_of[j]];
+        }
+        if ((pose.flips >> i & 1) && framed.skewness[pose.axis_of[i]] >= kSkewnessTolerance) {
+          plausible = false;
+        }
+      }
+      if (!plausible) continue;
+      for (size_t q = 0; q < canonical.size(); ++q) {
+        variants->push_back(pose.sign[q] * canonical[static_cast<size_t>(pose.source[q])]);
+      }
+    }
+  }
+
+  void ComputeFramed(const FramedCloud& framed, absl::Span<float> out) const {
     const int g = options_.grid;
     const size_t cells = static_cast<size_t>(g) * g * g;
-    const FramedCloud framed = Frame(cloud, stats, options_.frame);
     const double largest_half = framed.half_extent.maxCoeff();  // > 0: ValidateCloud
 
-    const size_t n = cloud.size();
+    const size_t n = framed.coord[0].size();
     const size_t stride = (n + kPointLanes - 1) / kPointLanes * kPointLanes;
     std::vector<float> tables(3 * static_cast<size_t>(g) * stride, kFarSquared);
     std::vector<float> normalised(n);
@@ -189,10 +397,8 @@ class DfsdDescriptor : public Descriptor {
         out[written++] = static_cast<float>(options_.size_weight * std::log(e));
       }
     }
-    return absl::OkStatus();
   }
 
- private:
   // The kept coefficients of the orthonormal 3D DCT-II of `field` (index (i * G + j) * G + k,
   // i along x), one axis at a time: z for every frequency that can be kept, then y, then x.
   void Transform(const std::vector<double>& field, absl::Span<float> out) const {
@@ -235,6 +441,7 @@ class DfsdDescriptor : public Descriptor {
 
   DfsdOptions options_;
   std::vector<Frequency> kept_;
+  std::vector<Pose> poses_;  // frame=box only
   std::vector<double> cosines_;  // [frequency][cell index]
   std::vector<float> centres_;   // cell centre coordinates in [-1, 1]
 };
@@ -246,8 +453,11 @@ absl::StatusOr<std::unique_ptr<Descriptor>> CreateFromSpec(const DescriptorSpec&
   options.grid = static_cast<int>(grid);
   SHAPEID_ASSIGN_OR_RETURN(const int64_t order, params.Int("order", 1, 3 * (grid - 1) + 1));
   options.order = static_cast<int>(order);
-  SHAPEID_ASSIGN_OR_RETURN(const std::string frame, params.Choice("frame", {"axes", "pca"}));
-  options.frame = frame == "pca" ? DfsdOptions::Frame::kPca : DfsdOptions::Frame::kAxes;
+  SHAPEID_ASSIGN_OR_RETURN(const std::string frame,
+                           params.Choice("frame", {"axes", "pca", "box"}));
+  options.frame = frame == "pca"   ? DfsdOptions::Frame::kPca
+                  : frame == "box" ? DfsdOptions::Frame::kBox
+                                   : DfsdOptions::Frame::kAxes;
   SHAPEID_ASSIGN_OR_RETURN(const std::string fields,
                            params.Choice("fields", {"both", "isotropic", "anisotropic"}));
   options.fields = fields == "isotropic"     ? DfsdOptions::Fields::kIsotropic
@@ -258,6 +468,41 @@ absl::StatusOr<std::unique_ptr<Descriptor>> CreateFromSpec(const DescriptorSpec&
 }
 
 }  // namespace
+
+void PoseMap(const DfsdOptions& options, const std::array<int, 3>& axis_of, int flips,
+             std::vector<int>* source, std::vector<float>* sign) {
+  // Reversing an axis maps cell i to G - 1 - i (the grid is centred on the box), which
+  // multiplies the cosine coefficient of frequency a along it by (-1)^a; reordering axes
+  // reorders frequencies. a + b + c is unchanged, so every frequency of the pose is kept.
+  const std::vector<Frequency> kept = KeptFrequencies(options.grid, options.order);
+  std::map<std::array<int, 3>, int> index_of;
+  for (size_t q = 0; q < kept.size(); ++q) {
+    index_of[{kept[q].a, kept[q].b, kept[q].c}] = static_cast<int>(q);
+  }
+  const size_t dimension = DfsdDimension(options);
+  source->assign(dimension, 0);
+  sign->assign(dimension, 1.0f);
+  const int per_field = static_cast<int>(kept.size());
+  const int fields = NumFields(options.fields);
+  for (int q = 0; q < per_field; ++q) {
+    const std::array<int, 3> now = {kept[q].a, kept[q].b, kept[q].c};
+    std::array<int, 3> before{};
+    float s = 1;
+    for (int i = 0; i < 3; ++i) {
+      before[axis_of[i]] = now[i];
+      if ((flips >> i & 1) && (now[i] & 1)) s = -s;
+    }
+    const int from = index_of.at(before);
+    for (int f = 0; f < fields; ++f) {
+      (*source)[f * per_field + q] = f * per_field + from;
+      (*sign)[f * per_field + q] = s;
+    }
+  }
+  // The size block holds sorted extents: the same in every pose.
+  for (size_t q = static_cast<size_t>(fields) * kept.size(); q < dimension; ++q) {
+    (*source)[q] = static_cast<int>(q);
+  }
+}
 
 std::vector<Frequency> KeptFrequencies(int grid, int order) {
   std::vector<Frequency> kept;
@@ -313,8 +558,8 @@ DescriptorKind DfsdKind() {
             "cosine coefficients (a, b, c) kept per field: a + b + c < order (8: 120 per "
             "field); integer in [1, 3 * (grid - 1) + 1]"},
            {"frame", "axes",
-            "axes: the cloud's own axes (upright, aligned objects; most accurate) | pca: the "
-            "principal axes (rotation invariant)"},
+            "axes: the cloud's own axes (upright, aligned objects; most accurate there) | box: "
+            "the tightest box's axes, with pose variants (any pose) | pca: the principal axes"},
            {"fields", "both",
             "both | isotropic (one scale: proportions kept) | anisotropic (each axis to its "
             "extent)"},

@@ -12,6 +12,7 @@
 // 120 cosine coefficients per field keep what separates classes in a vector short enough
 // for a fast kNN search.
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -41,6 +42,13 @@ struct DfsdOptions {
     // gives the same frame, so the descriptor is rotation invariant, at some accuracy cost on
     // aligned data and with unstable axes where two spreads are nearly equal.
     kPca,
+    // The axes of the tightest box around the points (principal axes refined by smallest
+    // rectangles), largest extent first, each pointing to the side its points are skewed
+    // to. Rotation and reflection invariant, and it lines up with the flat sides of man-made
+    // objects where principal axes tilt. Where the frame is ambiguous (near-equal extents,
+    // near-symmetric axes) ComputeWithPoseVariants also gives the descriptor in the other
+    // plausible poses, and a gallery matches the best of them.
+    kBox,
   };
   Frame frame = Frame::kAxes;
   // Which normalisations of the bounding box get a field.
@@ -71,6 +79,13 @@ std::vector<Frequency> KeptFrequencies(int grid, int order);
 
 // Length of the descriptor.
 size_t DfsdDimension(const DfsdOptions& options);
+
+// How the descriptor changes when the object is described in another pose of its frame:
+// new axis i is old axis axis_of[i] (a permutation of 0, 1, 2), reversed (about the box
+// centre) where bit i of `flips` is set. The new descriptor is
+// value[q] = sign[q] * old[source[q]]: no recomputation.
+void PoseMap(const DfsdOptions& options, const std::array<int, 3>& axis_of, int flips,
+             std::vector<int>* source, std::vector<float>* sign);
 
 absl::StatusOr<std::unique_ptr<Descriptor>> CreateDfsd(const DfsdOptions& options);
 

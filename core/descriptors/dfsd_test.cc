@@ -1,5 +1,7 @@
 #include "core/descriptors/dfsd.h"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -18,6 +20,7 @@
 #include "core/point_cloud.h"
 #include "core/simd.h"
 #include "core/testing/test_clouds.h"
+#include "core/views/test_surfaces.h"
 
 namespace shapeid {
 namespace {
@@ -220,6 +223,120 @@ TEST(DfsdTest, PcaFrameIsRotationInvariant) {
   }
 }
 
+// Squared distance between two descriptors.
+double DistanceSq(const std::vector<float>& a, const float* b) {
+  double sum = 0;
+  for (size_t q = 0; q < a.size(); ++q) sum += (a[q] - b[q]) * (a[q] - b[q]);
+  return sum;
+}
+
+// The least squared distance from `query` or any of its pose variants to `reference`.
+double BestPoseDistanceSq(const Descriptor& d, const PointCloud& query,
+                          const std::vector<float>& reference) {
+  std::vector<float> canonical, variants;
+  EXPECT_TRUE(d.ComputeWithPoseVariants(query, &canonical, &variants).ok());
+  double best = DistanceSq(canonical, reference.data());
+  for (size_t o = 0; o < variants.size(); o += d.dimension()) {
+    best = std::min(best, DistanceSq(reference, variants.data() + o));
+  }
+  return best;
+}
+
+TEST(DfsdTest, PoseMapIsTheDescriptorOfTheReorderedMirroredCloud) {
+  // In the axes frame, reorder and reverse the cloud's axes about its box centre
+  // explicitly: the descriptor must be PoseMap applied to the original's.
+  DfsdOptions anisotropic;
+  anisotropic.fields = DfsdOptions::Fields::kAnisotropic;
+  anisotropic.size_weight = 0.3;
+  DfsdOptions small;
+  small.grid = 8;
+  small.order = 5;
+  for (const auto& [spec, options] : std::vector<std::pair<std::string, DfsdOptions>>{
+           {"dfsd", DfsdOptions()},
+           {"dfsd:fields=anisotropic,size=0.3", anisotropic},
+           {"dfsd:grid=8,order=5", small}}) {
+    auto d = MustCreate(spec);
+    const PointCloud cloud = SkewedCloud(800, 21);
+    const std::vector<float> base = MustCompute(*d, cloud);
+    const CloudStats stats = *ValidateCloud(cloud);
+    const Eigen::Vector3f centre = (0.5 * (stats.min + stats.max)).cast<float>();
+    for (const auto& [axis_of, flips] : std::vector<std::pair<std::array<int, 3>, int>>{
+             {{0, 1, 2}, 1}, {{0, 1, 2}, 6}, {{1, 0, 2}, 0}, {{2, 0, 1}, 5}, {{1, 2, 0}, 7}}) {
+      PointCloud moved;
+      for (size_t i = 0; i < cloud.size(); ++i) {
+        const Eigen::Vector3f p = cloud.point(i) - centre;
+        Eigen::Vector3f q;
+        for (int a = 0; a < 3; ++a) q[a] = (flips >> a & 1) ? -p[axis_of[a]] : p[axis_of[a]];
+        moved.Add(q);
+      }
+      std::vector<int> source;
+      std::vector<float> sign;
+      dfsd_internal::PoseMap(options, axis_of, flips, &source, &sign);
+      ASSERT_EQ(source.size(), base.size());
+      const std::vector<float> expected = MustCompute(*d, moved);
+      for (size_t q = 0; q < base.size(); ++q) {
+        EXPECT_NEAR(sign[q] * base[static_cast<size_t>(source[q])], expected[q], 2e-5)
+            << spec << " axes " << axis_of[0] << axis_of[1] << axis_of[2] << " flips " << flips
+            << " value " << q;
+      }
+    }
+  }
+}
+
+TEST(DfsdTest, BoxFrameIsRotationAndMirrorInvariant) {
+  auto box = MustCreate("dfsd:frame=box");
+  EXPECT_EQ(box->spec().ToString(), "dfsd:grid=12,order=8,frame=box,fields=both,size=0");
+  const PointCloud cloud = SkewedCloud(1024, 5);
+  const std::vector<float> base = MustCompute(*box, cloud);
+  double norm_sq = DistanceSq(base, std::vector<float>(base.size(), 0.0f).data());
+  std::mt19937 rng(9);
+  std::normal_distribution<float> g;
+  for (int trial = 0; trial < 6; ++trial) {
+    const Eigen::Quaternionf q(g(rng), g(rng), g(rng), g(rng));
+    Eigen::Matrix3f turn = q.normalized().toRotationMatrix();
+    if (trial % 2 == 1) turn.col(0) = -turn.col(0);  // a mirror image
+    const PointCloud moved = Transformed(cloud, turn, Eigen::Vector3f(1, 2, 3), 2);
+    EXPECT_LT(BestPoseDistanceSq(*box, moved, base), 1e-6 * norm_sq) << "trial " << trial;
+  }
+}
+
+TEST(DfsdTest, BoxFrameOffersPoseVariantsOnlyWhereItIsAmbiguous) {
+  auto box = MustCreate("dfsd:frame=box");
+  std::vector<float> canonical, variants;
+  // Extents 4 : 2 : 1 and skewed along x and y: only z's sign is a guess.
+  ASSERT_TRUE(box->ComputeWithPoseVariants(SkewedCloud(1024, 5), &canonical, &variants).ok());
+  EXPECT_EQ(variants.size(), 1 * box->dimension());
+  // A cube's surface: every order and sign is plausible (47 others).
+  const PointCloud cube = test_surfaces::BoxSurface({0, 0, 0}, {1, 1, 1}, 3000, 2);
+  ASSERT_TRUE(box->ComputeWithPoseVariants(cube, &canonical, &variants).ok());
+  EXPECT_EQ(variants.size(), 47 * box->dimension());
+  EXPECT_EQ(canonical, MustCompute(*box, cube));
+  // Frames that are not chosen by the shape have no variants.
+  for (const char* spec : {"dfsd", "dfsd:frame=pca", "rphsd"}) {
+    auto d = MustCreate(spec);
+    ASSERT_TRUE(d->ComputeWithPoseVariants(cube, &canonical, &variants).ok());
+    EXPECT_TRUE(variants.empty()) << spec;
+  }
+}
+
+TEST(DfsdTest, BoxFrameMatchesARotatedCubeLikeObjectThroughItsVariants) {
+  // A box of extents 2 : 1.9 : 1.8 (its order is a guess) with a bump on one face: under
+  // rotation the canonical frame may pick another order, but one variant matches.
+  auto box = MustCreate("dfsd:frame=box");
+  PointCloud cloud = test_surfaces::BoxSurface({0, 0, 0}, {1, 0.95f, 0.9f}, 3000, 4);
+  for (int i = 0; i < 200; ++i) cloud.Add(0.3f + 0.001f * i, 0.2f, 0.9f + 0.0005f * i);
+  const std::vector<float> base = MustCompute(*box, cloud);
+  const double norm_sq = DistanceSq(base, std::vector<float>(base.size(), 0.0f).data());
+  std::mt19937 rng(3);
+  std::normal_distribution<float> g;
+  for (int trial = 0; trial < 6; ++trial) {
+    const Eigen::Quaternionf q(g(rng), g(rng), g(rng), g(rng));
+    const PointCloud moved =
+        Transformed(cloud, q.normalized().toRotationMatrix(), Eigen::Vector3f::Zero(), 1);
+    EXPECT_LT(BestPoseDistanceSq(*box, moved, base), 1e-4 * norm_sq) << "trial " << trial;
+  }
+}
+
 TEST(DfsdTest, SizeBlockCarriesTheLogExtentsLargestFirst) {
   auto d = MustCreate("dfsd:size=0.5");
   const PointCloud cloud = testing_clouds::UniformCloud(2000, 1);  // extents ~2, 4, 1
@@ -241,7 +358,7 @@ TEST(DfsdTest, FlatAndStraightCloudsGiveFiniteValues) {
     flat.Add(static_cast<float>(i % 7), static_cast<float>(i / 7), 0.0f);
     line.Add(static_cast<float>(i), 0.0f, 0.0f);
   }
-  for (const char* spec : {"dfsd:size=1", "dfsd:frame=pca,size=1"}) {
+  for (const char* spec : {"dfsd:size=1", "dfsd:frame=pca,size=1", "dfsd:frame=box,size=1"}) {
     auto d = MustCreate(spec);
     for (const PointCloud* cloud : {&flat, &line}) {
       for (float v : MustCompute(*d, *cloud)) ASSERT_TRUE(std::isfinite(v)) << spec;
