@@ -141,7 +141,8 @@ PointCloud InInputOrder(const PointCloud& cloud, const PointCloud& seen) {
 }
 
 constexpr char kPerturbationForms[] =
-    "clean, yaw, rot3d, noise<percent of the extent> (noise1), sub<points> (sub256), partial";
+    "clean, yaw, rot3d, noise<percent of the extent> (noise1), sub<points> (sub256), partial, "
+    "robot";
 
 }  // namespace
 
@@ -319,6 +320,36 @@ absl::StatusOr<PointCloud> PartialView(const PointCloud& cloud, const PartialVie
   return InInputOrder(cloud, seen);
 }
 
+absl::StatusOr<PointCloud> SensorView(const PointCloud& cloud, const SensorViewOptions& options,
+                                      uint64_t seed) {
+  if (!(std::isfinite(options.noise_fraction) && options.noise_fraction >= 0)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "sensor view: noise fraction ", options.noise_fraction, " must be finite and >= 0"));
+  }
+  if (options.min_points < 1 || options.min_points > options.max_points) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("sensor view: points [", options.min_points, ", ", options.max_points,
+                     "] must satisfy 1 <= min <= max"));
+  }
+  SplitMix64 rng(seed);
+  const uint64_t view_seed = rng.Next(), noise_seed = rng.Next(), subsample_seed = rng.Next(),
+                 pose_seed = rng.Next();
+  // The count before anything else, so it does not depend on what the view kept.
+  const size_t span = options.max_points - options.min_points + 1;
+  const size_t points =
+      options.min_points + std::min(span - 1, static_cast<size_t>(rng.Uniform() *
+                                                                  static_cast<double>(span)));
+  SHAPEID_ASSIGN_OR_RETURN(PointCloud view, PartialView(cloud, options.view, view_seed));
+  // Noise relative to the whole object: the visible part's extent varies with the viewpoint.
+  const double view_extent = CloudExtent(view);
+  const double fraction =
+      view_extent > 0 ? options.noise_fraction * CloudExtent(cloud) / view_extent : 0.0;
+  SHAPEID_ASSIGN_OR_RETURN(PointCloud noisy, AddGaussianNoise(view, fraction, noise_seed));
+  PointCloud sparse = RandomSubsample(noisy, points, subsample_seed);
+  if (!options.random_pose) return sparse;
+  return RandomRotation(sparse, pose_seed);
+}
+
 absl::StatusOr<Perturbation> ParsePerturbation(absl::string_view name) {
   const std::string text = absl::AsciiStrToLower(absl::StripAsciiWhitespace(name));
   const absl::string_view t = text;
@@ -339,6 +370,9 @@ absl::StatusOr<Perturbation> ParsePerturbation(absl::string_view name) {
   } else if (t == "partial") {
     p.kind = Perturbation::Kind::kPartialView;
     p.name = "partial";
+  } else if (t == "robot") {
+    p.kind = Perturbation::Kind::kSensorView;
+    p.name = "robot";
   } else if (absl::StartsWith(t, "noise")) {
     double percent = 0;
     if (!absl::SimpleAtod(t.substr(5), &percent) || !(percent > 0 && percent <= 100)) {
@@ -374,6 +408,8 @@ absl::StatusOr<PointCloud> ApplyPerturbation(const PointCloud& cloud,
       return RandomSubsample(cloud, perturbation.points, seed);
     case Perturbation::Kind::kPartialView:
       return PartialView(cloud, perturbation.view, seed);
+    case Perturbation::Kind::kSensorView:
+      return SensorView(cloud, perturbation.sensor, seed);
   }
   return absl::InvalidArgumentError("invalid perturbation kind");
 }

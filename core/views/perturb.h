@@ -106,6 +106,32 @@ absl::StatusOr<Eigen::Vector3d> RandomViewDirection(const PartialViewOptions& op
 absl::StatusOr<PointCloud> PartialView(const PointCloud& cloud, const PartialViewOptions& options,
                                        uint64_t seed);
 
+// What one depth sensor on a robot sees of an object (issue 13's robot protocol, and the
+// views of training-time augmentation): the side facing one random viewpoint, with noise,
+// as sparse as a distant object, in any pose.
+struct SensorViewOptions {
+  // Where the camera may be (PartialView).
+  PartialViewOptions view;
+  // Gaussian noise, sigma as a fraction of the WHOLE object's extent (CloudExtent of the
+  // input, not of the visible part): 0.01 is 1 % of the object's size.
+  double noise_fraction = 0.01;
+  // The view keeps a number of points drawn uniformly in [min_points, max_points] (all of
+  // them when it has fewer).
+  size_t min_points = 300;
+  size_t max_points = 500;
+  // Turn the result by a uniformly random 3D rotation about its centroid: the object lies
+  // in any pose. Off for gravity-aligned data or a frame-invariant descriptor that gains
+  // nothing from it.
+  bool random_pose = true;
+};
+
+// PartialView, then AddGaussianNoise, then RandomSubsample, then (random_pose)
+// RandomRotation, each with its own seed drawn from `seed`. InvalidArgument for options out
+// of range (noise_fraction finite and >= 0, 1 <= min_points <= max_points) and the errors of
+// PartialView.
+absl::StatusOr<PointCloud> SensorView(const PointCloud& cloud, const SensorViewOptions& options,
+                                      uint64_t seed);
+
 // A perturbation by name, for command lines and configuration:
 //   clean (or none)  the cloud unchanged
 //   yaw              RandomYaw about view.up
@@ -113,14 +139,18 @@ absl::StatusOr<PointCloud> PartialView(const PointCloud& cloud, const PartialVie
 //   noise<P>         AddGaussianNoise, sigma P % of the extent, 0 < P <= 100 (noise1, noise0.5)
 //   sub<N>           RandomSubsample to N >= 1 points (sub256)
 //   partial          PartialView with `view`
+//   robot            SensorView with `sensor` (defaults: one viewpoint, 1 % noise, 300-500
+//                    points, random pose)
 struct Perturbation {
-  enum class Kind { kNone, kYaw, kRotation, kNoise, kSubsample, kPartialView };
+  enum class Kind { kNone, kYaw, kRotation, kNoise, kSubsample, kPartialView, kSensorView };
   Kind kind = Kind::kNone;
   double noise_fraction = 0.0;  // kNoise: sigma / extent (noise1: 0.01)
   size_t points = 0;            // kSubsample
   // kYaw turns about view.up; kPartialView uses all of `view`.
   PartialViewOptions view;
-  std::string name;  // canonical: "clean", "yaw", "rot3d", "noise1", "sub256", "partial"
+  // kSensorView.
+  SensorViewOptions sensor;
+  std::string name;  // canonical: "clean", "yaw", "rot3d", "noise1", "sub256", "partial", "robot"
 };
 
 // InvalidArgument for an unknown name, listing the forms above.

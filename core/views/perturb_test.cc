@@ -249,7 +249,8 @@ TEST(PerturbTest, ParsesNamesToCanonicalForms) {
                                                         {"noise3", "noise3"},
                                                         {"noise0.5", "noise0.5"},
                                                         {"sub256", "sub256"},
-                                                        {"partial", "partial"}}) {
+                                                        {"partial", "partial"},
+                                                        {"Robot", "robot"}}) {
     const auto p = ParsePerturbation(text);
     ASSERT_TRUE(p.ok()) << text << ": " << p.status();
     EXPECT_EQ(p->name, name);
@@ -263,7 +264,7 @@ TEST(PerturbTest, ParsesNamesToCanonicalForms) {
 
 TEST(PerturbTest, SameSeedSameBitsDifferentSeedDifferent) {
   const PointCloud cloud = test_surfaces::BoxSurface({1, 2, 3}, {1, 0.5, 2}, 3000, 7);
-  for (const char* name : {"yaw", "rot3d", "noise1", "sub256", "partial"}) {
+  for (const char* name : {"yaw", "rot3d", "noise1", "sub256", "partial", "robot"}) {
     const Perturbation p = *ParsePerturbation(name);
     const auto a = ApplyPerturbation(cloud, p, 100);
     const auto b = ApplyPerturbation(cloud, p, 100);
@@ -273,6 +274,57 @@ TEST(PerturbTest, SameSeedSameBitsDifferentSeedDifferent) {
     EXPECT_FALSE(SameBits(*a, *c)) << name;
   }
   EXPECT_TRUE(SameBits(*ApplyPerturbation(cloud, *ParsePerturbation("clean"), 1), cloud));
+}
+
+TEST(PerturbTest, SensorViewIsOneSparseNoisySideInAnyPose) {
+  const PointCloud sphere = test_surfaces::SphereSurface(4000, 3);
+  SensorViewOptions options;  // 1 % noise, 300-500 points, random pose
+  SensorViewOptions upright = options;
+  upright.random_pose = false;
+  std::vector<size_t> sizes;
+  for (uint64_t seed = 1; seed <= 20; ++seed) {
+    const auto view = SensorView(sphere, upright, seed);
+    ASSERT_TRUE(view.ok()) << view.status();
+    ASSERT_GE(view->size(), 300u);
+    ASSERT_LE(view->size(), 500u);
+    sizes.push_back(view->size());
+    // One side: the visible cap's centroid is well off the sphere's centre, and the points
+    // stay near the surface (sigma = 1 % of the extent 2 sqrt 3, so 5 sigma = 0.17).
+    EXPECT_GT(CloudCentroid(*view).norm(), 0.3);
+    for (size_t i = 0; i < view->size(); ++i) {
+      EXPECT_NEAR(view->point(i).cast<double>().norm(), 1.0, 0.18);
+    }
+    // The random pose turns that same view: same points, same pairwise distances.
+    const auto posed = SensorView(sphere, options, seed);
+    ASSERT_TRUE(posed.ok());
+    ASSERT_EQ(posed->size(), view->size());
+    EXPECT_NEAR(Distance(*posed, 0, view->size() - 1), Distance(*view, 0, view->size() - 1),
+                1e-5);
+    EXPECT_GT((posed->point(0) - view->point(0)).norm(), 1e-3);
+  }
+  // The counts spread over the range rather than sitting at one end.
+  EXPECT_LT(*std::min_element(sizes.begin(), sizes.end()), 380u);
+  EXPECT_GT(*std::max_element(sizes.begin(), sizes.end()), 420u);
+
+  // Without noise, subsampling or a pose the view is PartialView's, exactly.
+  SensorViewOptions plain;
+  plain.noise_fraction = 0;
+  plain.min_points = plain.max_points = 1'000'000;
+  plain.random_pose = false;
+  const PointCloud view = *SensorView(sphere, plain, 5);
+  const PointCloud cap = *PartialView(sphere, plain.view, [] {
+    SplitMix64 rng(5);
+    return rng.Next();  // SensorView's first draw is the viewpoint's seed
+  }());
+  EXPECT_TRUE(SameBits(view, cap));
+
+  SensorViewOptions bad;
+  bad.min_points = 10;
+  bad.max_points = 5;
+  EXPECT_THAT(SensorView(sphere, bad, 1).status().message(), HasSubstr("min <= max"));
+  bad = SensorViewOptions();
+  bad.noise_fraction = -1;
+  EXPECT_THAT(SensorView(sphere, bad, 1).status().message(), HasSubstr("noise"));
 }
 
 TEST(PerturbTest, GoldenBitsHoldOnEveryPlatform) {

@@ -1,0 +1,90 @@
+#include "core/views/augment.h"
+
+#include <cstring>
+
+#include "core/views/test_surfaces.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+
+namespace shapeid {
+namespace {
+
+using ::testing::HasSubstr;
+
+bool SameBits(const PointCloud& a, const PointCloud& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * 3 * sizeof(float)) == 0;
+}
+
+TEST(AugmentTest, OffGivesNoViews) {
+  const PointCloud box = test_surfaces::BoxSurface({0, 0, 0}, {1, 0.5, 2}, 2000, 1);
+  const AugmentOptions off;
+  EXPECT_FALSE(off.enabled());
+  EXPECT_EQ(AugmentOptionsToString(off), "off");
+  const auto views = AugmentedViews(box, off, 1);
+  ASSERT_TRUE(views.ok());
+  EXPECT_TRUE(views->empty());
+}
+
+TEST(AugmentTest, ViewsAreSeededPerCloudAndDeterministic) {
+  const PointCloud box = test_surfaces::BoxSurface({0, 0, 0}, {1, 0.5, 2}, 2000, 1);
+  AugmentOptions options;
+  options.views = 6;
+  const auto a = AugmentedViews(box, options, 42);
+  const auto b = AugmentedViews(box, options, 42);
+  const auto other_cloud = AugmentedViews(box, options, 43);
+  ASSERT_TRUE(a.ok() && b.ok() && other_cloud.ok());
+  ASSERT_EQ(a->size(), 6u);
+  for (size_t i = 0; i < a->size(); ++i) {
+    EXPECT_TRUE(SameBits((*a)[i], (*b)[i])) << i;
+    EXPECT_FALSE(SameBits((*a)[i], (*other_cloud)[i])) << i;
+    EXPECT_GE((*a)[i].size(), 300u);
+    EXPECT_LE((*a)[i].size(), 500u);
+    if (i > 0) {
+      EXPECT_FALSE(SameBits((*a)[i], (*a)[i - 1])) << "views " << i - 1 << ", " << i;
+    }
+  }
+  // The gallery seed changes every view too.
+  options.seed = 2;
+  const auto reseeded = AugmentedViews(box, options, 42);
+  ASSERT_TRUE(reseeded.ok());
+  EXPECT_FALSE(SameBits((*a)[0], (*reseeded)[0]));
+  EXPECT_EQ(AugmentOptionsToString(options), "views=6,noise=0.01,points=300-500,pose=fixed,seed=2");
+}
+
+TEST(AugmentTest, FixedPoseViewsStayInTheCloudsFrame) {
+  // No random pose: every view is a subset of the cloud plus noise, so it stays inside the
+  // (slightly grown) box of the original.
+  const PointCloud box = test_surfaces::BoxSurface({5, 0, 0}, {1, 0.5, 2}, 2000, 1);
+  AugmentOptions options;
+  options.views = 4;
+  options.sensor.noise_fraction = 0;
+  const absl::StatusOr<std::vector<PointCloud>> views = AugmentedViews(box, options, 7);
+  ASSERT_TRUE(views.ok()) << views.status();
+  ASSERT_EQ(views->size(), 4u);
+  for (const PointCloud& view : *views) {
+    for (size_t i = 0; i < view.size(); ++i) {
+      EXPECT_NEAR(view.point(i).x(), 5.0, 1.0 + 1e-5);
+      EXPECT_NEAR(view.point(i).z(), 0.0, 2.0 + 1e-5);
+    }
+  }
+}
+
+TEST(AugmentTest, RejectsOptionsOutOfRange) {
+  const PointCloud box = test_surfaces::BoxSurface({0, 0, 0}, {1, 0.5, 2}, 500, 1);
+  AugmentOptions options;
+  options.views = AugmentOptions::kMaxViews + 1;
+  EXPECT_THAT(ValidateAugmentOptions(options).message(), HasSubstr("views 65 is outside [0, 64]"));
+  options.views = 2;
+  options.sensor.min_points = 2;
+  EXPECT_THAT(ValidateAugmentOptions(options).message(), HasSubstr("3 <= min <= max"));
+  options.sensor.min_points = 300;
+  options.sensor.noise_fraction = 2;
+  EXPECT_THAT(AugmentedViews(box, options, 1).status().message(), HasSubstr("noise 2"));
+  options.sensor.noise_fraction = 0.01;
+  options.sensor.view.min_up = 0.5;
+  options.sensor.view.max_up = 0.2;
+  EXPECT_THAT(ValidateAugmentOptions(options).message(), HasSubstr("viewpoint band"));
+}
+
+}  // namespace
+}  // namespace shapeid
