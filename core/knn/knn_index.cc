@@ -50,10 +50,12 @@ KnnIndex::KnnIndex(const KnnIndex& other)
     : dim_(other.dim_),
       storage_(other.storage_),
       ids_(other.ids_),
-      label_of_slot_(other.label_of_slot_),
+      label_of_sample_(other.label_of_sample_),
+      first_row_(other.first_row_),
+      sample_of_row_(other.sample_of_row_),
       labels_(other.labels_),
       label_index_(other.label_index_),
-      slot_of_id_(other.slot_of_id_),
+      sample_of_id_(other.sample_of_id_),
       mean_(other.mean_),
       m2_(other.m2_),
       max_abs_(other.max_abs_),
@@ -71,35 +73,63 @@ KnnIndex::KnnIndex(KnnIndex&& other) noexcept = default;
 KnnIndex& KnnIndex::operator=(KnnIndex&& other) noexcept = default;
 KnnIndex::~KnnIndex() = default;
 
-absl::Status KnnIndex::Add(uint64_t id, absl::string_view label, absl::Span<const float> features) {
-  if (features.size() != static_cast<std::size_t>(dim_)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("sample ", id, " has ", features.size(), " features; the index holds ", dim_));
+void KnnIndex::CopyFeatures(int64_t sample, float* out) const {
+  const std::size_t s = static_cast<std::size_t>(sample);
+  for (int64_t row = first_row_[s]; row < first_row_[s + 1]; ++row) {
+    for (int j = 0; j < dim_; ++j) *out++ = Feature(row, j);
   }
-  for (std::size_t j = 0; j < features.size(); ++j) {
-    if (!std::isfinite(features[j])) {
-      return absl::InvalidArgumentError(absl::StrCat("sample ", id, ": feature ", j, " is ",
-                                                     features[j], "; features must be finite"));
+}
+
+std::vector<float> KnnIndex::Features(int64_t sample) const {
+  std::vector<float> features(static_cast<std::size_t>(ViewsAt(sample)) *
+                              static_cast<std::size_t>(dim_));
+  CopyFeatures(sample, features.data());
+  return features;
+}
+
+absl::Status KnnIndex::Add(uint64_t id, absl::string_view label, absl::Span<const float> features) {
+  const std::size_t dim = static_cast<std::size_t>(dim_);
+  if (features.empty() || features.size() % dim != 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("sample ", id, ": features.size() ", features.size(),
+                     " is not a positive multiple of the dimension ", dim_));
+  }
+  const std::size_t views = features.size() / dim;
+  if (views > static_cast<std::size_t>(kMaxViews)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("sample ", id, " has ", views, " views; at most ", kMaxViews, " are allowed"));
+  }
+  for (std::size_t i = 0; i < features.size(); ++i) {
+    if (!std::isfinite(features[i])) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("sample ", id, ": ", views > 1 ? absl::StrCat("view ", i / dim, " ") : "",
+                       "feature ", i % dim, " is ", features[i], "; features must be finite"));
     }
   }
   if (label.empty()) {
     return absl::InvalidArgumentError(absl::StrCat("sample ", id, " has an empty label"));
   }
-  if (slot_of_id_.contains(id)) {
+  if (sample_of_id_.contains(id)) {
     return absl::AlreadyExistsError(absl::StrCat("sample id ", id, " is already in the index"));
   }
 
-  const int64_t slot = size();
-  if (slot % kBlockLanes == 0) storage_.resize(storage_.size() + BlockFloats(dim_), 0.0f);
-  for (int j = 0; j < dim_; ++j) storage_[FeatureOffset(slot, dim_, j)] = features[j];
+  const int64_t sample = size();
+  const int64_t first_row = num_rows();
+  for (std::size_t v = 0; v < views; ++v) {
+    const int64_t row = first_row + static_cast<int64_t>(v);
+    if (row % kBlockLanes == 0) storage_.resize(storage_.size() + BlockFloats(dim_), 0.0f);
+    for (int j = 0; j < dim_; ++j) storage_[FeatureOffset(row, dim_, j)] = features[v * dim + j];
+    sample_of_row_.push_back(sample);
+    Accumulate(row);
+  }
+  first_row_.push_back(first_row + static_cast<int64_t>(views));
 
   auto [it, inserted] = label_index_.try_emplace(label, static_cast<int32_t>(labels_.size()));
   if (inserted) labels_.emplace_back(label);
   ids_.push_back(id);
-  label_of_slot_.push_back(it->second);
-  slot_of_id_.emplace(id, slot);
+  label_of_sample_.push_back(it->second);
+  sample_of_id_.emplace(id, sample);
 
-  Accumulate(slot);
   UpdateScaleFactors();
   if (trees_) trees_->Clear();
   return absl::OkStatus();
@@ -108,8 +138,8 @@ absl::Status KnnIndex::Add(uint64_t id, absl::string_view label, absl::Span<cons
 absl::Status KnnIndex::Remove(absl::Span<const uint64_t> ids) {
   absl::flat_hash_set<int64_t> doomed;
   for (uint64_t id : ids) {
-    auto it = slot_of_id_.find(id);
-    if (it == slot_of_id_.end()) {
+    auto it = sample_of_id_.find(id);
+    if (it == sample_of_id_.end()) {
       return absl::NotFoundError(absl::StrCat("sample id ", id, " is not in the index"));
     }
     doomed.insert(it->second);
@@ -119,31 +149,39 @@ absl::Status KnnIndex::Remove(absl::Span<const uint64_t> ids) {
   // Compact in place, keeping order; relabel so labels_ holds only labels still in use.
   const int64_t old_size = size();
   std::vector<std::string> old_labels = std::move(labels_);
+  const std::vector<int64_t> old_first_row = std::move(first_row_);
   labels_.clear();
   label_index_.clear();
-  slot_of_id_.clear();
+  sample_of_id_.clear();
+  first_row_ = {0};
+  sample_of_row_.clear();
   int64_t dst = 0;
+  int64_t dst_row = 0;
   for (int64_t src = 0; src < old_size; ++src) {
     if (doomed.contains(src)) continue;
-    if (dst != src) {
-      for (int j = 0; j < dim_; ++j) {
-        storage_[FeatureOffset(dst, dim_, j)] = storage_[FeatureOffset(src, dim_, j)];
+    for (int64_t row = old_first_row[src]; row < old_first_row[src + 1]; ++row, ++dst_row) {
+      if (dst_row != row) {
+        for (int j = 0; j < dim_; ++j) {
+          storage_[FeatureOffset(dst_row, dim_, j)] = storage_[FeatureOffset(row, dim_, j)];
+        }
       }
+      sample_of_row_.push_back(dst);
     }
-    const std::string& label = old_labels[static_cast<std::size_t>(label_of_slot_[src])];
+    const std::string& label = old_labels[static_cast<std::size_t>(label_of_sample_[src])];
     auto [it, inserted] = label_index_.try_emplace(label, static_cast<int32_t>(labels_.size()));
     if (inserted) labels_.push_back(label);
     ids_[dst] = ids_[src];
-    label_of_slot_[dst] = it->second;
-    slot_of_id_.emplace(ids_[dst], dst);
+    label_of_sample_[dst] = it->second;
+    sample_of_id_.emplace(ids_[dst], dst);
+    first_row_.push_back(dst_row);
     ++dst;
   }
   ids_.resize(dst);
-  label_of_slot_.resize(dst);
-  const int64_t blocks = (dst + kBlockLanes - 1) / kBlockLanes;
+  label_of_sample_.resize(dst);
+  const int64_t blocks = (dst_row + kBlockLanes - 1) / kBlockLanes;
   storage_.resize(static_cast<std::size_t>(blocks) * BlockFloats(dim_));
-  for (int64_t slot = dst; slot < blocks * kBlockLanes; ++slot) {
-    for (int j = 0; j < dim_; ++j) storage_[FeatureOffset(slot, dim_, j)] = 0.0f;
+  for (int64_t row = dst_row; row < blocks * kBlockLanes; ++row) {
+    for (int j = 0; j < dim_; ++j) storage_[FeatureOffset(row, dim_, j)] = 0.0f;
   }
 
   RecomputeStatistics();
@@ -151,12 +189,12 @@ absl::Status KnnIndex::Remove(absl::Span<const uint64_t> ids) {
   return absl::OkStatus();
 }
 
-void KnnIndex::Accumulate(int64_t slot) {
-  // Welford's update: numerically stable, and recomputing over the same samples in the
-  // same order reproduces it bit for bit (Remove relies on that).
-  const double count = static_cast<double>(slot + 1);
+void KnnIndex::Accumulate(int64_t row) {
+  // Welford's update: numerically stable, and recomputing over the same rows in the same
+  // order reproduces it bit for bit (Remove relies on that).
+  const double count = static_cast<double>(row + 1);
   for (int j = 0; j < dim_; ++j) {
-    const float xf = Feature(slot, j);
+    const float xf = Feature(row, j);
     const double x = xf;
     const double delta = x - mean_[j];
     mean_[j] += delta / count;
@@ -169,12 +207,12 @@ void KnnIndex::RecomputeStatistics() {
   std::fill(mean_.begin(), mean_.end(), 0.0);
   std::fill(m2_.begin(), m2_.end(), 0.0);
   std::fill(max_abs_.begin(), max_abs_.end(), 0.0f);
-  for (int64_t slot = 0; slot < size(); ++slot) Accumulate(slot);
+  for (int64_t row = 0; row < num_rows(); ++row) Accumulate(row);
   UpdateScaleFactors();
 }
 
 void KnnIndex::UpdateScaleFactors() {
-  const double n = static_cast<double>(size());
+  const double n = static_cast<double>(num_rows());
   for (int j = 0; j < dim_; ++j) {
     const double std_dev = n > 0 ? std::sqrt(m2_[j] / n) : 0.0;
     zscore_scale_[j] = std_dev > 0.0 ? SafeReciprocal(std_dev) : 1.0f;
@@ -200,16 +238,24 @@ std::vector<float> KnnIndex::ScaleFactors(FeatureScaling scaling) const {
   return std::vector<float>(scale, scale + dim_);
 }
 
-absl::Status KnnIndex::ValidateQuery(absl::Span<const float> query, int k) const {
+absl::Status KnnIndex::ValidateQuery(absl::Span<const float> queries, int k) const {
   if (k < 1) return absl::InvalidArgumentError(absl::StrCat("k must be at least 1, got ", k));
-  if (query.size() != static_cast<std::size_t>(dim_)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("query has ", query.size(), " features; the index holds ", dim_));
+  const std::size_t dim = static_cast<std::size_t>(dim_);
+  if (queries.empty() || queries.size() % dim != 0) {
+    return absl::InvalidArgumentError(absl::StrCat("query has ", queries.size(),
+                                                   " features, not a positive multiple of the ",
+                                                   "dimension ", dim_));
   }
-  for (std::size_t j = 0; j < query.size(); ++j) {
-    if (!std::isfinite(query[j])) {
+  // The kernels count query vectors in an int.
+  if (queries.size() / dim > static_cast<std::size_t>(kMaxViews)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "query has ", queries.size() / dim, " vectors; at most ", kMaxViews, " are allowed"));
+  }
+  for (std::size_t i = 0; i < queries.size(); ++i) {
+    if (!std::isfinite(queries[i])) {
       return absl::InvalidArgumentError(
-          absl::StrCat("query feature ", j, " is ", query[j], "; features must be finite"));
+          absl::StrCat("query ", queries.size() > dim ? absl::StrCat("vector ", i / dim, " ") : "",
+                       "feature ", i % dim, " is ", queries[i], "; features must be finite"));
     }
   }
   if (empty()) {
@@ -218,66 +264,73 @@ absl::Status KnnIndex::ValidateQuery(absl::Span<const float> query, int k) const
   return absl::OkStatus();
 }
 
-std::vector<Candidate> KnnIndex::FindNearest(absl::Span<const float> query, int k,
-                                             FeatureScaling scaling, SimdLevel level,
-                                             Engine engine) const {
+std::vector<Candidate> KnnIndex::FindNearest(absl::Span<const float> queries, int k,
+                                             FeatureScaling scaling, SimdLevel level, Engine engine,
+                                             bool early_abandon) const {
   const int kk = static_cast<int>(std::min<int64_t>(k, size()));
+  const int num_queries = static_cast<int>(queries.size() / static_cast<std::size_t>(dim_));
   const float* scale = ScaleData(scaling);
+  // The tree knows rows, not samples, and answers one query vector.
+  const bool one_to_one = num_rows() == size() && num_queries == 1;
   const bool forced_tree = engine == Engine::kKdTree;
   if (engine == Engine::kAuto) {
     engine = dim_ <= knn_internal::kKdTreeMaxDimension && size() >= knn_internal::kKdTreeMinSize
                  ? Engine::kKdTree
                  : Engine::kBruteForce;
   }
-  if (engine == Engine::kKdTree && trees_) {
+  if (engine == Engine::kKdTree && one_to_one && trees_) {
     // Forced (tests) builds now; automatic builds once the tree has paid for itself.
     std::shared_ptr<const knn_internal::KdTree> tree =
         trees_->Get(scaling, View(), scale, /*force=*/forced_tree);
     if (tree) {
       knn_internal::TopK top(kk);
-      if (tree->Search(query.data(), &top)) return top.TakeSorted();
+      if (tree->Search(queries.data(), &top)) return top.TakeSorted();
     }
     // Not built yet, or nanoflann failed (allocation): brute force gives the same answer.
   }
-  knn_internal::TopK top(kk);
-  knn_internal::ScanBlocks(level, View(), query.data(), scale, &top);
+  // With one row per sample and one query, every offer is of a distinct sample: no groups.
+  knn_internal::TopK top(kk, one_to_one ? nullptr : sample_of_row_.data());
+  knn_internal::ScanBlocks(level, View(), queries.data(), num_queries, scale, early_abandon, &top);
   return top.TakeSorted();
 }
 
-absl::StatusOr<std::vector<Neighbor>> KnnIndex::SearchWith(absl::Span<const float> query, int k,
+absl::StatusOr<std::vector<Neighbor>> KnnIndex::SearchWith(absl::Span<const float> queries, int k,
                                                            FeatureScaling scaling, SimdLevel level,
-                                                           Engine engine) const {
-  SHAPEID_RETURN_IF_ERROR(ValidateQuery(query, k));
+                                                           Engine engine,
+                                                           bool early_abandon) const {
+  SHAPEID_RETURN_IF_ERROR(ValidateQuery(queries, k));
   if (FeatureScalingName(scaling) == "unknown") {
     return absl::InvalidArgumentError(
         absl::StrCat("invalid feature scaling value ", static_cast<int>(scaling)));
   }
-  return ToNeighbors(FindNearest(query, k, scaling, level, engine));
+  return ToNeighbors(FindNearest(queries, k, scaling, level, engine, early_abandon));
 }
 
 std::vector<Neighbor> KnnIndex::ToNeighbors(const std::vector<Candidate>& nearest) const {
   std::vector<Neighbor> neighbors;
   neighbors.reserve(nearest.size());
   for (const Candidate& c : nearest) {
-    const std::size_t slot = static_cast<std::size_t>(c.slot);
-    neighbors.push_back(Neighbor{ids_[slot],
-                                 labels_[static_cast<std::size_t>(label_of_slot_[slot])],
-                                 std::sqrt(static_cast<double>(c.distance_sq))});
+    const std::size_t sample = static_cast<std::size_t>(sample_of_row_[c.row]);
+    neighbors.push_back(Neighbor{ids_[sample],
+                                 labels_[static_cast<std::size_t>(label_of_sample_[sample])],
+                                 std::sqrt(static_cast<double>(c.distance_sq)),
+                                 static_cast<int>(c.row - first_row_[sample]), c.query});
   }
   return neighbors;
 }
 
-absl::StatusOr<std::vector<Neighbor>> KnnIndex::Search(absl::Span<const float> query, int k,
+absl::StatusOr<std::vector<Neighbor>> KnnIndex::Search(absl::Span<const float> queries, int k,
                                                        FeatureScaling scaling) const {
-  return SearchWith(query, k, scaling, ActiveSimdLevel(), Engine::kAuto);
+  return SearchWith(queries, k, scaling, ActiveSimdLevel(), Engine::kAuto, /*early_abandon=*/true);
 }
 
-absl::StatusOr<KnnResult> KnnIndex::Classify(absl::Span<const float> query,
+absl::StatusOr<KnnResult> KnnIndex::Classify(absl::Span<const float> queries,
                                              const KnnOptions& options) const {
   SHAPEID_RETURN_IF_ERROR(ValidateKnnOptions(options));
-  SHAPEID_RETURN_IF_ERROR(ValidateQuery(query, options.k));
+  SHAPEID_RETURN_IF_ERROR(ValidateQuery(queries, options.k));
   const std::vector<Candidate> nearest =
-      FindNearest(query, options.k, options.scaling, ActiveSimdLevel(), Engine::kAuto);
+      FindNearest(queries, options.k, options.scaling, ActiveSimdLevel(), Engine::kAuto,
+                  /*early_abandon=*/true);
 
   KnnResult result;
   result.neighbors = ToNeighbors(nearest);
@@ -296,7 +349,8 @@ absl::StatusOr<KnnResult> KnnIndex::Classify(absl::Span<const float> query,
     } else if (by_distance) {
       w = 1.0 / result.neighbors[i].distance;
     }
-    const int32_t label = label_of_slot_[static_cast<std::size_t>(nearest[i].slot)];
+    const int32_t label = label_of_sample_[static_cast<std::size_t>(
+        sample_of_row_[static_cast<std::size_t>(nearest[i].row)])];
     int& v = vote_of_label[static_cast<std::size_t>(label)];
     if (v < 0) {
       v = static_cast<int>(vote_label.size());

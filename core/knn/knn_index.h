@@ -22,12 +22,17 @@ namespace knn_internal {
 class TreeCache;
 }  // namespace knn_internal
 
+// One of the nearest samples: the closest (view, query vector) pair decides its distance.
 struct Neighbor {
   uint64_t id = 0;
   std::string label;
   // Euclidean distance in the scaled feature space. Computed in float (the kernels' sum of
   // squares, see knn_kernels.h), reported as double.
   double distance = 0.0;
+  // Which of the sample's views and which of the query vectors are that close; among equal
+  // distances, the first view, then the first query.
+  int view = 0;
+  int query = 0;
 };
 
 struct ClassVote {
@@ -41,8 +46,8 @@ struct KnnResult {
   std::string label;
   // The winner's share of the total vote weight, in (0, 1].
   double confidence = 0.0;
-  // min(k, size()) neighbours, nearest first; equal distances in the order the samples were
-  // added.
+  // min(k, size()) distinct samples, nearest first; equal distances in the order the
+  // samples were added.
   std::vector<Neighbor> neighbors;
   // One entry per class present among the neighbours, most weight first, ties in the order
   // of each class's nearest neighbour (so votes[0].label == label). Under distance weighting
@@ -50,28 +55,38 @@ struct KnnResult {
   std::vector<ClassVote> votes;
 };
 
-// An exact k-nearest-neighbour classifier over a gallery of labelled feature vectors.
+// An exact k-nearest-neighbour classifier over a gallery of labelled samples.
 //
-// Samples are kept raw (unscaled). Feature scaling only multiplies each dimension's
+// A sample (one id, one label) holds one or more feature vectors, its views: e.g. partial
+// scans of one object made at training time. A query may likewise be several vectors (e.g.
+// one descriptor under the axis permutations its canonical frame cannot tell apart). The
+// distance between a query and a sample is the smallest over all (query vector, view)
+// pairs, and the k nearest are k distinct samples, so an object with many views takes one
+// place among the neighbours and casts one vote, however many of its views are close.
+//
+// Feature vectors are kept raw (unscaled). Feature scaling only multiplies each dimension's
 // difference by a factor w_d (the z-score offset cancels in a difference), so a query
-// computes sqrt(sum_d ((q_d - x_d) * w_d)^2) directly on raw features. That keeps Add O(d)
-// (only running statistics change, never the stored gallery), lets every query pick its
-// scaling, and costs one multiply per feature in a loop that is bound by memory bandwidth
-// anyway. A scaled copy would make every Add rescale the whole gallery.
+// computes sqrt(sum_d ((q_d - x_d) * w_d)^2) directly on raw features. That keeps Add
+// O(features added) (only running statistics change, never the stored gallery), lets
+// every query pick its scaling, and costs one multiply per feature in a loop that is bound
+// by memory bandwidth anyway. A scaled copy would make every Add rescale the whole gallery.
 //
 // Search is brute force over a SIMD-friendly blocked layout (knn_kernels.h), picked at run
-// time for the CPU (core/simd.h); every SIMD level gives bit-identical results. For low
-// dimensions and large galleries (knn_kd_tree.h: d <= 6, n >= 10k) a kd-tree takes over
-// once enough queries have run since the last change to pay for building it; it returns
-// exactly what brute force returns, ties included.
+// time for the CPU (core/simd.h), with exact early abandonment of blocks that cannot beat
+// the current k-th; every SIMD level gives bit-identical results. For low dimensions and
+// large galleries of one view per sample (knn_kd_tree.h: d <= 6, n >= 10k) a kd-tree takes
+// over for one-vector queries once enough have run since the last change to pay for
+// building it; it returns exactly what brute force returns, ties included.
 //
 // Thread safety: const methods may run concurrently from any number of threads. Add, Remove
 // and assignment need exclusive access (no concurrent queries); a gallery that must keep
 // answering while it changes should mutate a copy and swap it in.
 class KnnIndex {
  public:
-  // Most features per sample this index accepts.
+  // Most features per view this index accepts.
   static constexpr int kMaxDimension = 1 << 16;
+  // Most views per sample, and vectors per query, this index accepts.
+  static constexpr int kMaxViews = 1 << 16;
 
   // An empty index for samples of `dimension` features. InvalidArgument unless
   // 1 <= dimension <= kMaxDimension.
@@ -83,96 +98,124 @@ class KnnIndex {
   KnnIndex& operator=(KnnIndex&& other) noexcept;
   ~KnnIndex();
 
+  // Features per view.
   int dimension() const { return dim_; }
+  // Samples (distinct ids), not views.
   int64_t size() const { return static_cast<int64_t>(ids_.size()); }
   bool empty() const { return ids_.empty(); }
-  bool Contains(uint64_t id) const { return slot_of_id_.contains(id); }
+  // Stored feature vectors: the views of all samples.
+  int64_t num_rows() const { return first_row_.back(); }
+  bool Contains(uint64_t id) const { return sample_of_id_.contains(id); }
   // Distinct labels currently in the index.
   int num_labels() const { return static_cast<int>(labels_.size()); }
 
-  // The sample in `slot` (0 <= slot < size(), insertion order): what a store or an export
-  // needs to rebuild this index bit for bit by Add-ing the slots in order.
-  uint64_t IdAt(int64_t slot) const { return ids_[static_cast<size_t>(slot)]; }
-  const std::string& LabelAt(int64_t slot) const {
-    return labels_[static_cast<size_t>(label_of_slot_[static_cast<size_t>(slot)])];
+  // Samples are numbered 0 .. size() - 1 in insertion order. IdAt, LabelAt and
+  // CopyFeatures are what a store or an export needs: Add-ing every sample in order, with
+  // CopyFeatures' output as its features, rebuilds this index bit for bit.
+  uint64_t IdAt(int64_t sample) const { return ids_[static_cast<std::size_t>(sample)]; }
+  const std::string& LabelAt(int64_t sample) const {
+    return labels_[static_cast<std::size_t>(label_of_sample_[static_cast<std::size_t>(sample)])];
   }
-  // Writes the slot's dimension() features to `out`, which must hold that many.
-  void CopyFeatures(int64_t slot, float* out) const {
-    for (int j = 0; j < dim_; ++j) out[j] = Feature(slot, j);
+  int ViewsAt(int64_t sample) const {
+    const std::size_t s = static_cast<std::size_t>(sample);
+    return static_cast<int>(first_row_[s + 1] - first_row_[s]);
   }
+  // Writes the sample's ViewsAt(sample) * dimension() features, view after view, to `out`,
+  // which must hold that many.
+  void CopyFeatures(int64_t sample, float* out) const;
+  // The same features in a new vector.
+  std::vector<float> Features(int64_t sample) const;
 
-  // Appends one sample. Errors, with nothing changed: InvalidArgument if features.size() is
-  // not dimension(), a feature is NaN or infinite, or the label is empty; AlreadyExists if
-  // the id is present. O(dimension) amortised.
+  // Appends one sample whose views are the consecutive dimension()-long runs of
+  // `features`. Errors, with nothing changed: InvalidArgument if features.size() is not a
+  // positive multiple of dimension() (or is more than kMaxViews views), a feature is NaN or
+  // infinite, or the label is empty; AlreadyExists if the id is present.
+  // O(features.size()) amortised.
   absl::Status Add(uint64_t id, absl::string_view label, absl::Span<const float> features);
 
-  // Removes the samples with these ids. NotFound (and nothing removed) if any id is absent;
-  // duplicates in `ids` are ignored. The remaining samples keep their relative order (which
-  // is the tie-break order) and statistics are recomputed exactly, as if the remaining
-  // samples had been added in order. O(size() * dimension()) per call, so batch removals.
+  // Removes the samples with these ids, every view of each. NotFound (and nothing
+  // removed) if any id is absent; duplicates in `ids` are ignored. The remaining samples
+  // keep their relative order (which is the tie-break order) and statistics are recomputed
+  // exactly, as if the remaining samples had been added in order.
+  // O(num_rows() * dimension()) per call, so batch removals.
   absl::Status Remove(absl::Span<const uint64_t> ids);
   absl::Status Remove(uint64_t id) { return Remove(absl::MakeConstSpan(&id, 1)); }
 
-  // The min(k, size()) nearest samples to `query` in the space of `scaling`, nearest first,
-  // ties in insertion order. FailedPrecondition if the index is empty; InvalidArgument if
-  // k < 1, the query has the wrong dimension or a non-finite feature.
+  // The min(k, size()) nearest distinct samples to `queries` in the space of `scaling`,
+  // nearest first. `queries` is one or more query vectors, dimension() floats each, one
+  // after another; a sample's distance is the smallest over its views and the query
+  // vectors. Ties go to the earlier-added sample (so results equal a naive double loop's).
+  // FailedPrecondition if the index is empty; InvalidArgument if k < 1, queries.size() is
+  // not a positive multiple of dimension() (or is more than kMaxViews vectors), or a
+  // feature is non-finite. A one-vector query on a one-view gallery is the classic kNN.
   absl::StatusOr<std::vector<Neighbor>> Search(
-      absl::Span<const float> query, int k, FeatureScaling scaling = FeatureScaling::kNone) const;
+      absl::Span<const float> queries, int k, FeatureScaling scaling = FeatureScaling::kNone) const;
 
-  // Search with options.k and options.scaling, then the vote of options.weighting. Same
-  // errors as Search, plus ValidateKnnOptions.
-  absl::StatusOr<KnnResult> Classify(absl::Span<const float> query,
+  // Search with options.k and options.scaling, then the vote of options.weighting: one
+  // vote per neighbouring sample. Same errors as Search, plus ValidateKnnOptions.
+  absl::StatusOr<KnnResult> Classify(absl::Span<const float> queries,
                                      const KnnOptions& options) const;
 
   // For tests and benchmarks only: Search on a chosen engine and SIMD level (lowered to
-  // DetectedSimdLevel() if the CPU lacks it). kKdTree builds its tree at once.
+  // DetectedSimdLevel() if the CPU lacks it), with or without early abandonment. kKdTree
+  // builds its tree at once; like kAuto it applies only to one-view galleries and
+  // one-vector queries, and falls back to brute force otherwise.
   enum class Engine { kAuto, kBruteForce, kKdTree };
-  absl::StatusOr<std::vector<Neighbor>> SearchForTesting(absl::Span<const float> query, int k,
+  absl::StatusOr<std::vector<Neighbor>> SearchForTesting(absl::Span<const float> queries, int k,
                                                          FeatureScaling scaling, SimdLevel level,
-                                                         Engine engine) const {
-    return SearchWith(query, k, scaling, std::min(level, DetectedSimdLevel()), engine);
+                                                         Engine engine,
+                                                         bool early_abandon = true) const {
+    return SearchWith(queries, k, scaling, std::min(level, DetectedSimdLevel()), engine,
+                      early_abandon);
   }
 
   // The per-dimension factors w_d that `scaling` multiplies feature differences by (all
-  // ones for kNone; 1 / std and 1 / max|x| for the others, 1 where those are 0). Empty
-  // index: all ones.
+  // ones for kNone; 1 / std and 1 / max|x| for the others, 1 where those are 0). The
+  // statistics count every view of every sample as one observation, so a sample with more
+  // views weighs more; with one view per sample they are the per-sample statistics.
+  // Empty index: all ones.
   std::vector<float> ScaleFactors(FeatureScaling scaling) const;
 
  private:
   explicit KnnIndex(int dimension);
 
-  absl::Status ValidateQuery(absl::Span<const float> query, int k) const;
-  // Squared distances, best first. Query already validated.
-  std::vector<knn_internal::Candidate> FindNearest(absl::Span<const float> query, int k,
+  absl::Status ValidateQuery(absl::Span<const float> queries, int k) const;
+  // The nearest distinct samples' best (squared distance, row, query), best first. Queries
+  // already validated.
+  std::vector<knn_internal::Candidate> FindNearest(absl::Span<const float> queries, int k,
                                                    FeatureScaling scaling, SimdLevel level,
-                                                   Engine engine) const;
-  absl::StatusOr<std::vector<Neighbor>> SearchWith(absl::Span<const float> query, int k,
+                                                   Engine engine, bool early_abandon) const;
+  absl::StatusOr<std::vector<Neighbor>> SearchWith(absl::Span<const float> queries, int k,
                                                    FeatureScaling scaling, SimdLevel level,
-                                                   Engine engine) const;
+                                                   Engine engine, bool early_abandon) const;
   std::vector<Neighbor> ToNeighbors(const std::vector<knn_internal::Candidate>& nearest) const;
   // nullptr for kNone.
   const float* ScaleData(FeatureScaling scaling) const;
   knn_internal::BlockedView View() const {
-    return knn_internal::BlockedView{storage_.data(), size(), dim_};
+    return knn_internal::BlockedView{storage_.data(), num_rows(), dim_};
   }
-  float Feature(int64_t slot, int j) const {
-    return storage_[knn_internal::FeatureOffset(slot, dim_, j)];
+  float Feature(int64_t row, int j) const {
+    return storage_[knn_internal::FeatureOffset(row, dim_, j)];
   }
-  // Folds sample `slot` (the count-th, 1-based) into the running statistics.
-  void Accumulate(int64_t slot);
+  // Folds `row` (the (row + 1)-th observation) into the running statistics.
+  void Accumulate(int64_t row);
   void RecomputeStatistics();
   void UpdateScaleFactors();
 
   int dim_;
-  knn_internal::AlignedFloats storage_;  // blocked layout, see knn_kernels.h
-  std::vector<uint64_t> ids_;            // by slot
-  std::vector<int32_t> label_of_slot_;   // index into labels_
-  std::vector<std::string> labels_;      // distinct labels, in order of first appearance
+  knn_internal::AlignedFloats storage_;  // rows in the blocked layout, see knn_kernels.h
+  // Per sample, in insertion order.
+  std::vector<uint64_t> ids_;
+  std::vector<int32_t> label_of_sample_;  // index into labels_
+  // Sample s holds rows [first_row_[s], first_row_[s + 1]); size() + 1 entries.
+  std::vector<int64_t> first_row_ = {0};
+  std::vector<int64_t> sample_of_row_;  // the inverse, per row: TopK's groups
+  std::vector<std::string> labels_;     // distinct labels, in order of first appearance
   absl::flat_hash_map<std::string, int32_t> label_index_;
-  absl::flat_hash_map<uint64_t, int64_t> slot_of_id_;
+  absl::flat_hash_map<uint64_t, int64_t> sample_of_id_;
 
-  // Running statistics per dimension, updated by Add in slot order (Welford, double), and
-  // the float factors queries use.
+  // Running statistics per dimension over rows, updated by Add in row order (Welford,
+  // double), and the float factors queries use.
   std::vector<double> mean_;
   std::vector<double> m2_;
   std::vector<float> max_abs_;

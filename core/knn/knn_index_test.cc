@@ -375,7 +375,20 @@ TEST(KnnIndexTest, InvalidInputsGiveClearErrors) {
 
   absl::Status status = index.Add(1, "a", std::vector<float>{1, 2});
   EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_THAT(status.message(), HasSubstr("has 2 features; the index holds 3"));
+  EXPECT_THAT(status.message(),
+              HasSubstr("features.size() 2 is not a positive multiple of the dimension 3"));
+
+  status = index.Add(1, "a", std::vector<float>{});
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(status.message(), HasSubstr("features.size() 0 is not a positive multiple"));
+
+  status = index.Add(1, "a", std::vector<float>{1, 2, 3, 4, 5, 6, 7});
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(status.message(), HasSubstr("features.size() 7 is not a positive multiple"));
+
+  status = index.Add(1, "a", std::vector<float>{1, 2, 3, 4, 5, NAN});
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(status.message(), HasSubstr("sample 1: view 1 feature 2 is nan"));
 
   status = index.Add(1, "a", std::vector<float>{1, std::nanf(""), 3});
   EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
@@ -400,16 +413,166 @@ TEST(KnnIndexTest, InvalidInputsGiveClearErrors) {
 
   auto bad_dim = index.Search(std::vector<float>{1, 2, 3, 4}, 1);
   EXPECT_EQ(bad_dim.status().code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_THAT(bad_dim.status().message(), HasSubstr("query has 4 features; the index holds 3"));
+  EXPECT_THAT(bad_dim.status().message(),
+              HasSubstr("query has 4 features, not a positive multiple of the dimension 3"));
+  EXPECT_EQ(index.Search(std::vector<float>{}, 1).status().code(),
+            absl::StatusCode::kInvalidArgument);
 
   auto nan_query = index.Search(std::vector<float>{1, NAN, 3}, 1);
   EXPECT_EQ(nan_query.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(nan_query.status().message(), HasSubstr("query feature 1 is nan"));
 
+  auto inf_second = index.Search(std::vector<float>{1, 2, 3, 4, 5, INFINITY}, 1);
+  EXPECT_EQ(inf_second.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(inf_second.status().message(), HasSubstr("query vector 1 feature 2 is inf"));
+
   KnnOptions options;
   options.k = -2;
   EXPECT_EQ(index.Classify(std::vector<float>{1, 2, 3}, options).status().code(),
             absl::StatusCode::kInvalidArgument);
+}
+
+// Views of sample i: 1 + i % 4 of them, view v = (i, v, i * v) scaled per dimension.
+std::vector<float> Views(uint64_t i) {
+  std::vector<float> x;
+  for (uint64_t v = 0; v <= i % 4; ++v) {
+    x.insert(x.end(), {static_cast<float>(i), static_cast<float>(v) * 0.5f,
+                       static_cast<float>(i * v) - 3.0f});
+  }
+  return x;
+}
+
+TEST(KnnIndexTest, SamplesWithSeveralViewsSurviveAddRemoveAndRebuild) {
+  KnnIndex index = MakeIndex(3);
+  for (uint64_t i = 0; i < 50; ++i) AddOrDie(index, 100 + i, absl::StrCat("c", i % 3), Views(i));
+  EXPECT_EQ(index.size(), 50);
+  EXPECT_EQ(index.num_rows(), 123);  // 12 * (1 + 2 + 3 + 4) + 1 + 2
+  ASSERT_TRUE(index.Remove(std::vector<uint64_t>{100, 103, 131, 148}).ok());
+  EXPECT_EQ(index.size(), 46);
+  EXPECT_EQ(index.num_rows(), 123 - 1 - 4 - 4 - 1);
+
+  std::vector<uint64_t> kept;
+  for (uint64_t i = 0; i < 50; ++i) {
+    if (index.Contains(100 + i)) kept.push_back(i);
+  }
+  ASSERT_EQ(kept.size(), 46u);
+  KnnIndex rebuilt = MakeIndex(3);
+  for (int64_t s = 0; s < index.size(); ++s) {
+    const uint64_t i = kept[static_cast<std::size_t>(s)];
+    EXPECT_EQ(index.IdAt(s), 100 + i);
+    EXPECT_EQ(index.LabelAt(s), absl::StrCat("c", i % 3));
+    EXPECT_EQ(index.ViewsAt(s), static_cast<int>(1 + i % 4));
+    EXPECT_EQ(index.Features(s), Views(i)) << s;
+    std::vector<float> copied(Views(i).size() + 1, -7.0f);
+    index.CopyFeatures(s, copied.data());
+    EXPECT_EQ(copied.back(), -7.0f) << "wrote past ViewsAt * dimension floats";
+    copied.pop_back();
+    EXPECT_EQ(copied, Views(i));
+    AddOrDie(rebuilt, index.IdAt(s), index.LabelAt(s), index.Features(s));
+  }
+
+  // Bit for bit the same index: statistics and answers.
+  for (FeatureScaling scaling :
+       {FeatureScaling::kNone, FeatureScaling::kZScore, FeatureScaling::kMaxAbs}) {
+    EXPECT_EQ(index.ScaleFactors(scaling), rebuilt.ScaleFactors(scaling));
+    const std::vector<float> queries = {20, 1, 15, 3, 0.5f, -3, 40, 0, 0};
+    auto a = index.Search(queries, 10, scaling);
+    auto b = rebuilt.Search(queries, 10, scaling);
+    ASSERT_TRUE(a.ok() && b.ok());
+    ASSERT_EQ(a->size(), b->size());
+    for (std::size_t r = 0; r < a->size(); ++r) {
+      EXPECT_EQ((*a)[r].id, (*b)[r].id);
+      EXPECT_EQ((*a)[r].distance, (*b)[r].distance);
+      EXPECT_EQ((*a)[r].view, (*b)[r].view);
+      EXPECT_EQ((*a)[r].query, (*b)[r].query);
+    }
+  }
+}
+
+// Every view is one observation of the statistics.
+TEST(KnnIndexTest, ScalingStatisticsCountEveryView) {
+  KnnIndex index = MakeIndex(2);
+  AddOrDie(index, 1, "a", {0, 1, 2, 1, 4, 1});  // three views
+  AddOrDie(index, 2, "b", {-8, 3});
+  // Dimension 0: 0, 2, 4, -8: mean -0.5, population variance 20.75; max |x| 8.
+  // Dimension 1: 1, 1, 1, 3: mean 1.5, variance 0.75; max |x| 3.
+  const std::vector<float> zscore = index.ScaleFactors(FeatureScaling::kZScore);
+  EXPECT_FLOAT_EQ(zscore[0], static_cast<float>(1 / std::sqrt(20.75)));
+  EXPECT_FLOAT_EQ(zscore[1], static_cast<float>(1 / std::sqrt(0.75)));
+  EXPECT_THAT(index.ScaleFactors(FeatureScaling::kMaxAbs), ElementsAre(0.125f, 1.0f / 3));
+  ASSERT_TRUE(index.Remove(2).ok());
+  EXPECT_THAT(index.ScaleFactors(FeatureScaling::kMaxAbs), ElementsAre(0.25f, 1.0f));
+}
+
+// The nearest (view, query) pair decides, and is reported; equal distances go to the
+// earlier view, then the earlier query, then the earlier sample.
+TEST(KnnIndexTest, TheClosestViewAndQueryDecide) {
+  KnnIndex index = MakeIndex(1);
+  AddOrDie(index, 1, "a", {10, 4, 6, -4});
+  AddOrDie(index, 2, "b", {3});
+  AddOrDie(index, 3, "c", {7, 5.5f});
+  // One query at 5: sample 1 at 1 (views 1 and 2 tie: view 1), 3 at 0.5 (view 1), 2 at 2.
+  auto got = index.Search(std::vector<float>{5}, 3);
+  ASSERT_TRUE(got.ok()) << got.status();
+  EXPECT_THAT(Ids(*got), ElementsAre(3, 1, 2));
+  EXPECT_EQ((*got)[0].view, 1);
+  EXPECT_EQ((*got)[0].distance, 0.5);
+  EXPECT_EQ((*got)[1].view, 1);
+  EXPECT_EQ((*got)[1].distance, 1.0);
+  EXPECT_EQ((*got)[2].view, 0);
+
+  // Queries 0 and -3: sample 1's view 3 (-4) is 1 from query 1; sample 2 (3) is 3 from
+  // query 0.
+  got = index.Search(std::vector<float>{0, -3}, 2);
+  ASSERT_TRUE(got.ok());
+  EXPECT_THAT(Ids(*got), ElementsAre(1, 2));
+  EXPECT_EQ((*got)[0].distance, 1.0);
+  EXPECT_EQ((*got)[0].view, 3);
+  EXPECT_EQ((*got)[0].query, 1);
+  EXPECT_EQ((*got)[1].distance, 3.0);
+  EXPECT_EQ((*got)[1].query, 0);
+
+  // Two queries equally close to the same view: the first query is reported.
+  got = index.Search(std::vector<float>{2.75f, 3.25f}, 1);
+  ASSERT_TRUE(got.ok());
+  EXPECT_EQ((*got)[0].id, 2u);
+  EXPECT_EQ((*got)[0].query, 0);
+
+  // Samples at equal distance: the earlier-added one first.
+  AddOrDie(index, 4, "d", {100, 2});
+  got = index.Search(std::vector<float>{2.5f}, 2);
+  ASSERT_TRUE(got.ok());
+  EXPECT_THAT(Ids(*got), ElementsAre(2, 4));
+}
+
+// Nine views of one object next to the query take one neighbour place and one vote.
+TEST(KnnIndexTest, ClassifyVotesOncePerSample) {
+  KnnIndex index = MakeIndex(2);
+  std::vector<float> many;
+  for (int v = 0; v < 9; ++v) many.insert(many.end(), {0.01f * v, 0});
+  AddOrDie(index, 1, "mug", many);
+  AddOrDie(index, 2, "bowl", {1, 0});
+  AddOrDie(index, 3, "bowl", {0, 1.5f});
+  AddOrDie(index, 4, "mug", {5, 5});
+  KnnOptions options;
+  options.k = 3;
+  auto result = index.Classify(std::vector<float>{0, 0}, options);
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_THAT(Ids(result->neighbors), ElementsAre(1, 2, 3));
+  EXPECT_EQ(result->label, "bowl");
+  EXPECT_DOUBLE_EQ(result->confidence, 2.0 / 3);
+  ASSERT_EQ(result->votes.size(), 2u);
+  EXPECT_EQ(result->votes[1].label, "mug");
+  EXPECT_EQ(result->votes[1].weight, 1.0);
+
+  // A second query vector that sits on the far mug makes it a zero-distance neighbour.
+  options.weighting = VoteWeighting::kDistance;
+  result = index.Classify(std::vector<float>{0, 0.2f, 5, 5}, options);
+  ASSERT_TRUE(result.ok());
+  EXPECT_THAT(Ids(result->neighbors), ElementsAre(4, 1, 2));
+  EXPECT_EQ(result->neighbors[0].query, 1);
+  EXPECT_EQ(result->label, "mug");
+  EXPECT_DOUBLE_EQ(result->confidence, 1.0);
 }
 
 TEST(KnnIndexTest, CopiesAreIndependent) {
