@@ -38,6 +38,7 @@ v1::GalleryExportHeader HeaderFor(const std::string& name, const GalleryOptions&
   header.set_descriptor_version(descriptor_version);
   header.set_software_version(software_version);
   header.set_sample_count(static_cast<uint64_t>(num_samples));
+  if (options.augment.enabled()) *header.mutable_augmentation() = ToProto(options.augment);
   return header;
 }
 
@@ -47,9 +48,9 @@ void AppendTo(v1::ExportedSamples* out, uint64_t id, const std::string& label) {
 }
 
 // Serialized bytes one sample adds to an ExportedSamples message, at most: a 10-byte
-// varint id, the label with its tag and length, the packed features.
-size_t SampleBytes(size_t label_bytes, int dimension) {
-  return 10 + 1 + 5 + label_bytes + 4 * static_cast<size_t>(dimension);
+// varint id, the label with its tag and length, its view count, the packed features.
+size_t SampleBytes(size_t label_bytes, size_t features) {
+  return 10 + 1 + 5 + label_bytes + 5 + 4 * features;
 }
 
 }  // namespace
@@ -71,11 +72,12 @@ GalleryExporter::GalleryExporter(std::shared_ptr<const GallerySnapshot> snapshot
                         snapshot->num_samples())),
       append_([index = &snapshot->index()](int64_t slot, v1::ExportedSamples* out) {
         AppendTo(out, index->IdAt(slot), index->LabelAt(slot));
-        const int d = index->dimension();
+        const int features = index->ViewsAt(slot) * index->dimension();
         const int old_size = out->features_size();
-        out->mutable_features()->Resize(old_size + d, 0.0f);
+        out->mutable_features()->Resize(old_size + features, 0.0f);
         index->CopyFeatures(slot, out->mutable_features()->mutable_data() + old_size);
       }),
+      multi_view_(snapshot->index().num_rows() > snapshot->num_samples()),
       chunk_bytes_(chunk_bytes),
       keep_alive_(std::move(snapshot)) {}
 
@@ -91,6 +93,10 @@ GalleryExporter::GalleryExporter(std::shared_ptr<const StoredGallery> gallery, s
         AppendTo(out, sample.id, sample.label);
         out->mutable_features()->Add(sample.features.begin(), sample.features.end());
       }),
+      multi_view_(std::any_of(gallery->samples.begin(), gallery->samples.end(),
+                              [d = static_cast<size_t>(gallery->dimension)](const StoredSample& s) {
+                                return s.features.size() > d;
+                              })),
       chunk_bytes_(chunk_bytes),
       keep_alive_(std::move(gallery)) {}
 
@@ -122,12 +128,16 @@ void GalleryExporter::FillSamples(v1::ExportedSamples* out) {
   const int dimension = static_cast<int>(header_.dimension());
   size_t bytes = 0;
   while (next_slot_ < num_samples && bytes < chunk_bytes_) {
+    const int first = out->features_size();
     append_(next_slot_, out);
     const int i = out->sample_ids_size() - 1;
-    const absl::Span<const float> features(out->features().data() + int64_t{i} * dimension,
-                                           static_cast<size_t>(dimension));
+    const absl::Span<const float> features(out->features().data() + first,
+                                           static_cast<size_t>(out->features_size() - first));
+    // Only galleries with several views per sample say how many: a plain gallery's export
+    // stays what it always was.
+    if (multi_view_) out->add_view_counts(static_cast<uint32_t>(features.size() / dimension));
     crc_ = ExportCrc(crc_, out->sample_ids(i), out->labels(i), features);
-    bytes += SampleBytes(out->labels(i).size(), dimension);
+    bytes += SampleBytes(out->labels(i).size(), features.size());
     ++next_slot_;
   }
 }
@@ -197,6 +207,13 @@ absl::Status GalleryImportAssembler::AddHeader(const v1::GalleryExportHeader& he
   gallery_.options.descriptor_spec = header.descriptor_spec();
   gallery_.options.knn = *knn;
   gallery_.options.reject_distance = header.reject_distance();
+  if (header.has_augmentation()) {
+    absl::StatusOr<AugmentOptions> augment = FromProto(header.augmentation());
+    if (!augment.ok()) {
+      return absl::InvalidArgumentError(absl::StrCat("header: ", augment.status().message()));
+    }
+    gallery_.options.augment = *augment;
+  }
   gallery_.created = FromProto(header.create_time());
   gallery_.updated = FromProto(header.update_time());
   gallery_.descriptor_version = header.descriptor_version();
@@ -219,22 +236,40 @@ absl::Status GalleryImportAssembler::AddSamples(const v1::ExportedSamples& sampl
     return absl::InvalidArgumentError(
         absl::StrCat(n, " sample ids but ", samples.labels_size(), " labels"));
   }
-  if (static_cast<uint64_t>(samples.features_size()) != n * dimension) {
-    return absl::InvalidArgumentError(absl::StrCat(n, " samples of dimension ", dimension, " need ",
-                                                   n * dimension, " features, got ",
-                                                   samples.features_size()));
+  const bool counted = samples.view_counts_size() > 0;
+  if (counted && static_cast<uint64_t>(samples.view_counts_size()) != n) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(n, " sample ids but ", samples.view_counts_size(), " view counts"));
+  }
+  uint64_t vectors = 0;
+  for (uint64_t i = 0; i < n; ++i) {
+    const uint32_t views = counted ? samples.view_counts(static_cast<int>(i)) : 1;
+    if (views < 1 || views > 1 + AugmentOptions::kMaxViews) {
+      return absl::InvalidArgumentError(absl::StrCat("sample id ",
+                                                     samples.sample_ids(static_cast<int>(i)),
+                                                     " has ", views, " views; 1 to ",
+                                                     1 + AugmentOptions::kMaxViews, " allowed"));
+    }
+    vectors += views;
+  }
+  if (static_cast<uint64_t>(samples.features_size()) != vectors * dimension) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        n, " samples with ", vectors, " views of dimension ", dimension, " need ",
+        vectors * dimension, " features, got ", samples.features_size()));
   }
   const auto received = static_cast<uint64_t>(gallery_.samples.size());
   if (received + n > announced_) {
     return absl::InvalidArgumentError(absl::StrCat("more samples than the header announced (",
                                                    announced_, "): ", received + n, " so far"));
   }
+  const float* next = samples.features().data();
   for (uint64_t i = 0; i < n; ++i) {
     StoredSample& sample = gallery_.samples.emplace_back();
     sample.id = samples.sample_ids(static_cast<int>(i));
     sample.label = samples.labels(static_cast<int>(i));
-    const float* first = samples.features().data() + i * dimension;
-    sample.features.assign(first, first + dimension);
+    const uint64_t count = (counted ? samples.view_counts(static_cast<int>(i)) : 1) * dimension;
+    sample.features.assign(next, next + count);
+    next += count;
     crc_ = ExportCrc(crc_, sample.id, sample.label, sample.features);
   }
   return absl::OkStatus();

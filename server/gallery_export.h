@@ -70,6 +70,8 @@ class GalleryExporter {
 
   const v1::GalleryExportHeader header_;
   const AppendSample append_;
+  // Some sample has several views: every sample's view count is exported.
+  const bool multi_view_;
   const size_t chunk_bytes_;
   const std::shared_ptr<const void> keep_alive_;  // what append_ reads
   Stage stage_ = Stage::kHeader;

@@ -82,6 +82,7 @@ void ExpectIdentical(const StoredGallery& a, const StoredGallery& b) {
   EXPECT_EQ(a.descriptor_version, b.descriptor_version);
   EXPECT_EQ(a.software_version, b.software_version);
   EXPECT_EQ(a.dimension, b.dimension);
+  EXPECT_EQ(AugmentOptionsToString(a.options.augment), AugmentOptionsToString(b.options.augment));
   ASSERT_EQ(a.samples.size(), b.samples.size());
   for (size_t i = 0; i < a.samples.size(); ++i) {
     EXPECT_EQ(a.samples[i].id, b.samples[i].id) << i;
@@ -151,6 +152,63 @@ TEST(GalleryExportTest, ASnapshotExportsLikeItsStoredForm) {
   for (size_t i = 0; i < a.size(); ++i) {
     EXPECT_EQ(a[i].SerializeAsString(), b[i].SerializeAsString()) << "chunk " << i;
   }
+}
+
+// OddGallery with view augmentation: sample i has 1 + i % 4 views.
+StoredGallery AugmentedGallery(int num_samples) {
+  StoredGallery g = OddGallery(num_samples);
+  g.options.augment.views = 3;
+  g.options.augment.seed = 9;
+  for (int i = 0; i < num_samples; ++i) {
+    std::vector<float>& f = g.samples[static_cast<size_t>(i)].features;
+    const std::vector<float> first = f;
+    for (int v = 0; v < i % 4; ++v) {
+      for (float x : first) f.push_back(x * static_cast<float>(v + 2));
+    }
+  }
+  return g;
+}
+
+TEST(GalleryExportTest, AugmentedGalleriesCarryTheirOptionsAndEveryView) {
+  const StoredGallery original = AugmentedGallery(40);
+  GalleryExporter exporter(original, /*chunk_bytes=*/1500);
+  const std::vector<v1::GalleryExportChunk> chunks = Export(exporter);
+  ASSERT_GE(chunks.size(), 4u);
+  EXPECT_EQ(chunks.front().header().augmentation().views(), 3u);
+  for (size_t i = 1; i + 1 < chunks.size(); ++i) {
+    EXPECT_EQ(chunks[i].samples().view_counts_size(), chunks[i].samples().sample_ids_size());
+  }
+  absl::StatusOr<StoredGallery> imported = Assemble(chunks);
+  ASSERT_TRUE(imported.ok()) << imported.status();
+  ExpectIdentical(original, *imported);
+
+  // From a live gallery the same bytes come out.
+  auto gallery = Gallery::Restore(original, {}, nullptr);
+  ASSERT_TRUE(gallery.ok()) << gallery.status();
+  GalleryExporter from_snapshot((*gallery)->Snapshot(), 1500);
+  const auto live = Export(from_snapshot);
+  ASSERT_EQ(live.size(), chunks.size());
+  for (size_t i = 0; i < live.size(); ++i) {
+    EXPECT_EQ(live[i].SerializeAsString(), chunks[i].SerializeAsString()) << "chunk " << i;
+  }
+
+  // Plain galleries do not list view counts, so their exports are unchanged.
+  GalleryExporter plain(OddGallery(5));
+  for (const auto& chunk : Export(plain)) {
+    EXPECT_EQ(chunk.samples().view_counts_size(), 0);
+    EXPECT_FALSE(chunk.header().has_augmentation());
+  }
+
+  // Damaged view counts are refused by name.
+  auto wrong = chunks;
+  wrong[1].mutable_samples()->set_view_counts(1, 99);
+  absl::StatusOr<StoredGallery> bad = Assemble(wrong);
+  EXPECT_EQ(bad.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(bad.status().message()), HasSubstr("99 views"));
+  wrong = chunks;
+  wrong[1].mutable_samples()->mutable_view_counts()->RemoveLast();
+  bad = Assemble(wrong);
+  EXPECT_THAT(std::string(bad.status().message()), HasSubstr("view counts"));
 }
 
 TEST(GalleryExportTest, CrcIsZlibsOverIdLabelAndFeaturesLittleEndian) {

@@ -83,11 +83,13 @@ class GalleryServiceTest : public ::testing::Test {
 
   // One Train stream carrying `samples`, each split into chunks of `chunk` points.
   grpc::Status Train(const std::string& gallery, const std::vector<Sample>& samples,
-                     v1::TrainResponse* response, size_t chunk = 256) {
+                     v1::TrainResponse* response, size_t chunk = 256,
+                     const v1::ViewAugmentation* augmentation = nullptr) {
     grpc::ClientContext context;
     auto writer = stub_->Train(&context, response);
     v1::TrainRequest header;
     header.mutable_header()->set_gallery(gallery);
+    if (augmentation != nullptr) *header.mutable_header()->mutable_augmentation() = *augmentation;
     bool open = writer->Write(header);
     for (const Sample& s : samples) {
       v1::TrainRequest start;
@@ -276,6 +278,50 @@ TEST_F(GalleryServiceTest, BulkTrainThenClassifyRecognisesShapes) {
     EXPECT_EQ(answer.num_points(), 2000u);
     EXPECT_TRUE(answer.has_describe_time());
   }
+}
+
+TEST_F(GalleryServiceTest, AugmentedGalleriesStoreViewsAndCountEachObjectOnce) {
+  grpc::ClientContext context;
+  v1::CreateGalleryRequest request;
+  request.set_name("robot");
+  request.set_descriptor_spec("dfsd:frame=box");
+  request.mutable_knn()->set_k(3);
+  request.mutable_augmentation()->set_views(4);
+  v1::Gallery created;
+  ASSERT_TRUE(stub_->CreateGallery(&context, request, &created).ok());
+  EXPECT_EQ(created.augmentation().views(), 4u);
+  EXPECT_DOUBLE_EQ(created.augmentation().noise(), 0.01);  // defaults filled
+  EXPECT_EQ(created.augmentation().min_points(), 300u);
+  EXPECT_EQ(created.augmentation().max_points(), 500u);
+
+  v1::TrainResponse trained;
+  ASSERT_TRUE(Train("robot", TrainingSet(3, 40), &trained).ok());
+  v1::Gallery gallery = Get("robot");
+  EXPECT_EQ(gallery.sample_count(), 9u);
+  EXPECT_GT(gallery.vector_count(), 9u * 3);  // most clouds got all 4 views
+  EXPECT_LE(gallery.vector_count(), 9u * 5);
+
+  // A stream can turn augmentation off for its own samples.
+  v1::ViewAugmentation off;
+  const uint64_t before = gallery.vector_count();
+  ASSERT_TRUE(Train("robot", {{"box", 0, Shape(0, 77)}}, &trained, 256, &off).ok());
+  EXPECT_EQ(Get("robot").vector_count(), before + 1);
+  // ... and an invalid setting fails the stream by name, adding nothing.
+  v1::ViewAugmentation too_many;
+  too_many.set_views(65);
+  const grpc::Status refused = Train("robot", {{"box", 0, Shape(0, 78)}}, &trained, 256, &too_many);
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(refused.error_message(), HasSubstr("views 65"));
+  EXPECT_EQ(Get("robot").sample_count(), 10u);
+
+  // Three distinct objects answer, whichever views matched.
+  v1::ClassifyResponse answer;
+  ASSERT_TRUE(Classify("robot", Shape(1, 500, 900), &answer).ok());
+  ASSERT_EQ(answer.neighbors_size(), 3);
+  EXPECT_NE(answer.neighbors(0).sample_id(), answer.neighbors(1).sample_id());
+  EXPECT_NE(answer.neighbors(1).sample_id(), answer.neighbors(2).sample_id());
+  EXPECT_NE(answer.neighbors(0).sample_id(), answer.neighbors(2).sample_id());
+  for (const v1::Neighbor& n : answer.neighbors()) EXPECT_LE(n.view(), 4u);
 }
 
 TEST_F(GalleryServiceTest, TrainIsAllOrNothing) {

@@ -54,6 +54,30 @@ v1::KnnOptions ToProto(const KnnOptions& knn) {
   return out;
 }
 
+absl::StatusOr<AugmentOptions> FromProto(const v1::ViewAugmentation& augmentation) {
+  AugmentOptions out;
+  // Clamped before the int conversion; ValidateAugmentOptions names the value if too large.
+  out.views = static_cast<int>(std::min<uint32_t>(augmentation.views(), 1 << 20));
+  if (augmentation.has_noise()) out.sensor.noise_fraction = augmentation.noise();
+  if (augmentation.min_points() != 0) out.sensor.min_points = augmentation.min_points();
+  if (augmentation.max_points() != 0) out.sensor.max_points = augmentation.max_points();
+  out.sensor.random_pose = augmentation.random_pose();
+  if (augmentation.seed() != 0) out.seed = augmentation.seed();
+  if (absl::Status s = ValidateAugmentOptions(out); !s.ok()) return s;
+  return out;
+}
+
+v1::ViewAugmentation ToProto(const AugmentOptions& augment) {
+  v1::ViewAugmentation out;
+  out.set_views(static_cast<uint32_t>(augment.views));
+  out.set_noise(augment.sensor.noise_fraction);
+  out.set_min_points(static_cast<uint32_t>(augment.sensor.min_points));
+  out.set_max_points(static_cast<uint32_t>(augment.sensor.max_points));
+  out.set_random_pose(augment.sensor.random_pose);
+  out.set_seed(augment.seed);
+  return out;
+}
+
 absl::StatusOr<GalleryOptions> GalleryOptionsFromProto(const v1::CreateGalleryRequest& request) {
   GalleryOptions options;
   if (!request.descriptor_spec().empty()) options.descriptor_spec = request.descriptor_spec();
@@ -61,6 +85,11 @@ absl::StatusOr<GalleryOptions> GalleryOptionsFromProto(const v1::CreateGalleryRe
   if (!knn.ok()) return knn.status();
   options.knn = *knn;
   options.reject_distance = request.reject_distance();
+  if (request.has_augmentation()) {
+    auto augment = FromProto(request.augmentation());
+    if (!augment.ok()) return augment.status();
+    options.augment = *augment;
+  }
   return options;
 }
 
@@ -98,6 +127,8 @@ void ToProto(const GallerySnapshot& snapshot, v1::Gallery* out) {
   out->set_descriptor_version(snapshot.descriptor_version());
   out->set_software_version(snapshot.software_version());
   out->set_incompatible(snapshot.incompatible());
+  *out->mutable_augmentation() = ToProto(snapshot.options().augment);
+  out->set_vector_count(static_cast<uint64_t>(snapshot.index().num_rows()));
 }
 
 void ToProto(const GalleryClassification& answer, size_t num_points, v1::ClassifyResponse* out) {
@@ -109,6 +140,7 @@ void ToProto(const GalleryClassification& answer, size_t num_points, v1::Classif
     neighbor->set_sample_id(n.id);
     neighbor->set_label(n.label);
     neighbor->set_distance(n.distance);
+    neighbor->set_view(static_cast<uint32_t>(n.view));
   }
   for (const ClassVote& v : answer.knn.votes) {
     v1::ClassVote* vote = out->add_votes();

@@ -16,6 +16,11 @@ namespace shapeid {
 absl::StatusOr<KnnOptions> FromProto(const v1::KnnOptions& knn);
 v1::KnnOptions ToProto(const KnnOptions& knn);
 
+// Zeros take the defaults (noise 0.01 only when unset, 300-500 points, seed 1);
+// InvalidArgument (ValidateAugmentOptions's message) for values out of range.
+absl::StatusOr<AugmentOptions> FromProto(const v1::ViewAugmentation& augmentation);
+v1::ViewAugmentation ToProto(const AugmentOptions& augment);
+
 absl::StatusOr<GalleryOptions> GalleryOptionsFromProto(const v1::CreateGalleryRequest& request);
 
 // The gallery as GetGallery / ListGalleries report it, versions and incompatibility included.

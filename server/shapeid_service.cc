@@ -134,6 +134,11 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest> {
                                  registry_.Get(request.header().gallery()));
         batch_ = std::make_unique<TrainBatch>(gallery->NewBatch());
         batch_gallery_ = gallery;
+        if (request.header().has_augmentation()) {
+          SHAPEID_ASSIGN_OR_RETURN(const AugmentOptions augment,
+                                   FromProto(request.header().augmentation()));
+          SHAPEID_RETURN_IF_ERROR(batch_->SetAugment(augment));
+        }
         return absl::OkStatus();
       }
       case v1::TrainRequest::kSample: {

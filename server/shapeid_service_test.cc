@@ -116,7 +116,7 @@ TEST_F(ShapeIdServiceTest, DescribeDefaultsToDfsd) {
   for (auto& chunk : Chunks(cloud, 500)) messages.push_back(chunk);
   v1::DescribeResponse response;
   ASSERT_TRUE(DescribeStream(messages, &response).ok());
-  EXPECT_EQ(response.descriptor_spec(), "dfsd:grid=12,order=8,frame=axes,fields=both,size=0");
+  EXPECT_EQ(response.descriptor_spec(), "dfsd:grid=12,order=8,frame=box,fields=both,size=0");
   EXPECT_EQ(response.values_size(), 240);
 }
 

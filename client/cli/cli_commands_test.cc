@@ -151,6 +151,36 @@ TEST_F(CliCommandsTest, GalleryLifecycleInEveryFormat) {
   EXPECT_THAT(out_.contents(), HasSubstr("deleted gallery parts (0 samples)"));
 }
 
+TEST_F(CliCommandsTest, AugmentedGalleryShowsItsViewsAndDescriptorCount) {
+  GalleryCreateOptions create;
+  create.name = "robot";
+  create.spec = "dfsd:frame=box";
+  create.augment_views = 2;
+  ASSERT_EQ(RunGalleryCreate(create, Context()), kExitOk) << err_.contents();
+  TrainOptions train;
+  train.gallery = "robot";
+  train.paths = {Path("dataset")};
+  ASSERT_EQ(RunTrain(train, Context()), kExitOk) << err_.contents();
+
+  Captured table;
+  CliContext context = Context();
+  context.out = table.get();
+  ASSERT_EQ(RunGalleryShow("robot", context), kExitOk);
+  EXPECT_THAT(table.contents(),
+              AllOf(HasSubstr("augment     2 views per cloud (noise 0.01, 300-500 points, fixed "
+                              "pose)"),
+                    HasSubstr(" descriptors)")));
+  Captured json;
+  context = Context(OutputFormat::kJson);
+  context.out = json.get();
+  ASSERT_EQ(RunGalleryShow("robot", context), kExitOk);
+  // Every trained cloud has its own descriptor and up to two views.
+  EXPECT_EQ(PythonOnJsonLines(json.contents(),
+                              "[(r[\"augment_views\"], r[\"sample_count\"] < r[\"vector_count\"] "
+                              "<= 3 * r[\"sample_count\"]) for r in rows]"),
+            "[(2, True)]");
+}
+
 TEST_F(CliCommandsTest, BadKnobsAreUsageErrors) {
   GalleryCreateOptions create;
   create.name = "x";

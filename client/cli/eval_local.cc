@@ -64,6 +64,8 @@ absl::StatusOr<GalleryOptions> LocalGalleryOptions(const GalleryCreateOptions& c
     options.knn.scaling = *scaling;
   }
   options.reject_distance = create.reject_distance;
+  options.augment.views = static_cast<int>(std::min<uint32_t>(create.augment_views, 1 << 20));
+  options.augment.sensor.random_pose = create.augment_random_pose;
   return options;
 }
 
@@ -110,7 +112,13 @@ class LocalEvalBackend final : public EvalBackend {
             d.status = read.status();
             return d;
           }
-          absl::StatusOr<std::vector<float>> features = empty->Describe(read->cloud, limits);
+          // What TrainBatch stores: the descriptor and its augmented views' (if any).
+          absl::StatusOr<std::vector<float>> features =
+              empty->incompatible().empty()
+                  ? DescribeForTraining(*empty->shared_descriptor(), read->cloud,
+                                        empty->options().augment, limits)
+                  : absl::StatusOr<std::vector<float>>(
+                        absl::FailedPreconditionError(empty->incompatible()));
           if (!features.ok()) {
             d.status = features.status();
             return d;

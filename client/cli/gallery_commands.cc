@@ -76,7 +76,15 @@ int PrintGallery(const v1::Gallery& g, const CliContext& context) {
       " votes, ", ScalingName(g.knn().scaling()), " scaling\n", "reject      ",
       g.reject_distance() > 0 ? absl::StrCat("beyond distance ", Number(g.reject_distance()))
                               : std::string("never (always a label)"),
-      "\n", "samples     ", g.sample_count(), " in ", g.label_counts_size(), " labels\n",
+      "\n", "augment     ",
+      g.augmentation().views() > 0
+          ? absl::StrCat(g.augmentation().views(), " views per cloud (noise ",
+                         Number(g.augmentation().noise()), ", ", g.augmentation().min_points(),
+                         "-", g.augmentation().max_points(), " points, ",
+                         g.augmentation().random_pose() ? "random" : "fixed", " pose)")
+          : std::string("off"),
+      "\n", "samples     ", g.sample_count(), " in ", g.label_counts_size(), " labels (",
+      g.vector_count(), " descriptors)\n",
       "version     ", g.version(), "\n", "created     ", Timestamp(g.create_time()), "\n",
       "updated     ", Timestamp(g.update_time()), "\n", "made by     descriptor version ",
       g.descriptor_version(), ", shapeid ", g.software_version(), "\n",
@@ -121,7 +129,10 @@ std::string GalleryJson(const v1::Gallery& g) {
       ",\"weighting\":", JsonString(WeightingName(g.knn().weighting())),
       ",\"scaling\":", JsonString(ScalingName(g.knn().scaling())),
       ",\"reject_distance\":", JsonNumber(g.reject_distance()),
-      ",\"sample_count\":", g.sample_count(), ",\"label_counts\":[", labels, "]",
+      ",\"sample_count\":", g.sample_count(), ",\"vector_count\":", g.vector_count(),
+      ",\"augment_views\":", g.augmentation().views(),
+      ",\"augment_random_pose\":", g.augmentation().random_pose() ? "true" : "false",
+      ",\"label_counts\":[", labels, "]",
       ",\"create_time\":", JsonString(Timestamp(g.create_time())),
       ",\"update_time\":", JsonString(Timestamp(g.update_time())), ",\"version\":", g.version(),
       ",\"descriptor_version\":", g.descriptor_version(),
@@ -156,6 +167,10 @@ absl::StatusOr<v1::CreateGalleryRequest> CreateGalleryRequestFor(
         absl::StrCat("--scaling \"", options.scaling, "\": use none, zscore or maxabs"));
   }
   request.set_reject_distance(options.reject_distance);
+  if (options.augment_views > 0 || options.augment_random_pose) {
+    request.mutable_augmentation()->set_views(options.augment_views);
+    request.mutable_augmentation()->set_random_pose(options.augment_random_pose);
+  }
   return request;
 }
 

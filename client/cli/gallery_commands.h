@@ -20,6 +20,10 @@ struct GalleryCreateOptions {
   std::string weighting;       // "", "uniform" or "distance"
   std::string scaling;         // "", "none", "zscore" or "maxabs"
   double reject_distance = 0;  // 0: never answer "unknown"
+  // View augmentation: synthetic single-view scans per trained cloud (0: off), and whether
+  // each is also turned to a random pose.
+  uint32_t augment_views = 0;
+  bool augment_random_pose = false;
   bool exist_ok = false;       // an existing gallery is success (scripts re-run safely)
 };
 

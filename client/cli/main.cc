@@ -72,6 +72,15 @@ void AddGalleryKnobs(CLI::App* command, shapeid::GalleryCreateOptions* create) {
                    "Answer \"unknown\" when the nearest sample is farther than this "
                    "(0: never)")
       ->check(CLI::NonNegativeNumber);
+  command
+      ->add_option("--augment-views", create->augment_views,
+                   "Also train N synthetic single-view scans of each cloud (one side, 1 % "
+                   "noise, 300-500 points): for robots that see one side of objects trained "
+                   "whole. Costs (1 + N) x memory and search time (0: off)")
+      ->check(CLI::Range(0u, 64u));
+  command->add_flag("--augment-random-pose", create->augment_random_pose,
+                    "Turn each synthetic view to a random 3D pose (for descriptors that are "
+                    "not rotation invariant)");
 }
 
 }  // namespace

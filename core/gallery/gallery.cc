@@ -19,11 +19,44 @@ absl::Status Prefixed(absl::string_view prefix, const absl::Status& status) {
 
 }  // namespace
 
+absl::StatusOr<std::vector<float>> DescribeForTraining(const Descriptor& descriptor,
+                                                       const PointCloud& cloud,
+                                                       const AugmentOptions& augment,
+                                                       const CloudLimits& limits) {
+  SHAPEID_ASSIGN_OR_RETURN(std::vector<float> features, descriptor.Compute(cloud, limits));
+  if (!augment.enabled()) return features;
+  // Seeded by the cloud's bytes, not by a sample id (which may not be assigned yet) or a
+  // position in a stream: retraining the same cloud gives the same views.
+  const absl::string_view bytes(reinterpret_cast<const char*>(cloud.data()),
+                                cloud.size() * 3 * sizeof(float));
+  absl::StatusOr<std::vector<PointCloud>> views =
+      AugmentedViews(cloud, augment, DeriveSeed(0, bytes));
+  // A cloud the scan simulator cannot view (degenerate in a way the descriptor accepts)
+  // simply gets no views: augmentation helps recognition, it is not a check on the input.
+  if (!views.ok()) return features;
+  std::vector<float> view_features;
+  for (const PointCloud& view : *views) {
+    if (descriptor.Compute(view, &view_features).ok()) {
+      features.insert(features.end(), view_features.begin(), view_features.end());
+    }
+  }
+  return features;
+}
+
 // ---------------------------------------------------------------------------------------
 // TrainBatch
 
 TrainBatch::TrainBatch(std::shared_ptr<Gallery> gallery)
-    : gallery_(std::move(gallery)), descriptor_(gallery_->Snapshot()->shared_descriptor()) {}
+    : gallery_(std::move(gallery)),
+      descriptor_(gallery_->Snapshot()->shared_descriptor()),
+      augment_(gallery_->Snapshot()->options().augment) {}
+
+absl::Status TrainBatch::SetAugment(const AugmentOptions& augment) {
+  if (!error_.ok()) return error_;
+  if (absl::Status s = ValidateAugmentOptions(augment); !s.ok()) return Fail(s);
+  augment_ = augment;
+  return absl::OkStatus();
+}
 
 absl::Status TrainBatch::Fail(absl::Status status) {
   error_ = status;
@@ -60,7 +93,8 @@ absl::Status TrainBatch::AddSample(uint64_t id, std::string label, const PointCl
           where, "sample id ", id, " is already in gallery '", gallery_->name(), "'")));
     }
   }
-  absl::StatusOr<std::vector<float>> features = descriptor_->Compute(cloud, limits.cloud_limits());
+  absl::StatusOr<std::vector<float>> features =
+      DescribeForTraining(*descriptor_, cloud, augment_, limits.cloud_limits());
   if (!features.ok()) return Fail(Prefixed(where, features.status()));
   if (id != 0) client_ids_.insert(id);
   samples_.push_back(StoredSample{id, std::move(label), *std::move(features)});

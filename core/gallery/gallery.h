@@ -24,6 +24,15 @@ namespace shapeid {
 
 class Gallery;
 
+// What a gallery stores for one training cloud: its descriptor, then (when `augment` is on)
+// those of its synthetic views (AugmentedViews), seeded by the cloud's own bytes so the same
+// cloud always gets the same views. Views that cannot be made or described (degenerate
+// scans) are left out; the cloud's own errors are Descriptor::Compute's.
+absl::StatusOr<std::vector<float>> DescribeForTraining(const Descriptor& descriptor,
+                                                       const PointCloud& cloud,
+                                                       const AugmentOptions& augment,
+                                                       const CloudLimits& limits = {});
+
 // Sample ids. A client picks ids in [1, kFirstAssignedId) or passes 0 to have the gallery
 // assign one. Assigned ids count up from kFirstAssignedId, per gallery, and are never reused
 // (not even after a removal). Splitting the id space is what makes "assigned ids never
@@ -63,7 +72,17 @@ class TrainBatch {
   //  - ResourceExhausted over max_points_per_cloud or when the batch alone would exceed
   //    max_samples_per_gallery;
   //  - AlreadyExists when `id` is nonzero and already in the gallery or in this batch.
+  //
+  // With view augmentation (the gallery's GalleryOptions::augment, or the batch's override)
+  // the cloud's synthetic views are described too and kept as views of the sample; they are
+  // seeded by the cloud's own bytes, so the same cloud always gets the same views. Views
+  // that cannot be made or described (degenerate scans) are left out; the cloud itself must
+  // pass.
   absl::Status AddSample(uint64_t id, std::string label, const PointCloud& cloud);
+
+  // Replaces the gallery's view augmentation for the samples added from now on (a Train
+  // stream's own setting). InvalidArgument (and the batch fails) for invalid options.
+  absl::Status SetAugment(const AugmentOptions& augment);
 
   // Samples added so far.
   int64_t size() const { return static_cast<int64_t>(samples_.size()); }
@@ -90,6 +109,7 @@ class TrainBatch {
 
   std::shared_ptr<Gallery> gallery_;
   std::shared_ptr<const Descriptor> descriptor_;
+  AugmentOptions augment_;
   std::vector<StoredSample> samples_;
   absl::flat_hash_set<uint64_t> client_ids_;
   absl::Status error_;

@@ -90,7 +90,7 @@ absl::Status ValidateGalleryOptions(const GalleryOptions& options) {
         "reject_distance is %g; it must be a finite distance >= 0 (0 turns rejection off)",
         options.reject_distance));
   }
-  return absl::OkStatus();
+  return ValidateAugmentOptions(options.augment);
 }
 
 }  // namespace shapeid

@@ -29,7 +29,9 @@ StoredGallery GallerySnapshot::ToStored() const {
     StoredSample& sample = stored.samples[static_cast<size_t>(slot)];
     sample.id = index_.IdAt(slot);
     sample.label = index_.LabelAt(slot);
-    sample.features.resize(static_cast<size_t>(index_.dimension()));
+    // Every view of the sample, one after another (augmented galleries have several).
+    sample.features.resize(static_cast<size_t>(index_.ViewsAt(slot)) *
+                           static_cast<size_t>(index_.dimension()));
     index_.CopyFeatures(slot, sample.features.data());
   }
   return stored;
@@ -55,9 +57,13 @@ absl::StatusOr<GalleryClassification> GallerySnapshot::Classify(const PointCloud
         absl::StrCat("gallery '", name_, "' has no samples; train it before classifying"));
   }
   const absl::Time start = absl::Now();
-  SHAPEID_ASSIGN_OR_RETURN(std::vector<float> features, Describe(cloud, limits));
+  // The query with its pose variants (core/descriptor.h): a sample's distance is the least
+  // over them, so a frame that guessed wrong between near-equal axes costs nothing.
+  std::vector<float> queries, variants;
+  SHAPEID_RETURN_IF_ERROR(descriptor_->ComputeWithPoseVariants(cloud, &queries, &variants, limits));
+  queries.insert(queries.end(), variants.begin(), variants.end());
   const absl::Time described = absl::Now();
-  SHAPEID_ASSIGN_OR_RETURN(KnnResult knn, index_.Classify(features, KnnFor(k)));
+  SHAPEID_ASSIGN_OR_RETURN(KnnResult knn, index_.Classify(queries, KnnFor(k)));
   GalleryClassification answer = Answer(std::move(knn));
   answer.describe_time = described - start;
   answer.search_time = absl::Now() - described;

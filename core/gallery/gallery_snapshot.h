@@ -87,13 +87,17 @@ class GallerySnapshot {
   absl::StatusOr<std::vector<float>> Describe(const PointCloud& cloud,
                                               const CloudLimits& limits = {}) const;
 
-  // Describes `cloud` and classifies it. FailedPrecondition (naming the gallery) when the
-  // gallery has no samples, checked before any work; cloud errors as in Describe.
+  // Describes `cloud` and classifies it: the descriptor and its pose variants
+  // (Descriptor::ComputeWithPoseVariants) are all searched, each sample at its least
+  // distance. FailedPrecondition (naming the gallery) when the gallery has no samples,
+  // checked before any work; cloud errors as in Describe.
   // `k` > 0 overrides the gallery's k for this call (a client asking for more neighbours).
   absl::StatusOr<GalleryClassification> Classify(const PointCloud& cloud,
                                                  const CloudLimits& limits = {}, int k = 0) const;
-  // The same for a descriptor computed elsewhere (describe_time is zero). InvalidArgument
-  // for a wrong dimension or non-finite feature.
+  // The same for a descriptor computed elsewhere (describe_time is zero); `features` may
+  // hold several query vectors (a descriptor and its pose variants), dimension() floats
+  // each. InvalidArgument for a length that is not a positive multiple of dimension() or a
+  // non-finite feature.
   absl::StatusOr<GalleryClassification> ClassifyFeatures(absl::Span<const float> features,
                                                          int k = 0) const;
 

@@ -23,6 +23,8 @@ namespace shapeid {
 struct StoredSample {
   uint64_t id = 0;
   std::string label;
+  // One descriptor (StoredGallery::dimension floats) per view: one for a plain sample, the
+  // cloud's and then its synthetic views' in an augmented gallery (GalleryOptions::augment).
   std::vector<float> features;
 };
 

@@ -103,6 +103,9 @@ TEST(GalleryTest, TrainPublishesOneSnapshotPerBatch) {
 
 TEST(GalleryTest, ClassifyGivesNeighboursVotesAndConfidence) {
   GalleryOptions options;
+  // A frame without pose variants, so the distance below is the plain one (with the
+  // default box frame it is the least over the query's variants).
+  options.descriptor_spec = "dfsd:frame=axes";
   options.knn.k = 5;
   auto g = MakeGallery(options);
   ASSERT_TRUE(g->Train(ThreeShapes()).ok());
@@ -492,6 +495,79 @@ TEST(GalleryTest, ToStoredRestoresBitForBit) {
   auto more = (*restored)->Train({{0, "box", Box(8)}});
   ASSERT_TRUE(more.ok());
   EXPECT_THAT(more->ids, ElementsAre(kFirstAssignedId + 1));
+}
+
+TEST(GalleryTest, AugmentedGalleryKeepsViewsPerSampleAndVotesPerObject) {
+  GalleryOptions options;
+  options.descriptor_spec = "dfsd:frame=box";
+  options.knn.k = 3;
+  options.augment.views = 4;
+  auto g = MakeGallery(options);
+  ASSERT_TRUE(g->Train(ThreeShapes()).ok());
+  const auto snapshot = g->Snapshot();
+  EXPECT_EQ(snapshot->options().augment.views, 4);
+  EXPECT_EQ(snapshot->num_samples(), 9);
+  EXPECT_GT(snapshot->index().num_rows(), 9 * 3);  // most clouds got their 4 views
+  EXPECT_LE(snapshot->index().num_rows(), 9 * 5);
+  const StoredGallery stored = snapshot->ToStored();
+  for (const StoredSample& sample : stored.samples) {
+    EXPECT_EQ(sample.features.size() % static_cast<size_t>(stored.dimension), 0u);
+  }
+
+  // A sparse, noisy, turned scan of one side of a trained box: its neighbours are three
+  // distinct samples, whatever views of one box lie nearest.
+  SensorViewOptions sensor;
+  const PointCloud scan = *SensorView(Box(1), sensor, 99);
+  auto answer = snapshot->Classify(scan);
+  ASSERT_TRUE(answer.ok()) << answer.status();
+  EXPECT_EQ(answer->label, "box");
+  ASSERT_EQ(answer->knn.neighbors.size(), 3u);
+  EXPECT_NE(answer->knn.neighbors[0].id, answer->knn.neighbors[1].id);
+  EXPECT_NE(answer->knn.neighbors[1].id, answer->knn.neighbors[2].id);
+  EXPECT_NE(answer->knn.neighbors[0].id, answer->knn.neighbors[2].id);
+
+  // The same cloud gets the same views: a second gallery trained alike stores equal bits.
+  auto twin = MakeGallery(options);
+  ASSERT_TRUE(twin->Train(ThreeShapes()).ok());
+  const StoredGallery twin_stored = twin->Snapshot()->ToStored();
+  ASSERT_EQ(twin_stored.samples.size(), stored.samples.size());
+  for (size_t i = 0; i < stored.samples.size(); ++i) {
+    EXPECT_EQ(twin_stored.samples[i].features, stored.samples[i].features) << i;
+  }
+
+  // Restored from the store's form: the same answer, bit for bit.
+  auto restored = Gallery::Restore(stored, {}, nullptr);
+  ASSERT_TRUE(restored.ok()) << restored.status();
+  auto again = (*restored)->Snapshot()->Classify(scan);
+  ASSERT_TRUE(again.ok());
+  ASSERT_EQ(again->knn.neighbors.size(), answer->knn.neighbors.size());
+  for (size_t i = 0; i < again->knn.neighbors.size(); ++i) {
+    EXPECT_EQ(again->knn.neighbors[i].id, answer->knn.neighbors[i].id);
+    EXPECT_EQ(again->knn.neighbors[i].distance, answer->knn.neighbors[i].distance);
+  }
+
+  // A batch may override the gallery's setting for its own samples.
+  TrainBatch batch = g->NewBatch();
+  AugmentOptions none;
+  ASSERT_TRUE(batch.SetAugment(none).ok());
+  ASSERT_TRUE(batch.AddSample(100, "box", Box(9)).ok());
+  ASSERT_TRUE(batch.Commit().ok());
+  const StoredGallery after = g->Snapshot()->ToStored();
+  EXPECT_EQ(after.samples.back().id, 100u);
+  EXPECT_EQ(after.samples.back().features.size(), static_cast<size_t>(after.dimension));
+  AugmentOptions too_many;
+  too_many.views = AugmentOptions::kMaxViews + 1;
+  TrainBatch bad = g->NewBatch();
+  EXPECT_THAT(bad.SetAugment(too_many).message(), HasSubstr("views 65"));
+  EXPECT_FALSE(bad.AddSample(101, "box", Box(9)).ok());  // the batch stays failed
+}
+
+TEST(GalleryTest, InvalidAugmentationIsRefusedAtCreation) {
+  GalleryOptions options;
+  options.augment.views = -1;
+  auto g = Gallery::Create("shapes", options, {}, nullptr);
+  EXPECT_EQ(g.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(g.status().message(), HasSubstr("views -1"));
 }
 
 TEST(GalleryTest, IncompatibleDescriptorLoadsButRefusesWork) {

@@ -3,7 +3,9 @@
 #include <cmath>
 #include <utility>
 
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
 #include "core/status_macros.h"
 
 namespace shapeid {
@@ -39,6 +41,42 @@ std::string AugmentOptionsToString(const AugmentOptions& options) {
   return absl::StrCat("views=", options.views, ",noise=", s.noise_fraction,
                       ",points=", s.min_points, "-", s.max_points,
                       ",pose=", s.random_pose ? "random" : "fixed", ",seed=", options.seed);
+}
+
+absl::StatusOr<AugmentOptions> ParseAugmentOptions(absl::string_view text) {
+  AugmentOptions options;
+  if (text == "off" || text.empty()) return options;
+  const auto bad = [&](absl::string_view item) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "augmentation \"", text, "\": cannot read \"", item,
+        "\"; expected off or views=N,noise=F,points=MIN-MAX,pose=fixed|random,seed=S"));
+  };
+  for (absl::string_view item : absl::StrSplit(text, ',')) {
+    const std::pair<absl::string_view, absl::string_view> kv = absl::StrSplit(item, '=');
+    const absl::string_view key = kv.first, value = kv.second;
+    if (key == "views") {
+      if (!absl::SimpleAtoi(value, &options.views)) return bad(item);
+    } else if (key == "noise") {
+      if (!absl::SimpleAtod(value, &options.sensor.noise_fraction)) return bad(item);
+    } else if (key == "points") {
+      const std::pair<absl::string_view, absl::string_view> range = absl::StrSplit(value, '-');
+      uint64_t lo = 0, hi = 0;
+      if (!absl::SimpleAtoi(range.first, &lo) || !absl::SimpleAtoi(range.second, &hi)) {
+        return bad(item);
+      }
+      options.sensor.min_points = static_cast<size_t>(lo);
+      options.sensor.max_points = static_cast<size_t>(hi);
+    } else if (key == "pose") {
+      if (value != "fixed" && value != "random") return bad(item);
+      options.sensor.random_pose = value == "random";
+    } else if (key == "seed") {
+      if (!absl::SimpleAtoi(value, &options.seed)) return bad(item);
+    } else {
+      return bad(item);
+    }
+  }
+  SHAPEID_RETURN_IF_ERROR(ValidateAugmentOptions(options));
+  return options;
 }
 
 absl::StatusOr<std::vector<PointCloud>> AugmentedViews(const PointCloud& cloud,

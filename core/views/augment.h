@@ -16,6 +16,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
 #include "core/point_cloud.h"
 #include "core/views/perturb.h"
 
@@ -47,8 +48,13 @@ struct AugmentOptions {
 absl::Status ValidateAugmentOptions(const AugmentOptions& options);
 
 // A short, stable text of the options ("off", or e.g. "views=8,noise=0.01,points=300-500,
-// pose=fixed,seed=1"): what a gallery reports and stores.
+// pose=fixed,seed=1"): what a gallery reports and stores. The viewpoint band and camera
+// distance are not part of it: galleries always use SensorViewOptions' defaults for them.
 std::string AugmentOptionsToString(const AugmentOptions& options);
+
+// The inverse of AugmentOptionsToString (exact for its output; keys in any order, missing
+// keys take the defaults). InvalidArgument for unknown keys or bad values, naming them.
+absl::StatusOr<AugmentOptions> ParseAugmentOptions(absl::string_view text);
 
 // The `options.views` synthetic views of `cloud`: view i is SensorView with the seed
 // DeriveSeed(options.seed ^ cloud_seed, "view<i>"). Give each training cloud its own

@@ -69,6 +69,27 @@ TEST(AugmentTest, FixedPoseViewsStayInTheCloudsFrame) {
   }
 }
 
+TEST(AugmentTest, TextFormRoundTrips) {
+  AugmentOptions options;
+  options.views = 12;
+  options.sensor.noise_fraction = 0.005;
+  options.sensor.min_points = 200;
+  options.sensor.max_points = 800;
+  options.sensor.random_pose = true;
+  options.seed = 77;
+  const std::string text = AugmentOptionsToString(options);
+  EXPECT_EQ(text, "views=12,noise=0.005,points=200-800,pose=random,seed=77");
+  const auto parsed = ParseAugmentOptions(text);
+  ASSERT_TRUE(parsed.ok()) << parsed.status();
+  EXPECT_EQ(AugmentOptionsToString(*parsed), text);
+  EXPECT_FALSE(ParseAugmentOptions("off")->enabled());
+  EXPECT_EQ(ParseAugmentOptions("views=3")->sensor.max_points, 500u);  // defaults fill in
+  for (const char* bad : {"views=x", "colour=red", "points=5", "pose=sideways", "views=99"}) {
+    EXPECT_EQ(ParseAugmentOptions(bad).status().code(), absl::StatusCode::kInvalidArgument)
+        << bad;
+  }
+}
+
 TEST(AugmentTest, RejectsOptionsOutOfRange) {
   const PointCloud box = test_surfaces::BoxSurface({0, 0, 0}, {1, 0.5, 2}, 500, 1);
   AugmentOptions options;

@@ -51,7 +51,8 @@ CREATE TABLE gallery(
   software_version TEXT NOT NULL,
   created_unix_ns INTEGER NOT NULL,
   updated_unix_ns INTEGER NOT NULL,
-  crc INTEGER NOT NULL);
+  crc INTEGER NOT NULL,
+  augment TEXT NOT NULL);
 CREATE TABLE samples(
   seq INTEGER PRIMARY KEY,
   id INTEGER NOT NULL UNIQUE,
@@ -60,9 +61,14 @@ CREATE TABLE samples(
   crc INTEGER NOT NULL);
 )sql";
 
-constexpr absl::string_view kGalleryColumns =
+// Format 1's columns; format 2 adds `augment` (AugmentOptionsToString), and samples of an
+// augmented gallery hold several descriptors (views) in their features blob.
+constexpr absl::string_view kGalleryColumnsV1 =
     "name, descriptor_spec, dimension, knn_k, knn_weighting, knn_scaling, reject_distance, "
     "descriptor_version, software_version, created_unix_ns, updated_unix_ns, crc";
+constexpr absl::string_view kGalleryColumns =
+    "name, descriptor_spec, dimension, knn_k, knn_weighting, knn_scaling, reject_distance, "
+    "descriptor_version, software_version, created_unix_ns, updated_unix_ns, crc, augment";
 
 uint32_t GalleryRowCrc(const StoredGallery& g) {
   uint64_t reject_bits;
@@ -71,7 +77,10 @@ uint32_t GalleryRowCrc(const StoredGallery& g) {
       g.name, "\n", g.options.descriptor_spec, "\n", g.dimension, "\n", g.options.knn.k, "\n",
       VoteWeightingName(g.options.knn.weighting), "\n", FeatureScalingName(g.options.knn.scaling),
       "\n", reject_bits, "\n", g.descriptor_version, "\n", g.software_version, "\n",
-      absl::ToUnixNanos(g.created), "\n", absl::ToUnixNanos(g.updated));
+      absl::ToUnixNanos(g.created), "\n", absl::ToUnixNanos(g.updated),
+      // Only when on, so a format-1 row (no augmentation) keeps its checksum.
+      g.options.augment.enabled() ? absl::StrCat("\n", AugmentOptionsToString(g.options.augment))
+                                  : "");
   return static_cast<uint32_t>(
       crc32_z(0, reinterpret_cast<const Bytef*>(text.data()), text.size()));
 }
@@ -92,6 +101,7 @@ void BindGalleryRow(SqliteStatement& s, const StoredGallery& g) {
   s.BindInt64(10, absl::ToUnixNanos(g.created));
   s.BindInt64(11, absl::ToUnixNanos(g.updated));
   s.BindInt64(12, GalleryRowCrc(g));
+  s.BindText(13, AugmentOptionsToString(g.options.augment));
 }
 
 absl::Status InsertSample(SqliteStatement& insert, const StoredSample& sample) {
@@ -267,7 +277,7 @@ absl::Status SqliteGalleryStore::SaveGallery(const StoredGallery& gallery) {
       SHAPEID_ASSIGN_OR_RETURN(
           SqliteStatement row,
           db->Prepare(absl::StrCat("INSERT INTO gallery(singleton, ", kGalleryColumns,
-                                   ") VALUES(1,?,?,?,?,?,?,?,?,?,?,?,?)")));
+                                   ") VALUES(1,?,?,?,?,?,?,?,?,?,?,?,?,?)")));
       BindGalleryRow(row, gallery);
       SHAPEID_RETURN_IF_ERROR(row.Run());
       SHAPEID_ASSIGN_OR_RETURN(
@@ -452,8 +462,10 @@ absl::StatusOr<StoredGallery> SqliteGalleryStore::ReadFile(const std::string& na
 
   StoredGallery g;
   {
-    SHAPEID_ASSIGN_OR_RETURN(SqliteStatement row,
-                             db->Prepare(absl::StrCat("SELECT ", kGalleryColumns, " FROM gallery")));
+    SHAPEID_ASSIGN_OR_RETURN(
+        SqliteStatement row,
+        db->Prepare(absl::StrCat("SELECT ", format == 1 ? kGalleryColumnsV1 : kGalleryColumns,
+                                 " FROM gallery")));
     SHAPEID_ASSIGN_OR_RETURN(const bool found, row.Step());
     if (!found) return damaged("the gallery row is missing");
     g.name = row.ColumnText(0);
@@ -469,6 +481,11 @@ absl::StatusOr<StoredGallery> SqliteGalleryStore::ReadFile(const std::string& na
     g.updated = absl::FromUnixNanos(row.ColumnInt64(10));
     const uint32_t crc = static_cast<uint32_t>(row.ColumnInt64(11));
     if (!weighting.ok() || !scaling.ok()) return damaged("unreadable kNN options");
+    if (format >= 2) {
+      absl::StatusOr<AugmentOptions> augment = ParseAugmentOptions(row.ColumnText(12));
+      if (!augment.ok()) return damaged(augment.status().message());
+      g.options.augment = *augment;
+    }
     g.options.knn.weighting = *weighting;
     g.options.knn.scaling = *scaling;
     if (GalleryRowCrc(g) != crc) return damaged("checksum mismatch in the gallery row");
@@ -495,9 +512,10 @@ absl::StatusOr<StoredGallery> SqliteGalleryStore::ReadFile(const std::string& na
       sample.label = rows.ColumnText(2);
       const absl::Span<const uint8_t> blob = rows.ColumnBlob(3);
       const std::string at = absl::StrCat("sample id ", sample.id, " (row ", rows.ColumnInt64(0), ")");
-      if (blob.size() != bytes) {
-        return damaged(absl::StrCat(at, " has ", blob.size(), " bytes of features, expected ",
-                                    bytes));
+      // One descriptor per view: a positive multiple of the dimension.
+      if (blob.empty() || blob.size() % bytes != 0) {
+        return damaged(absl::StrCat(at, " has ", blob.size(),
+                                    " bytes of features, expected a positive multiple of ", bytes));
       }
       FeaturesFromBytes(blob, &sample.features);
       if (SampleCrc32(0, sample.id, sample.label, sample.features) !=

@@ -59,8 +59,10 @@ struct SqliteGalleryStoreOptions {
 class SqliteGalleryStore final : public GalleryStore {
  public:
   // Galleries' on-disk format; stored as PRAGMA user_version. Bump on any schema change and
-  // teach LoadAll to read the old one.
-  static constexpr int kFormatVersion = 1;
+  // teach LoadAll to read the old one. 2 (issue 13): the gallery row's `augment` column, and
+  // samples with several views. Format-1 files load (as galleries without augmentation) and
+  // stay format 1 as they are appended to.
+  static constexpr int kFormatVersion = 2;
 
   // Creates the directories and takes the directory's lock. Unavailable naming the path if a
   // directory cannot be created or written; FailedPrecondition if another process holds the

@@ -81,6 +81,7 @@ void ExpectSameGallery(const StoredGallery& a, const StoredGallery& b) {
   EXPECT_EQ(a.descriptor_version, b.descriptor_version);
   EXPECT_EQ(a.software_version, b.software_version);
   EXPECT_EQ(a.dimension, b.dimension);
+  EXPECT_EQ(AugmentOptionsToString(a.options.augment), AugmentOptionsToString(b.options.augment));
   ASSERT_EQ(a.samples.size(), b.samples.size());
   for (size_t i = 0; i < a.samples.size(); ++i) {
     EXPECT_EQ(a.samples[i].id, b.samples[i].id) << i;
@@ -265,13 +266,78 @@ TEST(SqliteGalleryStoreTest, NotAGalleryAndNewerFormatAreReported) {
   {
     auto db = SqliteDb::Open(dir + "/galleries/future.gallery", SqliteDb::Mode::kReadWrite);
     ASSERT_TRUE(db.ok());
-    ASSERT_TRUE((*db)->Exec("PRAGMA user_version=2").ok());
+    ASSERT_TRUE((*db)->Exec(absl::StrCat("PRAGMA user_version=",
+                                         SqliteGalleryStore::kFormatVersion + 1))
+                    .ok());
   }
   auto store = OpenStore(dir);
   auto loaded = store->LoadAll();
   EXPECT_EQ(loaded.status().code(), absl::StatusCode::kFailedPrecondition);
   EXPECT_THAT(loaded.status().message(),
-              AllOf(HasSubstr("format version 2"), HasSubstr("newer shapeid")));
+              AllOf(HasSubstr(absl::StrCat("format version ",
+                                           SqliteGalleryStore::kFormatVersion + 1)),
+                    HasSubstr("newer shapeid")));
+}
+
+TEST(SqliteGalleryStoreTest, AugmentedGalleriesKeepTheirOptionsAndEveryView) {
+  const std::string dir = ScratchDir("data");
+  StoredGallery g = MakeGallery("views", 12, 6, 3);
+  g.options.augment.views = 8;
+  g.options.augment.sensor.random_pose = true;
+  g.options.augment.seed = 5;
+  // Samples with 1, 3 and 9 views of 12 floats.
+  for (size_t i = 0; i < g.samples.size(); ++i) {
+    const size_t views = i % 3 == 0 ? 1 : i % 3 == 1 ? 3 : 9;
+    std::vector<float>& f = g.samples[i].features;
+    for (size_t v = 1; v < views; ++v) {
+      for (int j = 0; j < 12; ++j) f.push_back(static_cast<float>(i * 100 + v * 10 + j));
+    }
+  }
+  {
+    auto store = OpenStore(dir);
+    ASSERT_TRUE(store->LoadAll().ok());
+    ASSERT_TRUE(store->SaveGallery(g).ok());
+  }
+  auto store = OpenStore(dir);
+  auto loaded = store->LoadAll();
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  ASSERT_EQ(loaded->size(), 1u);
+  ExpectSameGallery((*loaded)[0], g);
+  EXPECT_EQ(AugmentOptionsToString((*loaded)[0].options.augment),
+            "views=8,noise=0.01,points=300-500,pose=random,seed=5");
+}
+
+TEST(SqliteGalleryStoreTest, FormatOneGalleriesLoadAndKeepAcceptingSamples) {
+  // A format-1 file: today's schema without the augment column, user_version 1.
+  const std::string dir = ScratchDir("data");
+  StoredGallery g = MakeGallery("old", 6, 4, 8);
+  {
+    auto store = OpenStore(dir);
+    ASSERT_TRUE(store->LoadAll().ok());
+    ASSERT_TRUE(store->SaveGallery(g).ok());
+  }
+  {
+    auto db = SqliteDb::Open(dir + "/galleries/old.gallery", SqliteDb::Mode::kReadWrite);
+    ASSERT_TRUE(db.ok());
+    ASSERT_TRUE((*db)->Exec("ALTER TABLE gallery DROP COLUMN augment; PRAGMA user_version=1").ok());
+  }
+  StoredGallery more = MakeGallery("old", 6, 2, 9);
+  for (StoredSample& sample : more.samples) sample.id += 1000;
+  {
+    auto store = OpenStore(dir);
+    auto loaded = store->LoadAll();
+    ASSERT_TRUE(loaded.ok()) << loaded.status();
+    ASSERT_EQ(loaded->size(), 1u);
+    ExpectSameGallery((*loaded)[0], g);
+    EXPECT_FALSE((*loaded)[0].options.augment.enabled());
+    g.updated += absl::Seconds(1);
+    ASSERT_TRUE(store->AppendSamples("old", more.samples, g.updated).ok());
+    g.samples.insert(g.samples.end(), more.samples.begin(), more.samples.end());
+  }
+  auto store = OpenStore(dir);
+  auto loaded = store->LoadAll();
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  ExpectSameGallery((*loaded)[0], g);
 }
 
 TEST(SqliteGalleryStoreTest, SetAsideMovesTheDamagedGalleryAndLoadsTheRest) {
