@@ -7,6 +7,12 @@
 //   modelnet_accuracy --spec rphsd                         # the dissertation's 81.26 % setting
 //   modelnet_accuracy --spec rphsd --k 8 --scaling maxabs  # the author's logged protocol
 //   modelnet_accuracy --spec rphsd --min-accuracy 82       # exit 1 below 82 % (CI)
+//   modelnet_accuracy --spec dfsd --perturb robot --augment-views 8   # issue 13's robot protocol
+//
+// --perturb turns every test cloud (core/views/perturb.h, seeded per file as bench/accuracy
+// does); --augment-views gives every training cloud synthetic sensor views, as an augmented
+// gallery stores them (DescribeForTraining). Queries carry their pose variants, as
+// GallerySnapshot::Classify sends them.
 //
 // Exit status: 0 done (and at or above --min-accuracy), 1 below it, 2 bad arguments or data,
 // 77 data directory absent (a skip, for ctest's SKIP_RETURN_CODE).
@@ -22,7 +28,9 @@
 #include "CLI/CLI.hpp"
 #include "core/descriptor_registry.h"
 #include "core/io/point_cloud_reader.h"
+#include "core/gallery/gallery.h"
 #include "core/knn/knn_index.h"
+#include "core/views/perturb.h"
 
 namespace fs = std::filesystem;
 using shapeid::KnnIndex;
@@ -46,12 +54,20 @@ int main(int argc, char** argv) {
   std::string weighting_name = "uniform";
   int k = 1;
   double min_accuracy = 0;
+  std::string perturbation_name = "clean";
+  int augment_views = 0;
   app.add_option("--data", data, "ModelNet10 folder with <class>/{train,test}/*.pcd")->capture_default_str();
   app.add_option("--spec", spec, "descriptor spec")->capture_default_str();
   app.add_option("--k", k, "neighbours")->capture_default_str()->check(CLI::PositiveNumber);
   app.add_option("--scaling", scaling_name, "none | zscore | maxabs")->capture_default_str();
   app.add_option("--weighting", weighting_name, "uniform | distance")->capture_default_str();
   app.add_option("--min-accuracy", min_accuracy, "exit 1 when overall accuracy (%) is lower");
+  app.add_option("--perturb", perturbation_name,
+                 "test clouds: clean, yaw, rot3d, noise1, sub256, partial, robot...")
+      ->capture_default_str();
+  app.add_option("--augment-views", augment_views, "synthetic sensor views per training cloud")
+      ->capture_default_str()
+      ->check(CLI::Range(0, shapeid::AugmentOptions::kMaxViews));
   CLI11_PARSE(app, argc, argv);
 
   if (!fs::is_directory(data)) {
@@ -61,7 +77,11 @@ int main(int argc, char** argv) {
   auto descriptor = shapeid::CreateDescriptor(spec);
   auto scaling = shapeid::ParseFeatureScaling(scaling_name);
   auto weighting = shapeid::ParseVoteWeighting(weighting_name);
-  for (const absl::Status& s : {descriptor.status(), scaling.status(), weighting.status()}) {
+  auto perturbation = shapeid::ParsePerturbation(perturbation_name);
+  shapeid::AugmentOptions augment;
+  augment.views = augment_views;
+  for (const absl::Status& s :
+       {descriptor.status(), scaling.status(), weighting.status(), perturbation.status()}) {
     if (!s.ok()) {
       std::fprintf(stderr, "modelnet_accuracy: %s\n", std::string(s.message()).c_str());
       return 2;
@@ -87,16 +107,36 @@ int main(int argc, char** argv) {
           std::fprintf(stderr, "modelnet_accuracy: %s\n", std::string(read.status().message()).c_str());
           return 2;
         }
-        const auto start = std::chrono::steady_clock::now();
-        auto values = (*descriptor)->Compute(read->cloud);
-        describe_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-        ++described;
+        const bool train = std::string(split) == "train";
+        absl::StatusOr<std::vector<float>> values;
+        if (train) {
+          values = shapeid::DescribeForTraining(**descriptor, read->cloud, augment);
+        } else {
+          const std::string key = fs::path(file).lexically_relative(data).generic_string();
+          auto cloud = shapeid::ApplyPerturbation(
+              read->cloud, *perturbation,
+              shapeid::DeriveSeed(1, perturbation->name + "|" + key));
+          if (!cloud.ok()) {
+            std::fprintf(stderr, "modelnet_accuracy: %s: %s\n", file.c_str(),
+                         std::string(cloud.status().message()).c_str());
+            return 2;
+          }
+          const auto start = std::chrono::steady_clock::now();
+          std::vector<float> query, variants;
+          const absl::Status status =
+              (*descriptor)->ComputeWithPoseVariants(*cloud, &query, &variants);
+          describe_seconds +=
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+          ++described;
+          query.insert(query.end(), variants.begin(), variants.end());
+          values = status.ok() ? absl::StatusOr<std::vector<float>>(std::move(query)) : status;
+        }
         if (!values.ok()) {
           std::fprintf(stderr, "modelnet_accuracy: %s: %s\n", file.c_str(),
                        std::string(values.status().message()).c_str());
           return 2;
         }
-        if (std::string(split) == "train") {
+        if (train) {
           const absl::Status added = index->Add(next_id++, label, *values);
           if (!added.ok()) {
             std::fprintf(stderr, "modelnet_accuracy: %s\n", std::string(added.message()).c_str());
@@ -134,10 +174,11 @@ int main(int argc, char** argv) {
   for (const auto& [label, counts] : per_class) mean_class += double(counts.first) / counts.second;
   mean_class /= static_cast<double>(per_class.size());
   const double accuracy = 100.0 * right / static_cast<double>(test.size());
-  std::printf("%s  k=%d scaling=%s weighting=%s  train=%lld test=%zu\n",
+  std::printf("%s  k=%d scaling=%s weighting=%s  train=%lld (%lld descriptors) test=%zu (%s)\n",
               (*descriptor)->spec().ToString().c_str(), k, scaling_name.c_str(),
-              weighting_name.c_str(), static_cast<long long>(index->size()), test.size());
-  std::printf("overall accuracy %.2f %% (%d/%zu), mean per-class %.2f %%, %.1f us per cloud described\n",
+              weighting_name.c_str(), static_cast<long long>(index->size()),
+              static_cast<long long>(index->num_rows()), test.size(), perturbation->name.c_str());
+  std::printf("overall accuracy %.2f %% (%d/%zu), mean per-class %.2f %%, %.1f us per test cloud described\n",
               accuracy, right, test.size(), 100.0 * mean_class, 1e6 * describe_seconds / described);
   if (accuracy < min_accuracy) {
     std::printf("FAILED: below the required %.2f %%\n", min_accuracy);

@@ -596,9 +596,10 @@ DescriptorKind DfsdKind() {
            {"order", "8",
             "cosine coefficients (a, b, c) kept per field: a + b + c < order (8: 120 per "
             "field); integer in [1, 3 * (grid - 1) + 1]"},
-           {"frame", "axes",
-            "axes: the cloud's own axes (upright, aligned objects; most accurate there) | box: "
-            "the tightest box's axes, with pose variants (any pose) | pca: the principal axes"},
+           {"frame", "box",
+            "box: the tightest box's axes, with pose variants (any pose; the default) | axes: "
+            "the cloud's own axes (upright, aligned objects only; ~3 points more accurate "
+            "there) | pca: the principal axes"},
            {"fields", "both",
             "both | isotropic (one scale: proportions kept) | anisotropic (each axis to its "
             "extent)"},

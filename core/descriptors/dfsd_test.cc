@@ -113,12 +113,12 @@ std::vector<double> ReferenceDfsd(const PointCloud& cloud, int g, int order, boo
 TEST(DfsdTest, DefaultSpecIsCanonicalAndHas240Values) {
   auto d = MustCreate("dfsd");
   ASSERT_NE(d, nullptr);
-  EXPECT_EQ(d->spec().ToString(), "dfsd:grid=12,order=8,frame=axes,fields=both,size=0");
+  EXPECT_EQ(d->spec().ToString(), "dfsd:grid=12,order=8,frame=box,fields=both,size=0");
   EXPECT_EQ(d->dimension(), 240u);
   EXPECT_EQ(MustCreate("dfsd:fields=isotropic")->dimension(), 120u);
   EXPECT_EQ(MustCreate("dfsd:size=0.15")->dimension(), 243u);
   EXPECT_EQ(MustCreate("dfsd:size=0.150")->spec().ToString(),
-            "dfsd:grid=12,order=8,frame=axes,fields=both,size=0.15");
+            "dfsd:grid=12,order=8,frame=box,fields=both,size=0.15");
 }
 
 TEST(DfsdTest, KeptFrequenciesAreTheLowPassInOrder) {
@@ -140,9 +140,9 @@ TEST(DfsdTest, MatchesTheDefinitionComputedInDouble) {
   const PointCloud cloud = SkewedCloud(300, 7);
   for (const auto& [spec, isotropic_first, fields] :
        std::vector<std::tuple<std::string, bool, int>>{
-           {"dfsd:grid=6,order=5", true, 2},
-           {"dfsd:grid=7,order=19,fields=anisotropic", false, 1},
-           {"dfsd:grid=5,order=1,fields=isotropic", true, 1}}) {
+           {"dfsd:grid=6,order=5,frame=axes", true, 2},
+           {"dfsd:grid=7,order=19,fields=anisotropic,frame=axes", false, 1},
+           {"dfsd:grid=5,order=1,fields=isotropic,frame=axes", true, 1}}) {
     SCOPED_TRACE(spec);
     auto d = MustCreate(spec);
     ASSERT_NE(d, nullptr);
@@ -191,7 +191,7 @@ TEST(DfsdTest, EverySimdLevelGivesTheSameBits) {
 }
 
 TEST(DfsdTest, AxesFrameIgnoresPointOrderShiftAndScaleButNotRotation) {
-  auto d = MustCreate("dfsd");
+  auto d = MustCreate("dfsd:frame=axes");
   const PointCloud cloud = SkewedCloud(1024, 11);
   const std::vector<float> base = MustCompute(*d, cloud);
   PointCloud reversed;
@@ -252,9 +252,9 @@ TEST(DfsdTest, PoseMapIsTheDescriptorOfTheReorderedMirroredCloud) {
   small.grid = 8;
   small.order = 5;
   for (const auto& [spec, options] : std::vector<std::pair<std::string, DfsdOptions>>{
-           {"dfsd", DfsdOptions()},
-           {"dfsd:fields=anisotropic,size=0.3", anisotropic},
-           {"dfsd:grid=8,order=5", small}}) {
+           {"dfsd:frame=axes", DfsdOptions()},
+           {"dfsd:fields=anisotropic,size=0.3,frame=axes", anisotropic},
+           {"dfsd:grid=8,order=5,frame=axes", small}}) {
     auto d = MustCreate(spec);
     const PointCloud cloud = SkewedCloud(800, 21);
     const std::vector<float> base = MustCompute(*d, cloud);
@@ -312,7 +312,7 @@ TEST(DfsdTest, BoxFrameOffersPoseVariantsOnlyWhereItIsAmbiguous) {
   EXPECT_EQ(variants.size(), 47 * box->dimension());
   EXPECT_EQ(canonical, MustCompute(*box, cube));
   // Frames that are not chosen by the shape have no variants.
-  for (const char* spec : {"dfsd", "dfsd:frame=pca", "rphsd"}) {
+  for (const char* spec : {"dfsd:frame=axes", "dfsd:frame=pca", "rphsd"}) {
     auto d = MustCreate(spec);
     ASSERT_TRUE(d->ComputeWithPoseVariants(cube, &canonical, &variants).ok());
     EXPECT_TRUE(variants.empty()) << spec;
@@ -338,7 +338,7 @@ TEST(DfsdTest, BoxFrameMatchesARotatedCubeLikeObjectThroughItsVariants) {
 }
 
 TEST(DfsdTest, SizeBlockCarriesTheLogExtentsLargestFirst) {
-  auto d = MustCreate("dfsd:size=0.5");
+  auto d = MustCreate("dfsd:frame=axes,size=0.5");
   const PointCloud cloud = testing_clouds::UniformCloud(2000, 1);  // extents ~2, 4, 1
   const std::vector<float> small = MustCompute(*d, cloud);
   const std::vector<float> large =
@@ -358,7 +358,7 @@ TEST(DfsdTest, FlatAndStraightCloudsGiveFiniteValues) {
     flat.Add(static_cast<float>(i % 7), static_cast<float>(i / 7), 0.0f);
     line.Add(static_cast<float>(i), 0.0f, 0.0f);
   }
-  for (const char* spec : {"dfsd:size=1", "dfsd:frame=pca,size=1", "dfsd:frame=box,size=1"}) {
+  for (const char* spec : {"dfsd:frame=axes,size=1", "dfsd:frame=pca,size=1", "dfsd:size=1"}) {
     auto d = MustCreate(spec);
     for (const PointCloud* cloud : {&flat, &line}) {
       for (float v : MustCompute(*d, *cloud)) ASSERT_TRUE(std::isfinite(v)) << spec;

@@ -230,7 +230,7 @@ class InteropTest(unittest.TestCase):
         self.assertEqual(kinds["rphsd"].default_spec, "rphsd:refs=cubic27,bins=100,variant=complete")
         self.assertEqual(kinds["rphsd"].default_dimension, 81)
         self.assertEqual(kinds["dfsd"].default_spec,
-                         "dfsd:grid=12,order=8,frame=axes,fields=both,size=0")
+                         "dfsd:grid=12,order=8,frame=box,fields=both,size=0")
         self.assertEqual(kinds["dfsd"].default_dimension, 240)
         self.assertEqual(kinds["comsd"].default_spec, "comsd:grid=50")
         self.assertEqual(kinds["comsd"].default_dimension, 91)
