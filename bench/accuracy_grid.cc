@@ -38,12 +38,15 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
+#include "absl/strings/str_split.h"
 #include "absl/strings/strip.h"
 #include "client/cli/eval_command.h"
 #include "client/cli/input_files.h"
 #include "core/descriptor_registry.h"
+#include "core/gallery/gallery.h"
 #include "core/io/point_cloud_reader.h"
 #include "core/knn/knn_index.h"
+#include "core/views/augment.h"
 #include "core/views/perturb.h"
 
 namespace shapeid {
@@ -101,7 +104,34 @@ struct SpecEntry {
   std::string group;  // the specs file's [section], else the descriptor kind
   std::unique_ptr<Descriptor> descriptor;
   std::string spec;  // canonical
+  // Training-time view augmentation of the gallery (core/views/augment.h); off by default.
+  AugmentOptions augment;
+  // spec, plus " +views=N" when augmented: what the records and the report call it.
+  std::string name;
+  // What a gallery created with no spec and no augmentation gets (kDefaultDescriptorSpec).
+  bool is_default = false;
 };
+
+// "SPEC [+views=N] [+pose=random]": a spec, optionally with the gallery's view augmentation.
+absl::Status ParseSpecLine(absl::string_view line, std::string* spec, AugmentOptions* augment) {
+  std::vector<std::string> words = absl::StrSplit(line, ' ', absl::SkipEmpty());
+  if (words.empty()) return absl::InvalidArgumentError("empty spec");
+  *spec = words[0];
+  *augment = AugmentOptions();
+  for (size_t w = 1; w < words.size(); ++w) {
+    absl::string_view word = words[w];
+    int views = 0;
+    if (absl::ConsumePrefix(&word, "+views=") && absl::SimpleAtoi(word, &views)) {
+      augment->views = views;
+    } else if (words[w] == "+pose=random") {
+      augment->sensor.random_pose = true;
+    } else {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "\"", words[w], "\" after the spec: expected +views=N or +pose=random"));
+    }
+  }
+  return ValidateAugmentOptions(*augment);
+}
 
 // One spec per line, '#' starts a comment, "[name]" starts a section.
 absl::Status ReadSpecsFile(const std::string& path,
@@ -244,9 +274,13 @@ absl::StatusOr<Dataset> LoadDales(const std::string& root, bool quick, int folds
 
 // The descriptors of some clouds under one spec; empty vectors where Compute failed.
 struct Described {
-  std::vector<std::vector<float>> features;  // by sample index
-  std::vector<double> micros;                // per described cloud
+  // By sample index: the descriptor followed by its pose variants (a query matches the best
+  // of them, as GallerySnapshot::Classify does), or for a gallery cloud its descriptor
+  // followed by its augmented views' (a sample matches by its best view).
+  std::vector<std::vector<float>> features;
+  std::vector<double> micros;  // per described cloud
   size_t failed = 0;
+  size_t vectors = 0;  // descriptors over all described clouds (poses or views)
 };
 
 Described DescribeAll(const Descriptor& descriptor, const std::vector<const PointCloud*>& clouds,
@@ -257,14 +291,40 @@ Described DescribeAll(const Descriptor& descriptor, const std::vector<const Poin
   ParallelFor(clouds.size(), threads, [&](size_t i) {
     if (clouds[i] == nullptr) return;
     const auto start = Clock::now();
-    absl::StatusOr<std::vector<float>> v = descriptor.Compute(*clouds[i]);
+    std::vector<float> v, variants;
+    const absl::Status status = descriptor.ComputeWithPoseVariants(*clouds[i], &v, &variants);
     micros[i] = std::chrono::duration<double, std::micro>(Clock::now() - start).count();
-    if (v.ok()) d.features[i] = std::move(*v);
+    if (!status.ok()) return;
+    v.insert(v.end(), variants.begin(), variants.end());
+    d.features[i] = std::move(v);
   });
   for (size_t i = 0; i < clouds.size(); ++i) {
     if (clouds[i] == nullptr) continue;
     d.micros.push_back(micros[i]);
     d.failed += d.features[i].empty();
+    d.vectors += d.features[i].size() / descriptor.dimension();
+  }
+  return d;
+}
+
+// The gallery's descriptors of the training clouds (train[i] says which), exactly as a
+// gallery stores them (DescribeForTraining): each cloud's own, then those of its augmented
+// views, which are seeded by the cloud's content.
+Described DescribeGallery(const Descriptor& descriptor, const Dataset& data,
+                          const std::vector<bool>& train, const AugmentOptions& augment,
+                          int threads) {
+  Described d;
+  d.features.resize(data.samples.size());
+  ParallelFor(data.samples.size(), threads, [&](size_t i) {
+    if (!train[i]) return;
+    absl::StatusOr<std::vector<float>> features =
+        DescribeForTraining(descriptor, data.samples[i].cloud, augment);
+    if (features.ok()) d.features[i] = std::move(*features);
+  });
+  for (size_t i = 0; i < data.samples.size(); ++i) {
+    if (!train[i]) continue;
+    d.failed += d.features[i].empty();
+    d.vectors += d.features[i].size() / descriptor.dimension();
   }
   return d;
 }
@@ -389,22 +449,25 @@ PerturbedSet Perturb(const Dataset& data, const Perturbation& p, uint64_t seed, 
 
 // Evaluates one spec on one dataset for every perturbation, writing its JSON lines. Returns
 // false when a derived vote differed from Classify.
-bool EvaluateSpec(const Dataset& data, const SpecEntry& entry, const Described& clean,
-                  const std::vector<const PerturbedSet*>& perturbed,
+bool EvaluateSpec(const Dataset& data, const SpecEntry& entry, const Described& gallery,
+                  const Described& clean, const std::vector<const PerturbedSet*>& perturbed,
                   const std::vector<const Described*>& perturbed_features, double micros_1024,
                   const Settings& settings) {
   const Descriptor& descriptor = *entry.descriptor;
-  // One index per round, on the clean training clouds that could be described.
+  // One index per round, on the training clouds that could be described (with their
+  // augmented views, if any).
   std::vector<KnnIndex> indices;
   std::vector<size_t> train_sizes;
+  int64_t gallery_vectors = 0;
   for (int r = 0; r < data.folds; ++r) {
     KnnIndex index = *KnnIndex::Create(static_cast<int>(descriptor.dimension()));
     for (size_t i = 0; i < data.samples.size(); ++i) {
       const Sample& s = data.samples[i];
-      if (!data.Trains(s, r) || clean.features[i].empty()) continue;
-      (void)index.Add(i, s.label, clean.features[i]);  // ids unique, features finite
+      if (!data.Trains(s, r) || gallery.features[i].empty()) continue;
+      (void)index.Add(i, s.label, gallery.features[i]);  // ids unique, features finite
     }
     train_sizes.push_back(static_cast<size_t>(index.size()));
+    gallery_vectors = std::max(gallery_vectors, index.num_rows());
     indices.push_back(std::move(index));
   }
   const size_t nk = settings.ks.size(), nw = settings.weightings.size();
@@ -512,7 +575,14 @@ bool EvaluateSpec(const Dataset& data, const SpecEntry& entry, const Described& 
           k_used.erase(std::unique(k_used.begin(), k_used.end()), k_used.end());
           const std::string line = absl::StrCat(
               "{\"dataset\":", JsonString(data.name), ",\"protocol\":", JsonString(data.protocol),
-              ",\"group\":", JsonString(entry.group), ",\"spec\":", JsonString(entry.spec),
+              ",\"group\":", JsonString(entry.group), ",\"spec\":", JsonString(entry.name),
+              ",\"augment\":", JsonString(AugmentOptionsToString(entry.augment)),
+              ",\"default\":", entry.is_default ? "true" : "false",
+              ",\"gallery_vectors\":", gallery_vectors, ",\"query_poses_mean\":",
+              absl::StrFormat("%.3f", queries.micros.empty()
+                                          ? 0.0
+                                          : static_cast<double>(queries.vectors) /
+                                                static_cast<double>(queries.micros.size())),
               ",\"dimension\":", descriptor.dimension(), ",\"k\":", JsonString(settings.ks[a].name),
               ",\"k_used\":[", absl::StrJoin(k_used, ","), "],\"weighting\":",
               JsonString(std::string(VoteWeightingName(settings.weightings[b]))),
@@ -543,8 +613,6 @@ bool EvaluateSpec(const Dataset& data, const SpecEntry& entry, const Described& 
 int RunDataset(const Dataset& data, const std::vector<SpecEntry>& specs,
                const PointCloud& cloud_1024, const Settings& settings) {
   const auto start = Clock::now();
-  std::vector<const PointCloud*> all(data.samples.size());
-  for (size_t i = 0; i < data.samples.size(); ++i) all[i] = &data.samples[i].cloud;
   size_t tests = 0;
   for (const Sample& s : data.samples) tests += !(data.protocol == "holdout" && s.train);
 
@@ -558,9 +626,18 @@ int RunDataset(const Dataset& data, const std::vector<SpecEntry>& specs,
         data.name, p.name, tests, 100 * sets.back().kept_fraction, 100 * sets.back().kept_min,
         100 * sets.back().kept_max));
   }
+  std::vector<bool> train(data.samples.size(), false);
+  std::vector<const PointCloud*> test_clouds(data.samples.size(), nullptr);
+  for (size_t i = 0; i < data.samples.size(); ++i) {
+    const bool trains = data.protocol == "kfold" || data.samples[i].train;
+    train[i] = trains;
+    if (!(data.protocol == "holdout" && trains)) test_clouds[i] = &data.samples[i].cloud;
+  }
   for (size_t s = 0; s < specs.size(); ++s) {
     const SpecEntry& entry = specs[s];
-    const Described clean = DescribeAll(*entry.descriptor, all, settings.threads);
+    const Described gallery =
+        DescribeGallery(*entry.descriptor, data, train, entry.augment, settings.threads);
+    const Described clean = DescribeAll(*entry.descriptor, test_clouds, settings.threads);
     std::vector<Described> described;
     described.reserve(sets.size());
     for (const PerturbedSet& set : sets) {
@@ -585,15 +662,16 @@ int RunDataset(const Dataset& data, const std::vector<SpecEntry>& specs,
       }
     }
     const double micros_1024 = TimeOne(*entry.descriptor, cloud_1024);
-    if (!EvaluateSpec(data, entry, clean, order, order_features, micros_1024, settings)) {
+    if (!EvaluateSpec(data, entry, gallery, clean, order, order_features, micros_1024,
+                      settings)) {
       std::fprintf(stderr,
                    "accuracy_grid: INTERNAL ERROR: a vote derived from the neighbour list differs "
                    "from KnnIndex::Classify (%s on %s)\n",
-                   entry.spec.c_str(), data.name.c_str());
+                   entry.name.c_str(), data.name.c_str());
       return kExitMismatch;
     }
     Progress(absl::StrFormat("%s: [%zu/%zu] %s  (%.0f us/cloud, %zu not described) %.1f s",
-                             data.name, s + 1, specs.size(), entry.spec, Median(clean.micros),
+                             data.name, s + 1, specs.size(), entry.name, Median(clean.micros),
                              clean.failed,
                              std::chrono::duration<double>(Clock::now() - start).count()));
   }
@@ -634,7 +712,9 @@ int Main(int argc, char** argv) {
   app.add_option("--datasets", dataset_names, "modelnet10, dales")
       ->delimiter(',')
       ->capture_default_str();
-  app.add_option("--spec", spec_texts, "a descriptor spec (repeatable)");
+  app.add_option("--spec", spec_texts,
+                 "a descriptor spec, optionally followed by the gallery's view augmentation: "
+                 "'dfsd:frame=box +views=8 [+pose=random]' (repeatable)");
   app.add_option(
       "--specs-file", specs_files,
       "specs, one per line; '#' comments; '[name]' starts a section (the records' group)");
@@ -649,7 +729,8 @@ int Main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option(
          "--perturb", perturbation_names,
-         "test-cloud perturbations: clean, yaw, rot3d, noise1, noise3, sub256, sub128, partial")
+         "test-cloud perturbations: clean, yaw, rot3d, noise1, noise3, sub256, sub128, partial, "
+         "robot (one side, 1 % noise, 300-500 points, random pose)")
       ->delimiter(',')
       ->capture_default_str();
   app.add_option("--seed", settings.seed, "fold assignment and perturbation seed")
@@ -675,8 +756,8 @@ int Main(int argc, char** argv) {
   if (quick) {
     settings.verify_every = 1;
     if (app.count("--perturb") == 0) {
-      perturbation_names = {"clean",  "yaw",    "rot3d",  "noise1",
-                            "noise3", "sub256", "sub128", "partial"};
+      perturbation_names = {"clean",  "yaw",    "rot3d",   "noise1", "noise3",
+                            "sub256", "sub128", "partial", "robot"};
     }
     if (app.count("--k") == 0) k_names = {"1", "3", "ln"};
   }
@@ -688,18 +769,34 @@ int Main(int argc, char** argv) {
     if (absl::Status s = ReadSpecsFile(f, &raw); !s.ok()) return usage(std::string(s.message()));
   }
   if (raw.empty() && quick) {
-    for (const char* s : {"rphsd", "comsd", "cnsd"}) raw.emplace_back("", s);
+    for (const char* s : {"rphsd", "comsd", "cnsd", "dfsd:frame=box +views=2"}) {
+      raw.emplace_back("", s);
+    }
   }
   if (raw.empty()) return usage("no descriptor spec: give --spec or --specs-file");
   std::vector<SpecEntry> specs;
   for (const auto& [group, text] : raw) {
-    absl::StatusOr<std::unique_ptr<Descriptor>> d = CreateDescriptor(text);
+    std::string spec_text;
+    AugmentOptions augment;
+    if (absl::Status s = ParseSpecLine(text, &spec_text, &augment); !s.ok()) {
+      return usage(absl::StrCat("spec \"", text, "\": ", s.message()));
+    }
+    absl::StatusOr<std::unique_ptr<Descriptor>> d = CreateDescriptor(spec_text);
     if (!d.ok()) return usage(absl::StrCat("spec \"", text, "\": ", d.status().message()));
     const std::string canonical = (*d)->spec().ToString();
+    std::string name = canonical;
+    if (augment.enabled()) {
+      absl::StrAppend(&name, " +views=", augment.views,
+                      augment.sensor.random_pose ? " +pose=random" : "");
+    }
     bool seen = false;
-    for (const SpecEntry& e : specs) seen |= e.spec == canonical;
+    for (const SpecEntry& e : specs) seen |= e.name == name;
     if (seen) continue;
-    specs.push_back({group.empty() ? (*d)->spec().kind : group, std::move(*d), canonical});
+    const bool is_default =
+        !augment.enabled() &&
+        canonical == (*CreateDescriptor(kDefaultDescriptorSpec))->spec().ToString();
+    specs.push_back({group.empty() ? (*d)->spec().kind : group, std::move(*d), canonical, augment,
+                     name, is_default});
   }
   for (const std::string& k : k_names) {
     int value = 0;

@@ -39,8 +39,14 @@ constexpr double kMinRelativeExtent = 1e-6;
 constexpr double kAxisOrderTolerance = 0.2;
 constexpr double kSkewnessTolerance = 0.3;
 
+bool HasPoseVariants(DfsdOptions::Frame frame) {
+  return frame == DfsdOptions::Frame::kBox || frame == DfsdOptions::Frame::kUpright;
+}
+
 absl::string_view FrameName(DfsdOptions::Frame frame) {
   switch (frame) {
+    case DfsdOptions::Frame::kUpright:
+      return "upright";
     case DfsdOptions::Frame::kPca:
       return "pca";
     case DfsdOptions::Frame::kBox:
@@ -172,6 +178,34 @@ double BoxVolume(const Eigen::Matrix3Xd& d, const Eigen::Matrix3d& axes) {
   return (q.rowwise().maxCoeff() - q.rowwise().minCoeff()).prod();
 }
 
+// Orders the first `free` columns of `axes` by the extent of the centred points `d` along
+// them, largest first (stable: equal extents keep their order), and points each of them to
+// the side where the cubed coordinates sum positive; later columns stay as they are, with an
+// infinite skewness (never a guess). `skewness` gets |third moment| / second moment^1.5
+// per resulting axis.
+Eigen::Matrix3d OrderAndSign(const Eigen::Matrix3d& axes, const Eigen::Matrix3Xd& d, int free,
+                             Eigen::Vector3d* skewness) {
+  const Eigen::Matrix3Xd q = axes.transpose() * d;
+  const Eigen::Vector3d extent = q.rowwise().maxCoeff() - q.rowwise().minCoeff();
+  int order[3] = {0, 1, 2};
+  std::stable_sort(order, order + free, [&](int a, int b) { return extent[a] > extent[b]; });
+  Eigen::Matrix3d out = axes;
+  const double n = static_cast<double>(d.cols());
+  for (int a = 0; a < 3; ++a) {
+    if (a >= free) {
+      (*skewness)[a] = std::numeric_limits<double>::infinity();
+      continue;
+    }
+    const Eigen::RowVectorXd c = q.row(order[a]);
+    const double m2 = c.array().square().sum();
+    const double m3 = c.array().cube().sum();
+    out.col(a) = (m3 < 0 ? -1.0 : 1.0) * axes.col(order[a]);
+    const double variance = m2 / n;
+    (*skewness)[a] = variance > 0 ? std::abs(m3 / n) / (variance * std::sqrt(variance)) : 0.0;
+  }
+  return out;
+}
+
 // The box frame: starting from the principal axes, each axis in turn is held and the other
 // two turned to the smallest-area rectangle around the points' projection; the smallest box
 // found wins, and a second round starts from it if the first found a smaller one. Principal axes tilt on L-shaped or asymmetric objects (a
@@ -217,23 +251,32 @@ Eigen::Matrix3d BoxAxes(const PointCloud& cloud, const Eigen::Vector3d& centroid
       }
     }
   }
-  // Order by extent, largest first (stable: equal extents keep their order).
-  const Eigen::Matrix3Xd q = best.transpose() * d;
-  const Eigen::Vector3d extent = q.rowwise().maxCoeff() - q.rowwise().minCoeff();
-  int order[3] = {0, 1, 2};
-  std::stable_sort(order, order + 3, [&](int a, int b) { return extent[a] > extent[b]; });
-  Eigen::Matrix3d axes;
-  for (int a = 0; a < 3; ++a) {
-    const Eigen::RowVectorXd c = q.row(order[a]);
-    const double m2 = c.array().square().sum();
-    const double m3 = c.array().cube().sum();
-    const double sign = m3 < 0 ? -1.0 : 1.0;
-    axes.col(a) = sign * best.col(order[a]);
-    const double nd = static_cast<double>(n);
-    const double variance = m2 / nd;
-    (*skewness)[a] = variance > 0 ? std::abs(m3 / nd) / (variance * std::sqrt(variance)) : 0.0;
+  return OrderAndSign(best, d, 3, skewness);
+}
+
+// The upright frame: z stays the input's z (the client's vertical, e.g. from a robot's IMU,
+// pointing up); x and y are the sides of the smallest-area rectangle around the points seen
+// from above, ordered by extent and signed by skewness. Invariant to any turn about the
+// vertical (yaw) and to mirroring in the horizontal plane; it keeps which way is up, which
+// the box frame cannot know.
+Eigen::Matrix3d UprightAxes(const PointCloud& cloud, const Eigen::Vector3d& centroid,
+                            Eigen::Vector3d* skewness) {
+  const size_t n = cloud.size();
+  Eigen::Matrix3Xd d(3, static_cast<Eigen::Index>(n));
+  std::vector<Eigen::Vector2d> projected(n);
+  for (size_t p = 0; p < n; ++p) {
+    d.col(static_cast<Eigen::Index>(p)) = cloud.point(p).cast<double>() - centroid;
+    projected[p] = d.col(static_cast<Eigen::Index>(p)).head<2>();
   }
-  return axes;
+  Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();
+  Eigen::Vector2d e;
+  double area;
+  // A cloud whose points all lie on one vertical line keeps x and y.
+  if (MinAreaRectangle(ConvexHull(projected), &e, &area)) {
+    axes.col(0) = Eigen::Vector3d(e.x(), e.y(), 0);
+    axes.col(1) = Eigen::Vector3d(-e.y(), e.x(), 0);
+  }
+  return OrderAndSign(axes, d, 2, skewness);
 }
 
 // The principal axes of the points, as the columns of a rotation (largest spread first),
@@ -268,9 +311,11 @@ FramedCloud Frame(const PointCloud& cloud, const CloudStats& stats, DfsdOptions:
   Eigen::Vector3d lo = stats.min;
   Eigen::Vector3d hi = stats.max;
   if (frame != DfsdOptions::Frame::kAxes) {
-    const Eigen::Matrix3d axes = frame == DfsdOptions::Frame::kPca
-                                     ? PrincipalFrame(cloud, stats.centroid)
-                                     : BoxAxes(cloud, stats.centroid, &framed.skewness);
+    const Eigen::Matrix3d axes =
+        frame == DfsdOptions::Frame::kPca ? PrincipalFrame(cloud, stats.centroid)
+        : frame == DfsdOptions::Frame::kBox
+            ? BoxAxes(cloud, stats.centroid, &framed.skewness)
+            : UprightAxes(cloud, stats.centroid, &framed.skewness);
     lo.setConstant(std::numeric_limits<double>::infinity());
     hi = -lo;
     for (size_t p = 0; p < n; ++p) {
@@ -299,7 +344,7 @@ class DfsdDescriptor : public Descriptor {
       : Descriptor(std::move(canonical), DfsdDimension(options)),
         options_(options),
         kept_(KeptFrequencies(options.grid, options.order)) {
-    if (options.frame == DfsdOptions::Frame::kBox) {
+    if (HasPoseVariants(options.frame)) {
       poses_ = MakePoses(options);
     }
     const int g = options.grid;
@@ -328,7 +373,7 @@ class DfsdDescriptor : public Descriptor {
                                                 std::vector<float>* variants) const override {
     const FramedCloud framed = Frame(cloud, stats, options_.frame);
     ComputeFramed(framed, out);
-    if (options_.frame == DfsdOptions::Frame::kBox) AppendPoseVariants(framed, out, variants);
+    if (HasPoseVariants(options_.frame)) AppendPoseVariants(framed, out, variants);
     return absl::OkStatus();
   }
 
@@ -361,10 +406,13 @@ class DfsdDescriptor : public Descriptor {
   void AppendPoseVariants(const FramedCloud& framed, absl::Span<const float> canonical,
                           std::vector<float>* variants) const {
     const Eigen::Vector3d extent = 2.0 * framed.half_extent;
+    // The upright frame never moves its vertical: only x and y are ordered.
+    const bool upright = options_.frame == DfsdOptions::Frame::kUpright;
+    const int ordered = upright ? 2 : 3;
     for (const Pose& pose : poses_) {
-      bool plausible = true;
+      bool plausible = !upright || pose.axis_of[2] == 2;
       for (int i = 0; i < 3 && plausible; ++i) {
-        for (int j = i + 1; j < 3 && plausible; ++j) {
+        for (int j = i + 1; j < ordered && plausible; ++j) {
           // Pose axis i comes before pose axis j: fine unless its extent is clearly smaller.
           plausible = extent[pose.axis_of[i]] * (1 + kAxisOrderTolerance) >=
                       extent[pose.axis_of[j]];
@@ -493,10 +541,11 @@ absl::StatusOr<std::unique_ptr<Descriptor>> CreateFromSpec(const DescriptorSpec&
   SHAPEID_ASSIGN_OR_RETURN(const int64_t order, params.Int("order", 1, 3 * (grid - 1) + 1));
   options.order = static_cast<int>(order);
   SHAPEID_ASSIGN_OR_RETURN(const std::string frame,
-                           params.Choice("frame", {"axes", "pca", "box"}));
-  options.frame = frame == "pca"   ? DfsdOptions::Frame::kPca
-                  : frame == "box" ? DfsdOptions::Frame::kBox
-                                   : DfsdOptions::Frame::kAxes;
+                           params.Choice("frame", {"axes", "pca", "box", "upright"}));
+  options.frame = frame == "pca"       ? DfsdOptions::Frame::kPca
+                  : frame == "box"     ? DfsdOptions::Frame::kBox
+                  : frame == "upright" ? DfsdOptions::Frame::kUpright
+                                       : DfsdOptions::Frame::kAxes;
   SHAPEID_ASSIGN_OR_RETURN(const std::string fields,
                            params.Choice("fields", {"both", "isotropic", "anisotropic"}));
   options.fields = fields == "isotropic"     ? DfsdOptions::Fields::kIsotropic
@@ -597,9 +646,10 @@ DescriptorKind DfsdKind() {
             "cosine coefficients (a, b, c) kept per field: a + b + c < order (8: 120 per "
             "field); integer in [1, 3 * (grid - 1) + 1]"},
            {"frame", "box",
-            "box: the tightest box's axes, with pose variants (any pose; the default) | axes: "
-            "the cloud's own axes (upright, aligned objects only; ~3 points more accurate "
-            "there) | pca: the principal axes"},
+            "box: the tightest box's axes, with pose variants (any pose; the default) | "
+            "upright: z kept as the vertical, x and y from the tightest box seen from above "
+            "(gravity-aligned clouds in any yaw) | axes: the cloud's own axes (upright, "
+            "aligned objects only) | pca: the principal axes"},
            {"fields", "both",
             "both | isotropic (one scale: proportions kept) | anisotropic (each axis to its "
             "extent)"},

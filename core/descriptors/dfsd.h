@@ -49,6 +49,12 @@ struct DfsdOptions {
     // near-symmetric axes) ComputeWithPoseVariants also gives the descriptor in the other
     // plausible poses, and a gallery matches the best of them.
     kBox,
+    // z as given (the client's vertical: rotate the cloud so +z points up, e.g. from a
+    // robot's IMU, before sending it); x and y the sides of the smallest rectangle around
+    // the points seen from above, ordered by extent and signed by skewness. Invariant to any
+    // yaw, and keeps which way is up, which the box frame cannot know. Pose variants swap
+    // x and y or flip them where the frame is ambiguous; z never moves.
+    kUpright,
   };
   // kBox since issue 13: a robot sees objects in any pose. kAxes is ~3 points more
   // accurate on data that is known to be upright and aligned (docs/accuracy.md).

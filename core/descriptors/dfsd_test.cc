@@ -337,6 +337,34 @@ TEST(DfsdTest, BoxFrameMatchesARotatedCubeLikeObjectThroughItsVariants) {
   }
 }
 
+TEST(DfsdTest, UprightFrameIgnoresYawButKnowsUp) {
+  auto upright = MustCreate("dfsd:frame=upright");
+  const PointCloud cloud = SkewedCloud(1024, 8);
+  const std::vector<float> base = MustCompute(*upright, cloud);
+  const double norm_sq = DistanceSq(base, std::vector<float>(base.size(), 0.0f).data());
+  for (float yaw : {0.3f, 1.7f, 4.0f}) {
+    const Eigen::Matrix3f turn =
+        Eigen::AngleAxisf(yaw, Eigen::Vector3f::UnitZ()).toRotationMatrix();
+    const PointCloud turned = Transformed(cloud, turn, Eigen::Vector3f(3, -1, 2), 1.5f);
+    EXPECT_LT(BestPoseDistanceSq(*upright, turned, base), 1e-6 * norm_sq) << "yaw " << yaw;
+  }
+  // Upside down is another object to this frame (and no variant turns it back) ...
+  const Eigen::Matrix3f flip = Eigen::AngleAxisf(3.14159265f, Eigen::Vector3f::UnitX())
+                                   .toRotationMatrix();
+  const PointCloud upside_down = Transformed(cloud, flip, Eigen::Vector3f::Zero(), 1);
+  EXPECT_GT(BestPoseDistanceSq(*upright, upside_down, base), 1e-3 * norm_sq);
+  // ... while the box frame, which cannot know up, sees the same object.
+  auto box = MustCreate("dfsd:frame=box");
+  EXPECT_LT(BestPoseDistanceSq(*box, upside_down, MustCompute(*box, cloud)), 1e-6 * norm_sq);
+
+  // A square-footed object: x and y may swap, z never moves.
+  const PointCloud tower = test_surfaces::BoxSurface({0, 0, 0}, {1, 1, 3}, 3000, 5);
+  std::vector<float> canonical, variants;
+  ASSERT_TRUE(upright->ComputeWithPoseVariants(tower, &canonical, &variants).ok());
+  // Swaps and flips of x and y only: 2 orders x 4 signs, minus the canonical pose.
+  EXPECT_EQ(variants.size(), 7 * upright->dimension());
+}
+
 TEST(DfsdTest, SizeBlockCarriesTheLogExtentsLargestFirst) {
   auto d = MustCreate("dfsd:frame=axes,size=0.5");
   const PointCloud cloud = testing_clouds::UniformCloud(2000, 1);  // extents ~2, 4, 1
@@ -358,7 +386,8 @@ TEST(DfsdTest, FlatAndStraightCloudsGiveFiniteValues) {
     flat.Add(static_cast<float>(i % 7), static_cast<float>(i / 7), 0.0f);
     line.Add(static_cast<float>(i), 0.0f, 0.0f);
   }
-  for (const char* spec : {"dfsd:frame=axes,size=1", "dfsd:frame=pca,size=1", "dfsd:size=1"}) {
+  for (const char* spec : {"dfsd:frame=axes,size=1", "dfsd:frame=pca,size=1", "dfsd:size=1",
+                           "dfsd:frame=upright,size=1"}) {
     auto d = MustCreate(spec);
     for (const PointCloud* cloud : {&flat, &line}) {
       for (float v : MustCompute(*d, *cloud)) ASSERT_TRUE(std::isfinite(v)) << spec;
