@@ -398,13 +398,16 @@ LoadResult Load(const std::string& address, const std::vector<Query>& queries, i
 
 // ----------------------------------------------------------------------------- setup
 
-bool CreateAndTrain(v1::ShapeId::Stub& stub, const std::string& spec,
+bool CreateAndTrain(v1::ShapeId::Stub& stub, const std::string& spec, int augment_views,
                     const std::vector<Sample>& train, int streams) {
   {
     grpc::ClientContext context;
     v1::CreateGalleryRequest request;
     request.set_name(kGalleryName);  // k = 1
     request.set_descriptor_spec(spec);  // empty: the server's default
+    if (augment_views > 0) {
+      request.mutable_augmentation()->set_views(static_cast<uint32_t>(augment_views));
+    }
     v1::Gallery gallery;
     const grpc::Status status = stub.CreateGallery(&context, request, &gallery);
     if (!status.ok()) {
@@ -455,6 +458,7 @@ int Run(int argc, char** argv) {
   bool quick = false;
   double seconds = 3.0;
   size_t gallery_size = 4000;
+  int augment_views = 0;
   size_t num_clouds = 908;
   int requests = 2000;
   int warmup = 200;
@@ -466,6 +470,10 @@ int Run(int argc, char** argv) {
   app.add_flag("--quick", quick, "tiny numbers for a CI smoke (~2 s)");
   std::string spec;
   app.add_option("--spec", spec, "descriptor spec of the gallery (default: the server's default)");
+  app.add_option("--augment_views", augment_views,
+                 "synthetic sensor views per trained cloud (view augmentation; 0: off)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 64));
   app.add_option("--seconds", seconds, "duration of each concurrent-load run")->capture_default_str();
   app.add_option("--gallery_size", gallery_size, "samples in the gallery")->capture_default_str();
   app.add_option("--clouds", num_clouds, "distinct query clouds (cycled)")->capture_default_str();
@@ -507,7 +515,7 @@ int Run(int argc, char** argv) {
   auto channel = MakeChannel(server->address(), false);
   auto stub = v1::ShapeId::NewStub(channel);
   const auto train_start = Clock::now();
-  if (!CreateAndTrain(*stub, spec, data.train, train_streams)) return 1;
+  if (!CreateAndTrain(*stub, spec, augment_views, data.train, train_streams)) return 1;
   std::printf("trained %zu samples over %d Train streams on %s in %.2f s\n", data.train.size(),
               train_streams, server->address().c_str(),
               std::chrono::duration<double>(Clock::now() - train_start).count());
@@ -516,6 +524,7 @@ int Run(int argc, char** argv) {
   GalleryRegistry registry(options.gallery_limits);
   GalleryOptions gallery_options;
   if (!spec.empty()) gallery_options.descriptor_spec = spec;
+  gallery_options.augment.views = augment_views;
   auto gallery = registry.Create(kGalleryName, gallery_options);
   if (!gallery.ok()) {
     std::fprintf(stderr, "%s\n", gallery.status().ToString().c_str());
