@@ -15,11 +15,14 @@
 #include "absl/strings/str_cat.h"
 #include "core/descriptor_registry.h"
 #include "core/gallery/gallery.h"
+#include "core/gallery/gallery_store_testing.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 
 namespace shapeid {
 namespace {
+
+using gallery_testing::ExpectSameStoredGallery;
 
 using ::testing::HasSubstr;
 
@@ -70,31 +73,6 @@ absl::StatusOr<StoredGallery> Assemble(const std::vector<v1::GalleryExportChunk>
   return assembler.Finish();
 }
 
-void ExpectIdentical(const StoredGallery& a, const StoredGallery& b) {
-  EXPECT_EQ(a.name, b.name);
-  EXPECT_EQ(a.options.descriptor_spec, b.options.descriptor_spec);
-  EXPECT_EQ(a.options.knn.k, b.options.knn.k);
-  EXPECT_EQ(a.options.knn.weighting, b.options.knn.weighting);
-  EXPECT_EQ(a.options.knn.scaling, b.options.knn.scaling);
-  EXPECT_EQ(a.options.reject_distance, b.options.reject_distance);
-  EXPECT_EQ(a.created, b.created);
-  EXPECT_EQ(a.updated, b.updated);
-  EXPECT_EQ(a.descriptor_version, b.descriptor_version);
-  EXPECT_EQ(a.software_version, b.software_version);
-  EXPECT_EQ(a.dimension, b.dimension);
-  EXPECT_EQ(AugmentOptionsToString(a.options.augment), AugmentOptionsToString(b.options.augment));
-  ASSERT_EQ(a.samples.size(), b.samples.size());
-  for (size_t i = 0; i < a.samples.size(); ++i) {
-    EXPECT_EQ(a.samples[i].id, b.samples[i].id) << i;
-    EXPECT_EQ(a.samples[i].label, b.samples[i].label) << i;
-    ASSERT_EQ(a.samples[i].features.size(), b.samples[i].features.size()) << i;
-    EXPECT_EQ(std::memcmp(a.samples[i].features.data(), b.samples[i].features.data(),
-                          a.samples[i].features.size() * sizeof(float)),
-              0)
-        << "sample " << i << " lost float bits";
-  }
-}
-
 TEST(GalleryExportTest, RoundTripKeepsEveryBitAndTheOrder) {
   const StoredGallery original = OddGallery(50);
   GalleryExporter exporter(original, /*chunk_bytes=*/1000);
@@ -114,7 +92,7 @@ TEST(GalleryExportTest, RoundTripKeepsEveryBitAndTheOrder) {
   }
   absl::StatusOr<StoredGallery> imported = Assemble(chunks);
   ASSERT_TRUE(imported.ok()) << imported.status();
-  ExpectIdentical(original, *imported);
+  ExpectSameStoredGallery(original, *imported);
 }
 
 TEST(GalleryExportTest, DefaultChunksStayFarBelowTheGrpcLimit) {
@@ -136,7 +114,7 @@ TEST(GalleryExportTest, AnEmptyGalleryIsAHeaderAndATrailer) {
   EXPECT_EQ(chunks[1].trailer().crc32(), 0u);
   absl::StatusOr<StoredGallery> imported = Assemble(chunks);
   ASSERT_TRUE(imported.ok()) << imported.status();
-  ExpectIdentical(empty, *imported);
+  ExpectSameStoredGallery(empty, *imported);
 }
 
 TEST(GalleryExportTest, ASnapshotExportsLikeItsStoredForm) {
@@ -180,7 +158,7 @@ TEST(GalleryExportTest, AugmentedGalleriesCarryTheirOptionsAndEveryView) {
   }
   absl::StatusOr<StoredGallery> imported = Assemble(chunks);
   ASSERT_TRUE(imported.ok()) << imported.status();
-  ExpectIdentical(original, *imported);
+  ExpectSameStoredGallery(original, *imported);
 
   // From a live gallery the same bytes come out.
   auto gallery = Gallery::Restore(original, {}, nullptr);

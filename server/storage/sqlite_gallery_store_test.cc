@@ -15,12 +15,15 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
+#include "core/gallery/gallery_store_testing.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "server/storage/file_util.h"
 
 namespace shapeid {
 namespace {
+
+using gallery_testing::ExpectSameStoredGallery;
 
 using ::testing::AllOf;
 using ::testing::ElementsAre;
@@ -68,32 +71,6 @@ StoredGallery MakeGallery(std::string name, int dimension, int samples, uint32_t
   return g;
 }
 
-void ExpectSameGallery(const StoredGallery& a, const StoredGallery& b) {
-  EXPECT_EQ(a.name, b.name);
-  EXPECT_EQ(a.options.descriptor_spec, b.options.descriptor_spec);
-  EXPECT_EQ(a.options.knn.k, b.options.knn.k);
-  EXPECT_EQ(a.options.knn.weighting, b.options.knn.weighting);
-  EXPECT_EQ(a.options.knn.scaling, b.options.knn.scaling);
-  EXPECT_EQ(std::memcmp(&a.options.reject_distance, &b.options.reject_distance, sizeof(double)),
-            0);
-  EXPECT_EQ(a.created, b.created);
-  EXPECT_EQ(a.updated, b.updated);
-  EXPECT_EQ(a.descriptor_version, b.descriptor_version);
-  EXPECT_EQ(a.software_version, b.software_version);
-  EXPECT_EQ(a.dimension, b.dimension);
-  EXPECT_EQ(AugmentOptionsToString(a.options.augment), AugmentOptionsToString(b.options.augment));
-  ASSERT_EQ(a.samples.size(), b.samples.size());
-  for (size_t i = 0; i < a.samples.size(); ++i) {
-    EXPECT_EQ(a.samples[i].id, b.samples[i].id) << i;
-    EXPECT_EQ(a.samples[i].label, b.samples[i].label) << i;
-    ASSERT_EQ(a.samples[i].features.size(), b.samples[i].features.size());
-    EXPECT_EQ(std::memcmp(a.samples[i].features.data(), b.samples[i].features.data(),
-                          a.samples[i].features.size() * sizeof(float)),
-              0)
-        << "sample " << i << " features differ bitwise";
-  }
-}
-
 std::unique_ptr<SqliteGalleryStore> OpenStore(const std::string& dir, bool set_aside = false) {
   auto store = SqliteGalleryStore::Open({dir, set_aside});
   EXPECT_TRUE(store.ok()) << store.status();
@@ -125,8 +102,8 @@ TEST(SqliteGalleryStoreTest, EverythingSurvivesReopeningBitForBit) {
   auto loaded = store->LoadAll();
   ASSERT_TRUE(loaded.ok()) << loaded.status();
   ASSERT_EQ(loaded->size(), 2u);
-  ExpectSameGallery((*loaded)[0], a);  // sorted by name
-  ExpectSameGallery((*loaded)[1], b);
+  ExpectSameStoredGallery((*loaded)[0], a);  // sorted by name
+  ExpectSameStoredGallery((*loaded)[1], b);
   // And it goes on accepting writes after a load.
   StoredGallery later = MakeGallery("a", 81, 1, 5);
   later.samples[0].id = 5000;
@@ -148,7 +125,7 @@ TEST(SqliteGalleryStoreTest, DeleteIsDurableAndANewGalleryOfTheSameNameStartsEmp
   auto loaded = store->LoadAll();
   ASSERT_TRUE(loaded.ok());
   ASSERT_EQ(loaded->size(), 1u);
-  ExpectSameGallery((*loaded)[0], MakeGallery("x", 8, 2, 2));
+  ExpectSameStoredGallery((*loaded)[0], MakeGallery("x", 8, 2, 2));
 }
 
 TEST(SqliteGalleryStoreTest, StartUpFinishesInterruptedCreatesAndDeletes) {
@@ -302,7 +279,7 @@ TEST(SqliteGalleryStoreTest, AugmentedGalleriesKeepTheirOptionsAndEveryView) {
   auto loaded = store->LoadAll();
   ASSERT_TRUE(loaded.ok()) << loaded.status();
   ASSERT_EQ(loaded->size(), 1u);
-  ExpectSameGallery((*loaded)[0], g);
+  ExpectSameStoredGallery((*loaded)[0], g);
   EXPECT_EQ(AugmentOptionsToString((*loaded)[0].options.augment),
             "views=8,noise=0.01,points=300-500,pose=random,seed=5");
 }
@@ -328,7 +305,7 @@ TEST(SqliteGalleryStoreTest, FormatOneGalleriesLoadAndKeepAcceptingSamples) {
     auto loaded = store->LoadAll();
     ASSERT_TRUE(loaded.ok()) << loaded.status();
     ASSERT_EQ(loaded->size(), 1u);
-    ExpectSameGallery((*loaded)[0], g);
+    ExpectSameStoredGallery((*loaded)[0], g);
     EXPECT_FALSE((*loaded)[0].options.augment.enabled());
     g.updated += absl::Seconds(1);
     ASSERT_TRUE(store->AppendSamples("old", more.samples, g.updated).ok());
@@ -337,7 +314,7 @@ TEST(SqliteGalleryStoreTest, FormatOneGalleriesLoadAndKeepAcceptingSamples) {
   auto store = OpenStore(dir);
   auto loaded = store->LoadAll();
   ASSERT_TRUE(loaded.ok()) << loaded.status();
-  ExpectSameGallery((*loaded)[0], g);
+  ExpectSameStoredGallery((*loaded)[0], g);
 }
 
 TEST(SqliteGalleryStoreTest, SetAsideMovesTheDamagedGalleryAndLoadsTheRest) {
@@ -362,7 +339,7 @@ TEST(SqliteGalleryStoreTest, SetAsideMovesTheDamagedGalleryAndLoadsTheRest) {
   auto again = reopened->LoadAll();
   ASSERT_TRUE(again.ok()) << again.status();
   ASSERT_EQ(again->size(), 2u);
-  ExpectSameGallery((*again)[0], MakeGallery("bad", 4, 2, 8));
+  ExpectSameStoredGallery((*again)[0], MakeGallery("bad", 4, 2, 8));
 }
 
 // A small tmpfs the test mounts, to fill or make read-only. Skips (saying why) where the
@@ -419,7 +396,7 @@ TEST_F(MountedStoreTest, FullDiskFailsWritesCleanlyAndLosesNothing) {
   ASSERT_EQ(loaded->size(), 1u);
   StoredGallery expected = g;
   expected.samples.insert(expected.samples.end(), more.samples.begin(), more.samples.end());
-  ExpectSameGallery((*loaded)[0], expected);
+  ExpectSameStoredGallery((*loaded)[0], expected);
 }
 
 TEST_F(MountedStoreTest, ReadOnlyDiskServesAndFailsWritesAsUnavailable) {
@@ -441,7 +418,7 @@ TEST_F(MountedStoreTest, ReadOnlyDiskServesAndFailsWritesAsUnavailable) {
   auto loaded = store_->LoadAll();
   ASSERT_TRUE(loaded.ok()) << loaded.status();
   ASSERT_EQ(loaded->size(), 1u);
-  ExpectSameGallery((*loaded)[0], g);
+  ExpectSameStoredGallery((*loaded)[0], g);
 
   StoredGallery more = MakeGallery("g", 8, 2, 2);
   for (StoredSample& s : more.samples) s.id += 100;
