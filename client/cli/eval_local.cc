@@ -114,11 +114,7 @@ class LocalEvalBackend final : public EvalBackend {
           }
           // What TrainBatch stores: the descriptor and its augmented views' (if any).
           absl::StatusOr<std::vector<float>> features =
-              empty->incompatible().empty()
-                  ? DescribeForTraining(*empty->shared_descriptor(), read->cloud,
-                                        empty->options().augment, limits)
-                  : absl::StatusOr<std::vector<float>>(
-                        absl::FailedPreconditionError(empty->incompatible()));
+              empty->DescribeForTraining(read->cloud, limits);
           if (!features.ok()) {
             d.status = features.status();
             return d;

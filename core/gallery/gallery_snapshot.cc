@@ -3,6 +3,7 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "core/gallery/gallery.h"
 #include "core/status_macros.h"
 
 namespace shapeid {
@@ -46,6 +47,12 @@ absl::StatusOr<std::vector<float>> GallerySnapshot::Describe(const PointCloud& c
                                                              const CloudLimits& limits) const {
   SHAPEID_RETURN_IF_ERROR(CheckCompatible());
   return descriptor_->Compute(cloud, limits);
+}
+
+absl::StatusOr<std::vector<float>> GallerySnapshot::DescribeForTraining(
+    const PointCloud& cloud, const CloudLimits& limits) const {
+  SHAPEID_RETURN_IF_ERROR(CheckCompatible());
+  return shapeid::DescribeForTraining(*descriptor_, cloud, options_.augment, limits);
 }
 
 absl::StatusOr<GalleryClassification> GallerySnapshot::Classify(const PointCloud& cloud,

@@ -87,6 +87,11 @@ class GallerySnapshot {
   absl::StatusOr<std::vector<float>> Describe(const PointCloud& cloud,
                                               const CloudLimits& limits = {}) const;
 
+  // What the gallery stores for a training cloud: DescribeForTraining (gallery.h) with the
+  // gallery's own augmentation. Errors as Describe.
+  absl::StatusOr<std::vector<float>> DescribeForTraining(const PointCloud& cloud,
+                                                         const CloudLimits& limits = {}) const;
+
   // Describes `cloud` and classifies it: the descriptor and its pose variants
   // (Descriptor::ComputeWithPoseVariants) are all searched, each sample at its least
   // distance. FailedPrecondition (naming the gallery) when the gallery has no samples,
