@@ -17,6 +17,10 @@ struct DescriptorParam {
   std::string name;
   std::string default_value;
   std::string help;  // one line: meaning, accepted values
+  // The canonical spec leaves this parameter out while it is at its default. Only for a
+  // parameter added after galleries were stored with the kind: their spec text, which
+  // the store compares, stays the same.
+  bool omitted_at_default = false;
 };
 
 // One registry entry. Adding a descriptor is one file pair in core/descriptors/ that defines

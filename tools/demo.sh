@@ -117,9 +117,12 @@ address=$(sed -n 's/^listening on //p' "$log" | head -1)
 export SHAPEID_SERVER=$address
 "$shapeid" health
 
-step "Creating gallery 'objects' (the default descriptor, DFSD; 1-NN)"
+# The views are rendered with the models' +y up (`shapeid views --up y`), as a robot that
+# knows gravity would send them: the upright frame keeps that vertical and ignores yaw
+# (95.83 % here; the default box frame, which assumes nothing about the pose, 88.19 %).
+step "Creating gallery 'objects' (DFSD in the upright frame, +y up; 1-NN)"
 "$shapeid" gallery delete objects --missing-ok >/dev/null
-"$shapeid" gallery create objects
+"$shapeid" gallery create objects --spec dfsd:frame=upright,up=y
 
 step "Training: every training view, 4 parallel streams"
 "$shapeid" train --gallery objects --jobs 4 "$views"

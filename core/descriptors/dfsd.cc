@@ -69,6 +69,25 @@ absl::string_view FieldsName(DfsdOptions::Fields fields) {
   return "both";
 }
 
+constexpr absl::string_view kUpNames[] = {"z", "y", "x", "-z", "-y", "-x"};
+
+absl::string_view UpName(DfsdOptions::Up up) { return kUpNames[static_cast<int>(up)]; }
+
+// The upright frame's starting basis: columns (b0, b1, up), right-handed, each a signed unit
+// axis of the input. Up = +e_k takes b0 = e_(k+1), b1 = e_(k+2) (cyclic); up = -e_k swaps
+// them. So up=z is the identity, and a cloud with up=y whose coordinates are cyclically
+// permuted to z up projects to the very same horizontal coordinates.
+Eigen::Matrix3d UpBasis(DfsdOptions::Up up) {
+  const int index = static_cast<int>(up);
+  const int k = 2 - index % 3;  // kPlusZ -> 2, kPlusY -> 1, kPlusX -> 0
+  const bool reversed = index >= 3;
+  Eigen::Matrix3d basis = Eigen::Matrix3d::Zero();
+  basis((k + 1) % 3, reversed ? 1 : 0) = 1;
+  basis((k + 2) % 3, reversed ? 0 : 1) = 1;
+  basis(k, 2) = reversed ? -1 : 1;
+  return basis;
+}
+
 int NumFields(DfsdOptions::Fields fields) { return fields == DfsdOptions::Fields::kBoth ? 2 : 1; }
 
 // The cloud in the descriptor's frame, relative to the centre of its bounding box there:
@@ -254,27 +273,29 @@ Eigen::Matrix3d BoxAxes(const PointCloud& cloud, const Eigen::Vector3d& centroid
   return OrderAndSign(best, d, 3, skewness);
 }
 
-// The upright frame: z stays the input's z (the client's vertical, e.g. from a robot's IMU,
-// pointing up); x and y are the sides of the smallest-area rectangle around the points seen
-// from above, ordered by extent and signed by skewness. Invariant to any turn about the
-// vertical (yaw) and to mirroring in the horizontal plane; it keeps which way is up, which
-// the box frame cannot know.
+// The upright frame: the third axis is the client's vertical (`up`: e.g. from a robot's
+// IMU, pointing up); the first two are the sides of the smallest-area rectangle around the
+// points seen from above, ordered by extent and signed by skewness. Invariant to any turn
+// about the vertical (yaw) and to mirroring in the horizontal plane; it keeps which way is
+// up, which the box frame cannot know.
 Eigen::Matrix3d UprightAxes(const PointCloud& cloud, const Eigen::Vector3d& centroid,
-                            Eigen::Vector3d* skewness) {
+                            DfsdOptions::Up up, Eigen::Vector3d* skewness) {
   const size_t n = cloud.size();
+  const Eigen::Matrix3d basis = UpBasis(up);
   Eigen::Matrix3Xd d(3, static_cast<Eigen::Index>(n));
   std::vector<Eigen::Vector2d> projected(n);
   for (size_t p = 0; p < n; ++p) {
     d.col(static_cast<Eigen::Index>(p)) = cloud.point(p).cast<double>() - centroid;
-    projected[p] = d.col(static_cast<Eigen::Index>(p)).head<2>();
+    // The basis holds one signed 1 per column: these products are exact.
+    projected[p] = basis.leftCols<2>().transpose() * d.col(static_cast<Eigen::Index>(p));
   }
-  Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d axes = basis;
   Eigen::Vector2d e;
   double area;
-  // A cloud whose points all lie on one vertical line keeps x and y.
+  // A cloud whose points all lie on one vertical line keeps the basis.
   if (MinAreaRectangle(ConvexHull(projected), &e, &area)) {
-    axes.col(0) = Eigen::Vector3d(e.x(), e.y(), 0);
-    axes.col(1) = Eigen::Vector3d(-e.y(), e.x(), 0);
+    axes.col(0) = e.x() * basis.col(0) + e.y() * basis.col(1);
+    axes.col(1) = e.x() * basis.col(1) - e.y() * basis.col(0);
   }
   return OrderAndSign(axes, d, 2, skewness);
 }
@@ -304,7 +325,8 @@ Eigen::Matrix3d PrincipalFrame(const PointCloud& cloud, const Eigen::Vector3d& c
   return axes;
 }
 
-FramedCloud Frame(const PointCloud& cloud, const CloudStats& stats, DfsdOptions::Frame frame) {
+FramedCloud Frame(const PointCloud& cloud, const CloudStats& stats, const DfsdOptions& options) {
+  const DfsdOptions::Frame frame = options.frame;
   const size_t n = cloud.size();
   FramedCloud framed;
   for (auto& axis : framed.coord) axis.resize(n);
@@ -315,7 +337,7 @@ FramedCloud Frame(const PointCloud& cloud, const CloudStats& stats, DfsdOptions:
         frame == DfsdOptions::Frame::kPca ? PrincipalFrame(cloud, stats.centroid)
         : frame == DfsdOptions::Frame::kBox
             ? BoxAxes(cloud, stats.centroid, &framed.skewness)
-            : UprightAxes(cloud, stats.centroid, &framed.skewness);
+            : UprightAxes(cloud, stats.centroid, options.up, &framed.skewness);
     lo.setConstant(std::numeric_limits<double>::infinity());
     hi = -lo;
     for (size_t p = 0; p < n; ++p) {
@@ -364,14 +386,14 @@ class DfsdDescriptor : public Descriptor {
  protected:
   absl::Status ComputeValidated(const PointCloud& cloud, const CloudStats& stats,
                                 absl::Span<float> out) const override {
-    ComputeFramed(Frame(cloud, stats, options_.frame), out);
+    ComputeFramed(Frame(cloud, stats, options_), out);
     return absl::OkStatus();
   }
 
   absl::Status ComputeValidatedWithPoseVariants(const PointCloud& cloud, const CloudStats& stats,
                                                 absl::Span<float> out,
                                                 std::vector<float>* variants) const override {
-    const FramedCloud framed = Frame(cloud, stats, options_.frame);
+    const FramedCloud framed = Frame(cloud, stats, options_);
     ComputeFramed(framed, out);
     if (HasPoseVariants(options_.frame)) AppendPoseVariants(framed, out, variants);
     return absl::OkStatus();
@@ -552,6 +574,12 @@ absl::StatusOr<std::unique_ptr<Descriptor>> CreateFromSpec(const DescriptorSpec&
                    : fields == "anisotropic" ? DfsdOptions::Fields::kAnisotropic
                                              : DfsdOptions::Fields::kBoth;
   SHAPEID_ASSIGN_OR_RETURN(options.size_weight, params.Double("size", 0.0, 1000.0));
+  SHAPEID_ASSIGN_OR_RETURN(const std::string up,
+                           params.Choice("up", {kUpNames[0], kUpNames[1], kUpNames[2],
+                                                kUpNames[3], kUpNames[4], kUpNames[5]}));
+  for (int i = 0; i < 6; ++i) {
+    if (up == kUpNames[i]) options.up = static_cast<DfsdOptions::Up>(i);
+  }
   return CreateDfsd(options);
 }
 
@@ -625,12 +653,22 @@ absl::StatusOr<std::unique_ptr<Descriptor>> CreateDfsd(const DfsdOptions& option
     return absl::InvalidArgumentError(
         absl::StrCat("dfsd: size=", options.size_weight, " is outside [0, 1000]"));
   }
+  if (options.up != DfsdOptions::Up::kPlusZ && options.frame != DfsdOptions::Frame::kUpright) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("dfsd: up=", UpName(options.up), " needs frame=upright (frame=",
+                     FrameName(options.frame), " does not use which way is up)"));
+  }
   DescriptorSpec canonical{"dfsd",
                            {{"grid", absl::StrCat(options.grid)},
                             {"order", absl::StrCat(options.order)},
                             {"frame", std::string(FrameName(options.frame))},
                             {"fields", std::string(FieldsName(options.fields))},
                             {"size", FormatSpecNumber(options.size_weight)}}};
+  // Written only when it is not the default, so that every spec made before `up` existed
+  // keeps its canonical text (stored galleries compare it).
+  if (options.up != DfsdOptions::Up::kPlusZ) {
+    canonical.params.emplace_back("up", std::string(UpName(options.up)));
+  }
   return std::unique_ptr<Descriptor>(
       std::make_unique<DfsdDescriptor>(std::move(canonical), options));
 }
@@ -655,7 +693,11 @@ DescriptorKind DfsdKind() {
             "extent)"},
            {"size", "0",
             "weight of the absolute size block (ln of the 3 box extents); 0 = off; use ~0.15 "
-            "when every cloud of a gallery is in metres"}},
+            "when every cloud of a gallery is in metres"},
+           {"up", "z",
+            "frame=upright only: the input axis that points up: z | y | x | -z | -y | -x "
+            "(most meshes are y up; LiDAR and ROS are z up)",
+            /*omitted_at_default=*/true}},
           &dfsd_internal::CreateFromSpec};
 }
 

@@ -49,16 +49,22 @@ struct DfsdOptions {
     // near-symmetric axes) ComputeWithPoseVariants also gives the descriptor in the other
     // plausible poses, and a gallery matches the best of them.
     kBox,
-    // z as given (the client's vertical: rotate the cloud so +z points up, e.g. from a
-    // robot's IMU, before sending it); x and y the sides of the smallest rectangle around
-    // the points seen from above, ordered by extent and signed by skewness. Invariant to any
-    // yaw, and keeps which way is up, which the box frame cannot know. Pose variants swap
-    // x and y or flip them where the frame is ambiguous; z never moves.
+    // The vertical as given by `up` (the client's gravity, e.g. from a robot's IMU, or a
+    // dataset's convention: y up for most meshes, z up for LiDAR); the horizontal axes the
+    // sides of the smallest rectangle around the points seen from above, ordered by extent
+    // and signed by skewness. Invariant to any yaw, and keeps which way is up, which the box
+    // frame cannot know. Pose variants swap or flip the horizontal axes where the frame is
+    // ambiguous; the vertical never moves.
     kUpright,
   };
   // kBox since issue 13: a robot sees objects in any pose. kAxes is ~3 points more
   // accurate on data that is known to be upright and aligned (docs/accuracy.md).
   Frame frame = Frame::kBox;
+  // frame=upright only: which input axis points up. Spec values z (default), y, x, -z, -y,
+  // -x. A cloud whose up is +y gives, with up=y, exactly the descriptor that the same cloud
+  // turned to +z up gives with up=z: the axes are permuted, never resampled.
+  enum class Up { kPlusZ, kPlusY, kPlusX, kMinusZ, kMinusY, kMinusX };
+  Up up = Up::kPlusZ;
   // Which normalisations of the bounding box get a field.
   enum class Fields {
     kBoth,         // isotropic then anisotropic: shape and proportions, each seen both ways

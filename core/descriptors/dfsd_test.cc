@@ -365,6 +365,39 @@ TEST(DfsdTest, UprightFrameIgnoresYawButKnowsUp) {
   EXPECT_EQ(variants.size(), 7 * upright->dimension());
 }
 
+TEST(DfsdTest, UprightFrameTakesTheClientsUpAxis) {
+  // The same object stored z up, y up and -x up: each with its own `up` gives bit for bit the
+  // descriptor of the z-up cloud, pose variants included (the axes are permuted, not
+  // resampled).
+  const PointCloud z_up = SkewedCloud(1024, 9);
+  std::vector<float> expected, expected_variants;
+  ASSERT_TRUE(MustCreate("dfsd:frame=upright")
+                  ->ComputeWithPoseVariants(z_up, &expected, &expected_variants)
+                  .ok());
+  PointCloud y_up, minus_x_up;
+  for (size_t p = 0; p < z_up.size(); ++p) {
+    const Eigen::Vector3f q = z_up.point(p);
+    y_up.Add(q.y(), q.z(), q.x());         // a cyclic permutation: +z goes to +y
+    minus_x_up.Add(-q.z(), q.x(), q.y());  // +z goes to -x; x, y to y, z
+  }
+  for (const auto& [spec, cloud] :
+       std::vector<std::pair<std::string, const PointCloud*>>{
+           {"dfsd:frame=upright,up=y", &y_up}, {"dfsd:frame=upright,up=-x", &minus_x_up}}) {
+    std::vector<float> got, variants;
+    ASSERT_TRUE(MustCreate(spec)->ComputeWithPoseVariants(*cloud, &got, &variants).ok());
+    EXPECT_EQ(got, expected) << spec;
+    EXPECT_EQ(variants, expected_variants) << spec;
+  }
+  // With the wrong up, the y-up cloud is lying on its side: another object.
+  EXPECT_NE(MustCompute(*MustCreate("dfsd:frame=upright"), y_up), expected);
+  // `up` appears in the canonical spec only when it is not the default, so specs written
+  // before it existed keep their text.
+  EXPECT_EQ(MustCreate("dfsd:frame=upright,up=z")->spec().ToString(),
+            "dfsd:grid=12,order=8,frame=upright,fields=both,size=0");
+  EXPECT_EQ(MustCreate("dfsd:up=-y,frame=upright")->spec().ToString(),
+            "dfsd:grid=12,order=8,frame=upright,fields=both,size=0,up=-y");
+}
+
 TEST(DfsdTest, SizeBlockCarriesTheLogExtentsLargestFirst) {
   auto d = MustCreate("dfsd:frame=axes,size=0.5");
   const PointCloud cloud = testing_clouds::UniformCloud(2000, 1);  // extents ~2, 4, 1
@@ -404,7 +437,10 @@ TEST(DfsdTest, BadParametersAndCloudsAreRefusedByName) {
            {"dfsd:frame=world", "frame"},
            {"dfsd:fields=all", "fields"},
            {"dfsd:size=-1", "size"},
-           {"dfsd:size=nan", "size"}}) {
+           {"dfsd:size=nan", "size"},
+           {"dfsd:frame=upright,up=w", "up"},
+           {"dfsd:up=y", "needs frame=upright"},
+           {"dfsd:frame=axes,up=-z", "needs frame=upright"}}) {
     absl::StatusOr<std::unique_ptr<Descriptor>> d = CreateDescriptor(spec);
     ASSERT_FALSE(d.ok()) << spec;
     EXPECT_EQ(d.status().code(), absl::StatusCode::kInvalidArgument);
