@@ -163,6 +163,22 @@ absl::StatusOr<v1::DescribeResponse> Client::Describe(const PointCloud& cloud,
 
 absl::StatusOr<v1::ClassifyResponse> Client::Classify(const std::string& gallery,
                                                       const PointCloud& cloud, uint32_t k) {
+  if (cloud.size() <= options_.chunk_points &&
+      !server_lacks_classify_cloud_.load(std::memory_order_relaxed)) {
+    v1::ClassifyCloudRequest request;
+    request.mutable_header()->set_gallery(gallery);
+    request.mutable_header()->set_k(k);
+    request.mutable_header()->set_expected_points(cloud.size());
+    request.mutable_points()->set_xyz(ChunkBytes(cloud, 0, cloud.size()));
+    v1::ClassifyResponse response;
+    const absl::Status status = Call(true, false, [&](grpc::ClientContext& context) {
+      response.Clear();
+      return stub_->ClassifyCloud(&context, request, &response);
+    });
+    if (status.ok()) return response;
+    if (status.code() != absl::StatusCode::kUnimplemented) return status;
+    server_lacks_classify_cloud_.store(true, std::memory_order_relaxed);
+  }
   v1::ClassifyRequest header;
   header.mutable_header()->set_gallery(gallery);
   header.mutable_header()->set_k(k);

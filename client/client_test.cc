@@ -10,7 +10,9 @@
 #include <thread>
 #include <vector>
 
+#include "absl/strings/str_cat.h"
 #include "gmock/gmock.h"
+#include "grpcpp/grpcpp.h"
 #include "gtest/gtest.h"
 #include "server/server.h"
 
@@ -118,6 +120,79 @@ TEST_F(ClientTest, EveryCallRoundTrips) {
   auto deleted = client_->DeleteGallery("parts");
   ASSERT_TRUE(deleted.ok()) << deleted.status();
   EXPECT_EQ(*deleted, 2u);
+}
+
+TEST_F(ClientTest, ClassifyInOneMessageOrStreamedGivesTheSameAnswer) {
+  CreateTrained("parts");
+  // 1,500 points: over this client's chunk_points (1,000), so it streams; a client with the
+  // default 16,384 sends the same cloud in one ClassifyCloud message.
+  const PointCloud cloud = Shape(0, 77, 1500);
+  auto streamed = client_->Classify("parts", cloud, 3);
+  ASSERT_TRUE(streamed.ok()) << streamed.status();
+  ClientOptions options;
+  options.target = server_->address();
+  auto one_message_client = Client::Connect(options);
+  ASSERT_TRUE(one_message_client.ok());
+  auto one_message = (*one_message_client)->Classify("parts", cloud, 3);
+  ASSERT_TRUE(one_message.ok()) << one_message.status();
+  EXPECT_EQ(one_message->label(), "box");
+  EXPECT_EQ(one_message->label(), streamed->label());
+  ASSERT_EQ(one_message->neighbors_size(), streamed->neighbors_size());
+  for (int i = 0; i < streamed->neighbors_size(); ++i) {
+    EXPECT_EQ(one_message->neighbors(i).sample_id(), streamed->neighbors(i).sample_id());
+    EXPECT_EQ(one_message->neighbors(i).distance(), streamed->neighbors(i).distance());
+  }
+  // Errors keep their code on the one-message path too.
+  EXPECT_TRUE(absl::IsNotFound((*one_message_client)->Classify("missing", cloud).status()));
+}
+
+// A server from before ClassifyCloud: only the streaming Classify, which answers "streamed".
+class StreamOnlyService final : public v1::ShapeId::CallbackService {
+ public:
+  std::atomic<int> streams{0};
+
+  grpc::ServerReadReactor<v1::ClassifyRequest>* Classify(grpc::CallbackServerContext* /*context*/,
+                                                         v1::ClassifyResponse* response) override {
+    ++streams;
+    response->set_label("streamed");
+    class Drain final : public grpc::ServerReadReactor<v1::ClassifyRequest> {
+     public:
+      Drain() { StartRead(&request_); }
+      void OnReadDone(bool ok) override {
+        if (ok) {
+          StartRead(&request_);
+        } else {
+          Finish(grpc::Status::OK);
+        }
+      }
+      void OnDone() override { delete this; }
+
+     private:
+      v1::ClassifyRequest request_;
+    };
+    return new Drain();
+  }
+};
+
+TEST(ClientFallbackTest, AnOlderServerWithoutClassifyCloudGetsTheStream) {
+  StreamOnlyService service;
+  grpc::ServerBuilder builder;
+  int port = 0;
+  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+  builder.RegisterService(&service);
+  std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+  ASSERT_NE(server, nullptr);
+  ClientOptions options;
+  options.target = absl::StrCat("127.0.0.1:", port);
+  auto client = Client::Connect(options);
+  ASSERT_TRUE(client.ok());
+  for (int call = 1; call <= 3; ++call) {
+    auto answer = (*client)->Classify("parts", Shape(0, 5));
+    ASSERT_TRUE(answer.ok()) << answer.status();
+    EXPECT_EQ(answer->label(), "streamed");
+    EXPECT_EQ(service.streams, call);
+  }
+  server->Shutdown();
 }
 
 TEST(ClientChunkTest, BigCloudIsChunked) {

@@ -280,6 +280,66 @@ TEST_F(GalleryServiceTest, BulkTrainThenClassifyRecognisesShapes) {
   }
 }
 
+grpc::Status ClassifyCloud(v1::ShapeId::Stub& stub, const std::string& gallery,
+                           const PointCloud& cloud, v1::ClassifyResponse* response,
+                           uint32_t k = 0, uint64_t expected_points = 0) {
+  grpc::ClientContext context;
+  v1::ClassifyCloudRequest request;
+  request.mutable_header()->set_gallery(gallery);
+  request.mutable_header()->set_k(k);
+  request.mutable_header()->set_expected_points(expected_points);
+  request.mutable_points()->set_xyz(
+      std::string(reinterpret_cast<const char*>(cloud.data()), cloud.size() * 12));
+  return stub.ClassifyCloud(&context, request, response);
+}
+
+TEST_F(GalleryServiceTest, ClassifyCloudAnswersLikeTheStreamWithTheSameErrors) {
+  ASSERT_TRUE(Create("g").ok());
+  v1::ClassifyResponse one, streamed;
+  const grpc::Status on_empty = ClassifyCloud(*stub_, "g", Shape(0, 1), &one);
+  EXPECT_EQ(on_empty.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+  EXPECT_THAT(on_empty.error_message(), HasSubstr("has no samples"));
+  v1::TrainResponse trained;
+  ASSERT_TRUE(Train("g", TrainingSet(3, 5), &trained).ok());
+
+  for (int kind = 0; kind < 3; ++kind) {
+    const PointCloud query = Shape(kind, 700 + kind, 1500);
+    ASSERT_TRUE(ClassifyCloud(*stub_, "g", query, &one, 3, query.size()).ok());
+    ASSERT_TRUE(Classify("g", query, &streamed, 3).ok());
+    EXPECT_EQ(one.label(), kShapeNames[kind]);
+    EXPECT_EQ(one.num_points(), 1500u);
+    ExpectSameAnswer(one, streamed);
+  }
+
+  const PointCloud cloud = Shape(0, 9);
+  EXPECT_EQ(ClassifyCloud(*stub_, "missing", cloud, &one).error_code(),
+            grpc::StatusCode::NOT_FOUND);
+  EXPECT_EQ(ClassifyCloud(*stub_, "", cloud, &one).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
+  const grpc::Status few = ClassifyCloud(*stub_, "g", PointCloud{{0, 0, 0}, {1, 1, 1}}, &one);
+  EXPECT_EQ(few.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(few.error_message(), HasSubstr("cloud has 2 points"));
+  const grpc::Status short_of = ClassifyCloud(*stub_, "g", cloud, &one, 0, cloud.size() + 1);
+  EXPECT_EQ(short_of.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  {
+    grpc::ClientContext context;
+    v1::ClassifyCloudRequest ragged;
+    ragged.mutable_header()->set_gallery("g");
+    ragged.mutable_points()->set_xyz(std::string(13 * 12 + 5, '\0'));
+    const grpc::Status status = stub_->ClassifyCloud(&context, ragged, &one);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  }
+  {
+    grpc::ClientContext context;
+    v1::ClassifyCloudRequest headless;
+    headless.mutable_points()->set_xyz(std::string(12 * 100, '\0'));
+    const grpc::Status status = stub_->ClassifyCloud(&context, headless, &one);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_THAT(status.error_message(), HasSubstr("no header"));
+  }
+  EXPECT_EQ(Get("g").sample_count(), 9u);  // unchanged by every error above
+}
+
 TEST_F(GalleryServiceTest, AugmentedGalleriesStoreViewsAndCountEachObjectOnce) {
   grpc::ClientContext context;
   v1::CreateGalleryRequest request;

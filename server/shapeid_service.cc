@@ -203,6 +203,31 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest> {
   absl::Duration describe_time_;
 };
 
+// Classify's checks on its header, shared by the stream and the one-message call: the
+// gallery exists and has samples (failing before the points are read, not after).
+absl::StatusOr<std::shared_ptr<Gallery>> GalleryToClassify(const GalleryRegistry& registry,
+                                                           const v1::ClassifyHeader& header) {
+  SHAPEID_RETURN_IF_ERROR(RequireGalleryName("Classify", header.gallery()));
+  SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<Gallery> gallery, registry.Get(header.gallery()));
+  if (gallery->Snapshot()->empty()) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "gallery '", gallery->name(), "' has no samples; train it before classifying"));
+  }
+  return gallery;
+}
+
+int NeighboursAsked(const v1::ClassifyHeader& header) {
+  return static_cast<int>(std::min<uint32_t>(header.k(), 1 << 20));
+}
+
+absl::Status ClassifyInto(const Gallery& gallery, const PointCloud& cloud, int k,
+                          v1::ClassifyResponse* response) {
+  SHAPEID_ASSIGN_OR_RETURN(const GalleryClassification answer,
+                           gallery.Snapshot()->Classify(cloud, gallery.limits().cloud_limits(), k));
+  ToProto(answer, cloud.size(), response);
+  return absl::OkStatus();
+}
+
 class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest> {
  public:
   ClassifyReactor(grpc::CallbackServerContext* context, CallTracker* tracker,
@@ -221,14 +246,8 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest> {
       case v1::ClassifyRequest::kHeader: {
         if (gallery_ != nullptr)
           return absl::InvalidArgumentError("Classify: a second ClassifyHeader");
-        SHAPEID_RETURN_IF_ERROR(RequireGalleryName("Classify", request.header().gallery()));
-        SHAPEID_ASSIGN_OR_RETURN(gallery_, registry_.Get(request.header().gallery()));
-        k_ = static_cast<int>(std::min<uint32_t>(request.header().k(), 1 << 20));
-        // Fail before the points arrive rather than after.
-        if (gallery_->Snapshot()->empty()) {
-          return absl::FailedPreconditionError(absl::StrCat(
-              "gallery '", gallery_->name(), "' has no samples; train it before classifying"));
-        }
+        SHAPEID_ASSIGN_OR_RETURN(gallery_, GalleryToClassify(registry_, request.header()));
+        k_ = NeighboursAsked(request.header());
         return assembler_.Start(request.header().expected_points());
       }
       case v1::ClassifyRequest::kPoints:
@@ -247,11 +266,7 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest> {
     if (gallery_ == nullptr)
       return absl::InvalidArgumentError("Classify: the stream ended without a ClassifyHeader");
     SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud, assembler_.Finish());
-    SHAPEID_ASSIGN_OR_RETURN(
-        const GalleryClassification answer,
-        gallery_->Snapshot()->Classify(cloud, gallery_->limits().cloud_limits(), k_));
-    ToProto(answer, cloud.size(), response_);
-    return absl::OkStatus();
+    return ClassifyInto(*gallery_, cloud, k_, response_);
   }
 
   const GalleryRegistry& registry_;
@@ -372,6 +387,24 @@ grpc::ServerReadReactor<v1::TrainRequest>* ShapeIdService::Train(
 grpc::ServerReadReactor<v1::ClassifyRequest>* ShapeIdService::Classify(
     grpc::CallbackServerContext* context, v1::ClassifyResponse* response) {
   return new ClassifyReactor(context, &tracker_, options_, *registry_, response);
+}
+
+grpc::ServerUnaryReactor* ShapeIdService::ClassifyCloud(grpc::CallbackServerContext* context,
+                                                        const v1::ClassifyCloudRequest* request,
+                                                        v1::ClassifyResponse* response) {
+  return Unary(context, tracker_, [&]() -> absl::Status {
+    if (!request->has_header()) {
+      return absl::InvalidArgumentError("ClassifyCloud: the request has no header");
+    }
+    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
+                             GalleryToClassify(*registry_, request->header()));
+    // The same assembler as the stream: one chunk, the same checks and messages.
+    CloudAssembler assembler(options_.max_points_per_cloud);
+    SHAPEID_RETURN_IF_ERROR(assembler.Start(request->header().expected_points()));
+    SHAPEID_RETURN_IF_ERROR(assembler.Append(request->points().xyz()));
+    SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud, assembler.Finish());
+    return ClassifyInto(*gallery, cloud, NeighboursAsked(request->header()), response);
+  });
 }
 
 grpc::ServerUnaryReactor* ShapeIdService::CreateGallery(grpc::CallbackServerContext* context,
