@@ -189,6 +189,10 @@ BENCHMARK_CAPTURE(DescribeBench, dfsd_default_100k, std::string("dfsd"), 100000)
     ->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(DescribeBench, dfsd_box_100k, std::string("dfsd:frame=box"), 100000)
     ->Unit(benchmark::kMillisecond);
+// A million points: the kernel's tables no longer fit any cache in one pass (issue 7's growth).
+BENCHMARK_CAPTURE(DescribeBench, dfsd_default_1m, std::string("dfsd"), 1000000)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(3);
 // Per-cloud time on real ModelNet10 clouds (1,024 points): the first 10 test files of each
 // class from ../shared/data, described in turn. Where the data is absent, synthetic
 // 1,024-point clouds stand in and the label says so.

@@ -29,7 +29,7 @@ void KernelScalar(const FieldInput& in, float* out) {
       float* column = out + (static_cast<size_t>(i) * g + j) * g;
       for (int k = 0; k < g; ++k) {
         const float* z = in.dz2 + static_cast<size_t>(k) * stride;
-        float m = kFarSquared;
+        float m = in.accumulate ? column[k] : kFarSquared;
         for (size_t p = 0; p < stride; ++p) m = std::min(m, xy[p] + z[p]);
         column[k] = m;
       }

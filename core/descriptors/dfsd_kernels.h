@@ -29,10 +29,15 @@ struct FieldInput {
   const float* dz2 = nullptr;
   size_t stride = 0;  // padded point count, a positive multiple of kPointLanes
   int grid = 0;       // G
+  // false: `out` is overwritten. true: each out value is lowered to the minimum over these
+  // points when that is smaller, so a cloud can be fed in chunks whose tables stay in cache;
+  // minima are exact, so the result has the same bits as one pass over every point.
+  bool accumulate = false;
 };
 
 // out[(i * G + j) * G + k] = min over points p of (dx2[i][p] + dy2[j][p]) + dz2[k][p], in
-// that float order on every level. Minima are exact, so all levels give identical bits.
+// that float order on every level (and of the old out value when accumulating). Minima are
+// exact, so all levels give identical bits.
 // `level` must not exceed DetectedSimdLevel().
 void NearestSquaredDistances(const FieldInput& input, float* out, SimdLevel level);
 

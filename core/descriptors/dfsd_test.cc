@@ -190,6 +190,58 @@ TEST(DfsdTest, EverySimdLevelGivesTheSameBits) {
   }
 }
 
+TEST(DfsdTest, AccumulatingChunksGivesTheBitsOfOnePass) {
+  // Tables of 48 points in one pass, and the same points as 32 then 16 with accumulate.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.0f, 4.0f);
+  const int g = 7;
+  const auto make_tables = [&](size_t stride, const std::vector<float>& values, size_t first,
+                               size_t count) {
+    std::vector<float> tables(3 * g * stride, dfsd_internal::kFarSquared);
+    for (int a = 0; a < 3 * g; ++a) {
+      for (size_t p = 0; p < count; ++p) tables[a * stride + p] = values[a * 48 + first + p];
+    }
+    return tables;
+  };
+  std::vector<float> values(3 * g * 48);
+  for (float& v : values) v = u(rng);
+  const auto run = [&](const std::vector<float>& tables, size_t stride, bool accumulate,
+                       SimdLevel level, std::vector<float>* out) {
+    dfsd_internal::FieldInput in;
+    in.dx2 = tables.data();
+    in.dy2 = in.dx2 + g * stride;
+    in.dz2 = in.dy2 + g * stride;
+    in.stride = stride;
+    in.grid = g;
+    in.accumulate = accumulate;
+    dfsd_internal::NearestSquaredDistances(in, out->data(), level);
+  };
+  for (SimdLevel level : {SimdLevel::kScalar, SimdLevel::kAvx2, SimdLevel::kAvx512}) {
+    if (level > DetectedSimdLevel()) continue;
+    std::vector<float> whole(g * g * g), chunked(g * g * g);
+    run(make_tables(48, values, 0, 48), 48, false, level, &whole);
+    run(make_tables(32, values, 0, 32), 32, false, level, &chunked);
+    run(make_tables(16, values, 32, 16), 16, true, level, &chunked);
+    EXPECT_EQ(0, std::memcmp(whole.data(), chunked.data(), whole.size() * sizeof(float)))
+        << SimdLevelName(level);
+  }
+}
+
+TEST(DfsdTest, CloudsOfSeveralKernelChunksMatchTheDefinition) {
+  // 300,000 points: the kernel sees them as chunks of 65,536, four times, then 37,856 (a
+  // short last one).
+  const PointCloud cloud = SkewedCloud(300000, 21);
+  auto d = MustCreate("dfsd:grid=6,order=5,frame=axes");
+  const std::vector<float> got = MustCompute(*d, cloud);
+  const std::vector<double> want = ReferenceDfsd(cloud, 6, 5, true, 2);
+  ASSERT_EQ(got.size(), want.size());
+  for (size_t q = 0; q < want.size(); ++q) EXPECT_NEAR(got[q], want[q], 2e-6) << q;
+  // Another order puts other points in each chunk: the same bits, as for one pass.
+  PointCloud reversed;
+  for (size_t i = cloud.size(); i-- > 0;) reversed.Add(cloud.point(i));
+  EXPECT_EQ(MustCompute(*d, reversed), got);
+}
+
 TEST(DfsdTest, AxesFrameIgnoresPointOrderShiftAndScaleButNotRotation) {
   auto d = MustCreate("dfsd:frame=axes");
   const PointCloud cloud = SkewedCloud(1024, 11);
