@@ -5,12 +5,15 @@
 //    the baseline measured in the same run;
 //  - writes: AppendSamples of 1, 16 and 256 samples (one fsync'd transaction each), and
 //    SaveGallery of the whole gallery (an import);
-//  - the file size per sample.
+//  - the file size per sample, and the resident memory the loaded gallery takes (issue 7:
+//    aim within 1.2x of the raw descriptor floats plus label).
 // Medians of --reps runs. A plain program: each figure is a one-shot wall time.
 //
 //   build/release/bench/store_bench --samples 100000 --dim 81 --reps 5 --dir /var/tmp/x
 
+#include <malloc.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -30,6 +33,16 @@
 
 namespace shapeid {
 namespace {
+
+// Resident set size of this process, from /proc/self/statm.
+double ResidentBytes() {
+  long pages_total = 0, pages_resident = 0;
+  if (FILE* f = std::fopen("/proc/self/statm", "r")) {
+    if (std::fscanf(f, "%ld %ld", &pages_total, &pages_resident) != 2) pages_resident = 0;
+    std::fclose(f);
+  }
+  return static_cast<double>(pages_resident) * static_cast<double>(sysconf(_SC_PAGESIZE));
+}
 
 double Median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
@@ -82,6 +95,7 @@ int Run(int argc, char** argv) {
   std::vector<double> append_ms[3];
   const int batch_sizes[3] = {1, 16, 256};
   double bytes_per_sample = 0;
+  std::vector<double> resident_per_sample;
   for (int r = 0; r < reps; ++r) {
     std::system(absl::StrCat("rm -rf '", dir, "'").c_str());
     {
@@ -114,6 +128,8 @@ int Run(int argc, char** argv) {
       }
     }
     // Start-up as the server does it: open, load every gallery, rebuild the indexes.
+    malloc_trim(0);
+    const double resident_before = ResidentBytes();
     const absl::Time t1 = absl::Now();
     {
       auto store = SqliteGalleryStore::Open({dir, false});
@@ -124,6 +140,9 @@ int Run(int argc, char** argv) {
         return 1;
       }
       load_s.push_back(absl::ToDoubleSeconds(absl::Now() - t1));
+      malloc_trim(0);  // what the loaded gallery holds, not the loader's freed temporaries
+      resident_per_sample.push_back((ResidentBytes() - resident_before) /
+                                    static_cast<double>(samples));
     }
     // Baseline: the same rebuild from memory, no disk.
     const absl::Time t2 = absl::Now();
@@ -148,6 +167,19 @@ int Run(int argc, char** argv) {
                 Median(append_ms[b]));
   }
   std::printf("%-52s %10.0f B\n", "file size per sample", bytes_per_sample);
+  // The raw content: the floats, the label's bytes and the 8-byte id.
+  double raw = 0;
+  for (const StoredSample& s : gallery.samples) raw += 4.0 * s.features.size() + s.label.size() + 8;
+  raw /= static_cast<double>(samples);
+  const double resident = Median(resident_per_sample);
+  std::printf("%-52s %10.0f B\n", "raw floats + label + id per sample", raw);
+  std::printf("%-52s %10.0f B (%.2fx raw)\n",
+              "resident memory per loaded sample (RSS growth)", resident, resident / raw);
+  std::printf("JSON {\"bench\":\"store\",\"samples\":%lld,\"dim\":%d,\"startup_s\":%.3f,"
+              "\"baseline_s\":%.3f,\"save_s\":%.3f,\"file_bytes_per_sample\":%.1f,"
+              "\"raw_bytes_per_sample\":%.1f,\"resident_bytes_per_sample\":%.1f}\n",
+              static_cast<long long>(samples), dim, Median(load_s), Median(restore_s),
+              Median(save_s), bytes_per_sample, raw, resident);
   return 0;
 }
 
