@@ -147,9 +147,35 @@ absl::StatusOr<Response> Client::SingleCloudCall(Open open, const Request& heade
   return response;
 }
 
+template <typename Request, typename Response, typename Invoke>
+absl::Status Client::OneMessageCall(Invoke invoke, const Request& request, Response* response) {
+  const absl::Status status = Call(true, false, [&](grpc::ClientContext& context) {
+    response->Clear();
+    return invoke(&context, request, response);
+  });
+  if (status.code() == absl::StatusCode::kUnimplemented) {
+    server_lacks_one_message_calls_.store(true, std::memory_order_relaxed);
+  }
+  return status;
+}
+
 absl::StatusOr<v1::DescribeResponse> Client::Describe(const PointCloud& cloud,
                                                       const std::string& spec,
                                                       const std::string& gallery) {
+  if (UseOneMessage(cloud)) {
+    v1::DescribeCloudRequest request;
+    request.mutable_header()->set_descriptor_spec(spec);
+    request.mutable_header()->set_gallery(gallery);
+    request.mutable_header()->set_expected_points(cloud.size());
+    request.mutable_points()->set_xyz(ChunkBytes(cloud, 0, cloud.size()));
+    v1::DescribeResponse response;
+    const absl::Status status = OneMessageCall(
+        [&](grpc::ClientContext* context, const v1::DescribeCloudRequest& r,
+            v1::DescribeResponse* out) { return stub_->DescribeCloud(context, r, out); },
+        request, &response);
+    if (status.ok()) return response;
+    if (status.code() != absl::StatusCode::kUnimplemented) return status;
+  }
   v1::DescribeRequest header;
   header.mutable_header()->set_descriptor_spec(spec);
   header.mutable_header()->set_gallery(gallery);
@@ -163,21 +189,19 @@ absl::StatusOr<v1::DescribeResponse> Client::Describe(const PointCloud& cloud,
 
 absl::StatusOr<v1::ClassifyResponse> Client::Classify(const std::string& gallery,
                                                       const PointCloud& cloud, uint32_t k) {
-  if (cloud.size() <= options_.chunk_points &&
-      !server_lacks_classify_cloud_.load(std::memory_order_relaxed)) {
+  if (UseOneMessage(cloud)) {
     v1::ClassifyCloudRequest request;
     request.mutable_header()->set_gallery(gallery);
     request.mutable_header()->set_k(k);
     request.mutable_header()->set_expected_points(cloud.size());
     request.mutable_points()->set_xyz(ChunkBytes(cloud, 0, cloud.size()));
     v1::ClassifyResponse response;
-    const absl::Status status = Call(true, false, [&](grpc::ClientContext& context) {
-      response.Clear();
-      return stub_->ClassifyCloud(&context, request, &response);
-    });
+    const absl::Status status = OneMessageCall(
+        [&](grpc::ClientContext* context, const v1::ClassifyCloudRequest& r,
+            v1::ClassifyResponse* out) { return stub_->ClassifyCloud(context, r, out); },
+        request, &response);
     if (status.ok()) return response;
     if (status.code() != absl::StatusCode::kUnimplemented) return status;
-    server_lacks_classify_cloud_.store(true, std::memory_order_relaxed);
   }
   v1::ClassifyRequest header;
   header.mutable_header()->set_gallery(gallery);

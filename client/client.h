@@ -58,7 +58,9 @@ class Client {
   const ClientOptions& options() const { return options_; }
 
   // The descriptor of `cloud`. `spec` empty: the spec of `gallery` if given, else the
-  // server's default. The cloud travels in chunks of options().chunk_points points.
+  // server's default. A cloud of up to options().chunk_points points goes in one
+  // DescribeCloud message; a larger one streams in chunks of that many points (as does
+  // every cloud once a server has answered UNIMPLEMENTED to DescribeCloud).
   absl::StatusOr<v1::DescribeResponse> Describe(const PointCloud& cloud,
                                                 const std::string& spec = "",
                                                 const std::string& gallery = "");
@@ -130,12 +132,22 @@ class Client {
   template <typename Request, typename Response, typename Open>
   absl::StatusOr<Response> SingleCloudCall(Open open, const Request& header,
                                            const PointCloud& cloud);
+  // DescribeCloud and ClassifyCloud: `request` (header and points) in one message, retried
+  // like any idempotent call. UNIMPLEMENTED (an older server) also sets
+  // server_lacks_one_message_calls_, so later calls stream.
+  template <typename Request, typename Response, typename Invoke>
+  absl::Status OneMessageCall(Invoke invoke, const Request& request, Response* response);
+  bool UseOneMessage(const PointCloud& cloud) const {
+    return cloud.size() <= options_.chunk_points &&
+           !server_lacks_one_message_calls_.load(std::memory_order_relaxed);
+  }
 
   const ClientOptions options_;
   std::shared_ptr<grpc::Channel> channel_;
   std::unique_ptr<v1::ShapeId::Stub> stub_;  // thread-safe
-  // Set when the server turned out not to know ClassifyCloud: stream from then on.
-  std::atomic<bool> server_lacks_classify_cloud_{false};
+  // Set when the server turned out not to know the one-message calls (DescribeCloud,
+  // ClassifyCloud; an older server): stream from then on.
+  std::atomic<bool> server_lacks_one_message_calls_{false};
 };
 
 // The one conversion of a gRPC status into an absl::Status: same code, same message.

@@ -146,35 +146,46 @@ TEST_F(ClientTest, ClassifyInOneMessageOrStreamedGivesTheSameAnswer) {
   EXPECT_TRUE(absl::IsNotFound((*one_message_client)->Classify("missing", cloud).status()));
 }
 
-// A server from before ClassifyCloud: only the streaming Classify, which answers "streamed".
+// Reads a client stream to its end, then answers OK (the response is set beforehand).
+template <typename Request>
+class DrainReactor final : public grpc::ServerReadReactor<Request> {
+ public:
+  DrainReactor() { this->StartRead(&request_); }
+  void OnReadDone(bool ok) override {
+    if (ok) {
+      this->StartRead(&request_);
+    } else {
+      this->Finish(grpc::Status::OK);
+    }
+  }
+  void OnDone() override { delete this; }
+
+ private:
+  Request request_;
+};
+
+// A server from before DescribeCloud and ClassifyCloud: only the streaming calls, which
+// answer "streamed".
 class StreamOnlyService final : public v1::ShapeId::CallbackService {
  public:
   std::atomic<int> streams{0};
+
+  grpc::ServerReadReactor<v1::DescribeRequest>* Describe(grpc::CallbackServerContext* /*context*/,
+                                                         v1::DescribeResponse* response) override {
+    ++streams;
+    response->set_descriptor_spec("streamed");
+    return new DrainReactor<v1::DescribeRequest>();
+  }
 
   grpc::ServerReadReactor<v1::ClassifyRequest>* Classify(grpc::CallbackServerContext* /*context*/,
                                                          v1::ClassifyResponse* response) override {
     ++streams;
     response->set_label("streamed");
-    class Drain final : public grpc::ServerReadReactor<v1::ClassifyRequest> {
-     public:
-      Drain() { StartRead(&request_); }
-      void OnReadDone(bool ok) override {
-        if (ok) {
-          StartRead(&request_);
-        } else {
-          Finish(grpc::Status::OK);
-        }
-      }
-      void OnDone() override { delete this; }
-
-     private:
-      v1::ClassifyRequest request_;
-    };
-    return new Drain();
+    return new DrainReactor<v1::ClassifyRequest>();
   }
 };
 
-TEST(ClientFallbackTest, AnOlderServerWithoutClassifyCloudGetsTheStream) {
+TEST(ClientFallbackTest, AnOlderServerWithoutOneMessageCallsGetsTheStream) {
   StreamOnlyService service;
   grpc::ServerBuilder builder;
   int port = 0;
@@ -192,6 +203,17 @@ TEST(ClientFallbackTest, AnOlderServerWithoutClassifyCloudGetsTheStream) {
     EXPECT_EQ(answer->label(), "streamed");
     EXPECT_EQ(service.streams, call);
   }
+  auto described = (*client)->Describe(Shape(0, 6));
+  ASSERT_TRUE(described.ok()) << described.status();
+  EXPECT_EQ(described->descriptor_spec(), "streamed");
+  EXPECT_EQ(service.streams, 4);
+  // A fresh client whose first call is a Describe finds out the same way.
+  auto fresh = Client::Connect(options);
+  ASSERT_TRUE(fresh.ok());
+  described = (*fresh)->Describe(Shape(0, 6));
+  ASSERT_TRUE(described.ok()) << described.status();
+  EXPECT_EQ(described->descriptor_spec(), "streamed");
+  EXPECT_EQ(service.streams, 5);
   server->Shutdown();
 }
 

@@ -41,6 +41,33 @@ absl::Status RequireGalleryName(absl::string_view rpc, const std::string& name) 
   return absl::OkStatus();
 }
 
+// The descriptor a DescribeHeader asks for, shared by the stream and the one-message call:
+// its spec, else the named gallery's, else the server's default.
+absl::StatusOr<std::shared_ptr<const Descriptor>> DescriptorToUse(
+    const v1::DescribeHeader& header, const ServiceOptions& options,
+    const GalleryRegistry& registry) {
+  if (header.descriptor_spec().empty() && !header.gallery().empty()) {
+    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry.Get(header.gallery()));
+    return gallery->Snapshot()->shared_descriptor();
+  }
+  const std::string& spec = header.descriptor_spec().empty() ? options.default_descriptor_spec
+                                                             : header.descriptor_spec();
+  SHAPEID_ASSIGN_OR_RETURN(std::unique_ptr<Descriptor> descriptor, CreateDescriptor(spec));
+  return std::shared_ptr<const Descriptor>(std::move(descriptor));
+}
+
+absl::Status DescribeInto(const Descriptor& descriptor, const PointCloud& cloud,
+                          v1::DescribeResponse* response) {
+  const absl::Time start = absl::Now();
+  std::vector<float> values;
+  SHAPEID_RETURN_IF_ERROR(descriptor.Compute(cloud, &values));
+  ToProto(absl::Now() - start, response->mutable_describe_time());
+  response->set_descriptor_spec(descriptor.spec().ToString());
+  response->mutable_values()->Assign(values.begin(), values.end());
+  response->set_num_points(cloud.size());
+  return absl::OkStatus();
+}
+
 class DescribeReactor final : public StreamReactor<v1::DescribeRequest> {
  public:
   DescribeReactor(grpc::CallbackServerContext* context, CallTracker* tracker,
@@ -75,15 +102,7 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest> {
     if (descriptor_ != nullptr) {
       return absl::InvalidArgumentError("Describe: a second DescribeHeader in one stream");
     }
-    if (header.descriptor_spec().empty() && !header.gallery().empty()) {
-      SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
-                               registry_.Get(header.gallery()));
-      descriptor_ = gallery->Snapshot()->shared_descriptor();
-    } else {
-      const std::string& spec = header.descriptor_spec().empty() ? options_.default_descriptor_spec
-                                                                 : header.descriptor_spec();
-      SHAPEID_ASSIGN_OR_RETURN(descriptor_, CreateDescriptor(spec));
-    }
+    SHAPEID_ASSIGN_OR_RETURN(descriptor_, DescriptorToUse(header, options_, registry_));
     return assembler_.Start(header.expected_points());
   }
 
@@ -92,14 +111,7 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest> {
       return absl::InvalidArgumentError("Describe: the stream ended without a DescribeHeader");
     }
     SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud, assembler_.Finish());
-    const absl::Time start = absl::Now();
-    std::vector<float> values;
-    SHAPEID_RETURN_IF_ERROR(descriptor_->Compute(cloud, &values));
-    ToProto(absl::Now() - start, response_->mutable_describe_time());
-    response_->set_descriptor_spec(descriptor_->spec().ToString());
-    response_->mutable_values()->Assign(values.begin(), values.end());
-    response_->set_num_points(cloud.size());
-    return absl::OkStatus();
+    return DescribeInto(*descriptor_, cloud, response_);
   }
 
   const ServiceOptions& options_;
@@ -387,6 +399,20 @@ grpc::ServerReadReactor<v1::TrainRequest>* ShapeIdService::Train(
 grpc::ServerReadReactor<v1::ClassifyRequest>* ShapeIdService::Classify(
     grpc::CallbackServerContext* context, v1::ClassifyResponse* response) {
   return new ClassifyReactor(context, &tracker_, options_, *registry_, response);
+}
+
+grpc::ServerUnaryReactor* ShapeIdService::DescribeCloud(grpc::CallbackServerContext* context,
+                                                        const v1::DescribeCloudRequest* request,
+                                                        v1::DescribeResponse* response) {
+  return Unary(context, tracker_, [&]() -> absl::Status {
+    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<const Descriptor> descriptor,
+                             DescriptorToUse(request->header(), options_, *registry_));
+    CloudAssembler assembler(options_.max_points_per_cloud);
+    SHAPEID_RETURN_IF_ERROR(assembler.Start(request->header().expected_points()));
+    SHAPEID_RETURN_IF_ERROR(assembler.Append(request->points().xyz()));
+    SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud, assembler.Finish());
+    return DescribeInto(*descriptor, cloud, response);
+  });
 }
 
 grpc::ServerUnaryReactor* ShapeIdService::ClassifyCloud(grpc::CallbackServerContext* context,

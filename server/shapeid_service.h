@@ -28,6 +28,9 @@ class ShapeIdService final : public v1::ShapeId::CallbackService {
                                                    v1::TrainResponse* response) override;
   grpc::ServerReadReactor<v1::ClassifyRequest>* Classify(grpc::CallbackServerContext* context,
                                                          v1::ClassifyResponse* response) override;
+  grpc::ServerUnaryReactor* DescribeCloud(grpc::CallbackServerContext* context,
+                                          const v1::DescribeCloudRequest* request,
+                                          v1::DescribeResponse* response) override;
   grpc::ServerUnaryReactor* ClassifyCloud(grpc::CallbackServerContext* context,
                                           const v1::ClassifyCloudRequest* request,
                                           v1::ClassifyResponse* response) override;

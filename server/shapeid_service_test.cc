@@ -120,6 +120,59 @@ TEST_F(ShapeIdServiceTest, DescribeDefaultsToDfsd) {
   EXPECT_EQ(response.values_size(), 240);
 }
 
+TEST_F(ShapeIdServiceTest, DescribeCloudInOneMessageEqualsTheStreamWithTheSameErrors) {
+  const PointCloud cloud = BlobCloud(3000, 4);
+  const auto one_message = [&](const std::string& spec, const PointCloud& points,
+                               v1::DescribeResponse* response, uint64_t expected = 0) {
+    grpc::ClientContext context;
+    v1::DescribeCloudRequest request;
+    request.mutable_header()->set_descriptor_spec(spec);
+    request.mutable_header()->set_expected_points(expected);
+    request.mutable_points()->set_xyz(Bytes(points.data(), points.size()));
+    return stub_->DescribeCloud(&context, request, response);
+  };
+  for (const char* spec : {"", "rphsd", "dfsd:frame=upright,up=y"}) {
+    v1::DescribeResponse one, streamed;
+    ASSERT_TRUE(one_message(spec, cloud, &one, cloud.size()).ok()) << spec;
+    std::vector<v1::DescribeRequest> messages = {Header(spec, cloud.size())};
+    for (auto& chunk : Chunks(cloud, 1000)) messages.push_back(chunk);
+    ASSERT_TRUE(DescribeStream(messages, &streamed).ok()) << spec;
+    EXPECT_EQ(one.descriptor_spec(), streamed.descriptor_spec());
+    EXPECT_EQ(std::vector<float>(one.values().begin(), one.values().end()),
+              std::vector<float>(streamed.values().begin(), streamed.values().end()))
+        << spec;
+    EXPECT_EQ(one.num_points(), cloud.size());
+  }
+  v1::DescribeResponse response;
+  const grpc::Status bad_spec = one_message("esf", cloud, &response);
+  EXPECT_EQ(bad_spec.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(bad_spec.error_message(), HasSubstr("unknown descriptor"));
+  EXPECT_EQ(one_message("", PointCloud{{0, 0, 0}}, &response).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(one_message("", cloud, &response, cloud.size() + 1).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
+  {
+    grpc::ClientContext context;
+    v1::DescribeCloudRequest request;
+    request.mutable_header()->set_gallery("missing");
+    request.mutable_points()->set_xyz(Bytes(cloud.data(), cloud.size()));
+    EXPECT_EQ(stub_->DescribeCloud(&context, request, &response).error_code(),
+              grpc::StatusCode::NOT_FOUND);
+  }
+  {
+    grpc::ClientContext context;
+    v1::DescribeCloudRequest ragged;
+    ragged.mutable_points()->set_xyz(std::string(12 * 50 + 7, '\0'));
+    EXPECT_EQ(stub_->DescribeCloud(&context, ragged, &response).error_code(),
+              grpc::StatusCode::INVALID_ARGUMENT);
+  }
+  // Over the server's max_points_per_cloud (50,000 here): refused as on the stream, healthy.
+  const grpc::Status too_big = one_message("rphsd", BlobCloud(60000, 5), &response);
+  EXPECT_EQ(too_big.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_THAT(too_big.error_message(), HasSubstr("limit of 50000 points"));
+  ExpectHealthy();
+}
+
 TEST_F(ShapeIdServiceTest, EveryMalformedStreamGetsAPreciseError) {
   const PointCloud cloud = BlobCloud(100, 3);
   v1::DescribeRequest odd_chunk;
