@@ -298,6 +298,15 @@ class InteropTest(unittest.TestCase):
             self.assertEqual(weights, sorted(weights, reverse=True))  # most weight first
             self.assertEqual(answer.votes[0].label, answer.label)
             self.assertAlmostEqual(sum(weights), 3.0)  # uniform: 1 per neighbour
+            # The one-message call answers the same, neighbour for neighbour.
+            one = self.stub.ClassifyCloud(
+                pb.ClassifyCloudRequest(
+                    header=pb.ClassifyHeader(gallery="shapes", k=3, expected_points=len(points)),
+                    points=pb.PointChunk(xyz=pack(points))),
+                timeout=CALL_TIMEOUT)
+            self.assertEqual(one.label, answer.label)
+            self.assertEqual([(n.sample_id, n.distance) for n in one.neighbors],
+                             [(n.sample_id, n.distance) for n in answer.neighbors])
             self.assertGreater(answer.confidence, 0.0)
             self.assertLessEqual(answer.confidence, 1.0)
             self.assertAlmostEqual(answer.confidence, weights[0] / sum(weights))
