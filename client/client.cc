@@ -147,71 +147,62 @@ absl::StatusOr<Response> Client::SingleCloudCall(Open open, const Request& heade
   return response;
 }
 
-template <typename Request, typename Response, typename Invoke>
-absl::Status Client::OneMessageCall(Invoke invoke, const Request& request, Response* response) {
-  const absl::Status status = Call(true, false, [&](grpc::ClientContext& context) {
-    response->Clear();
-    return invoke(&context, request, response);
-  });
-  if (status.code() == absl::StatusCode::kUnimplemented) {
+template <typename OneMessage, typename StreamRequest, typename Response, typename Header,
+          typename Unary, typename Open>
+absl::StatusOr<Response> Client::CloudCall(const Header& header, const PointCloud& cloud,
+                                           Unary unary, Open open) {
+  if (cloud.size() <= options_.chunk_points &&
+      !server_lacks_one_message_calls_.load(std::memory_order_relaxed)) {
+    OneMessage request;
+    *request.mutable_header() = header;
+    request.mutable_points()->set_xyz(ChunkBytes(cloud, 0, cloud.size()));
+    Response response;
+    const absl::Status status = Call(true, false, [&](grpc::ClientContext& context) {
+      response.Clear();
+      return unary(&context, request, &response);
+    });
+    if (status.ok()) return response;
+    if (status.code() != absl::StatusCode::kUnimplemented) return status;
     server_lacks_one_message_calls_.store(true, std::memory_order_relaxed);
   }
-  return status;
+  StreamRequest first;
+  *first.mutable_header() = header;
+  return SingleCloudCall<StreamRequest, Response>(open, first, cloud);
 }
 
 absl::StatusOr<v1::DescribeResponse> Client::Describe(const PointCloud& cloud,
                                                       const std::string& spec,
                                                       const std::string& gallery) {
-  if (UseOneMessage(cloud)) {
-    v1::DescribeCloudRequest request;
-    request.mutable_header()->set_descriptor_spec(spec);
-    request.mutable_header()->set_gallery(gallery);
-    request.mutable_header()->set_expected_points(cloud.size());
-    request.mutable_points()->set_xyz(ChunkBytes(cloud, 0, cloud.size()));
-    v1::DescribeResponse response;
-    const absl::Status status = OneMessageCall(
-        [&](grpc::ClientContext* context, const v1::DescribeCloudRequest& r,
-            v1::DescribeResponse* out) { return stub_->DescribeCloud(context, r, out); },
-        request, &response);
-    if (status.ok()) return response;
-    if (status.code() != absl::StatusCode::kUnimplemented) return status;
-  }
-  v1::DescribeRequest header;
-  header.mutable_header()->set_descriptor_spec(spec);
-  header.mutable_header()->set_gallery(gallery);
-  header.mutable_header()->set_expected_points(cloud.size());
-  return SingleCloudCall<v1::DescribeRequest, v1::DescribeResponse>(
+  v1::DescribeHeader header;
+  header.set_descriptor_spec(spec);
+  header.set_gallery(gallery);
+  header.set_expected_points(cloud.size());
+  return CloudCall<v1::DescribeCloudRequest, v1::DescribeRequest, v1::DescribeResponse>(
+      header, cloud,
+      [&](grpc::ClientContext* context, const v1::DescribeCloudRequest& request,
+          v1::DescribeResponse* response) {
+        return stub_->DescribeCloud(context, request, response);
+      },
       [&](grpc::ClientContext* context, v1::DescribeResponse* response) {
         return stub_->Describe(context, response);
-      },
-      header, cloud);
+      });
 }
 
 absl::StatusOr<v1::ClassifyResponse> Client::Classify(const std::string& gallery,
                                                       const PointCloud& cloud, uint32_t k) {
-  if (UseOneMessage(cloud)) {
-    v1::ClassifyCloudRequest request;
-    request.mutable_header()->set_gallery(gallery);
-    request.mutable_header()->set_k(k);
-    request.mutable_header()->set_expected_points(cloud.size());
-    request.mutable_points()->set_xyz(ChunkBytes(cloud, 0, cloud.size()));
-    v1::ClassifyResponse response;
-    const absl::Status status = OneMessageCall(
-        [&](grpc::ClientContext* context, const v1::ClassifyCloudRequest& r,
-            v1::ClassifyResponse* out) { return stub_->ClassifyCloud(context, r, out); },
-        request, &response);
-    if (status.ok()) return response;
-    if (status.code() != absl::StatusCode::kUnimplemented) return status;
-  }
-  v1::ClassifyRequest header;
-  header.mutable_header()->set_gallery(gallery);
-  header.mutable_header()->set_k(k);
-  header.mutable_header()->set_expected_points(cloud.size());
-  return SingleCloudCall<v1::ClassifyRequest, v1::ClassifyResponse>(
+  v1::ClassifyHeader header;
+  header.set_gallery(gallery);
+  header.set_k(k);
+  header.set_expected_points(cloud.size());
+  return CloudCall<v1::ClassifyCloudRequest, v1::ClassifyRequest, v1::ClassifyResponse>(
+      header, cloud,
+      [&](grpc::ClientContext* context, const v1::ClassifyCloudRequest& request,
+          v1::ClassifyResponse* response) {
+        return stub_->ClassifyCloud(context, request, response);
+      },
       [&](grpc::ClientContext* context, v1::ClassifyResponse* response) {
         return stub_->Classify(context, response);
-      },
-      header, cloud);
+      });
 }
 
 absl::StatusOr<v1::TrainResponse> Client::Train(const std::string& gallery,

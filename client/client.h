@@ -132,15 +132,14 @@ class Client {
   template <typename Request, typename Response, typename Open>
   absl::StatusOr<Response> SingleCloudCall(Open open, const Request& header,
                                            const PointCloud& cloud);
-  // DescribeCloud and ClassifyCloud: `request` (header and points) in one message, retried
-  // like any idempotent call. UNIMPLEMENTED (an older server) also sets
-  // server_lacks_one_message_calls_, so later calls stream.
-  template <typename Request, typename Response, typename Invoke>
-  absl::Status OneMessageCall(Invoke invoke, const Request& request, Response* response);
-  bool UseOneMessage(const PointCloud& cloud) const {
-    return cloud.size() <= options_.chunk_points &&
-           !server_lacks_one_message_calls_.load(std::memory_order_relaxed);
-  }
+  // Describe and Classify: `header` and `cloud` in one OneMessage request through `unary`
+  // (DescribeCloud, ClassifyCloud) when the cloud has at most options_.chunk_points points,
+  // else (and for good once a server answers UNIMPLEMENTED to it: an older server) on the
+  // stream `open` starts, through SingleCloudCall. Retried like any idempotent call.
+  template <typename OneMessage, typename StreamRequest, typename Response, typename Header,
+            typename Unary, typename Open>
+  absl::StatusOr<Response> CloudCall(const Header& header, const PointCloud& cloud, Unary unary,
+                                     Open open);
 
   const ClientOptions options_;
   std::shared_ptr<grpc::Channel> channel_;

@@ -401,16 +401,24 @@ grpc::ServerReadReactor<v1::ClassifyRequest>* ShapeIdService::Classify(
   return new ClassifyReactor(context, &tracker_, options_, *registry_, response);
 }
 
+absl::StatusOr<PointCloud> ShapeIdService::CloudInOneMessage(uint64_t expected_points,
+                                                             absl::string_view xyz) const {
+  // The streams' assembler with a single chunk: the same checks and the same messages.
+  CloudAssembler assembler(options_.max_points_per_cloud);
+  SHAPEID_RETURN_IF_ERROR(assembler.Start(expected_points));
+  SHAPEID_RETURN_IF_ERROR(assembler.Append(xyz));
+  return assembler.Finish();
+}
+
 grpc::ServerUnaryReactor* ShapeIdService::DescribeCloud(grpc::CallbackServerContext* context,
                                                         const v1::DescribeCloudRequest* request,
                                                         v1::DescribeResponse* response) {
   return Unary(context, tracker_, [&]() -> absl::Status {
     SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<const Descriptor> descriptor,
                              DescriptorToUse(request->header(), options_, *registry_));
-    CloudAssembler assembler(options_.max_points_per_cloud);
-    SHAPEID_RETURN_IF_ERROR(assembler.Start(request->header().expected_points()));
-    SHAPEID_RETURN_IF_ERROR(assembler.Append(request->points().xyz()));
-    SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud, assembler.Finish());
+    SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud,
+                             CloudInOneMessage(request->header().expected_points(),
+                                               request->points().xyz()));
     return DescribeInto(*descriptor, cloud, response);
   });
 }
@@ -424,11 +432,9 @@ grpc::ServerUnaryReactor* ShapeIdService::ClassifyCloud(grpc::CallbackServerCont
     }
     SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
                              GalleryToClassify(*registry_, request->header()));
-    // The same assembler as the stream: one chunk, the same checks and messages.
-    CloudAssembler assembler(options_.max_points_per_cloud);
-    SHAPEID_RETURN_IF_ERROR(assembler.Start(request->header().expected_points()));
-    SHAPEID_RETURN_IF_ERROR(assembler.Append(request->points().xyz()));
-    SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud, assembler.Finish());
+    SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud,
+                             CloudInOneMessage(request->header().expected_points(),
+                                               request->points().xyz()));
     return ClassifyInto(*gallery, cloud, NeighboursAsked(request->header()), response);
   });
 }

@@ -4,7 +4,10 @@
 #include <memory>
 #include <utility>
 
+#include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
 #include "core/gallery/gallery_registry.h"
+#include "core/point_cloud.h"
 #include "server/service_options.h"
 #include "server/stream_reactor.h"
 #include "shapeid/v1/shapeid.grpc.pb.h"
@@ -72,6 +75,10 @@ class ShapeIdService final : public v1::ShapeId::CallbackService {
   int64_t calls_in_flight() const { return tracker_.in_flight(); }
 
  private:
+  // The cloud of a DescribeCloud or ClassifyCloud request, checked as a stream's would be.
+  absl::StatusOr<PointCloud> CloudInOneMessage(uint64_t expected_points,
+                                               absl::string_view xyz) const;
+
   CallTracker tracker_;
   const ServiceOptions options_;
   const std::shared_ptr<GalleryRegistry> registry_;
