@@ -4,10 +4,15 @@
 // Deterministic synthetic clouds for benchmarks: points on the surface of a box joined to an
 // ellipsoid (a shape with some structure), in random order as surface samplers emit them.
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <filesystem>
 #include <random>
+#include <system_error>
+#include <vector>
 
+#include "core/io/point_cloud_reader.h"
 #include "core/point_cloud.h"
 
 namespace shapeid::bench {
@@ -31,6 +36,29 @@ inline PointCloud SurfaceCloud(size_t n, uint32_t seed = 42) {
     }
   }
   return cloud;
+}
+
+// The first `per_class` test files of each ModelNet10 class under `root`
+// (<class>/test/*.pcd, classes and files in sorted order), as the benchmarks that compare
+// per-cloud times read them. Empty where the data is absent; unreadable files are skipped.
+inline std::vector<PointCloud> ModelNet10TestClouds(const std::filesystem::path& root,
+                                                    size_t per_class) {
+  namespace fs = std::filesystem;
+  std::vector<PointCloud> clouds;
+  std::error_code error;
+  std::vector<fs::path> classes;
+  for (const auto& entry : fs::directory_iterator(root, error)) classes.push_back(entry.path());
+  std::sort(classes.begin(), classes.end());
+  for (const fs::path& cls : classes) {
+    std::vector<fs::path> files;
+    for (const auto& entry : fs::directory_iterator(cls / "test", error)) files.push_back(entry.path());
+    std::sort(files.begin(), files.end());
+    for (size_t i = 0; i < files.size() && i < per_class; ++i) {
+      auto read = ReadPointCloud(files[i].string());
+      if (read.ok()) clouds.push_back(std::move(read->cloud));
+    }
+  }
+  return clouds;
 }
 
 }  // namespace shapeid::bench

@@ -199,21 +199,8 @@ BENCHMARK_CAPTURE(DescribeBench, dfsd_default_1m, std::string("dfsd"), 1000000)
 const std::vector<PointCloud>& ModelNetClouds(bool* real) {
   static bool found = false;
   static const auto* const clouds = [] {
-    auto* list = new std::vector<PointCloud>;
-    const fs::path root = fs::path(SHAPEID_SOURCE_DIR) / ".." / "shared" / "data" / "modelnet10";
-    std::error_code error;
-    std::vector<fs::path> classes;
-    for (const auto& entry : fs::directory_iterator(root, error)) classes.push_back(entry.path());
-    std::sort(classes.begin(), classes.end());
-    for (const fs::path& cls : classes) {
-      std::vector<fs::path> files;
-      for (const auto& entry : fs::directory_iterator(cls / "test", error)) files.push_back(entry.path());
-      std::sort(files.begin(), files.end());
-      for (size_t i = 0; i < files.size() && i < 10; ++i) {
-        auto read = ReadPointCloud(files[i].string());
-        if (read.ok()) list->push_back(std::move(read->cloud));
-      }
-    }
+    auto* list = new std::vector<PointCloud>(bench::ModelNet10TestClouds(
+        fs::path(SHAPEID_SOURCE_DIR) / ".." / "shared" / "data" / "modelnet10", 10));
     found = !list->empty();
     for (uint32_t seed = 0; list->empty() || list->size() < 10; ++seed) {
       list->push_back(bench::SurfaceCloud(1024, seed));

@@ -78,27 +78,6 @@ PclCloud::ConstPtr ToPcl(const PointCloud& cloud) {
   return out;
 }
 
-// The first 10 test files of each ModelNet10 class from ../shared/data (1,024 points each),
-// as bench/descriptor_bench.cc reads them. Empty where the data is absent.
-std::vector<PointCloud> ReadModelNet10() {
-  std::vector<PointCloud> clouds;
-  const fs::path root = fs::path(SHAPEID_SOURCE_DIR) / ".." / "shared" / "data" / "modelnet10";
-  std::error_code error;
-  std::vector<fs::path> classes;
-  for (const auto& entry : fs::directory_iterator(root, error)) classes.push_back(entry.path());
-  std::sort(classes.begin(), classes.end());
-  for (const fs::path& cls : classes) {
-    std::vector<fs::path> files;
-    for (const auto& entry : fs::directory_iterator(cls / "test", error)) files.push_back(entry.path());
-    std::sort(files.begin(), files.end());
-    for (size_t i = 0; i < files.size() && i < 10; ++i) {
-      auto read = ReadPointCloud(files[i].string());
-      if (read.ok()) clouds.push_back(std::move(read->cloud));
-    }
-  }
-  return clouds;
-}
-
 // Built on first use and kept: the 10^6-point clouds take a moment, and every benchmark on
 // one input must see the very same points. Benchmarks run one at a time, so no lock.
 const Inputs& GetInputs(size_t points) {
@@ -107,7 +86,8 @@ const Inputs& GetInputs(size_t points) {
   Inputs& inputs = it->second;
   if (!inserted) return inputs;
   if (points == kModelNet10) {
-    inputs.clouds = ReadModelNet10();
+    inputs.clouds = bench::ModelNet10TestClouds(
+        fs::path(SHAPEID_SOURCE_DIR) / ".." / "shared" / "data" / "modelnet10", 10);
     size_t total = 0;
     for (const PointCloud& cloud : inputs.clouds) total += cloud.size();
     inputs.label = absl::StrCat("ModelNet10 x", inputs.clouds.size(), ", ",

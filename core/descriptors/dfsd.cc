@@ -100,7 +100,7 @@ int NumFields(DfsdOptions::Fields fields) { return fields == DfsdOptions::Fields
 struct FramedCloud {
   std::vector<double> coord[3];
   Eigen::Vector3d half_extent = Eigen::Vector3d::Zero();
-  // frame=box only: |third moment| / second moment^1.5 of the points along each axis,
+  // frame=box and upright: |third moment| / second moment^1.5 of the points along each axis,
   // about their centroid (0 for an axis without spread). Near 0, the axis's sign is a guess.
   Eigen::Vector3d skewness = Eigen::Vector3d::Zero();
 };
@@ -230,21 +230,28 @@ Eigen::Matrix3d OrderAndSign(const Eigen::Matrix3d& axes, const Eigen::Matrix3Xd
   return out;
 }
 
+// The points less their centroid, in double, one column each (box and upright frames).
+Eigen::Matrix3Xd CentredPoints(const PointCloud& cloud, const Eigen::Vector3d& centroid) {
+  Eigen::Matrix3Xd d(3, static_cast<Eigen::Index>(cloud.size()));
+  for (size_t p = 0; p < cloud.size(); ++p) {
+    d.col(static_cast<Eigen::Index>(p)) = cloud.point(p).cast<double>() - centroid;
+  }
+  return d;
+}
+
 // The box frame: starting from the principal axes, each axis in turn is held and the other
 // two turned to the smallest-area rectangle around the points' projection; the smallest box
-// found wins, and a second round starts from it if the first found a smaller one. Principal axes tilt on L-shaped or asymmetric objects (a
-// chair's back pulls them); the tightest box lines up with the flat sides that man-made
-// objects and buildings have. Then the axes are ordered by box extent, largest first, and
-// each points to the side its points are skewed to (a right- or left-handed frame: a mirror
-// image gets the mirrored frame, hence the same descriptor). Uses + - * / sqrt and Eigen's
+// found wins, and a second round starts from it if the first found a smaller one. Principal
+// axes tilt on L-shaped or asymmetric objects (a chair's back pulls them); the tightest box
+// lines up with the flat sides that man-made objects and buildings have. Then the axes are
+// ordered by box extent, largest first, and each points to the side its points are skewed
+// to (a right- or left-handed frame: a mirror image gets the mirrored frame, hence the same
+// descriptor). Uses + - * / sqrt and Eigen's
 // symmetric eigensolver only, so a build gives the same frame on every CPU.
 Eigen::Matrix3d BoxAxes(const PointCloud& cloud, const Eigen::Vector3d& centroid,
                         Eigen::Vector3d* skewness) {
   const size_t n = cloud.size();
-  Eigen::Matrix3Xd d(3, static_cast<Eigen::Index>(n));
-  for (size_t p = 0; p < n; ++p) {
-    d.col(static_cast<Eigen::Index>(p)) = cloud.point(p).cast<double>() - centroid;
-  }
+  const Eigen::Matrix3Xd d = CentredPoints(cloud, centroid);
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(d * d.transpose());
   Eigen::Matrix3d best;
   for (int a = 0; a < 3; ++a) best.col(a) = solver.eigenvectors().col(2 - a);  // descending
@@ -287,10 +294,9 @@ Eigen::Matrix3d UprightAxes(const PointCloud& cloud, const Eigen::Vector3d& cent
                             DfsdOptions::Up up, Eigen::Vector3d* skewness) {
   const size_t n = cloud.size();
   const Eigen::Matrix3d basis = UpBasis(up);
-  Eigen::Matrix3Xd d(3, static_cast<Eigen::Index>(n));
+  const Eigen::Matrix3Xd d = CentredPoints(cloud, centroid);
   std::vector<Eigen::Vector2d> projected(n);
   for (size_t p = 0; p < n; ++p) {
-    d.col(static_cast<Eigen::Index>(p)) = cloud.point(p).cast<double>() - centroid;
     // The basis holds one signed 1 per column: these products are exact.
     projected[p] = basis.leftCols<2>().transpose() * d.col(static_cast<Eigen::Index>(p));
   }
@@ -571,7 +577,7 @@ class DfsdDescriptor : public Descriptor {
 
   DfsdOptions options_;
   std::vector<Frequency> kept_;
-  std::vector<Pose> poses_;  // frame=box only
+  std::vector<Pose> poses_;  // frames with pose variants (box, upright) only
   std::vector<double> cosines_;  // [frequency][cell index]
   std::vector<float> centres_;   // cell centre coordinates in [-1, 1]
 };

@@ -155,6 +155,17 @@ TEST(DfsdTest, MatchesTheDefinitionComputedInDouble) {
   }
 }
 
+// The kernel's input over `tables`: G rows of dx2, then of dy2, then of dz2, `stride` apart.
+dfsd_internal::FieldInput KernelInput(const std::vector<float>& tables, int g, size_t stride) {
+  dfsd_internal::FieldInput in;
+  in.dx2 = tables.data();
+  in.dy2 = in.dx2 + g * stride;
+  in.dz2 = in.dy2 + g * stride;
+  in.stride = stride;
+  in.grid = g;
+  return in;
+}
+
 TEST(DfsdTest, EverySimdLevelGivesTheSameBits) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<float> u(0.0f, 4.0f);
@@ -166,12 +177,7 @@ TEST(DfsdTest, EverySimdLevelGivesTheSameBits) {
       for (int a = 0; a < 3 * g; ++a) {
         for (size_t p = 0; p < n; ++p) tables[a * stride + p] = u(rng);
       }
-      dfsd_internal::FieldInput in;
-      in.dx2 = tables.data();
-      in.dy2 = in.dx2 + g * stride;
-      in.dz2 = in.dy2 + g * stride;
-      in.stride = stride;
-      in.grid = g;
+      const dfsd_internal::FieldInput in = KernelInput(tables, g, stride);
       std::vector<float> scalar(g * g * g), vector(g * g * g);
       dfsd_internal::NearestSquaredDistances(in, scalar.data(), SimdLevel::kScalar);
       // Spot check against the plain definition.
@@ -207,12 +213,7 @@ TEST(DfsdTest, AccumulatingChunksGivesTheBitsOfOnePass) {
   for (float& v : values) v = u(rng);
   const auto run = [&](const std::vector<float>& tables, size_t stride, bool accumulate,
                        SimdLevel level, std::vector<float>* out) {
-    dfsd_internal::FieldInput in;
-    in.dx2 = tables.data();
-    in.dy2 = in.dx2 + g * stride;
-    in.dz2 = in.dy2 + g * stride;
-    in.stride = stride;
-    in.grid = g;
+    dfsd_internal::FieldInput in = KernelInput(tables, g, stride);
     in.accumulate = accumulate;
     dfsd_internal::NearestSquaredDistances(in, out->data(), level);
   };
