@@ -8,6 +8,8 @@
 //   modelnet_accuracy --spec rphsd --k 8 --scaling maxabs  # the author's logged protocol
 //   modelnet_accuracy --spec rphsd --min-accuracy 82       # exit 1 below 82 % (CI)
 //   modelnet_accuracy --spec dfsd --perturb robot --augment-views 8   # issue 13's robot protocol
+//   modelnet_accuracy --spec dfsd --augment-views 64 --approximate-probes 1,4,16,64
+//       # issue 7: the approximate index on real descriptors, against the exact answers
 //
 // --perturb turns every test cloud (core/views/perturb.h, seeded per file as bench/accuracy
 // does); --augment-views gives every training cloud synthetic sensor views, as an augmented
@@ -19,6 +21,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <numeric>
 #include <cstdio>
 #include <filesystem>
 #include <map>
@@ -68,6 +71,14 @@ int main(int argc, char** argv) {
   app.add_option("--augment-views", augment_views, "synthetic sensor views per training cloud")
       ->capture_default_str()
       ->check(CLI::Range(0, shapeid::AugmentOptions::kMaxViews));
+  std::vector<int> approximate_probes;
+  int approximate_lists = 0;
+  app.add_option("--approximate-probes", approximate_probes,
+                 "also search with the approximate index (KnnIndex::UpdateApproximate) at each "
+                 "of these probe counts, and compare with the exact answers")
+      ->delimiter(',');
+  app.add_option("--approximate-lists", approximate_lists, "cells of the approximate index; 0: auto")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   if (!fs::is_directory(data)) {
@@ -170,6 +181,74 @@ int main(int argc, char** argv) {
     per_class[t.label].first += correct;
     per_class[t.label].second += 1;
   }
+  // Exact answers, then each approximate setting against them: the same label, recall of
+  // the exact k neighbours, accuracy, and search time per query (all its vectors).
+  if (!approximate_probes.empty()) {
+    auto search_all = [&](std::vector<shapeid::KnnResult>* results) {
+      results->clear();
+      std::vector<double> micros;
+      for (int rep = 0; rep < 3; ++rep) {
+        results->clear();
+        const auto start = std::chrono::steady_clock::now();
+        for (const TestCloud& t : test) results->push_back(*index->Classify(t.values, options));
+        micros.push_back(std::chrono::duration<double, std::micro>(
+                             std::chrono::steady_clock::now() - start).count() /
+                         static_cast<double>(test.size()));
+      }
+      std::sort(micros.begin(), micros.end());
+      return micros[1];
+    };
+    std::vector<shapeid::KnnResult> exact, approximate;
+    const double exact_us = search_all(&exact);
+    std::printf("approximate index, %lld vectors; exact search %.1f us per query (median of 3)\n",
+                static_cast<long long>(index->num_rows()), exact_us);
+    for (const int probes : approximate_probes) {
+      shapeid::ApproximateOptions approx;
+      approx.min_vectors = 1;
+      approx.lists = approximate_lists;
+      approx.probes = probes;
+      const auto start = std::chrono::steady_clock::now();
+      if (const absl::Status s = index->UpdateApproximate(approx, options.scaling); !s.ok()) {
+        std::fprintf(stderr, "modelnet_accuracy: %s\n", std::string(s.message()).c_str());
+        return 2;
+      }
+      const double build_s =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      const double us = search_all(&approximate);
+      int same_label = 0, approx_right = 0;
+      int64_t found = 0, wanted = 0;
+      for (size_t i = 0; i < test.size(); ++i) {
+        same_label += approximate[i].label == exact[i].label;
+        approx_right += approximate[i].label == test[i].label;
+        for (const shapeid::Neighbor& w : exact[i].neighbors) {
+          ++wanted;
+          for (const shapeid::Neighbor& g : approximate[i].neighbors) found += g.id == w.id;
+        }
+      }
+      std::printf(
+          "  lists %d probes %3d: %8.1f us per query (%.1fx faster), recall@%d %.4f, same "
+          "label %.2f %%, accuracy %.2f %% (exact %.2f %%), update %.2f s\n",
+          index->approximate_lists(), probes, us, exact_us / us, k,
+          static_cast<double>(found) / static_cast<double>(wanted),
+          100.0 * same_label / static_cast<double>(test.size()),
+          100.0 * approx_right / static_cast<double>(test.size()),
+          100.0 * right / static_cast<double>(test.size()), build_s);
+      std::printf(
+          "{\"kind\":\"approximate\",\"spec\":\"%s\",\"perturb\":\"%s\",\"vectors\":%lld,"
+          "\"samples\":%lld,\"k\":%d,\"lists\":%d,\"probes\":%d,\"us_per_query\":%.2f,"
+          "\"exact_us_per_query\":%.2f,\"recall\":%.5f,\"same_label\":%.5f,"
+          "\"accuracy\":%.5f,\"exact_accuracy\":%.5f}\n",
+          (*descriptor)->spec().ToString().c_str(), perturbation->name.c_str(),
+          static_cast<long long>(index->num_rows()), static_cast<long long>(index->size()), k,
+          index->approximate_lists(), probes, us, exact_us,
+          static_cast<double>(found) / static_cast<double>(wanted),
+          static_cast<double>(same_label) / static_cast<double>(test.size()),
+          static_cast<double>(approx_right) / static_cast<double>(test.size()),
+          static_cast<double>(right) / static_cast<double>(test.size()));
+      std::fflush(stdout);
+    }
+  }
+
   double mean_class = 0;
   for (const auto& [label, counts] : per_class) mean_class += double(counts.first) / counts.second;
   mean_class /= static_cast<double>(per_class.size());

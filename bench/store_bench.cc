@@ -82,10 +82,15 @@ int Run(int argc, char** argv) {
   int dim = 81;
   int reps = 5;
   std::string dir = "/var/tmp/shapeid_store_bench";
+  GalleryLimits limits;
   app.add_option("--samples", samples, "samples in the gallery")->capture_default_str();
   app.add_option("--dim", dim, "features per sample (81: RPHSD's default)")->capture_default_str();
   app.add_option("--reps", reps, "repetitions; medians are reported")->capture_default_str();
   app.add_option("--dir", dir, "scratch data directory (wiped), on the disk to measure")
+      ->capture_default_str();
+  app.add_option("--approximate_min_vectors", limits.approximate.min_vectors,
+                 "build the approximate index at load from this many vectors, as shapeid-server "
+                 "does (its default: 1000000); 0: exact only")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   std::system(absl::StrCat("rm -rf '", dir, "'").c_str());
@@ -134,7 +139,7 @@ int Run(int argc, char** argv) {
     {
       auto store = SqliteGalleryStore::Open({dir, false});
       if (!store.ok()) return 1;
-      GalleryRegistry registry({}, std::shared_ptr<SqliteGalleryStore>(*std::move(store)));
+      GalleryRegistry registry(limits, std::shared_ptr<SqliteGalleryStore>(*std::move(store)));
       if (absl::Status s = registry.LoadFromStore(); !s.ok()) {
         std::fprintf(stderr, "store_bench: %s\n", std::string(s.message()).c_str());
         return 1;
@@ -146,7 +151,7 @@ int Run(int argc, char** argv) {
     }
     // Baseline: the same rebuild from memory, no disk.
     const absl::Time t2 = absl::Now();
-    auto restored = Gallery::Restore(gallery, {}, nullptr);
+    auto restored = Gallery::Restore(gallery, limits, nullptr);
     if (!restored.ok()) return 1;
     restore_s.push_back(absl::ToDoubleSeconds(absl::Now() - t2));
   }
@@ -177,9 +182,11 @@ int Run(int argc, char** argv) {
               "resident memory per loaded sample (RSS growth)", resident, resident / raw);
   std::printf("JSON {\"bench\":\"store\",\"samples\":%lld,\"dim\":%d,\"startup_s\":%.3f,"
               "\"baseline_s\":%.3f,\"save_s\":%.3f,\"file_bytes_per_sample\":%.1f,"
-              "\"raw_bytes_per_sample\":%.1f,\"resident_bytes_per_sample\":%.1f}\n",
+              "\"raw_bytes_per_sample\":%.1f,\"resident_bytes_per_sample\":%.1f,"
+              "\"approximate_min_vectors\":%lld}\n",
               static_cast<long long>(samples), dim, Median(load_s), Median(restore_s),
-              Median(save_s), bytes_per_sample, raw, resident);
+              Median(save_s), bytes_per_sample, raw, resident,
+              static_cast<long long>(limits.approximate.min_vectors));
   return 0;
 }
 

@@ -190,9 +190,18 @@ absl::StatusOr<v1::DescribeResponse> Client::Describe(const PointCloud& cloud,
 
 absl::StatusOr<v1::ClassifyResponse> Client::Classify(const std::string& gallery,
                                                       const PointCloud& cloud, uint32_t k) {
+  ClassifyOptions options;
+  options.k = k;
+  return Classify(gallery, cloud, options);
+}
+
+absl::StatusOr<v1::ClassifyResponse> Client::Classify(const std::string& gallery,
+                                                      const PointCloud& cloud,
+                                                      const ClassifyOptions& options) {
   v1::ClassifyHeader header;
   header.set_gallery(gallery);
-  header.set_k(k);
+  header.set_k(options.k);
+  header.set_exact(options.exact);
   header.set_expected_points(cloud.size());
   return CloudCall<v1::ClassifyCloudRequest, v1::ClassifyRequest, v1::ClassifyResponse>(
       header, cloud,

@@ -73,6 +73,17 @@ class Client {
   absl::StatusOr<v1::ClassifyResponse> Classify(const std::string& gallery, const PointCloud& cloud,
                                                 uint32_t k = 0);
 
+  // Per-call choices of Classify.
+  struct ClassifyOptions {
+    // Neighbours that vote; 0: the gallery's k.
+    uint32_t k = 0;
+    // Search every stored vector even where the server searches the gallery approximately
+    // (v1::Gallery::approximate_lists > 0): slower, never misses a neighbour.
+    bool exact = false;
+  };
+  absl::StatusOr<v1::ClassifyResponse> Classify(const std::string& gallery, const PointCloud& cloud,
+                                                const ClassifyOptions& options);
+
   // Adds `samples` to `gallery` in one stream: all of them or, on any error, none.
   // InvalidArgument (before sending anything) if a sample has no cloud.
   absl::StatusOr<v1::TrainResponse> Train(const std::string& gallery,

@@ -32,6 +32,16 @@ ABSL_FLAG(bool, set_aside_damaged, false,
           "start even if some gallery files are damaged: move them to <data_dir>/damaged/ and "
           "serve the rest (without it, a damaged gallery stops start-up with an error naming "
           "the file). Env: SHAPEID_SET_ASIDE_DAMAGED");
+ABSL_FLAG(int64_t, approximate_min_vectors, 1'000'000,
+          "search a gallery approximately (inverted lists over k-means cells, recall measured "
+          "in docs/performance.md) once it holds this many vectors (samples x views); 0: every "
+          "search exact. A Classify may still ask for an exact search. "
+          "Env: SHAPEID_APPROXIMATE_MIN_VECTORS");
+ABSL_FLAG(int32_t, approximate_lists, 0,
+          "cells of the approximate index; 0: about sqrt(vectors). Env: SHAPEID_APPROXIMATE_LISTS");
+ABSL_FLAG(int32_t, approximate_probes, 0,
+          "cells an approximate search reads per query vector; 0: 32. More: better recall, "
+          "slower. Env: SHAPEID_APPROXIMATE_PROBES");
 ABSL_FLAG(int32_t, shutdown_grace_seconds, 10,
           "on SIGTERM/SIGINT, how long in-flight calls may run before they are cancelled. "
           "Env: SHAPEID_SHUTDOWN_GRACE_SECONDS");
@@ -49,6 +59,7 @@ void OnStopSignal(int signal) {
 bool ApplyEnvironment() {
   for (const char* name :
        {"listen", "data_dir", "set_aside_damaged", "max_points_per_cloud", "max_message_bytes",
+        "approximate_min_vectors", "approximate_lists", "approximate_probes",
         "shutdown_grace_seconds"}) {
     const std::string var = absl::StrCat("SHAPEID_", absl::AsciiStrToUpper(name));
     const char* value = std::getenv(var.c_str());
@@ -86,6 +97,14 @@ int main(int argc, char** argv) {
   options.max_message_bytes = absl::GetFlag(FLAGS_max_message_bytes);
   options.data_dir = absl::GetFlag(FLAGS_data_dir);
   options.set_aside_damaged = absl::GetFlag(FLAGS_set_aside_damaged);
+  options.gallery_limits.approximate.min_vectors = absl::GetFlag(FLAGS_approximate_min_vectors);
+  options.gallery_limits.approximate.lists = absl::GetFlag(FLAGS_approximate_lists);
+  options.gallery_limits.approximate.probes = absl::GetFlag(FLAGS_approximate_probes);
+  if (const absl::Status s = shapeid::ValidateApproximateOptions(options.gallery_limits.approximate);
+      !s.ok()) {
+    std::fprintf(stderr, "shapeid-server: --approximate_*: %s\n", std::string(s.message()).c_str());
+    return 2;
+  }
 
   // gRPC may own threads whose signal mask we do not control, so a stop signal can land on
   // any thread: the handler only writes the signal number to a pipe that main waits on.

@@ -129,6 +129,7 @@ void ToProto(const GallerySnapshot& snapshot, v1::Gallery* out) {
   out->set_incompatible(snapshot.incompatible());
   *out->mutable_augmentation() = ToProto(snapshot.options().augment);
   out->set_vector_count(static_cast<uint64_t>(snapshot.index().num_rows()));
+  out->set_approximate_lists(static_cast<uint32_t>(snapshot.index().approximate_lists()));
 }
 
 void ToProto(const GalleryClassification& answer, size_t num_points, v1::ClassifyResponse* out) {
@@ -150,6 +151,7 @@ void ToProto(const GalleryClassification& answer, size_t num_points, v1::Classif
   out->set_num_points(num_points);
   ToProto(answer.describe_time, out->mutable_describe_time());
   ToProto(answer.search_time, out->mutable_search_time());
+  out->set_approximate(answer.knn.approximate);
 }
 
 }  // namespace shapeid

@@ -25,6 +25,9 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
 
+  if (absl::Status s = ValidateApproximateOptions(options.gallery_limits.approximate); !s.ok()) {
+    return s;
+  }
   std::unique_ptr<ShapeIdServer> server(new ShapeIdServer);
   if (!options.data_dir.empty()) {
     absl::StatusOr<std::unique_ptr<SqliteGalleryStore>> store = SqliteGalleryStore::Open(

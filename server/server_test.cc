@@ -108,5 +108,79 @@ TEST(ShapeIdServerTest, EmptyDataDirMeansMemoryOnly) {
   EXPECT_TRUE(ClientFor(**server)->CheckHealth().ok());
 }
 
+// The approximate index through the whole server: off below --approximate_min_vectors, on
+// above it (GetGallery says so, every answer says which search ran), exact on request, and
+// rebuilt when the galleries load again.
+TEST(ShapeIdServerTest, ApproximateSearchAboveTheThresholdAndExactOnRequest) {
+  const std::string dir = ScratchDir();
+  ServerOptions options;
+  options.listen = "127.0.0.1:0";
+  options.data_dir = dir;
+  options.gallery_limits.approximate.min_vectors = 96;
+  options.gallery_limits.approximate.lists = 2;
+  options.gallery_limits.approximate.probes = 1;
+  std::vector<PointCloud> clouds;
+  for (uint32_t i = 0; i < 150; ++i) clouds.push_back(testing_clouds::ShapeCloud(i % 3, i, 200));
+  auto train = [&](Client& client, uint32_t begin, uint32_t end) {
+    std::vector<TrainSample> samples;
+    for (uint32_t i = begin; i < end; ++i) {
+      samples.push_back({std::string(testing_clouds::kShapeNames[i % 3]), i + 1, &clouds[i]});
+    }
+    ASSERT_TRUE(client.Train("lab", samples).ok());
+  };
+  {
+    auto server = ShapeIdServer::Start(options);
+    ASSERT_TRUE(server.ok()) << server.status();
+    auto client = ClientFor(**server);
+    v1::CreateGalleryRequest create;
+    create.set_name("lab");
+    ASSERT_TRUE(client->CreateGallery(create).ok());
+    train(*client, 0, 60);
+    EXPECT_EQ(client->GetGallery("lab")->approximate_lists(), 0u);  // 60 < 96 vectors
+    auto exact = client->Classify("lab", clouds[0]);
+    ASSERT_TRUE(exact.ok()) << exact.status();
+    EXPECT_FALSE(exact->approximate());
+
+    train(*client, 60, 150);
+    // 150 vectors: 128 in whole blocks, 64 per cell at least, so 2 cells.
+    EXPECT_EQ(client->GetGallery("lab")->approximate_lists(), 2u);
+    auto approximate = client->Classify("lab", clouds[0]);
+    ASSERT_TRUE(approximate.ok()) << approximate.status();
+    EXPECT_TRUE(approximate->approximate());
+    // The cloud's own descriptor lies in the cell its query vector probes first.
+    ASSERT_GT(approximate->neighbors_size(), 0);
+    EXPECT_EQ(approximate->neighbors(0).sample_id(), 1u);
+    EXPECT_EQ(approximate->neighbors(0).distance(), 0.0);
+
+    Client::ClassifyOptions call;
+    call.exact = true;
+    call.k = 5;
+    auto forced = client->Classify("lab", clouds[0], call);
+    ASSERT_TRUE(forced.ok()) << forced.status();
+    EXPECT_FALSE(forced->approximate());
+    EXPECT_EQ(forced->neighbors_size(), 5);
+    EXPECT_EQ(forced->label(), approximate->label());
+  }
+  // Derived state: the lists are not stored, they are rebuilt as the gallery loads.
+  auto server = ShapeIdServer::Start(options);
+  ASSERT_TRUE(server.ok()) << server.status();
+  auto client = ClientFor(**server);
+  EXPECT_EQ(client->GetGallery("lab")->approximate_lists(), 2u);
+  auto again = client->Classify("lab", clouds[0]);
+  ASSERT_TRUE(again.ok()) << again.status();
+  EXPECT_TRUE(again->approximate());
+  EXPECT_EQ(again->neighbors(0).sample_id(), 1u);
+}
+
+TEST(ShapeIdServerTest, RefusesInvalidApproximateOptions) {
+  ServerOptions options;
+  options.listen = "127.0.0.1:0";
+  options.gallery_limits.approximate.probes = -1;
+  auto server = ShapeIdServer::Start(options);
+  ASSERT_FALSE(server.ok());
+  EXPECT_EQ(server.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(server.status().message()), HasSubstr("probes -1"));
+}
+
 }  // namespace
 }  // namespace shapeid

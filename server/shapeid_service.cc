@@ -232,10 +232,12 @@ int NeighboursAsked(const v1::ClassifyHeader& header) {
   return static_cast<int>(std::min<uint32_t>(header.k(), 1 << 20));
 }
 
-absl::Status ClassifyInto(const Gallery& gallery, const PointCloud& cloud, int k,
-                          v1::ClassifyResponse* response) {
-  SHAPEID_ASSIGN_OR_RETURN(const GalleryClassification answer,
-                           gallery.Snapshot()->Classify(cloud, gallery.limits().cloud_limits(), k));
+absl::Status ClassifyInto(const Gallery& gallery, const PointCloud& cloud,
+                          const v1::ClassifyHeader& header, v1::ClassifyResponse* response) {
+  SHAPEID_ASSIGN_OR_RETURN(
+      const GalleryClassification answer,
+      gallery.Snapshot()->Classify(cloud, gallery.limits().cloud_limits(), NeighboursAsked(header),
+                                   header.exact() ? SearchMode::kExact : SearchMode::kDefault));
   ToProto(answer, cloud.size(), response);
   return absl::OkStatus();
 }
@@ -259,7 +261,7 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest> {
         if (gallery_ != nullptr)
           return absl::InvalidArgumentError("Classify: a second ClassifyHeader");
         SHAPEID_ASSIGN_OR_RETURN(gallery_, GalleryToClassify(registry_, request.header()));
-        k_ = NeighboursAsked(request.header());
+        header_ = request.header();
         return assembler_.Start(request.header().expected_points());
       }
       case v1::ClassifyRequest::kPoints:
@@ -278,14 +280,14 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest> {
     if (gallery_ == nullptr)
       return absl::InvalidArgumentError("Classify: the stream ended without a ClassifyHeader");
     SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud, assembler_.Finish());
-    return ClassifyInto(*gallery_, cloud, k_, response_);
+    return ClassifyInto(*gallery_, cloud, header_, response_);
   }
 
   const GalleryRegistry& registry_;
   v1::ClassifyResponse* response_;
   CloudAssembler assembler_;
   std::shared_ptr<Gallery> gallery_;
-  int k_ = 0;
+  v1::ClassifyHeader header_;
 };
 
 // Streams one snapshot of a gallery, one chunk in flight at a time (gRPC's flow control
@@ -435,7 +437,7 @@ grpc::ServerUnaryReactor* ShapeIdService::ClassifyCloud(grpc::CallbackServerCont
     SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud,
                              CloudInOneMessage(request->header().expected_points(),
                                                request->points().xyz()));
-    return ClassifyInto(*gallery, cloud, NeighboursAsked(request->header()), response);
+    return ClassifyInto(*gallery, cloud, request->header(), response);
   });
 }
 

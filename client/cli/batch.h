@@ -52,12 +52,13 @@ struct ClassifyOutcome {
   double seconds = 0;
 };
 
-// Classifies every file against `gallery` with `k` neighbours (0: the gallery's), `jobs` at
-// once. `on_result(index, response, seconds)` runs for each success and `on_failure(index,
+// Classifies every file against `gallery` with the per-call `call` options (k, exact), `jobs`
+// at once. `on_result(index, response, seconds)` runs for each success and `on_failure(index,
 // status)` for each failed file, in the order of `paths` (results are held back until the
 // ones before them are out, so output streams in input order), on one thread at a time.
 ClassifyOutcome ClassifyFiles(
-    Client& client, const std::string& gallery, uint32_t k, const std::vector<std::string>& paths,
+    Client& client, const std::string& gallery, const Client::ClassifyOptions& call,
+    const std::vector<std::string>& paths,
     const BatchOptions& options, Progress& progress,
     const std::function<void(size_t, const v1::ClassifyResponse&, double)>& on_result,
     const std::function<void(size_t, const absl::Status&)>& on_failure);

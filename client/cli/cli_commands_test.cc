@@ -219,7 +219,7 @@ TEST_F(CliCommandsTest, TrainFolderThenClassifyInInputOrder) {
   Captured table;
   context = Context();
   context.out = table.get();
-  classify.k = 3;
+  classify.call.k = 3;
   classify.paths = {Path("dataset/rod/test/6.pcd")};
   ASSERT_EQ(RunClassify(classify, context), kExitOk);
   const std::vector<std::string> lines = absl::StrSplit(table.contents(), '\n');
@@ -381,7 +381,7 @@ TEST_F(CliCommandsTest, ExportThenImportUnderANewNameClassifiesAlike) {
   for (const char* gallery : {"shapes", "copy"}) {
     ClassifyOptions classify;
     classify.gallery = gallery;
-    classify.k = 3;
+    classify.call.k = 3;
     classify.paths = {Path("dataset")};
     Captured csv;
     context = Context(OutputFormat::kCsv);

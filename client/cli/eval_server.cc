@@ -87,8 +87,10 @@ class ServerEvalBackend final : public EvalBackend {
     std::vector<std::string> paths;
     paths.reserve(test.size());
     for (const LabelledFile& f : test) paths.push_back(f.path);
+    Client::ClassifyOptions call;
+    call.k = options_.create.k;
     const ClassifyOutcome classified = ClassifyFiles(
-        *client_, gallery_, options_.create.k, paths, options_.batch, progress,
+        *client_, gallery_, call, paths, options_.batch, progress,
         [&](size_t i, const v1::ClassifyResponse& response, double seconds) {
           EvalPrediction p;
           p.file = test[i].path;

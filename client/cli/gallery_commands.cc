@@ -84,8 +84,12 @@ int PrintGallery(const v1::Gallery& g, const CliContext& context) {
                          g.augmentation().random_pose() ? "random" : "fixed", " pose)")
           : std::string("off"),
       "\n", "samples     ", g.sample_count(), " in ", g.label_counts_size(), " labels (",
-      g.vector_count(), " descriptors)\n",
-      "version     ", g.version(), "\n", "created     ", Timestamp(g.create_time()), "\n",
+      g.vector_count(), " descriptors)\n", "search      ",
+      g.approximate_lists() > 0
+          ? absl::StrCat("approximate, ", g.approximate_lists(),
+                         " cells (classify --exact searches every descriptor)")
+          : std::string("exact"),
+      "\n", "version     ", g.version(), "\n", "created     ", Timestamp(g.create_time()), "\n",
       "updated     ", Timestamp(g.update_time()), "\n", "made by     descriptor version ",
       g.descriptor_version(), ", shapeid ", g.software_version(), "\n",
       g.incompatible().empty() ? std::string()
@@ -130,6 +134,7 @@ std::string GalleryJson(const v1::Gallery& g) {
       ",\"scaling\":", JsonString(ScalingName(g.knn().scaling())),
       ",\"reject_distance\":", JsonNumber(g.reject_distance()),
       ",\"sample_count\":", g.sample_count(), ",\"vector_count\":", g.vector_count(),
+      ",\"approximate_lists\":", g.approximate_lists(),
       ",\"augment_views\":", g.augmentation().views(),
       ",\"augment_random_pose\":", g.augmentation().random_pose() ? "true" : "false",
       ",\"label_counts\":[", labels, "]",

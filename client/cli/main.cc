@@ -203,8 +203,11 @@ int main(int argc, char** argv) {
       app.add_subcommand("classify", "Classify each cloud: label, confidence, nearest samples");
   classify_cmd->fallthrough();
   classify_cmd->add_option("--gallery,-g", classify.gallery, "Gallery to search")->required();
-  classify_cmd->add_option("--k", classify.k, "Neighbours that vote (default: the gallery's)")
+  classify_cmd->add_option("--k", classify.call.k, "Neighbours that vote (default: the gallery's)")
       ->check(CLI::Range(1u, 1000000u));
+  classify_cmd->add_flag("--exact", classify.call.exact,
+                        "Search every stored vector, even where the server searches the gallery "
+                        "approximately (see `gallery info`)");
   classify_cmd->add_option("--top", classify.top, "Nearest samples shown per file")
       ->check(CLI::Range(0, 100))
       ->capture_default_str();

@@ -132,6 +132,7 @@ std::string ClassifyJsonLine(const std::string& file, const v1::ClassifyResponse
                       "],\"votes\":[", votes,
                       "],\"describe_seconds\":", JsonNumber(DurationSeconds(r.describe_time())),
                       ",\"search_seconds\":", JsonNumber(DurationSeconds(r.search_time())),
+                      ",\"approximate\":", r.approximate() ? "true" : "false",
                       ",\"seconds\":", JsonNumber(seconds), "}\n");
 }
 
@@ -215,7 +216,7 @@ int RunClassify(const ClassifyOptions& options, const CliContext& context) {
   ClassifyOutcome outcome;
   {
     Progress progress(context.err, context.progress, "classify", paths->size());
-    outcome = ClassifyFiles(*client, options.gallery, options.k, *paths, options.batch, progress,
+    outcome = ClassifyFiles(*client, options.gallery, options.call, *paths, options.batch, progress,
                             on_result, on_failure);
   }
   if (std::fflush(context.out) != 0 || !written) {

@@ -25,7 +25,7 @@ int RunTrain(const TrainOptions& options, const CliContext& context);
 
 struct ClassifyOptions {
   std::string gallery;
-  uint32_t k = 0;  // 0: the gallery's k
+  Client::ClassifyOptions call;  // k (0: the gallery's) and exact
   int top = 3;     // neighbours shown per file in table and csv output
   std::vector<std::string> paths;
   BatchOptions batch;

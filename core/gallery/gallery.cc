@@ -215,6 +215,11 @@ absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Restore(const StoredGallery& s
     snapshot->ids_by_label_[sample.label].push_back(sample.id);
     if (sample.id >= kFirstAssignedId) next_assigned = std::max(next_assigned, sample.id + 1);
   }
+  if (absl::Status s = snapshot->index_.UpdateApproximate(limits.approximate,
+                                                          snapshot->options_.knn.scaling);
+      !s.ok()) {
+    return Prefixed(where, s);
+  }
   snapshot->updated_ = stored.updated;
   snapshot->next_assigned_id_ = next_assigned;
   return std::shared_ptr<Gallery>(
@@ -295,6 +300,10 @@ absl::StatusOr<CommitResult> Gallery::CommitBatch(std::vector<StoredSample>& sam
     next->ids_by_label_[sample.label].push_back(sample.id);
     result.ids.push_back(sample.id);
   }
+  // Keeps the approximate index in step (seconds when it has to be built; readers meanwhile
+  // use `current`).
+  SHAPEID_RETURN_IF_ERROR(
+      next->index_.UpdateApproximate(limits_.approximate, next->options_.knn.scaling));
   next->next_assigned_id_ = counter;
   next->version_ = current->version_ + 1;
   next->updated_ = std::max(absl::Now(), current->updated_);
@@ -348,6 +357,8 @@ absl::StatusOr<int64_t> Gallery::RemoveLocked(const GallerySnapshot& current,
                     label_ids.end());
     it = label_ids.empty() ? next->ids_by_label_.erase(it) : std::next(it);
   }
+  SHAPEID_RETURN_IF_ERROR(
+      next->index_.UpdateApproximate(limits_.approximate, next->options_.knn.scaling));
   next->version_ = current.version_ + 1;
   next->updated_ = std::max(absl::Now(), current.updated_);
   if (store_ != nullptr) {

@@ -66,6 +66,11 @@ struct GalleryLimits {
   int64_t max_samples_per_gallery = 1'000'000;
   // Galleries per registry.
   size_t max_galleries = 1024;
+  // When searches go approximate (core/knn/knn_options.h), for every gallery of the
+  // registry: a server's setting, not a gallery's, since the lists are derived state rebuilt
+  // from the stored vectors. Default: always exact (shapeid-server turns it on at 10^6
+  // vectors). A Classify may still ask for an exact search.
+  ApproximateOptions approximate;
 
   CloudLimits cloud_limits() const { return CloudLimits{max_points_per_cloud}; }
 };

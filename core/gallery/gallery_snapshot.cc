@@ -57,7 +57,7 @@ absl::StatusOr<std::vector<float>> GallerySnapshot::DescribeForTraining(
 
 absl::StatusOr<GalleryClassification> GallerySnapshot::Classify(const PointCloud& cloud,
                                                                 const CloudLimits& limits,
-                                                                int k) const {
+                                                                int k, SearchMode mode) const {
   SHAPEID_RETURN_IF_ERROR(CheckCompatible());
   if (empty()) {
     return absl::FailedPreconditionError(
@@ -70,7 +70,7 @@ absl::StatusOr<GalleryClassification> GallerySnapshot::Classify(const PointCloud
   SHAPEID_RETURN_IF_ERROR(descriptor_->ComputeWithPoseVariants(cloud, &queries, &variants, limits));
   queries.insert(queries.end(), variants.begin(), variants.end());
   const absl::Time described = absl::Now();
-  SHAPEID_ASSIGN_OR_RETURN(KnnResult knn, index_.Classify(queries, KnnFor(k)));
+  SHAPEID_ASSIGN_OR_RETURN(KnnResult knn, index_.Classify(queries, KnnFor(k), mode));
   GalleryClassification answer = Answer(std::move(knn));
   answer.describe_time = described - start;
   answer.search_time = absl::Now() - described;
@@ -78,14 +78,14 @@ absl::StatusOr<GalleryClassification> GallerySnapshot::Classify(const PointCloud
 }
 
 absl::StatusOr<GalleryClassification> GallerySnapshot::ClassifyFeatures(
-    absl::Span<const float> features, int k) const {
+    absl::Span<const float> features, int k, SearchMode mode) const {
   SHAPEID_RETURN_IF_ERROR(CheckCompatible());
   if (empty()) {
     return absl::FailedPreconditionError(
         absl::StrCat("gallery '", name_, "' has no samples; train it before classifying"));
   }
   const absl::Time start = absl::Now();
-  SHAPEID_ASSIGN_OR_RETURN(KnnResult knn, index_.Classify(features, KnnFor(k)));
+  SHAPEID_ASSIGN_OR_RETURN(KnnResult knn, index_.Classify(features, KnnFor(k), mode));
   GalleryClassification answer = Answer(std::move(knn));
   answer.search_time = absl::Now() - start;
   return answer;

@@ -97,14 +97,17 @@ class GallerySnapshot {
   // distance. FailedPrecondition (naming the gallery) when the gallery has no samples,
   // checked before any work; cloud errors as in Describe.
   // `k` > 0 overrides the gallery's k for this call (a client asking for more neighbours).
+  // `mode` kExact searches every vector even when the gallery has an approximate index
+  // (GalleryLimits::approximate); knn.approximate tells which search ran.
   absl::StatusOr<GalleryClassification> Classify(const PointCloud& cloud,
-                                                 const CloudLimits& limits = {}, int k = 0) const;
+                                                 const CloudLimits& limits = {}, int k = 0,
+                                                 SearchMode mode = SearchMode::kDefault) const;
   // The same for a descriptor computed elsewhere (describe_time is zero); `features` may
   // hold several query vectors (a descriptor and its pose variants), dimension() floats
   // each. InvalidArgument for a length that is not a positive multiple of dimension() or a
   // non-finite feature.
-  absl::StatusOr<GalleryClassification> ClassifyFeatures(absl::Span<const float> features,
-                                                         int k = 0) const;
+  absl::StatusOr<GalleryClassification> ClassifyFeatures(
+      absl::Span<const float> features, int k = 0, SearchMode mode = SearchMode::kDefault) const;
 
  private:
   friend class Gallery;

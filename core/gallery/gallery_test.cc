@@ -356,6 +356,38 @@ TEST(GalleryTest, RemoveByIdAndByLabel) {
   EXPECT_EQ(*none, 0);
 }
 
+// GalleryLimits::approximate: every commit and removal keeps the kNN index's inverted
+// lists in step, and a gallery that shrinks below the threshold searches exactly again.
+TEST(GalleryTest, ApproximateIndexFollowsCommitsAndRemovals) {
+  GalleryLimits limits;
+  limits.approximate.min_vectors = 64;
+  auto g = MakeGallery({}, limits);
+  std::vector<LabelledCloud> samples;
+  for (uint32_t i = 0; i < 100; ++i) {
+    samples.push_back({i + 1, i % 2 == 0 ? "box" : "sphere", i % 2 == 0 ? Box(i) : Sphere(i)});
+  }
+  ASSERT_TRUE(g->Train(absl::MakeConstSpan(samples).subspan(0, 40)).ok());
+  EXPECT_FALSE(g->Snapshot()->index().approximate());
+  ASSERT_TRUE(g->Train(absl::MakeConstSpan(samples).subspan(40)).ok());
+  ASSERT_TRUE(g->Snapshot()->index().approximate());
+  EXPECT_EQ(g->Snapshot()->index().approximate_filed_vectors(), 96);
+  auto answer = g->Snapshot()->Classify(Box(2));
+  ASSERT_TRUE(answer.ok()) << answer.status();
+  EXPECT_TRUE(answer->knn.approximate);
+  EXPECT_EQ(answer->label, "box");
+  auto exact = g->Snapshot()->Classify(Box(2), {}, 0, SearchMode::kExact);
+  ASSERT_TRUE(exact.ok());
+  EXPECT_FALSE(exact->knn.approximate);
+
+  ASSERT_TRUE(g->RemoveSamples({1, 2, 3, 4, 5}).ok());
+  EXPECT_TRUE(g->Snapshot()->index().approximate());
+  EXPECT_EQ(g->Snapshot()->index().approximate_filed_vectors(), 64);  // 91 kept, whole blocks
+  std::vector<uint64_t> doomed;
+  for (uint64_t id = 6; id <= 45; ++id) doomed.push_back(id);
+  ASSERT_TRUE(g->RemoveSamples(doomed).ok());
+  EXPECT_FALSE(g->Snapshot()->index().approximate());  // 55 < 64
+}
+
 TEST(GalleryTest, SnapshotsAreImmutable) {
   auto g = MakeGallery();
   ASSERT_TRUE(g->Train({{1, "box", Box(1)}}).ok());

@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <thread>
 #include <utility>
 
 #include "absl/container/flat_hash_set.h"
 #include "absl/strings/str_cat.h"
+#include "core/knn/knn_ivf.h"
 #include "core/knn/knn_kd_tree.h"
 #include "core/status_macros.h"
 
@@ -62,7 +64,11 @@ KnnIndex::KnnIndex(const KnnIndex& other)
       zscore_scale_(other.zscore_scale_),
       maxabs_scale_(other.maxabs_scale_),
       trees_(std::make_unique<knn_internal::TreeCache>(other.trees_ ? *other.trees_
-                                                                    : knn_internal::TreeCache())) {}
+                                                                    : knn_internal::TreeCache())),
+      lists_(other.lists_),
+      lists_options_(other.lists_options_),
+      lists_scaling_(other.lists_scaling_),
+      lists_trained_rows_(other.lists_trained_rows_) {}
 
 KnnIndex& KnnIndex::operator=(const KnnIndex& other) {
   if (this != &other) *this = KnnIndex(other);
@@ -155,11 +161,15 @@ absl::Status KnnIndex::Remove(absl::Span<const uint64_t> ids) {
   sample_of_id_.clear();
   first_row_ = {0};
   sample_of_row_.clear();
+  // Only the inverted lists need to know where each row went.
+  std::vector<int64_t> new_row_of_old(lists_ ? static_cast<std::size_t>(old_first_row.back()) : 0,
+                                      -1);
   int64_t dst = 0;
   int64_t dst_row = 0;
   for (int64_t src = 0; src < old_size; ++src) {
     if (doomed.contains(src)) continue;
     for (int64_t row = old_first_row[src]; row < old_first_row[src + 1]; ++row, ++dst_row) {
+      if (lists_) new_row_of_old[static_cast<std::size_t>(row)] = dst_row;
       if (dst_row != row) {
         for (int j = 0; j < dim_; ++j) {
           storage_[FeatureOffset(dst_row, dim_, j)] = storage_[FeatureOffset(row, dim_, j)];
@@ -186,7 +196,51 @@ absl::Status KnnIndex::Remove(absl::Span<const uint64_t> ids) {
 
   RecomputeStatistics();
   if (trees_) trees_->Clear();
+  if (lists_) lists_ = lists_->Renumber(View(), new_row_of_old);
   return absl::OkStatus();
+}
+
+absl::Status KnnIndex::UpdateApproximate(const ApproximateOptions& options,
+                                         FeatureScaling scaling) {
+  SHAPEID_RETURN_IF_ERROR(ValidateApproximateOptions(options));
+  if (FeatureScalingName(scaling) == "unknown") {
+    return absl::InvalidArgumentError(
+        absl::StrCat("invalid feature scaling value ", static_cast<int>(scaling)));
+  }
+  // The lists hold whole blocks only, so the exact tail starts on a block boundary.
+  const int64_t whole_blocks = num_rows() / kBlockLanes * kBlockLanes;
+  if (options.min_vectors == 0 || num_rows() < options.min_vectors ||
+      dim_ <= knn_internal::kKdTreeMaxDimension || whole_blocks == 0) {
+    lists_.reset();
+    lists_options_ = options;
+    return absl::OkStatus();
+  }
+  const int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const float* scale = ScaleData(scaling);
+  if (lists_ == nullptr || options.lists != lists_options_.lists || scaling != lists_scaling_ ||
+      whole_blocks >= 4 * lists_trained_rows_) {
+    const int lists =
+        options.lists > 0
+            ? options.lists
+            : static_cast<int>(std::clamp<double>(
+                  std::round(ApproximateOptions::kDefaultListsPerSqrt *
+                             std::sqrt(static_cast<double>(num_rows()))),
+                  1.0, ApproximateOptions::kMaxLists));
+    lists_ = knn_internal::InvertedLists::Build(ActiveSimdLevel(), View(), whole_blocks, scale,
+                                                lists, threads);
+    lists_trained_rows_ = whole_blocks;
+  } else if (whole_blocks - lists_->indexed_rows() > lists_->indexed_rows() / 16) {
+    lists_ = lists_->Extend(ActiveSimdLevel(), View(), whole_blocks, scale, threads);
+  }
+  lists_options_ = options;
+  lists_scaling_ = scaling;
+  return absl::OkStatus();
+}
+
+int KnnIndex::approximate_lists() const { return lists_ ? lists_->num_lists() : 0; }
+
+int64_t KnnIndex::approximate_filed_vectors() const {
+  return lists_ ? lists_->indexed_rows() : 0;
 }
 
 void KnnIndex::Accumulate(int64_t row) {
@@ -266,13 +320,33 @@ absl::Status KnnIndex::ValidateQuery(absl::Span<const float> queries, int k) con
 
 std::vector<Candidate> KnnIndex::FindNearest(absl::Span<const float> queries, int k,
                                              FeatureScaling scaling, SimdLevel level, Engine engine,
-                                             bool early_abandon) const {
+                                             bool early_abandon, SearchMode mode,
+                                             bool* approximate) const {
   const int kk = static_cast<int>(std::min<int64_t>(k, size()));
   const int num_queries = static_cast<int>(queries.size() / static_cast<std::size_t>(dim_));
   const float* scale = ScaleData(scaling);
   // The tree knows rows, not samples, and answers one query vector.
   const bool one_to_one = num_rows() == size() && num_queries == 1;
   const bool forced_tree = engine == Engine::kKdTree;
+  if (engine == Engine::kAuto && mode == SearchMode::kDefault && lists_ != nullptr) {
+    // The probed cells, then the rows filed in no list yet (from a block boundary).
+    knn_internal::TopK top(kk, one_to_one ? nullptr : sample_of_row_.data());
+    const int probes = lists_options_.probes > 0 ? lists_options_.probes
+                                                 : ApproximateOptions::kDefaultProbes;
+    lists_->Search(level, queries.data(), num_queries, scale, probes, early_abandon, &top);
+    const int64_t filed = lists_->indexed_rows();
+    const knn_internal::BlockedView tail{
+        storage_.data() + static_cast<std::size_t>(filed / kBlockLanes) * BlockFloats(dim_),
+        num_rows() - filed, dim_, filed};
+    knn_internal::ScanBlocks(level, tail, queries.data(), num_queries, scale, early_abandon, &top);
+    // Probed cells can hold fewer than k samples (small or emptied cells); then the exact
+    // scan below answers, so a search always returns min(k, size()) neighbours.
+    if (top.full()) {
+      if (approximate != nullptr) *approximate = true;
+      return top.TakeSorted();
+    }
+    engine = Engine::kBruteForce;
+  }
   if (engine == Engine::kAuto) {
     engine = dim_ <= knn_internal::kKdTreeMaxDimension && size() >= knn_internal::kKdTreeMinSize
                  ? Engine::kKdTree
@@ -296,14 +370,14 @@ std::vector<Candidate> KnnIndex::FindNearest(absl::Span<const float> queries, in
 
 absl::StatusOr<std::vector<Neighbor>> KnnIndex::SearchWith(absl::Span<const float> queries, int k,
                                                            FeatureScaling scaling, SimdLevel level,
-                                                           Engine engine,
-                                                           bool early_abandon) const {
+                                                           Engine engine, bool early_abandon,
+                                                           SearchMode mode) const {
   SHAPEID_RETURN_IF_ERROR(ValidateQuery(queries, k));
   if (FeatureScalingName(scaling) == "unknown") {
     return absl::InvalidArgumentError(
         absl::StrCat("invalid feature scaling value ", static_cast<int>(scaling)));
   }
-  return ToNeighbors(FindNearest(queries, k, scaling, level, engine, early_abandon));
+  return ToNeighbors(FindNearest(queries, k, scaling, level, engine, early_abandon, mode));
 }
 
 std::vector<Neighbor> KnnIndex::ToNeighbors(const std::vector<Candidate>& nearest) const {
@@ -320,19 +394,21 @@ std::vector<Neighbor> KnnIndex::ToNeighbors(const std::vector<Candidate>& neares
 }
 
 absl::StatusOr<std::vector<Neighbor>> KnnIndex::Search(absl::Span<const float> queries, int k,
-                                                       FeatureScaling scaling) const {
-  return SearchWith(queries, k, scaling, ActiveSimdLevel(), Engine::kAuto, /*early_abandon=*/true);
+                                                       FeatureScaling scaling,
+                                                       SearchMode mode) const {
+  return SearchWith(queries, k, scaling, ActiveSimdLevel(), Engine::kAuto,
+                    /*early_abandon=*/true, mode);
 }
 
 absl::StatusOr<KnnResult> KnnIndex::Classify(absl::Span<const float> queries,
-                                             const KnnOptions& options) const {
+                                             const KnnOptions& options, SearchMode mode) const {
   SHAPEID_RETURN_IF_ERROR(ValidateKnnOptions(options));
   SHAPEID_RETURN_IF_ERROR(ValidateQuery(queries, options.k));
-  const std::vector<Candidate> nearest =
-      FindNearest(queries, options.k, options.scaling, ActiveSimdLevel(), Engine::kAuto,
-                  /*early_abandon=*/true);
-
   KnnResult result;
+  const std::vector<Candidate> nearest = FindNearest(
+      queries, options.k, options.scaling, ActiveSimdLevel(), Engine::kAuto,
+      /*early_abandon=*/true, mode, &result.approximate);
+
   result.neighbors = ToNeighbors(nearest);
   const bool by_distance = options.weighting == VoteWeighting::kDistance;
   bool any_zero = false;

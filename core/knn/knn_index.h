@@ -19,8 +19,17 @@
 namespace shapeid {
 
 namespace knn_internal {
+class InvertedLists;
 class TreeCache;
 }  // namespace knn_internal
+
+// Whether a search may use the index's inverted lists (KnnIndex::UpdateApproximate).
+enum class SearchMode {
+  // Approximate when the index has lists, else exact.
+  kDefault,
+  // Always exact, e.g. to measure the lists' recall or for a caller that must not miss.
+  kExact,
+};
 
 // One of the nearest samples: the closest (view, query vector) pair decides its distance.
 struct Neighbor {
@@ -53,6 +62,9 @@ struct KnnResult {
   // of each class's nearest neighbour (so votes[0].label == label). Under distance weighting
   // with a zero-distance neighbour, the classes without one appear with weight 0.
   std::vector<ClassVote> votes;
+  // True when the search read the index's inverted lists: the neighbours are exact
+  // distances, but a nearer sample in a cell that was not probed may be missing.
+  bool approximate = false;
 };
 
 // An exact k-nearest-neighbour classifier over a gallery of labelled samples.
@@ -77,6 +89,10 @@ struct KnnResult {
 // large galleries of one view per sample (knn_kd_tree.h: d <= 6, n >= 10k) a kd-tree takes
 // over for one-vector queries once enough have run since the last change to pay for
 // building it; it returns exactly what brute force returns, ties included.
+//
+// Galleries of a million vectors and more may opt in to approximate search
+// (UpdateApproximate): inverted lists over k-means cells (knn_ivf.h) that a query reads
+// only in part, with the same kernels and exact distances.
 //
 // Thread safety: const methods may run concurrently from any number of threads. Add, Remove
 // and assignment need exclusive access (no concurrent queries); a gallery that must keep
@@ -148,18 +164,44 @@ class KnnIndex {
   // FailedPrecondition if the index is empty; InvalidArgument if k < 1, queries.size() is
   // not a positive multiple of dimension() (or is more than kMaxViews vectors), or a
   // feature is non-finite. A one-vector query on a one-view gallery is the classic kNN.
-  absl::StatusOr<std::vector<Neighbor>> Search(
-      absl::Span<const float> queries, int k, FeatureScaling scaling = FeatureScaling::kNone) const;
+  // With inverted lists (UpdateApproximate) and SearchMode::kDefault the search is
+  // approximate: only the rows of the probed cells, and those added since the lists were
+  // last brought up to date, are looked at.
+  absl::StatusOr<std::vector<Neighbor>> Search(absl::Span<const float> queries, int k,
+                                               FeatureScaling scaling = FeatureScaling::kNone,
+                                               SearchMode mode = SearchMode::kDefault) const;
 
   // Search with options.k and options.scaling, then the vote of options.weighting: one
   // vote per neighbouring sample. Same errors as Search, plus ValidateKnnOptions.
-  absl::StatusOr<KnnResult> Classify(absl::Span<const float> queries,
-                                     const KnnOptions& options) const;
+  absl::StatusOr<KnnResult> Classify(absl::Span<const float> queries, const KnnOptions& options,
+                                     SearchMode mode = SearchMode::kDefault) const;
+
+  // Brings the approximate index in step with the vectors; writers call it after a batch
+  // of Add or Remove (queries in between stay correct: rows added since are scanned
+  // exactly, and Remove renumbers the lists). What it does:
+  //  - drops the lists (all searches exact) when options.min_vectors is 0, the index holds
+  //    fewer vectors than that, or dimension() <= 6, where an exact kd-tree serves;
+  //  - builds them (k-means, knn_ivf.h) the first time, when options.lists or `scaling`
+  //    changed, and when the vectors have grown 4x since the cells were trained;
+  //  - else files the vectors added since into the existing cells once they are more
+  //    than 1/16 of those already filed (until then they are a tail scanned exactly).
+  // `scaling` is the metric the cells are trained in: the gallery's. A build takes seconds
+  // at 10^6 vectors (docs/performance.md) and uses every core. InvalidArgument for invalid
+  // options, with nothing changed.
+  absl::Status UpdateApproximate(const ApproximateOptions& options,
+                                 FeatureScaling scaling = FeatureScaling::kNone);
+  // True when searches read inverted lists.
+  bool approximate() const { return lists_ != nullptr; }
+  // Cells of the lists and vectors filed in them (0 and 0 without lists): for tests,
+  // benchmarks and a server's gallery listing.
+  int approximate_lists() const;
+  int64_t approximate_filed_vectors() const;
 
   // For tests and benchmarks only: Search on a chosen engine and SIMD level (lowered to
   // DetectedSimdLevel() if the CPU lacks it), with or without early abandonment. kKdTree
   // builds its tree at once; like kAuto it applies only to one-view galleries and
   // one-vector queries, and falls back to brute force otherwise.
+  // kAuto also reads the inverted lists when there are some; kBruteForce never does.
   enum class Engine { kAuto, kBruteForce, kKdTree };
   absl::StatusOr<std::vector<Neighbor>> SearchForTesting(absl::Span<const float> queries, int k,
                                                          FeatureScaling scaling, SimdLevel level,
@@ -181,13 +223,16 @@ class KnnIndex {
 
   absl::Status ValidateQuery(absl::Span<const float> queries, int k) const;
   // The nearest distinct samples' best (squared distance, row, query), best first. Queries
-  // already validated.
+  // already validated. Sets *approximate (if not null) when the lists were read.
   std::vector<knn_internal::Candidate> FindNearest(absl::Span<const float> queries, int k,
                                                    FeatureScaling scaling, SimdLevel level,
-                                                   Engine engine, bool early_abandon) const;
+                                                   Engine engine, bool early_abandon,
+                                                   SearchMode mode = SearchMode::kDefault,
+                                                   bool* approximate = nullptr) const;
   absl::StatusOr<std::vector<Neighbor>> SearchWith(absl::Span<const float> queries, int k,
                                                    FeatureScaling scaling, SimdLevel level,
-                                                   Engine engine, bool early_abandon) const;
+                                                   Engine engine, bool early_abandon,
+                                                   SearchMode mode = SearchMode::kDefault) const;
   std::vector<Neighbor> ToNeighbors(const std::vector<knn_internal::Candidate>& nearest) const;
   // nullptr for kNone.
   const float* ScaleData(FeatureScaling scaling) const;
@@ -224,6 +269,14 @@ class KnnIndex {
 
   // kd-trees built lazily by const queries; dropped by every mutation.
   std::unique_ptr<knn_internal::TreeCache> trees_;
+
+  // The approximate index (UpdateApproximate); null when searches are exact. Immutable,
+  // shared by copies. Built with lists_options_.lists and lists_scaling_ over
+  // lists_trained_rows_ rows.
+  std::shared_ptr<const knn_internal::InvertedLists> lists_;
+  ApproximateOptions lists_options_;
+  FeatureScaling lists_scaling_ = FeatureScaling::kNone;
+  int64_t lists_trained_rows_ = 0;
 };
 
 }  // namespace shapeid

@@ -68,11 +68,12 @@ unsigned ValidLaneMask(const BlockedView& v, int64_t b) {
 
 // Offers the lanes of `mask` (ascending) that are still within the limit. The limit can
 // tighten while a block is being emitted, hence the re-check.
-inline void EmitLanes(const float* dist, int64_t base_row, int query, unsigned mask, TopK* top) {
+inline void EmitLanes(const float* dist, const BlockedView& v, int64_t block, int query,
+                      unsigned mask, TopK* top) {
   while (mask != 0) {
     const int lane = __builtin_ctz(mask);
     mask &= mask - 1;
-    if (dist[lane] <= top->limit()) top->Offer(dist[lane], base_row + lane, query);
+    if (dist[lane] <= top->limit()) top->Offer(dist[lane], v.RowId(block * kBlockLanes + lane), query);
   }
 }
 
@@ -102,7 +103,7 @@ unsigned AtMostMaskScalar(const float* acc, float limit) {
 
 template <bool kScaled>
 void ScanScalar(const BlockedView& v, const float* queries, int num_queries, const float* scale,
-                int first_check, TopK* top) {
+                int first_check, TopK* top, const int* query_ids) {
   const int d = v.dim;
   const int64_t num_blocks = NumBlocks(v.size);
   alignas(kStorageAlignment) float acc[kBlockLanes];
@@ -128,7 +129,8 @@ void ScanScalar(const BlockedView& v, const float* queries, int num_queries, con
         if (j == d || !AnyAtMostScalar(acc, limit)) break;
       }
       if (j < d) continue;  // abandoned
-      EmitLanes(acc, b * kBlockLanes, q, valid & AtMostMaskScalar(acc, limit), top);
+      EmitLanes(acc, v, b, query_ids != nullptr ? query_ids[q] : q,
+                valid & AtMostMaskScalar(acc, limit), top);
     }
   }
 }
@@ -163,7 +165,7 @@ __attribute__((target("avx2"))) inline __m256 StepAvx2(__m256 qj, __m256 sj, con
 template <bool kScaled>
 __attribute__((target("avx2"))) void ScanAvx2(const BlockedView& v, const float* queries,
                                               int num_queries, const float* scale, int first_check,
-                                              TopK* top) {
+                                              TopK* top, const int* query_ids) {
   const int d = v.dim;
   const int64_t num_blocks = NumBlocks(v.size);
   const __m256 one = _mm256_set1_ps(1.0f);
@@ -196,7 +198,7 @@ __attribute__((target("avx2"))) void ScanAvx2(const BlockedView& v, const float*
       _mm256_store_ps(dist + 8, a1);
       _mm256_store_ps(dist + 16, a2);
       _mm256_store_ps(dist + 24, a3);
-      EmitLanes(dist, b * kBlockLanes, q, mask, top);
+      EmitLanes(dist, v, b, query_ids != nullptr ? query_ids[q] : q, mask, top);
     }
   }
 }
@@ -223,7 +225,7 @@ __attribute__((target("avx512f"))) inline __m512 StepAvx512(__m512 qj, __m512 sj
 template <bool kScaled>
 __attribute__((target("avx512f"))) void ScanAvx512(const BlockedView& v, const float* queries,
                                                    int num_queries, const float* scale,
-                                                   int first_check, TopK* top) {
+                                                   int first_check, TopK* top, const int* query_ids) {
   const int d = v.dim;
   const int64_t num_blocks = NumBlocks(v.size);
   const __m512 one = _mm512_set1_ps(1.0f);
@@ -252,7 +254,7 @@ __attribute__((target("avx512f"))) void ScanAvx512(const BlockedView& v, const f
       if (mask == 0) continue;
       _mm512_store_ps(dist, a0);
       _mm512_store_ps(dist + 16, a1);
-      EmitLanes(dist, b * kBlockLanes, q, mask, top);
+      EmitLanes(dist, v, b, query_ids != nullptr ? query_ids[q] : q, mask, top);
     }
   }
 }
@@ -262,27 +264,27 @@ __attribute__((target("avx512f"))) void ScanAvx512(const BlockedView& v, const f
 }  // namespace
 
 void ScanBlocks(SimdLevel level, const BlockedView& view, const float* queries, int num_queries,
-                const float* scale, bool abandon, TopK* top) {
+                const float* scale, bool abandon, TopK* top, const int* query_ids) {
   if (view.size <= 0) return;
   const int first_check = abandon ? kAbandonFirstCheck : view.dim;
 #ifdef SHAPEID_KNN_X86
   switch (level) {
     case SimdLevel::kAvx512:
       return scale != nullptr
-                 ? ScanAvx512<true>(view, queries, num_queries, scale, first_check, top)
-                 : ScanAvx512<false>(view, queries, num_queries, scale, first_check, top);
+                 ? ScanAvx512<true>(view, queries, num_queries, scale, first_check, top, query_ids)
+                 : ScanAvx512<false>(view, queries, num_queries, scale, first_check, top, query_ids);
     case SimdLevel::kAvx2:
       return scale != nullptr
-                 ? ScanAvx2<true>(view, queries, num_queries, scale, first_check, top)
-                 : ScanAvx2<false>(view, queries, num_queries, scale, first_check, top);
+                 ? ScanAvx2<true>(view, queries, num_queries, scale, first_check, top, query_ids)
+                 : ScanAvx2<false>(view, queries, num_queries, scale, first_check, top, query_ids);
     case SimdLevel::kScalar:
       break;
   }
 #else
   (void)level;
 #endif
-  return scale != nullptr ? ScanScalar<true>(view, queries, num_queries, scale, first_check, top)
-                          : ScanScalar<false>(view, queries, num_queries, scale, first_check, top);
+  return scale != nullptr ? ScanScalar<true>(view, queries, num_queries, scale, first_check, top, query_ids)
+                          : ScanScalar<false>(view, queries, num_queries, scale, first_check, top, query_ids);
 }
 
 float DistanceSq(const float* query, const float* scale, const float* x, std::ptrdiff_t stride,

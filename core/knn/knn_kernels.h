@@ -125,11 +125,20 @@ class TopK {
   std::vector<Candidate> heap_;
 };
 
-// A read-only view of blocked storage holding `size` rows of `dim` features.
+// A read-only view of blocked storage holding `size` rows of `dim` features. The kernels
+// report the view's local row r as row_ids[r] when row_ids is set (an inverted list of the
+// approximate index, whose rows are a subset of the gallery's), else as row_base + r (a
+// block-aligned slice of the gallery).
 struct BlockedView {
   const float* data;  // kStorageAlignment-aligned, ceil(size / kBlockLanes) blocks
   int64_t size;
   int dim;
+  int64_t row_base = 0;
+  const int64_t* row_ids = nullptr;
+
+  int64_t RowId(int64_t local) const {
+    return row_ids != nullptr ? row_ids[local] : row_base + local;
+  }
 };
 
 // Early abandonment: after kAbandonFirstCheck dimensions of a block, then after twice as
@@ -150,14 +159,16 @@ inline constexpr int kAbandonFirstCheck = 16;
 // memory once for all queries (on 9 views x 240 dims and 9 query vectors, ~1.4x faster
 // than a pass per query, although a pass per query abandons against a tighter limit
 // sooner). `scale` (dim factors) or nullptr for unscaled features.
-// `abandon` false turns off early abandonment (tests and benchmarks compare the two). The
+// `abandon` false turns off early abandonment (tests and benchmarks compare the two).
+// `query_ids`, when set, names query vector q as query_ids[q] in the candidates (the
+// approximate index scans a list with only the queries that probed it). The
 // squared distance of one row is, in float and in this order:
 //   acc = 0; for j in 0..dim-1: { e = query[j] - x[j]; e = e * scale[j]; acc = acc + e * e; }
 // at every SIMD level (build uses -ffp-contract=off), so all levels give bit-identical
 // distances, nullptr equals a scale of all ones, and abandoning never changes the distance
 // of a row it keeps.
 void ScanBlocks(SimdLevel level, const BlockedView& view, const float* queries, int num_queries,
-                const float* scale, bool abandon, TopK* top);
+                const float* scale, bool abandon, TopK* top, const int* query_ids = nullptr);
 
 // The same squared distance for one row whose feature j is at x[j * stride].
 float DistanceSq(const float* query, const float* scale, const float* x, std::ptrdiff_t stride,

@@ -61,4 +61,18 @@ absl::Status ValidateKnnOptions(const KnnOptions& options) {
   return absl::OkStatus();
 }
 
+absl::Status ValidateApproximateOptions(const ApproximateOptions& options) {
+  if (options.min_vectors < 0 || options.lists < 0 || options.probes < 0) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "approximate search options must not be negative (min_vectors ", options.min_vectors,
+        ", lists ", options.lists, ", probes ", options.probes, "); 0 picks the default"));
+  }
+  if (options.lists > ApproximateOptions::kMaxLists) {
+    return absl::InvalidArgumentError(absl::StrCat("approximate search lists must be at most ",
+                                                   ApproximateOptions::kMaxLists, ", got ",
+                                                   options.lists));
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace shapeid

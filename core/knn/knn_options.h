@@ -1,6 +1,8 @@
 #ifndef SHAPEID_CORE_KNN_KNN_OPTIONS_H_
 #define SHAPEID_CORE_KNN_KNN_OPTIONS_H_
 
+#include <cstdint>
+
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
@@ -42,6 +44,32 @@ struct KnnOptions {
   // reproduce the author's runs, kZScore when dimensions have unrelated units.
   FeatureScaling scaling = FeatureScaling::kNone;
 };
+
+// Approximate search for large galleries: inverted lists over k-means cells (IVF-Flat, the
+// scheme of Faiss's IndexIVFFlat; core/knn/knn_ivf.h). A query reads only the `probes`
+// cells nearest to it, so its cost is about probes / lists of an exact scan, and it can miss
+// a neighbour that lies in a cell it did not probe (recall: docs/performance.md). Distances,
+// ranking and votes of what it finds are exact. A server-wide setting, not a gallery's: the
+// lists are derived from the stored vectors and rebuilt when a gallery loads.
+struct ApproximateOptions {
+  // Searches go approximate once an index holds at least this many feature vectors (views
+  // of all samples); 0 (the default) keeps every search exact. Below ~10^5 vectors an exact
+  // scan takes well under a millisecond and approximation buys nothing.
+  int64_t min_vectors = 0;
+  // Cells. 0: kDefaultListsPerSqrt * sqrt(vectors), at most kMaxLists; each cell averages
+  // at least 64 vectors. More cells make each probe cheaper but the build dearer (its cost
+  // grows with vectors x lists).
+  int lists = 0;
+  // Cells a query vector reads. 0: kDefaultProbes. More probes: better recall, slower.
+  int probes = 0;
+
+  static constexpr double kDefaultListsPerSqrt = 1.0;
+  static constexpr int kMaxLists = 1 << 16;
+  static constexpr int kDefaultProbes = 32;
+};
+
+// InvalidArgument for a negative field.
+absl::Status ValidateApproximateOptions(const ApproximateOptions& options);
 
 // Text forms: "none" | "zscore" | "maxabs" and "uniform" | "distance" (lower case; parsing
 // also accepts upper case and surrounding spaces). Unknown names are InvalidArgument and the
