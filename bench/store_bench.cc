@@ -146,8 +146,11 @@ int Run(int argc, char** argv) {
       }
       load_s.push_back(absl::ToDoubleSeconds(absl::Now() - t1));
       malloc_trim(0);  // what the loaded gallery holds, not the loader's freed temporaries
+      // Per loaded sample: the gallery also holds the samples appended above.
+      const auto loaded = registry.Get("bench");
+      if (!loaded.ok()) return 1;
       resident_per_sample.push_back((ResidentBytes() - resident_before) /
-                                    static_cast<double>(samples));
+                                    static_cast<double>((*loaded)->Snapshot()->num_samples()));
     }
     // Baseline: the same rebuild from memory, no disk.
     const absl::Time t2 = absl::Now();

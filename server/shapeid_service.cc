@@ -507,12 +507,12 @@ grpc::ServerUnaryReactor* ShapeIdService::RemoveSamples(grpc::CallbackServerCont
     std::set<uint64_t> ids(request->sample_ids().begin(), request->sample_ids().end());
     const auto snapshot = gallery->Snapshot();
     for (const std::string& label : request->labels()) {
-      const auto it = snapshot->ids_by_label().find(label);
-      if (it == snapshot->ids_by_label().end()) {
+      const std::vector<uint64_t> labelled = snapshot->IdsWithLabel(label);
+      if (labelled.empty()) {
         return absl::NotFoundError(
             absl::StrCat("gallery '", gallery->name(), "' has no samples labelled '", label, "'"));
       }
-      ids.insert(it->second.begin(), it->second.end());
+      ids.insert(labelled.begin(), labelled.end());
     }
     const std::vector<uint64_t> all(ids.begin(), ids.end());
     SHAPEID_ASSIGN_OR_RETURN(const int64_t removed, gallery->RemoveSamples(all));

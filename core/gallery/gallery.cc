@@ -212,7 +212,6 @@ absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Restore(const StoredGallery& s
     if (absl::Status s = snapshot->index_.Add(sample.id, sample.label, sample.features); !s.ok()) {
       return Prefixed(absl::StrCat(where, "sample id ", sample.id, ": "), s);
     }
-    snapshot->ids_by_label_[sample.label].push_back(sample.id);
     if (sample.id >= kFirstAssignedId) next_assigned = std::max(next_assigned, sample.id + 1);
   }
   if (absl::Status s = snapshot->index_.UpdateApproximate(limits.approximate,
@@ -297,7 +296,6 @@ absl::StatusOr<CommitResult> Gallery::CommitBatch(std::vector<StoredSample>& sam
     if (sample.id == 0) sample.id = counter++;
     // Cannot fail for validated descriptors and labels; if it does, nothing is published.
     SHAPEID_RETURN_IF_ERROR(next->index_.Add(sample.id, sample.label, sample.features));
-    next->ids_by_label_[sample.label].push_back(sample.id);
     result.ids.push_back(sample.id);
   }
   // Keeps the approximate index in step (seconds when it has to be built; readers meanwhile
@@ -336,12 +334,12 @@ absl::StatusOr<int64_t> Gallery::RemoveLabel(absl::string_view label) {
   std::lock_guard<std::mutex> lock(writer_mu_);
   if (deleted_) return DeletedError();
   const std::shared_ptr<const GallerySnapshot> current = Snapshot();
-  auto it = current->ids_by_label().find(label);
-  if (it == current->ids_by_label().end()) {
+  std::vector<uint64_t> ids = current->IdsWithLabel(label);
+  if (ids.empty()) {
     return absl::NotFoundError(absl::StrCat("gallery '", name_, "' has no samples labelled '",
                                             absl::CHexEscape(label), "'"));
   }
-  return RemoveLocked(*current, it->second);
+  return RemoveLocked(*current, std::move(ids));
 }
 
 absl::StatusOr<int64_t> Gallery::RemoveLocked(const GallerySnapshot& current,
@@ -349,14 +347,6 @@ absl::StatusOr<int64_t> Gallery::RemoveLocked(const GallerySnapshot& current,
   if (ids.empty()) return 0;
   std::shared_ptr<GallerySnapshot> next(new GallerySnapshot(current));
   SHAPEID_RETURN_IF_ERROR(next->index_.Remove(ids));
-  const absl::flat_hash_set<uint64_t> gone(ids.begin(), ids.end());
-  for (auto it = next->ids_by_label_.begin(); it != next->ids_by_label_.end();) {
-    std::vector<uint64_t>& label_ids = it->second;
-    label_ids.erase(std::remove_if(label_ids.begin(), label_ids.end(),
-                                   [&](uint64_t id) { return gone.contains(id); }),
-                    label_ids.end());
-    it = label_ids.empty() ? next->ids_by_label_.erase(it) : std::next(it);
-  }
   SHAPEID_RETURN_IF_ERROR(
       next->index_.UpdateApproximate(limits_.approximate, next->options_.knn.scaling));
   next->version_ = current.version_ + 1;

@@ -10,9 +10,7 @@ namespace shapeid {
 
 std::map<std::string, int64_t> GallerySnapshot::LabelCounts() const {
   std::map<std::string, int64_t> counts;
-  for (const auto& [label, ids] : ids_by_label_) {
-    counts.emplace(label, static_cast<int64_t>(ids.size()));
-  }
+  for (auto& [label, count] : index_.LabelCounts()) counts.emplace(std::move(label), count);
   return counts;
 }
 

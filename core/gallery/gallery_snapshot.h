@@ -65,11 +65,11 @@ class GallerySnapshot {
   int64_t num_samples() const { return index_.size(); }
   bool empty() const { return index_.empty(); }
   bool Contains(uint64_t id) const { return index_.Contains(id); }
-  // Sample ids per label, each in training order; labels sorted (byte order).
-  const std::map<std::string, std::vector<uint64_t>, std::less<>>& ids_by_label() const {
-    return ids_by_label_;
+  // The ids of the samples labelled `label`, in training order; empty if none. O(samples).
+  std::vector<uint64_t> IdsWithLabel(absl::string_view label) const {
+    return index_.IdsWithLabel(label);
   }
-  // Samples per label, labels sorted.
+  // Samples per label, labels sorted (byte order).
   std::map<std::string, int64_t> LabelCounts() const;
 
   absl::Time created() const { return created_; }
@@ -138,7 +138,6 @@ class GallerySnapshot {
   GalleryOptions options_;
   std::shared_ptr<const Descriptor> descriptor_;
   KnnIndex index_;
-  std::map<std::string, std::vector<uint64_t>, std::less<>> ids_by_label_;
   absl::Time created_;
   absl::Time updated_;
   uint64_t version_ = 0;

@@ -98,7 +98,8 @@ TEST(GalleryTest, TrainPublishesOneSnapshotPerBatch) {
   EXPECT_EQ(snap->version(), 1u);
   EXPECT_GE(snap->updated(), snap->created());
   EXPECT_THAT(snap->LabelCounts(), ElementsAre(Pair("box", 3), Pair("line", 3), Pair("sphere", 3)));
-  EXPECT_THAT(snap->ids_by_label().at("sphere"), ElementsAre(4, 5, 6));
+  EXPECT_THAT(snap->IdsWithLabel("sphere"), ElementsAre(4, 5, 6));
+  EXPECT_THAT(snap->IdsWithLabel("cone"), ElementsAre());
 }
 
 TEST(GalleryTest, ClassifyGivesNeighboursVotesAndConfidence) {
@@ -386,6 +387,22 @@ TEST(GalleryTest, ApproximateIndexFollowsCommitsAndRemovals) {
   for (uint64_t id = 6; id <= 45; ++id) doomed.push_back(id);
   ASSERT_TRUE(g->RemoveSamples(doomed).ok());
   EXPECT_FALSE(g->Snapshot()->index().approximate());  // 55 < 64
+}
+
+TEST(GalleryTest, StoredHeaderCopiesEverythingButTheSamples) {
+  auto g = MakeGallery();
+  ASSERT_TRUE(g->Train(ThreeShapes()).ok());
+  const StoredGallery stored = g->Snapshot()->ToStored();
+  const StoredGallery header = stored.Header();
+  EXPECT_TRUE(header.samples.empty());
+  EXPECT_EQ(header.samples.capacity(), 0u);
+  EXPECT_EQ(header.name, stored.name);
+  EXPECT_EQ(header.options.descriptor_spec, stored.options.descriptor_spec);
+  EXPECT_EQ(header.created, stored.created);
+  EXPECT_EQ(header.updated, stored.updated);
+  EXPECT_EQ(header.descriptor_version, stored.descriptor_version);
+  EXPECT_EQ(header.software_version, stored.software_version);
+  EXPECT_EQ(header.dimension, stored.dimension);
 }
 
 TEST(GalleryTest, SnapshotsAreImmutable) {

@@ -53,9 +53,11 @@ KnnIndex::KnnIndex(const KnnIndex& other)
       storage_(other.storage_),
       ids_(other.ids_),
       label_of_sample_(other.label_of_sample_),
+      num_rows_(other.num_rows_),
       first_row_(other.first_row_),
       sample_of_row_(other.sample_of_row_),
       labels_(other.labels_),
+      label_counts_(other.label_counts_),
       label_index_(other.label_index_),
       sample_of_id_(other.sample_of_id_),
       mean_(other.mean_),
@@ -80,10 +82,27 @@ KnnIndex& KnnIndex::operator=(KnnIndex&& other) noexcept = default;
 KnnIndex::~KnnIndex() = default;
 
 void KnnIndex::CopyFeatures(int64_t sample, float* out) const {
-  const std::size_t s = static_cast<std::size_t>(sample);
-  for (int64_t row = first_row_[s]; row < first_row_[s + 1]; ++row) {
+  for (int64_t row = FirstRow(sample); row < FirstRow(sample + 1); ++row) {
     for (int j = 0; j < dim_; ++j) *out++ = Feature(row, j);
   }
+}
+
+std::vector<std::pair<std::string, int64_t>> KnnIndex::LabelCounts() const {
+  std::vector<std::pair<std::string, int64_t>> counts;
+  counts.reserve(labels_.size());
+  for (std::size_t l = 0; l < labels_.size(); ++l) counts.emplace_back(labels_[l], label_counts_[l]);
+  return counts;
+}
+
+std::vector<uint64_t> KnnIndex::IdsWithLabel(absl::string_view label) const {
+  std::vector<uint64_t> ids;
+  const auto it = label_index_.find(label);
+  if (it == label_index_.end()) return ids;
+  ids.reserve(static_cast<std::size_t>(label_counts_[static_cast<std::size_t>(it->second)]));
+  for (std::size_t s = 0; s < ids_.size(); ++s) {
+    if (label_of_sample_[s] == it->second) ids.push_back(ids_[s]);
+  }
+  return ids;
 }
 
 std::vector<float> KnnIndex::Features(int64_t sample) const {
@@ -121,17 +140,29 @@ absl::Status KnnIndex::Add(uint64_t id, absl::string_view label, absl::Span<cons
 
   const int64_t sample = size();
   const int64_t first_row = num_rows();
+  if (views > 1 && first_row_.empty()) {
+    // The first sample with several views: rows and samples part ways from here on.
+    first_row_.resize(static_cast<std::size_t>(sample) + 1);
+    sample_of_row_.resize(static_cast<std::size_t>(first_row));
+    for (int64_t s = 0; s <= sample; ++s) first_row_[static_cast<std::size_t>(s)] = s;
+    for (int64_t row = 0; row < first_row; ++row) sample_of_row_[static_cast<std::size_t>(row)] = row;
+  }
   for (std::size_t v = 0; v < views; ++v) {
     const int64_t row = first_row + static_cast<int64_t>(v);
     if (row % kBlockLanes == 0) storage_.resize(storage_.size() + BlockFloats(dim_), 0.0f);
     for (int j = 0; j < dim_; ++j) storage_[FeatureOffset(row, dim_, j)] = features[v * dim + j];
-    sample_of_row_.push_back(sample);
+    if (!first_row_.empty()) sample_of_row_.push_back(sample);
+    num_rows_ = row + 1;
     Accumulate(row);
   }
-  first_row_.push_back(first_row + static_cast<int64_t>(views));
+  if (!first_row_.empty()) first_row_.push_back(num_rows_);
 
   auto [it, inserted] = label_index_.try_emplace(label, static_cast<int32_t>(labels_.size()));
-  if (inserted) labels_.emplace_back(label);
+  if (inserted) {
+    labels_.emplace_back(label);
+    label_counts_.push_back(0);
+  }
+  ++label_counts_[static_cast<std::size_t>(it->second)];
   ids_.push_back(id);
   label_of_sample_.push_back(it->second);
   sample_of_id_.emplace(id, sample);
@@ -156,36 +187,49 @@ absl::Status KnnIndex::Remove(absl::Span<const uint64_t> ids) {
   const int64_t old_size = size();
   std::vector<std::string> old_labels = std::move(labels_);
   const std::vector<int64_t> old_first_row = std::move(first_row_);
+  auto old_first = [&old_first_row](int64_t s) {
+    return old_first_row.empty() ? s : old_first_row[static_cast<std::size_t>(s)];
+  };
   labels_.clear();
+  label_counts_.clear();
   label_index_.clear();
   sample_of_id_.clear();
-  first_row_ = {0};
-  sample_of_row_.clear();
+  std::vector<int64_t> first_row = {0};
+  std::vector<int64_t> sample_of_row;
+  bool several_views = false;
   // Only the inverted lists need to know where each row went.
-  std::vector<int64_t> new_row_of_old(lists_ ? static_cast<std::size_t>(old_first_row.back()) : 0,
-                                      -1);
+  std::vector<int64_t> new_row_of_old(lists_ ? static_cast<std::size_t>(num_rows_) : 0, -1);
   int64_t dst = 0;
   int64_t dst_row = 0;
   for (int64_t src = 0; src < old_size; ++src) {
     if (doomed.contains(src)) continue;
-    for (int64_t row = old_first_row[src]; row < old_first_row[src + 1]; ++row, ++dst_row) {
+    several_views = several_views || old_first(src + 1) - old_first(src) > 1;
+    for (int64_t row = old_first(src); row < old_first(src + 1); ++row, ++dst_row) {
       if (lists_) new_row_of_old[static_cast<std::size_t>(row)] = dst_row;
       if (dst_row != row) {
         for (int j = 0; j < dim_; ++j) {
           storage_[FeatureOffset(dst_row, dim_, j)] = storage_[FeatureOffset(row, dim_, j)];
         }
       }
-      sample_of_row_.push_back(dst);
+      sample_of_row.push_back(dst);
     }
     const std::string& label = old_labels[static_cast<std::size_t>(label_of_sample_[src])];
     auto [it, inserted] = label_index_.try_emplace(label, static_cast<int32_t>(labels_.size()));
-    if (inserted) labels_.push_back(label);
+    if (inserted) {
+      labels_.push_back(label);
+      label_counts_.push_back(0);
+    }
+    ++label_counts_[static_cast<std::size_t>(it->second)];
     ids_[dst] = ids_[src];
     label_of_sample_[dst] = it->second;
     sample_of_id_.emplace(ids_[dst], dst);
-    first_row_.push_back(dst_row);
+    first_row.push_back(dst_row);
     ++dst;
   }
+  num_rows_ = dst_row;
+  // Back to the identity maps when every remaining sample has one view.
+  first_row_ = several_views ? std::move(first_row) : std::vector<int64_t>();
+  sample_of_row_ = several_views ? std::move(sample_of_row) : std::vector<int64_t>();
   ids_.resize(dst);
   label_of_sample_.resize(dst);
   const int64_t blocks = (dst_row + kBlockLanes - 1) / kBlockLanes;
@@ -330,7 +374,8 @@ std::vector<Candidate> KnnIndex::FindNearest(absl::Span<const float> queries, in
   const bool forced_tree = engine == Engine::kKdTree;
   if (engine == Engine::kAuto && mode == SearchMode::kDefault && lists_ != nullptr) {
     // The probed cells, then the rows filed in no list yet (from a block boundary).
-    knn_internal::TopK top(kk, one_to_one ? nullptr : sample_of_row_.data());
+    knn_internal::TopK top(kk, sample_of_row_.empty() ? nullptr : sample_of_row_.data(),
+                           /*rows_repeat=*/num_queries > 1);
     const int probes = lists_options_.probes > 0 ? lists_options_.probes
                                                  : ApproximateOptions::kDefaultProbes;
     lists_->Search(level, queries.data(), num_queries, scale, probes, early_abandon, &top);
@@ -363,7 +408,8 @@ std::vector<Candidate> KnnIndex::FindNearest(absl::Span<const float> queries, in
     // Not built yet, or nanoflann failed (allocation): brute force gives the same answer.
   }
   // With one row per sample and one query, every offer is of a distinct sample: no groups.
-  knn_internal::TopK top(kk, one_to_one ? nullptr : sample_of_row_.data());
+  knn_internal::TopK top(kk, sample_of_row_.empty() ? nullptr : sample_of_row_.data(),
+                         /*rows_repeat=*/num_queries > 1);
   knn_internal::ScanBlocks(level, View(), queries.data(), num_queries, scale, early_abandon, &top);
   return top.TakeSorted();
 }
@@ -384,11 +430,12 @@ std::vector<Neighbor> KnnIndex::ToNeighbors(const std::vector<Candidate>& neares
   std::vector<Neighbor> neighbors;
   neighbors.reserve(nearest.size());
   for (const Candidate& c : nearest) {
-    const std::size_t sample = static_cast<std::size_t>(sample_of_row_[c.row]);
+    const std::size_t sample = static_cast<std::size_t>(SampleOfRow(c.row));
     neighbors.push_back(Neighbor{ids_[sample],
                                  labels_[static_cast<std::size_t>(label_of_sample_[sample])],
                                  std::sqrt(static_cast<double>(c.distance_sq)),
-                                 static_cast<int>(c.row - first_row_[sample]), c.query});
+                                 static_cast<int>(c.row - FirstRow(static_cast<int64_t>(sample))),
+                                 c.query});
   }
   return neighbors;
 }
@@ -426,7 +473,7 @@ absl::StatusOr<KnnResult> KnnIndex::Classify(absl::Span<const float> queries,
       w = 1.0 / result.neighbors[i].distance;
     }
     const int32_t label = label_of_sample_[static_cast<std::size_t>(
-        sample_of_row_[static_cast<std::size_t>(nearest[i].row)])];
+        SampleOfRow(nearest[i].row))];
     int& v = vote_of_label[static_cast<std::size_t>(label)];
     if (v < 0) {
       v = static_cast<int>(vote_label.size());

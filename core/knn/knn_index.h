@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/container/flat_hash_map.h"
@@ -120,10 +121,15 @@ class KnnIndex {
   int64_t size() const { return static_cast<int64_t>(ids_.size()); }
   bool empty() const { return ids_.empty(); }
   // Stored feature vectors: the views of all samples.
-  int64_t num_rows() const { return first_row_.back(); }
+  int64_t num_rows() const { return num_rows_; }
   bool Contains(uint64_t id) const { return sample_of_id_.contains(id); }
   // Distinct labels currently in the index.
   int num_labels() const { return static_cast<int>(labels_.size()); }
+  // Samples per distinct label, labels in order of first appearance. O(num_labels()).
+  std::vector<std::pair<std::string, int64_t>> LabelCounts() const;
+  // The ids of the samples labelled `label`, in insertion order; empty if there are none.
+  // O(size()): for removals by label, which cost O(size() * dimension()) anyway.
+  std::vector<uint64_t> IdsWithLabel(absl::string_view label) const;
 
   // Samples are numbered 0 .. size() - 1 in insertion order. IdAt, LabelAt and
   // CopyFeatures are what a store or an export needs: Add-ing every sample in order, with
@@ -133,8 +139,7 @@ class KnnIndex {
     return labels_[static_cast<std::size_t>(label_of_sample_[static_cast<std::size_t>(sample)])];
   }
   int ViewsAt(int64_t sample) const {
-    const std::size_t s = static_cast<std::size_t>(sample);
-    return static_cast<int>(first_row_[s + 1] - first_row_[s]);
+    return static_cast<int>(FirstRow(sample + 1) - FirstRow(sample));
   }
   // Writes the sample's ViewsAt(sample) * dimension() features, view after view, to `out`,
   // which must hold that many.
@@ -239,6 +244,13 @@ class KnnIndex {
   knn_internal::BlockedView View() const {
     return knn_internal::BlockedView{storage_.data(), num_rows(), dim_};
   }
+  // Sample s holds rows [FirstRow(s), FirstRow(s + 1)).
+  int64_t FirstRow(int64_t sample) const {
+    return first_row_.empty() ? sample : first_row_[static_cast<std::size_t>(sample)];
+  }
+  int64_t SampleOfRow(int64_t row) const {
+    return sample_of_row_.empty() ? row : sample_of_row_[static_cast<std::size_t>(row)];
+  }
   float Feature(int64_t row, int j) const {
     return storage_[knn_internal::FeatureOffset(row, dim_, j)];
   }
@@ -252,10 +264,15 @@ class KnnIndex {
   // Per sample, in insertion order.
   std::vector<uint64_t> ids_;
   std::vector<int32_t> label_of_sample_;  // index into labels_
-  // Sample s holds rows [first_row_[s], first_row_[s + 1]); size() + 1 entries.
-  std::vector<int64_t> first_row_ = {0};
-  std::vector<int64_t> sample_of_row_;  // the inverse, per row: TopK's groups
+  int64_t num_rows_ = 0;
+  // Sample s holds rows [first_row_[s], first_row_[s + 1]) (size() + 1 entries), and
+  // sample_of_row_ is the inverse, per row (TopK's groups). Both are empty while every
+  // sample has one view, the usual gallery, where row and sample numbers coincide: that
+  // saves 16 bytes per sample, 5 % of an 81-float one (FirstRow, SampleOfRow).
+  std::vector<int64_t> first_row_;
+  std::vector<int64_t> sample_of_row_;
   std::vector<std::string> labels_;     // distinct labels, in order of first appearance
+  std::vector<int64_t> label_counts_;   // samples per entry of labels_
   absl::flat_hash_map<std::string, int32_t> label_index_;
   absl::flat_hash_map<uint64_t, int64_t> sample_of_id_;
 

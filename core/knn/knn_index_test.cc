@@ -489,6 +489,62 @@ TEST(KnnIndexTest, SamplesWithSeveralViewsSurviveAddRemoveAndRebuild) {
   }
 }
 
+// One-view galleries keep no row maps (rows are samples); the first sample with several
+// views brings them in, and removing the last such sample takes them out again. Answers,
+// views and features must not notice either switch.
+TEST(KnnIndexTest, RowMapsComeAndGoWithMultiViewSamples) {
+  KnnIndex index = MakeIndex(3);
+  for (uint64_t i = 0; i < 40; ++i) {
+    AddOrDie(index, i + 1, i % 2 == 0 ? "even" : "odd",
+             {static_cast<float>(i), 0.5f * static_cast<float>(i % 7), 1.0f});
+  }
+  const std::vector<float> query = {20.2f, 3.0f, 1.0f, 7.1f, 0.0f, 1.0f};  // two query vectors
+  auto before = index.Search(query, 6);
+  ASSERT_TRUE(before.ok());
+  // Two query vectors may meet one sample twice: it still takes one place.
+  for (std::size_t a = 0; a < before->size(); ++a) {
+    for (std::size_t b = a + 1; b < before->size(); ++b) EXPECT_NE((*before)[a].id, (*before)[b].id);
+  }
+
+  AddOrDie(index, 100, "many", {50, 0, 0, 20.2f, 3.0f, 1.0f, 60, 0, 0});
+  EXPECT_EQ(index.size(), 41);
+  EXPECT_EQ(index.num_rows(), 43);
+  EXPECT_EQ(index.ViewsAt(40), 3);
+  EXPECT_EQ(index.ViewsAt(39), 1);
+  auto with = index.Search(query, 1);
+  ASSERT_TRUE(with.ok());
+  EXPECT_EQ((*with)[0].id, 100u);
+  EXPECT_EQ((*with)[0].view, 1);
+  EXPECT_EQ((*with)[0].distance, 0.0);
+
+  ASSERT_TRUE(index.Remove(100).ok());
+  EXPECT_EQ(index.num_rows(), 40);
+  auto after = index.Search(query, 6);
+  ASSERT_TRUE(after.ok());
+  ASSERT_EQ(after->size(), before->size());
+  for (std::size_t r = 0; r < after->size(); ++r) {
+    EXPECT_EQ((*after)[r].id, (*before)[r].id);
+    EXPECT_EQ((*after)[r].distance, (*before)[r].distance);
+    EXPECT_EQ((*after)[r].query, (*before)[r].query);
+  }
+  EXPECT_EQ(index.Features(39), (std::vector<float>{39, 2, 1}));
+}
+
+TEST(KnnIndexTest, LabelCountsAndIdsWithLabelFollowAddAndRemove) {
+  KnnIndex index = MakeIndex(1);
+  for (uint64_t id = 1; id <= 6; ++id) {
+    AddOrDie(index, id, id <= 2 ? "a" : (id <= 5 ? "b" : "c"), {static_cast<float>(id)});
+  }
+  using Count = std::pair<std::string, int64_t>;
+  EXPECT_THAT(index.LabelCounts(), ElementsAre(Count{"a", 2}, Count{"b", 3}, Count{"c", 1}));
+  EXPECT_THAT(index.IdsWithLabel("b"), ElementsAre(3, 4, 5));
+  EXPECT_THAT(index.IdsWithLabel("z"), ElementsAre());
+  ASSERT_TRUE(index.Remove(std::vector<uint64_t>{1, 2, 4}).ok());
+  EXPECT_THAT(index.LabelCounts(), ElementsAre(Count{"b", 2}, Count{"c", 1}));
+  EXPECT_THAT(index.IdsWithLabel("a"), ElementsAre());
+  EXPECT_THAT(index.IdsWithLabel("b"), ElementsAre(3, 5));
+}
+
 // Every view is one observation of the statistics.
 TEST(KnnIndexTest, ScalingStatisticsCountEveryView) {
   KnnIndex index = MakeIndex(2);

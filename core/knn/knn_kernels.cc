@@ -24,12 +24,12 @@ void AdviseHugePages(void* p, std::size_t bytes) {
 void TopK::Offer(float distance_sq, int64_t row, int query) {
   const Candidate c{distance_sq, row, query};
   if (full() && !Before(c, heap_.front())) return;
-  if (group_of_row_ != nullptr) {
+  if (grouped_) {
     // A group keeps one entry, its best. A linear scan is fine: k is small and only
     // candidates that beat the k-th get here.
-    const int64_t group = group_of_row_[row];
+    const int64_t group = GroupOf(row);
     for (Candidate& kept : heap_) {
-      if (group_of_row_[kept.row] != group) continue;
+      if (GroupOf(kept.row) != group) continue;
       if (Before(c, kept)) {
         kept = c;
         SiftDown(static_cast<std::size_t>(&kept - heap_.data()));

@@ -93,10 +93,13 @@ inline constexpr auto kBefore = [](const Candidate& a, const Candidate& b) {
 class TopK {
  public:
   // group_of_row[row] is the group of each row; nullptr when every row is a group of its
-  // own and is offered at most once (one view per sample, one query), which skips the
-  // per-offer search for the row's group.
-  explicit TopK(int k, const int64_t* group_of_row = nullptr)
-      : k_(static_cast<std::size_t>(k)), group_of_row_(group_of_row) {
+  // own (one view per sample). Then `rows_repeat` says whether a row may be offered more
+  // than once (several query vectors): if not, the per-offer search for the row's group is
+  // skipped.
+  explicit TopK(int k, const int64_t* group_of_row = nullptr, bool rows_repeat = false)
+      : k_(static_cast<std::size_t>(k)),
+        group_of_row_(group_of_row),
+        grouped_(group_of_row != nullptr || rows_repeat) {
     heap_.reserve(k_);
   }
 
@@ -120,8 +123,13 @@ class TopK {
   // Restores the heap after heap_[i] got better: in a max-heap, it sinks.
   void SiftDown(std::size_t i);
 
+  int64_t GroupOf(int64_t row) const {
+    return group_of_row_ != nullptr ? group_of_row_[row] : row;
+  }
+
   std::size_t k_;
   const int64_t* group_of_row_;
+  bool grouped_;
   std::vector<Candidate> heap_;
 };
 

@@ -313,8 +313,7 @@ absl::Status SqliteGalleryStore::SaveGallery(const StoredGallery& gallery) {
     (void)SyncDirectory(galleries_dir_);
     return absl::Status(status.code(), absl::StrCat(where, ": ", status.message()));
   }
-  open->header = gallery;
-  open->header.samples.clear();
+  open->header = gallery.Header();
   std::lock_guard<std::mutex> lock(mu_);
   open_[gallery.name] = std::move(open);
   return absl::OkStatus();
@@ -533,8 +532,7 @@ absl::StatusOr<StoredGallery> SqliteGalleryStore::ReadFile(const std::string& na
     SHAPEID_RETURN_IF_ERROR(
         PrepareWrites(path, &open->db, &open->insert, &open->remove, &open->touch));
   }
-  open->header = g;
-  open->header.samples.clear();
+  open->header = g.Header();
   *out = std::move(open);
   return g;
 }
