@@ -96,7 +96,7 @@ int Run(int argc, char** argv) {
   std::system(absl::StrCat("rm -rf '", dir, "'").c_str());
 
   const StoredGallery gallery = MakeGallery(samples, dim, 1);
-  std::vector<double> save_s, load_s, restore_s;
+  std::vector<double> save_s, load_s, ready_s, restore_s;
   std::vector<double> append_ms[3];
   const int batch_sizes[3] = {1, 16, 256};
   double bytes_per_sample = 0;
@@ -145,6 +145,9 @@ int Run(int argc, char** argv) {
         return 1;
       }
       load_s.push_back(absl::ToDoubleSeconds(absl::Now() - t1));
+      // Serving from here; the approximate index (if any) follows in the background.
+      registry.WaitForApproximateIndexes();
+      ready_s.push_back(absl::ToDoubleSeconds(absl::Now() - t1));
       malloc_trim(0);  // what the loaded gallery holds, not the loader's freed temporaries
       // Per loaded sample: the gallery also holds the samples appended above.
       const auto loaded = registry.Get("bench");
@@ -164,6 +167,8 @@ int Run(int argc, char** argv) {
               static_cast<long long>(samples), dim, reps, dir.c_str());
   std::printf("%-52s %10.3f s\n", "start-up: open + load + verify + index (server)",
               Median(load_s));
+  std::printf("%-52s %10.3f s\n", "approximate index ready (background, after start-up)",
+              Median(ready_s));
   std::printf("%-52s %10.3f s\n", "baseline: index rebuilt from memory (no disk)",
               Median(restore_s));
   std::printf("%-52s %10.2fx\n", "start-up / baseline", Median(load_s) / Median(restore_s));
@@ -186,10 +191,10 @@ int Run(int argc, char** argv) {
   std::printf("JSON {\"bench\":\"store\",\"samples\":%lld,\"dim\":%d,\"startup_s\":%.3f,"
               "\"baseline_s\":%.3f,\"save_s\":%.3f,\"file_bytes_per_sample\":%.1f,"
               "\"raw_bytes_per_sample\":%.1f,\"resident_bytes_per_sample\":%.1f,"
-              "\"approximate_min_vectors\":%lld}\n",
+              "\"approximate_min_vectors\":%lld,\"approximate_ready_s\":%.3f}\n",
               static_cast<long long>(samples), dim, Median(load_s), Median(restore_s),
               Median(save_s), bytes_per_sample, raw, resident,
-              static_cast<long long>(limits.approximate.min_vectors));
+              static_cast<long long>(limits.approximate.min_vectors), Median(ready_s));
   return 0;
 }
 

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
 #include "client/client.h"
 #include "core/gallery/gallery_registry.h"
 #include "core/testing/test_clouds.h"
@@ -161,10 +162,14 @@ TEST(ShapeIdServerTest, ApproximateSearchAboveTheThresholdAndExactOnRequest) {
     EXPECT_EQ(forced->neighbors_size(), 5);
     EXPECT_EQ(forced->label(), approximate->label());
   }
-  // Derived state: the lists are not stored, they are rebuilt as the gallery loads.
+  // Derived state: the lists are not stored; they are rebuilt in the background once the
+  // galleries are loaded (the server serves exact searches meanwhile).
   auto server = ShapeIdServer::Start(options);
   ASSERT_TRUE(server.ok()) << server.status();
   auto client = ClientFor(**server);
+  for (int i = 0; i < 500 && client->GetGallery("lab")->approximate_lists() == 0; ++i) {
+    absl::SleepFor(absl::Milliseconds(10));
+  }
   EXPECT_EQ(client->GetGallery("lab")->approximate_lists(), 2u);
   auto again = client->Classify("lab", clouds[0]);
   ASSERT_TRUE(again.ok()) << again.status();

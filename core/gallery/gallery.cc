@@ -198,7 +198,8 @@ absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Create(std::string name,
 
 absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Restore(const StoredGallery& stored,
                                                           const GalleryLimits& limits,
-                                                          std::shared_ptr<GalleryStore> store) {
+                                                          std::shared_ptr<GalleryStore> store,
+                                                          ApproximateBuild approximate) {
   const std::string where = absl::StrCat("restoring gallery '", stored.name, "': ");
   absl::StatusOr<std::unique_ptr<GallerySnapshot>> empty = StoredSnapshot(stored);
   if (!empty.ok()) return Prefixed(where, empty.status());
@@ -214,10 +215,12 @@ absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Restore(const StoredGallery& s
     }
     if (sample.id >= kFirstAssignedId) next_assigned = std::max(next_assigned, sample.id + 1);
   }
-  if (absl::Status s = snapshot->index_.UpdateApproximate(limits.approximate,
-                                                          snapshot->options_.knn.scaling);
-      !s.ok()) {
-    return Prefixed(where, s);
+  if (approximate == ApproximateBuild::kNow) {
+    if (absl::Status s = snapshot->index_.UpdateApproximate(limits.approximate,
+                                                            snapshot->options_.knn.scaling);
+        !s.ok()) {
+      return Prefixed(where, s);
+    }
   }
   snapshot->updated_ = stored.updated;
   snapshot->next_assigned_id_ = next_assigned;
@@ -311,6 +314,20 @@ absl::StatusOr<CommitResult> Gallery::CommitBatch(std::vector<StoredSample>& sam
   result.version = next->version_;
   Publish(std::move(next));
   return result;
+}
+
+absl::Status Gallery::UpdateApproximateIndex(const std::atomic<bool>* cancel) {
+  std::lock_guard<std::mutex> lock(writer_mu_);
+  if (deleted_) return absl::OkStatus();
+  const std::shared_ptr<const GallerySnapshot> current = Snapshot();
+  if (current->index_.ApproximateInStep(limits_.approximate, current->options_.knn.scaling)) {
+    return absl::OkStatus();
+  }
+  std::shared_ptr<GallerySnapshot> next(new GallerySnapshot(*current));
+  SHAPEID_RETURN_IF_ERROR(next->index_.UpdateApproximate(
+      limits_.approximate, next->options_.knn.scaling, cancel));
+  Publish(std::move(next));
+  return absl::OkStatus();
 }
 
 absl::StatusOr<int64_t> Gallery::RemoveSamples(absl::Span<const uint64_t> ids) {

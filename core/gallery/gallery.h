@@ -1,6 +1,7 @@
 #ifndef SHAPEID_CORE_GALLERY_GALLERY_H_
 #define SHAPEID_CORE_GALLERY_GALLERY_H_
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -141,9 +142,12 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
   // descriptors for loads all the same, marked GallerySnapshot::incompatible(). Errors, each
   // naming the gallery: a bad name or options (InvalidArgument); a bad label, id or feature
   // vector (InvalidArgument, AlreadyExists; DataLoss for id 0).
-  static absl::StatusOr<std::shared_ptr<Gallery>> Restore(const StoredGallery& stored,
-                                                          const GalleryLimits& limits,
-                                                          std::shared_ptr<GalleryStore> store);
+  // `approximate` kLater leaves the approximate index (GalleryLimits::approximate) to a
+  // later UpdateApproximateIndex, so that a server can load and serve (exactly) at once.
+  enum class ApproximateBuild { kNow, kLater };
+  static absl::StatusOr<std::shared_ptr<Gallery>> Restore(
+      const StoredGallery& stored, const GalleryLimits& limits,
+      std::shared_ptr<GalleryStore> store, ApproximateBuild approximate = ApproximateBuild::kNow);
 
   Gallery(const Gallery&) = delete;
   Gallery& operator=(const Gallery&) = delete;
@@ -165,6 +169,14 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
   absl::StatusOr<int64_t> RemoveSamples(absl::Span<const uint64_t> ids);
   // Removes every sample labelled `label`. NotFound if there is none.
   absl::StatusOr<int64_t> RemoveLabel(absl::string_view label);
+
+  // Brings the approximate index in step with limits().approximate when it is not (a gallery
+  // restored with ApproximateBuild::kLater): publishes a snapshot with the same samples and
+  // version and the index built. Readers keep the old snapshot meanwhile; writers wait (it
+  // holds the writer lock). Costs a copy of the index, O(samples * dimension), and the build
+  // (seconds at 10^6 vectors). Cancelled, with nothing published, if `cancel` (may be null)
+  // turns true meanwhile.
+  absl::Status UpdateApproximateIndex(const std::atomic<bool>* cancel = nullptr);
 
  private:
   friend class TrainBatch;

@@ -19,12 +19,22 @@ GalleryRegistry::GalleryRegistry(GalleryLimits limits, std::shared_ptr<GallerySt
     : limits_(limits),
       store_(store != nullptr ? std::move(store) : std::make_shared<NullGalleryStore>()) {}
 
+GalleryRegistry::~GalleryRegistry() {
+  stop_ = true;
+  WaitForApproximateIndexes();
+}
+
+void GalleryRegistry::WaitForApproximateIndexes() {
+  if (approximate_builder_.joinable()) approximate_builder_.join();
+}
+
 absl::Status GalleryRegistry::LoadFromStore() {
   SHAPEID_ASSIGN_OR_RETURN(std::vector<StoredGallery> stored, store_->LoadAll());
   std::vector<std::shared_ptr<Gallery>> loaded;
   for (const StoredGallery& g : stored) {
-    SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<Gallery> gallery,
-                             Gallery::Restore(g, limits_, store_));
+    SHAPEID_ASSIGN_OR_RETURN(
+        std::shared_ptr<Gallery> gallery,
+        Gallery::Restore(g, limits_, store_, Gallery::ApproximateBuild::kLater));
     loaded.push_back(std::move(gallery));
   }
   std::lock_guard<std::mutex> lock(mu_);
@@ -39,7 +49,18 @@ absl::Status GalleryRegistry::LoadFromStore() {
           absl::StrCat("stored gallery '", gallery->name(), "' is already registered"));
     }
   }
-  for (auto& gallery : loaded) galleries_.emplace(gallery->name(), std::move(gallery));
+  for (const auto& gallery : loaded) galleries_.emplace(gallery->name(), gallery);
+  // One gallery after another, so that the build's working copy (an index copy plus its
+  // lists) is there for one gallery at a time. A gallery deleted meanwhile is skipped by
+  // UpdateApproximateIndex; a cancelled or failed build leaves it exact, as it was, until
+  // its next commit brings the index in step.
+  WaitForApproximateIndexes();
+  approximate_builder_ = std::thread([this, galleries = std::move(loaded)] {
+    for (const auto& gallery : galleries) {
+      if (stop_) return;
+      (void)gallery->UpdateApproximateIndex(&stop_);
+    }
+  });
   return absl::OkStatus();
 }
 

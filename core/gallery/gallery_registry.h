@@ -1,12 +1,14 @@
 #ifndef SHAPEID_CORE_GALLERY_GALLERY_REGISTRY_H_
 #define SHAPEID_CORE_GALLERY_GALLERY_REGISTRY_H_
 
+#include <atomic>
 #include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "absl/base/thread_annotations.h"
@@ -29,6 +31,9 @@ class GalleryRegistry {
  public:
   // `store` null means NullGalleryStore (nothing persisted).
   explicit GalleryRegistry(GalleryLimits limits = {}, std::shared_ptr<GalleryStore> store = {});
+  // Stops the background build of approximate indexes (LoadFromStore) and waits for it:
+  // within a fraction of a second.
+  ~GalleryRegistry();
 
   GalleryRegistry(const GalleryRegistry&) = delete;
   GalleryRegistry& operator=(const GalleryRegistry&) = delete;
@@ -36,7 +41,16 @@ class GalleryRegistry {
   // Adds every gallery the store holds (call once, before serving). Errors: the store's;
   // a stored gallery that no longer validates (prefixed with its name); AlreadyExists if a
   // stored name is already registered. On error nothing is added.
+  //
+  // Galleries that need an approximate index (GalleryLimits::approximate) are published
+  // without it, searched exactly, and get it from a background thread one after another
+  // (Gallery::UpdateApproximateIndex): a server with a 10^6-vector gallery serves seconds
+  // sooner, at the price of exact (slower) searches until its index is built.
   absl::Status LoadFromStore();
+
+  // Waits until the background build that LoadFromStore started has finished (tests,
+  // benchmarks, and a caller that wants approximate search before it serves).
+  void WaitForApproximateIndexes();
 
   // A new, empty gallery. InvalidArgument for a bad name (the message quotes the pattern),
   // options or descriptor spec (the descriptor registry's message); AlreadyExists;
@@ -78,6 +92,10 @@ class GalleryRegistry {
   std::map<std::string, std::shared_ptr<Gallery>, std::less<>> galleries_ ABSL_GUARDED_BY(mu_);
   // Names being created or imported: taken, but not yet published.
   std::set<std::string, std::less<>> pending_ ABSL_GUARDED_BY(mu_);
+
+  // The background build of approximate indexes after LoadFromStore; stop_ cancels it.
+  std::atomic<bool> stop_{false};
+  std::thread approximate_builder_;
 };
 
 }  // namespace shapeid

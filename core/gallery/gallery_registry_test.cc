@@ -167,6 +167,60 @@ TEST(GalleryRegistryTest, LoadFromStoreRestoresEveryGallery) {
   EXPECT_EQ(second.size(), 2u);
 }
 
+// A loaded gallery that needs an approximate index serves exactly at once and gets its index
+// from the background build.
+TEST(GalleryRegistryTest, LoadFromStoreBuildsApproximateIndexesInTheBackground) {
+  auto store = std::make_shared<InMemoryGalleryStore>();
+  GalleryLimits limits;
+  limits.approximate.min_vectors = 64;
+  {
+    GalleryRegistry first({}, store);
+    auto big = first.Create("big", {});
+    ASSERT_TRUE(big.ok());
+    std::vector<LabelledCloud> samples;
+    for (uint32_t i = 0; i < 70; ++i) {
+      samples.push_back({0, i % 2 == 0 ? "box" : "sphere", i % 2 == 0 ? Box(i) : Sphere(i)});
+    }
+    ASSERT_TRUE((*big)->Train(samples).ok());
+    ASSERT_TRUE(first.Create("small", {}).ok());
+  }
+  GalleryRegistry second(limits, store);
+  ASSERT_TRUE(second.LoadFromStore().ok());
+  // Serving already: exact or approximate, the answer is there.
+  auto snapshot = second.Get("big").value()->Snapshot();
+  EXPECT_EQ(snapshot->version(), 0u);
+  auto answer = snapshot->Classify(Sphere(3));
+  ASSERT_TRUE(answer.ok()) << answer.status();
+  EXPECT_EQ(answer->label, "sphere");
+
+  second.WaitForApproximateIndexes();
+  snapshot = second.Get("big").value()->Snapshot();
+  EXPECT_TRUE(snapshot->index().approximate());
+  EXPECT_EQ(snapshot->version(), 0u);  // the same samples: not a change of the gallery
+  EXPECT_EQ(snapshot->num_samples(), 70);
+  EXPECT_TRUE(snapshot->Classify(Sphere(3))->knn.approximate);
+  EXPECT_FALSE(second.Get("small").value()->Snapshot()->index().approximate());
+}
+
+TEST(GalleryRegistryTest, DestroyingTheRegistryStopsTheBackgroundBuild) {
+  auto store = std::make_shared<InMemoryGalleryStore>();
+  GalleryLimits limits;
+  limits.approximate.min_vectors = 64;
+  {
+    GalleryRegistry first({}, store);
+    for (const char* name : {"a", "b", "c"}) {
+      auto g = first.Create(name, {});
+      ASSERT_TRUE(g.ok());
+      std::vector<LabelledCloud> samples;
+      for (uint32_t i = 0; i < 70; ++i) samples.push_back({0, "box", Box(i)});
+      ASSERT_TRUE((*g)->Train(samples).ok());
+    }
+  }
+  // Destroyed at once, while the build may be running: it must stop and be joined.
+  GalleryRegistry second(limits, store);
+  ASSERT_TRUE(second.LoadFromStore().ok());
+}
+
 TEST(GalleryRegistryTest, ImportAddsAWholeGalleryInOneStoreWrite) {
   auto store = std::make_shared<InMemoryGalleryStore>();
   GalleryRegistry source;

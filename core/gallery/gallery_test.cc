@@ -1,5 +1,6 @@
 #include "core/gallery/gallery.h"
 
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -387,6 +388,37 @@ TEST(GalleryTest, ApproximateIndexFollowsCommitsAndRemovals) {
   for (uint64_t id = 6; id <= 45; ++id) doomed.push_back(id);
   ASSERT_TRUE(g->RemoveSamples(doomed).ok());
   EXPECT_FALSE(g->Snapshot()->index().approximate());  // 55 < 64
+}
+
+TEST(GalleryTest, ApproximateIndexCanBeBuiltAfterRestore) {
+  GalleryLimits limits;
+  limits.approximate.min_vectors = 64;
+  auto g = MakeGallery();
+  std::vector<LabelledCloud> samples;
+  for (uint32_t i = 0; i < 70; ++i) samples.push_back({0, "box", Box(i)});
+  ASSERT_TRUE(g->Train(samples).ok());
+  const StoredGallery stored = g->Snapshot()->ToStored();
+
+  auto later = Gallery::Restore(stored, limits, nullptr, Gallery::ApproximateBuild::kLater);
+  ASSERT_TRUE(later.ok()) << later.status();
+  EXPECT_FALSE((*later)->Snapshot()->index().approximate());
+  // A cancelled build publishes nothing.
+  std::atomic<bool> cancel{true};
+  EXPECT_EQ((*later)->UpdateApproximateIndex(&cancel).code(), absl::StatusCode::kCancelled);
+  EXPECT_FALSE((*later)->Snapshot()->index().approximate());
+  const auto before = (*later)->Snapshot();
+  ASSERT_TRUE((*later)->UpdateApproximateIndex().ok());
+  EXPECT_TRUE((*later)->Snapshot()->index().approximate());
+  EXPECT_EQ((*later)->Snapshot()->version(), before->version());
+  EXPECT_FALSE(before->index().approximate());  // readers' snapshots never change
+  // In step now: nothing to publish.
+  const auto built = (*later)->Snapshot();
+  ASSERT_TRUE((*later)->UpdateApproximateIndex().ok());
+  EXPECT_EQ((*later)->Snapshot(), built);
+
+  auto now = Gallery::Restore(stored, limits, nullptr);
+  ASSERT_TRUE(now.ok());
+  EXPECT_TRUE((*now)->Snapshot()->index().approximate());
 }
 
 TEST(GalleryTest, StoredHeaderCopiesEverythingButTheSamples) {

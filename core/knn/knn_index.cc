@@ -244,40 +244,71 @@ absl::Status KnnIndex::Remove(absl::Span<const uint64_t> ids) {
   return absl::OkStatus();
 }
 
+KnnIndex::ApproximateStep KnnIndex::PlanApproximate(const ApproximateOptions& options,
+                                                    FeatureScaling scaling) const {
+  // The lists hold whole blocks only, so the exact tail starts on a block boundary.
+  const int64_t whole_blocks = num_rows() / kBlockLanes * kBlockLanes;
+  if (options.min_vectors == 0 || num_rows() < options.min_vectors ||
+      dim_ <= knn_internal::kKdTreeMaxDimension || whole_blocks == 0) {
+    return lists_ != nullptr ? ApproximateStep::kDrop : ApproximateStep::kNothing;
+  }
+  if (lists_ == nullptr || options.lists != lists_options_.lists || scaling != lists_scaling_ ||
+      whole_blocks >= 4 * lists_trained_rows_) {
+    return ApproximateStep::kBuild;
+  }
+  if (whole_blocks - lists_->indexed_rows() > lists_->indexed_rows() / 16) {
+    return ApproximateStep::kExtend;
+  }
+  return ApproximateStep::kNothing;
+}
+
+bool KnnIndex::ApproximateInStep(const ApproximateOptions& options, FeatureScaling scaling) const {
+  if (!ValidateApproximateOptions(options).ok() || FeatureScalingName(scaling) == "unknown") {
+    return true;
+  }
+  // Probes only change how the lists are read.
+  return PlanApproximate(options, scaling) == ApproximateStep::kNothing &&
+         (lists_ == nullptr || options.probes == lists_options_.probes);
+}
+
 absl::Status KnnIndex::UpdateApproximate(const ApproximateOptions& options,
-                                         FeatureScaling scaling) {
+                                         FeatureScaling scaling,
+                                         const std::atomic<bool>* cancel) {
   SHAPEID_RETURN_IF_ERROR(ValidateApproximateOptions(options));
   if (FeatureScalingName(scaling) == "unknown") {
     return absl::InvalidArgumentError(
         absl::StrCat("invalid feature scaling value ", static_cast<int>(scaling)));
   }
-  // The lists hold whole blocks only, so the exact tail starts on a block boundary.
   const int64_t whole_blocks = num_rows() / kBlockLanes * kBlockLanes;
-  if (options.min_vectors == 0 || num_rows() < options.min_vectors ||
-      dim_ <= knn_internal::kKdTreeMaxDimension || whole_blocks == 0) {
-    lists_.reset();
-    lists_options_ = options;
-    return absl::OkStatus();
-  }
   const int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   const float* scale = ScaleData(scaling);
-  if (lists_ == nullptr || options.lists != lists_options_.lists || scaling != lists_scaling_ ||
-      whole_blocks >= 4 * lists_trained_rows_) {
-    const int lists =
-        options.lists > 0
-            ? options.lists
-            : static_cast<int>(std::clamp<double>(
-                  std::round(ApproximateOptions::kDefaultListsPerSqrt *
-                             std::sqrt(static_cast<double>(num_rows()))),
-                  1.0, ApproximateOptions::kMaxLists));
-    lists_ = knn_internal::InvertedLists::Build(ActiveSimdLevel(), View(), whole_blocks, scale,
-                                                lists, threads);
-    lists_trained_rows_ = whole_blocks;
-  } else if (whole_blocks - lists_->indexed_rows() > lists_->indexed_rows() / 16) {
-    lists_ = lists_->Extend(ActiveSimdLevel(), View(), whole_blocks, scale, threads);
+  switch (PlanApproximate(options, scaling)) {
+    case ApproximateStep::kNothing:
+      break;
+    case ApproximateStep::kDrop:
+      lists_.reset();
+      break;
+    case ApproximateStep::kBuild: {
+      const int lists =
+          options.lists > 0
+              ? options.lists
+              : static_cast<int>(std::clamp<double>(
+                    std::round(ApproximateOptions::kDefaultListsPerSqrt *
+                               std::sqrt(static_cast<double>(num_rows()))),
+                    1.0, ApproximateOptions::kMaxLists));
+      auto built = knn_internal::InvertedLists::Build(ActiveSimdLevel(), View(), whole_blocks,
+                                                      scale, lists, threads, cancel);
+      if (built == nullptr) return absl::CancelledError("approximate index build cancelled");
+      lists_ = std::move(built);
+      lists_trained_rows_ = whole_blocks;
+      lists_scaling_ = scaling;
+      break;
+    }
+    case ApproximateStep::kExtend:
+      lists_ = lists_->Extend(ActiveSimdLevel(), View(), whole_blocks, scale, threads);
+      break;
   }
   lists_options_ = options;
-  lists_scaling_ = scaling;
   return absl::OkStatus();
 }
 

@@ -2,6 +2,7 @@
 #define SHAPEID_CORE_KNN_KNN_INDEX_H_
 
 #include <algorithm>
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -192,9 +193,15 @@ class KnnIndex {
   //    than 1/16 of those already filed (until then they are a tail scanned exactly).
   // `scaling` is the metric the cells are trained in: the gallery's. A build takes seconds
   // at 10^6 vectors (docs/performance.md) and uses every core. InvalidArgument for invalid
-  // options, with nothing changed.
+  // options, Cancelled if `cancel` (may be null) turned true during a build; either way
+  // nothing changed.
   absl::Status UpdateApproximate(const ApproximateOptions& options,
-                                 FeatureScaling scaling = FeatureScaling::kNone);
+                                 FeatureScaling scaling = FeatureScaling::kNone,
+                                 const std::atomic<bool>* cancel = nullptr);
+  // True when UpdateApproximate with these arguments would change nothing (or the options
+  // are invalid): lets a caller skip copying an index only to find it in step.
+  bool ApproximateInStep(const ApproximateOptions& options,
+                         FeatureScaling scaling = FeatureScaling::kNone) const;
   // True when searches read inverted lists.
   bool approximate() const { return lists_ != nullptr; }
   // Cells of the lists and vectors filed in them (0 and 0 without lists): for tests,
@@ -227,6 +234,9 @@ class KnnIndex {
   explicit KnnIndex(int dimension);
 
   absl::Status ValidateQuery(absl::Span<const float> queries, int k) const;
+  // What UpdateApproximate has to do (valid options).
+  enum class ApproximateStep { kNothing, kDrop, kBuild, kExtend };
+  ApproximateStep PlanApproximate(const ApproximateOptions& options, FeatureScaling scaling) const;
   // The nearest distinct samples' best (squared distance, row, query), best first. Queries
   // already validated. Sets *approximate (if not null) when the lists were read.
   std::vector<knn_internal::Candidate> FindNearest(absl::Span<const float> queries, int k,

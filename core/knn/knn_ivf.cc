@@ -91,7 +91,9 @@ void InvertedLists::Fill(const BlockedView& gallery, int64_t rows,
 std::shared_ptr<const InvertedLists> InvertedLists::Build(SimdLevel level,
                                                           const BlockedView& gallery,
                                                           int64_t rows, const float* scale,
-                                                          int lists, int threads) {
+                                                          int lists, int threads,
+                                                          const std::atomic<bool>* cancel) {
+  auto cancelled = [cancel] { return cancel != nullptr && cancel->load(std::memory_order_relaxed); };
   std::shared_ptr<InvertedLists> ivf(new InvertedLists());
   const int d = gallery.dim;
   const std::size_t dim = static_cast<std::size_t>(d);
@@ -116,6 +118,7 @@ std::shared_ptr<const InvertedLists> InvertedLists::Build(SimdLevel level,
   std::vector<double> sums(centroids.size());
   std::vector<int64_t> counts(static_cast<std::size_t>(k));
   for (int iteration = 0; iteration < kIterations; ++iteration) {
+    if (cancelled()) return nullptr;
     ivf->centroids_ = ToBlocked(centroids, k, d);
     ivf->Assign(level, train.data(), m, scale, threads, cell.data());
     std::fill(sums.begin(), sums.end(), 0.0);
@@ -154,6 +157,7 @@ std::shared_ptr<const InvertedLists> InvertedLists::Build(SimdLevel level,
   constexpr int64_t kChunk = 16384;
   std::vector<float> chunk(static_cast<std::size_t>(std::min(rows, kChunk)) * dim);
   for (int64_t begin = 0; begin < rows; begin += kChunk) {
+    if (cancelled()) return nullptr;
     const int64_t count = std::min(kChunk, rows - begin);
     for (int64_t i = 0; i < count; ++i) CopyRow(gallery, begin + i, &chunk[static_cast<std::size_t>(i) * dim]);
     ivf->Assign(level, chunk.data(), count, scale, threads, &cell_of_row[static_cast<std::size_t>(begin)]);

@@ -5,6 +5,7 @@
 // k-means cells ("IVF-Flat", the scheme of Faiss's IndexIVFFlat). KnnIndex owns it; see
 // ApproximateOptions (knn_options.h) for when it is used.
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -35,10 +36,12 @@ class InvertedLists {
   // factors, or nullptr for raw features), and fills the lists. Deterministic: the same
   // rows give the same lists. Uses up to `threads` threads. Cost: about
   // (kTrainRowsPerList * kIterations + rows) * lists * dim multiply-adds, less what early
-  // abandonment saves.
+  // abandonment saves. nullptr if `cancel` (may be null) turns true meanwhile: it is read
+  // between iterations and chunks of rows, so a build stops within a fraction of a second.
   static std::shared_ptr<const InvertedLists> Build(SimdLevel level, const BlockedView& gallery,
                                                     int64_t rows, const float* scale, int lists,
-                                                    int threads);
+                                                    int threads,
+                                                    const std::atomic<bool>* cancel = nullptr);
 
   // The same cells with rows [indexed_rows(), rows) of `gallery` added to their nearest
   // cell's list (rows a multiple of kBlockLanes, >= indexed_rows()). Cost: the new rows
