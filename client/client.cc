@@ -1,8 +1,10 @@
 #include "client/client.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <condition_variable>
+#include <cstdio>
 #include <cstring>
 #include <mutex>
 #include <optional>
@@ -77,6 +79,61 @@ void PushCloud(StreamWriter<Request>& writer, const PointCloud& cloud, size_t ch
   }
 }
 
+absl::StatusOr<std::string> ReadPemFile(const std::string& path, absl::string_view what) {
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (f == nullptr) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("cannot read the ", what, " '", path, "': ", std::strerror(errno)));
+  }
+  std::string text;
+  char buf[4096];
+  size_t n;
+  while ((n = std::fread(buf, 1, sizeof(buf), f)) > 0 && text.size() <= (1 << 20)) {
+    text.append(buf, n);
+  }
+  std::fclose(f);
+  if (text.find("-----BEGIN ") == std::string::npos) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("the ", what, " '", path, "' is not a PEM file"));
+  }
+  return text;
+}
+
+// The channel's credentials and arguments from the TLS fields of `options`.
+absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const ClientOptions& options) {
+  grpc::ChannelArguments args;
+  const bool tls = options.tls || !options.tls_ca_file.empty() || !options.tls_cert_file.empty() ||
+                   !options.tls_key_file.empty();
+  if (!tls) {
+    if (!options.tls_server_name.empty()) {
+      return absl::InvalidArgumentError("ClientOptions.tls_server_name is set but TLS is off");
+    }
+    return grpc::CreateCustomChannel(options.target, grpc::InsecureChannelCredentials(), args);
+  }
+  if (options.tls_cert_file.empty() != options.tls_key_file.empty()) {
+    return absl::InvalidArgumentError(
+        "a client certificate needs its key, and a key its certificate: give both TLS files "
+        "or neither");
+  }
+  grpc::SslCredentialsOptions ssl;
+  if (!options.tls_ca_file.empty()) {
+    absl::StatusOr<std::string> ca = ReadPemFile(options.tls_ca_file, "TLS CA file");
+    if (!ca.ok()) return ca.status();
+    ssl.pem_root_certs = *std::move(ca);
+  }
+  if (!options.tls_cert_file.empty()) {
+    absl::StatusOr<std::string> cert =
+        ReadPemFile(options.tls_cert_file, "TLS client certificate file");
+    if (!cert.ok()) return cert.status();
+    absl::StatusOr<std::string> key = ReadPemFile(options.tls_key_file, "TLS client key file");
+    if (!key.ok()) return key.status();
+    ssl.pem_cert_chain = *std::move(cert);
+    ssl.pem_private_key = *std::move(key);
+  }
+  if (!options.tls_server_name.empty()) args.SetSslTargetNameOverride(options.tls_server_name);
+  return grpc::CreateCustomChannel(options.target, grpc::SslCredentials(ssl), args);
+}
+
 }  // namespace
 
 absl::Status FromGrpcStatus(const grpc::Status& status) {
@@ -97,12 +154,24 @@ absl::StatusOr<std::unique_ptr<Client>> Client::Connect(ClientOptions options) {
     return absl::InvalidArgumentError(absl::StrCat("ClientOptions.deadline must be positive, got ",
                                                    absl::FormatDuration(options.deadline)));
   }
-  return std::unique_ptr<Client>(new Client(std::move(options)));
+  // Metadata values are visible ASCII; anything else would fail every call obscurely. The
+  // message does not quote the key.
+  for (char c : options.api_key) {
+    if (c <= ' ' || c == 0x7f) {
+      return absl::InvalidArgumentError(
+          "the API key holds a space, a line break or another character metadata cannot carry "
+          "(a stray newline from a file?)");
+    }
+  }
+  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = MakeChannel(options);
+  if (!channel.ok()) return channel.status();
+  return std::unique_ptr<Client>(new Client(std::move(options), *std::move(channel)));
 }
 
-Client::Client(ClientOptions options)
+Client::Client(ClientOptions options, std::shared_ptr<grpc::Channel> channel)
     : options_(std::move(options)),
-      channel_(grpc::CreateChannel(options_.target, grpc::InsecureChannelCredentials())),
+      authorization_(options_.api_key.empty() ? "" : absl::StrCat("Bearer ", options_.api_key)),
+      channel_(std::move(channel)),
       stub_(v1::ShapeId::NewStub(channel_)) {}
 
 Client::~Client() = default;
@@ -123,6 +192,7 @@ absl::Status Client::Call(bool retry, bool corked, const Attempt& attempt,
     }
     grpc::ClientContext context;
     context.set_deadline(absl::ToChronoTime(deadline));
+    if (!authorization_.empty()) context.AddMetadata("authorization", authorization_);
     if (corked) context.set_initial_metadata_corked(true);
     status = attempt(context);
     if (status.error_code() != grpc::StatusCode::UNAVAILABLE) break;

@@ -47,8 +47,10 @@ struct TrainSample {
 class Client {
  public:
   // Checks `options` (InvalidArgument for an empty target, max_attempts < 1, chunk_points
-  // < 1, a non-positive deadline) and creates the channel. Does not touch the network: a
-  // server that is down shows up as UNAVAILABLE on the first call.
+  // < 1, a non-positive deadline, a TLS file that cannot be read or is not PEM, a client
+  // certificate without its key, an API key with characters metadata cannot carry) and
+  // creates the channel. Does not touch the network: a server that is down, or a TLS
+  // handshake that fails, shows up as UNAVAILABLE on the first call.
   static absl::StatusOr<std::unique_ptr<Client>> Connect(ClientOptions options);
 
   Client(const Client&) = delete;
@@ -129,7 +131,7 @@ class Client {
   absl::Status CheckHealth();
 
  private:
-  explicit Client(ClientOptions options);
+  Client(ClientOptions options, std::shared_ptr<grpc::Channel> channel);
 
   // Runs `attempt` (one RPC on a fresh context) up to options_.max_attempts times while it
   // returns UNAVAILABLE and `retry` is true, with exponential backoff, all within one
@@ -153,6 +155,7 @@ class Client {
                                      Open open);
 
   const ClientOptions options_;
+  const std::string authorization_;  // "Bearer KEY", or empty
   std::shared_ptr<grpc::Channel> channel_;
   std::unique_ptr<v1::ShapeId::Stub> stub_;  // thread-safe
   // Set when the server turned out not to know the one-message calls (DescribeCloud,

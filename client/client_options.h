@@ -31,8 +31,25 @@ struct ClientOptions {
   // message limit, large enough that per-message cost is negligible. Must be >= 1.
   size_t chunk_points = 16384;
 
-  // Transport security: reserved. Connections are plaintext until the security issue lands
-  // TLS options here.
+  // Transport security (docs/security.md). TLS is on when `tls` is true or any file below
+  // is given; otherwise the channel is plaintext, which a server with --tls_cert refuses.
+  bool tls = false;
+  // PEM file of the CA certificates that may sign the server's certificate. Empty: the
+  // system's roots (or the file GRPC_DEFAULT_SSL_ROOTS_FILE_PATH names).
+  std::string tls_ca_file;
+  // PEM files of this client's certificate (chain) and private key, for a server that
+  // requires client certificates (mutual TLS). Both or neither.
+  std::string tls_cert_file;
+  std::string tls_key_file;
+  // The name the server's certificate must carry when it is not the target's host (a tunnel,
+  // an IP address the certificate does not list). Empty: the target's host.
+  std::string tls_server_name;
+
+  // API key sent with every call as "authorization: Bearer KEY" (a server with API keys
+  // answers UNAUTHENTICATED without one, PERMISSION_DENIED when its scope is too small).
+  // Empty: none. Never put in an error message. Over plaintext on a network it can be read
+  // by anyone on the path: use TLS.
+  std::string api_key;
 };
 
 }  // namespace shapeid

@@ -9,8 +9,9 @@ namespace shapeid {
 
 absl::Status CloudAssembler::Start(uint64_t expected_points) {
   if (expected_points > max_points_) {
-    return absl::ResourceExhaustedError(absl::StrCat(
-        "the cloud announces ", expected_points, " points, more than the limit of ", max_points_));
+    return absl::ResourceExhaustedError(absl::StrCat("the cloud announces ", expected_points,
+                                                     " points, more than the limit of ",
+                                                     max_points_, " (max_points_per_cloud)"));
   }
   started_ = true;
   expected_points_ = expected_points;
@@ -33,9 +34,9 @@ absl::Status CloudAssembler::Append(absl::string_view xyz_bytes) {
   // of a still-empty cloud (undefined behaviour even for 0 bytes; UBSan caught it).
   if (added == 0) return absl::OkStatus();
   if (cloud_.size() + added > max_points_) {
-    return absl::ResourceExhaustedError(absl::StrCat("the cloud has more than the limit of ",
-                                                     max_points_, " points (",
-                                                     cloud_.size() + added, " received so far)"));
+    return absl::ResourceExhaustedError(
+        absl::StrCat("the cloud has more than the limit of ", max_points_, " points (",
+                     cloud_.size() + added, " received so far; max_points_per_cloud)"));
   }
   std::vector<float>& xyz = cloud_.mutable_xyz();
   const size_t old_size = xyz.size();

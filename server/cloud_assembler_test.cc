@@ -68,7 +68,8 @@ TEST(CloudAssemblerTest, ErrorsSayWhatIsWrongWithNumbers) {
   ASSERT_TRUE(assembler.Append(Bytes({1, 2, 3, 4, 5, 6})).ok());
   const absl::Status over = assembler.Append(Bytes({7, 8, 9}));
   EXPECT_EQ(over.code(), absl::StatusCode::kResourceExhausted);
-  EXPECT_THAT(over.message(), HasSubstr("more than the limit of 2 points (3 received so far)"));
+  EXPECT_THAT(over.message(), HasSubstr("more than the limit of 2 points (3 received so far; "
+                                        "max_points_per_cloud)"));
 
   ASSERT_TRUE(assembler.Start(2).ok());
   ASSERT_TRUE(assembler.Append(Bytes({1, 2, 3})).ok());

@@ -6,7 +6,9 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <string>
+#include <vector>
 
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
@@ -15,11 +17,17 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/time/time.h"
+#include "server/api_keys.h"
+#include "server/security.h"
 #include "server/server.h"
 
 ABSL_FLAG(std::string, listen, "127.0.0.1:50051",
           "HOST:PORT to listen on; port 0 picks a free port (printed at start). "
           "Env: SHAPEID_LISTEN");
+ABSL_FLAG(std::string, health_listen, "",
+          "HOST:PORT of a second, plaintext port serving only grpc.health.v1 (no key, no TLS), "
+          "for probes that cannot do TLS (Kubernetes' gRPC probes). Empty: none. "
+          "Env: SHAPEID_HEALTH_LISTEN");
 ABSL_FLAG(int64_t, max_points_per_cloud, 10'000'000,
           "largest cloud, in points, any call accepts. Env: SHAPEID_MAX_POINTS_PER_CLOUD");
 ABSL_FLAG(int32_t, max_message_bytes, 16 << 20,
@@ -42,6 +50,41 @@ ABSL_FLAG(int32_t, approximate_lists, 0,
 ABSL_FLAG(int32_t, approximate_probes, 0,
           "cells an approximate search reads per query vector; 0: 32. More: better recall, "
           "slower. Env: SHAPEID_APPROXIMATE_PROBES");
+ABSL_FLAG(int64_t, max_samples_per_gallery, 1'000'000,
+          "samples one gallery may hold (training and import past it: RESOURCE_EXHAUSTED). "
+          "Env: SHAPEID_MAX_SAMPLES_PER_GALLERY");
+ABSL_FLAG(int64_t, max_galleries, 1024,
+          "galleries the server may hold. Env: SHAPEID_MAX_GALLERIES");
+ABSL_FLAG(int64_t, max_samples_per_train, 10'000,
+          "samples one Train stream may carry; 0: no limit. Env: SHAPEID_MAX_SAMPLES_PER_TRAIN");
+ABSL_FLAG(int32_t, max_streams_per_client, 64,
+          "streams one client (IP address) may have open at once; 0: no limit. "
+          "Env: SHAPEID_MAX_STREAMS_PER_CLIENT");
+ABSL_FLAG(int32_t, max_call_seconds, 600,
+          "a stream still running after this long (its client asked for a later deadline, or "
+          "none) is ended DEADLINE_EXCEEDED; 0: no limit. Env: SHAPEID_MAX_CALL_SECONDS");
+ABSL_FLAG(std::string, tls_cert, "",
+          "PEM certificate (chain) of the server: with --tls_key, serve TLS only. "
+          "Env: SHAPEID_TLS_CERT");
+ABSL_FLAG(std::string, tls_key, "", "PEM private key of --tls_cert. Env: SHAPEID_TLS_KEY");
+ABSL_FLAG(std::string, tls_client_ca, "",
+          "PEM CA certificates for mutual TLS: every client must present a certificate they "
+          "sign. Env: SHAPEID_TLS_CLIENT_CA");
+ABSL_FLAG(std::string, api_keys_file, "",
+          "file of API keys, one per line: NAME SCOPE SHA256-HEX (scope read, write or admin; "
+          "see --new_api_key). Given, every call but health checks needs a key. "
+          "Env: SHAPEID_API_KEYS_FILE");
+ABSL_FLAG(std::string, api_keys, "",
+          "API keys inline, as in --api_keys_file, entries separated by ';' or newlines. "
+          "Env: SHAPEID_API_KEYS");
+ABSL_FLAG(bool, insecure, false,
+          "allow listening on a non-loopback address with neither TLS nor API keys (open to "
+          "anyone who reaches the port). Env: SHAPEID_INSECURE");
+ABSL_FLAG(std::string, new_api_key, "",
+          "NAME:SCOPE: print a new random API key (line 1, for the client) and its line for "
+          "the keys file (line 2), then exit");
+ABSL_FLAG(bool, hash_api_key, false,
+          "read an API key from stdin, print its SHA-256 (the keys file's third field), exit");
 ABSL_FLAG(int32_t, shutdown_grace_seconds, 10,
           "on SIGTERM/SIGINT, how long in-flight calls may run before they are cancelled. "
           "Env: SHAPEID_SHUTDOWN_GRACE_SECONDS");
@@ -58,9 +101,11 @@ void OnStopSignal(int signal) {
 // Every flag may come from SHAPEID_<FLAG NAME IN CAPITALS>; a command-line flag wins.
 bool ApplyEnvironment() {
   for (const char* name :
-       {"listen", "data_dir", "set_aside_damaged", "max_points_per_cloud", "max_message_bytes",
-        "approximate_min_vectors", "approximate_lists", "approximate_probes",
-        "shutdown_grace_seconds"}) {
+       {"listen", "health_listen", "data_dir", "set_aside_damaged", "max_points_per_cloud",
+        "max_message_bytes", "approximate_min_vectors", "approximate_lists", "approximate_probes",
+        "max_samples_per_gallery", "max_galleries", "max_samples_per_train",
+        "max_streams_per_client", "max_call_seconds", "tls_cert", "tls_key", "tls_client_ca",
+        "api_keys_file", "api_keys", "insecure", "shutdown_grace_seconds"}) {
     const std::string var = absl::StrCat("SHAPEID_", absl::AsciiStrToUpper(name));
     const char* value = std::getenv(var.c_str());
     if (value == nullptr) continue;
@@ -73,6 +118,64 @@ bool ApplyEnvironment() {
   return true;
 }
 
+// --new_api_key=NAME:SCOPE. The key goes to stdout only; it is stored nowhere.
+int PrintNewApiKey(const std::string& spec) {
+  const size_t colon = spec.find(':');
+  if (colon == std::string::npos) {
+    std::fprintf(stderr, "shapeid-server: --new_api_key=NAME:SCOPE, e.g. robot-1:read\n");
+    return 2;
+  }
+  absl::StatusOr<std::string> key = shapeid::NewApiKey();
+  if (!key.ok()) {
+    std::fprintf(stderr, "shapeid-server: %s\n", std::string(key.status().message()).c_str());
+    return 1;
+  }
+  const std::string line = absl::StrCat(spec.substr(0, colon), " ", spec.substr(colon + 1), " ",
+                                        shapeid::Sha256Hex(*key));
+  // Checked as the server will read it: name and scope.
+  if (absl::StatusOr<std::vector<shapeid::ApiKeyEntry>> parsed =
+          shapeid::ParseApiKeys(line, "--new_api_key");
+      !parsed.ok()) {
+    std::fprintf(stderr, "shapeid-server: %s\n", std::string(parsed.status().message()).c_str());
+    return 2;
+  }
+  std::printf("%s\n%s\n", key->c_str(), line.c_str());
+  std::fprintf(stderr,
+               "shapeid-server: line 1 is the key: give it to the client (SHAPEID_API_KEY); it "
+               "is shown once and stored nowhere. Line 2 goes in the keys file "
+               "(--api_keys_file) or SHAPEID_API_KEYS.\n");
+  return 0;
+}
+
+// --hash_api_key: the key from stdin (one trailing newline dropped), its SHA-256 to stdout.
+int PrintKeyHash() {
+  std::string key;
+  char buf[4096];
+  size_t n;
+  while ((n = std::fread(buf, 1, sizeof(buf), stdin)) > 0 && key.size() < (1 << 16)) {
+    key.append(buf, n);
+  }
+  if (!key.empty() && key.back() == '\n') key.pop_back();
+  if (!key.empty() && key.back() == '\r') key.pop_back();
+  for (char c : key) {
+    if (c <= ' ' || c == 0x7f) {
+      std::fprintf(stderr,
+                   "shapeid-server: --hash_api_key: the key holds a space or control character; "
+                   "clients could not send it\n");
+      return 2;
+    }
+  }
+  if (key.size() < shapeid::kMinApiKeyChars) {
+    std::fprintf(stderr,
+                 "shapeid-server: --hash_api_key: the key has %zu characters; use at least %zu "
+                 "random ones (--new_api_key makes one)\n",
+                 key.size(), shapeid::kMinApiKeyChars);
+    return 2;
+  }
+  std::printf("%s\n", shapeid::Sha256Hex(key).c_str());
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -82,9 +185,14 @@ int main(int argc, char** argv) {
       "Every flag can also be set by an environment variable SHAPEID_<FLAG>; flags win.");
   if (!ApplyEnvironment()) return 2;
   absl::ParseCommandLine(argc, argv);
+  if (!absl::GetFlag(FLAGS_new_api_key).empty()) {
+    return PrintNewApiKey(absl::GetFlag(FLAGS_new_api_key));
+  }
+  if (absl::GetFlag(FLAGS_hash_api_key)) return PrintKeyHash();
 
   shapeid::ServerOptions options;
   options.listen = absl::GetFlag(FLAGS_listen);
+  options.health_listen = absl::GetFlag(FLAGS_health_listen);
   if (absl::GetFlag(FLAGS_max_points_per_cloud) < 3 ||
       absl::GetFlag(FLAGS_max_message_bytes) < 1024) {
     std::fprintf(stderr,
@@ -103,6 +211,40 @@ int main(int argc, char** argv) {
   if (const absl::Status s = shapeid::ValidateApproximateOptions(options.gallery_limits.approximate);
       !s.ok()) {
     std::fprintf(stderr, "shapeid-server: --approximate_*: %s\n", std::string(s.message()).c_str());
+    return 2;
+  }
+  if (absl::GetFlag(FLAGS_max_samples_per_gallery) < 1 || absl::GetFlag(FLAGS_max_galleries) < 1 ||
+      absl::GetFlag(FLAGS_max_samples_per_train) < 0 ||
+      absl::GetFlag(FLAGS_max_streams_per_client) < 0 ||
+      absl::GetFlag(FLAGS_max_call_seconds) < 0) {
+    std::fprintf(stderr,
+                 "shapeid-server: --max_samples_per_gallery and --max_galleries must be >= 1; "
+                 "--max_samples_per_train, --max_streams_per_client and --max_call_seconds >= 0 "
+                 "(0: no limit)\n");
+    return 2;
+  }
+  options.gallery_limits.max_samples_per_gallery = absl::GetFlag(FLAGS_max_samples_per_gallery);
+  options.gallery_limits.max_galleries = static_cast<size_t>(absl::GetFlag(FLAGS_max_galleries));
+  options.service.max_samples_per_train = absl::GetFlag(FLAGS_max_samples_per_train);
+  options.service.max_streams_per_client = absl::GetFlag(FLAGS_max_streams_per_client);
+  options.service.max_call = absl::Seconds(absl::GetFlag(FLAGS_max_call_seconds));
+  options.security.tls_cert_file = absl::GetFlag(FLAGS_tls_cert);
+  options.security.tls_key_file = absl::GetFlag(FLAGS_tls_key);
+  options.security.tls_client_ca_file = absl::GetFlag(FLAGS_tls_client_ca);
+  options.security.api_keys_file = absl::GetFlag(FLAGS_api_keys_file);
+  options.security.api_keys = absl::GetFlag(FLAGS_api_keys);
+  options.security.insecure = absl::GetFlag(FLAGS_insecure);
+  // Configuration errors are usage errors (exit 2), told before anything is opened; Bind
+  // checks the same again.
+  absl::StatusOr<std::shared_ptr<const shapeid::ApiKeyStore>> keys =
+      shapeid::LoadApiKeys(options.security);
+  absl::Status config = keys.status();
+  if (config.ok()) {
+    config = shapeid::CheckExposure(options.listen, options.security, !(*keys)->empty());
+  }
+  if (config.ok()) config = shapeid::ListeningCredentials(options.security).status();
+  if (!config.ok()) {
+    std::fprintf(stderr, "shapeid-server: %s\n", std::string(config.message()).c_str());
     return 2;
   }
 
@@ -127,6 +269,24 @@ int main(int argc, char** argv) {
   std::fprintf(stderr, "shapeid-server: bound %s; loading galleries from %s\n",
                (*server)->address().c_str(),
                options.data_dir.empty() ? "nowhere (in-memory)" : options.data_dir.c_str());
+  std::fprintf(stderr, "shapeid-server: security: %s\n", (*server)->security().c_str());
+  if (!(*server)->health_address().empty()) {
+    std::fprintf(stderr, "shapeid-server: health checks also on %s (plaintext, health only)\n",
+                 (*server)->health_address().c_str());
+  }
+  // The CLI's variables are one letter away from the server's; say so rather than run open.
+  for (const char* cli_var : {"SHAPEID_API_KEY", "SHAPEID_API_KEY_FILE"}) {
+    if ((*keys)->empty() && std::getenv(cli_var) != nullptr) {
+      std::fprintf(stderr,
+                   "shapeid-server: WARNING: %s is set but is the CLI's; the server's keys come "
+                   "from SHAPEID_API_KEYS_FILE / SHAPEID_API_KEYS, and it has none\n",
+                   cli_var);
+    }
+  }
+  for (const std::string& warning :
+       shapeid::SecurityWarnings(options.listen, options.security, **keys)) {
+    std::fprintf(stderr, "shapeid-server: WARNING: %s\n", warning.c_str());
+  }
   absl::StatusOr<shapeid::LoadReport> loaded = (*server)->LoadGalleries();
   if (!loaded.ok()) {
     std::fprintf(stderr, "shapeid-server: %s\n", std::string(loaded.status().message()).c_str());

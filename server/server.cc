@@ -8,6 +8,7 @@
 #include "absl/time/clock.h"
 #include "grpcpp/ext/proto_server_reflection_plugin.h"
 #include "grpcpp/health_check_service_interface.h"
+#include "server/security.h"
 
 namespace shapeid {
 
@@ -28,6 +29,15 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
   if (absl::Status s = ValidateApproximateOptions(options.gallery_limits.approximate); !s.ok()) {
     return s;
   }
+  absl::StatusOr<std::shared_ptr<const ApiKeyStore>> keys = LoadApiKeys(options.security);
+  if (!keys.ok()) return keys.status();
+  if (absl::Status s = CheckExposure(options.listen, options.security, !(*keys)->empty());
+      !s.ok()) {
+    return s;
+  }
+  absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> credentials =
+      ListeningCredentials(options.security);
+  if (!credentials.ok()) return credentials.status();
   std::unique_ptr<ShapeIdServer> server(new ShapeIdServer);
   if (!options.data_dir.empty()) {
     absl::StatusOr<std::unique_ptr<SqliteGalleryStore>> store = SqliteGalleryStore::Open(
@@ -38,13 +48,12 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
   GalleryLimits limits = options.gallery_limits;
   limits.max_points_per_cloud = options.service.max_points_per_cloud;
   server->registry_ = std::make_shared<GalleryRegistry>(limits, server->store_);
-  server->service_ = std::make_unique<ShapeIdService>(options.service, server->registry_);
+  server->service_ = std::make_unique<ShapeIdService>(options.service, server->registry_, *keys);
+  server->security_ = DescribeSecurity(options.security, **keys);
   server->service_->HoldUntilLoaded();
 
   grpc::ServerBuilder builder;
-  // TLS arrives with the security issue; until then the server must only be exposed where
-  // that is acceptable (the default listens on loopback).
-  builder.AddListeningPort(options.listen, grpc::InsecureServerCredentials(), &server->port_);
+  builder.AddListeningPort(options.listen, *credentials, &server->port_);
   builder.RegisterService(server->service_.get());
   builder.SetMaxReceiveMessageSize(options.max_message_bytes);
   // No thread-count option: gRPC 1.51's callback API runs reactions on its own executor,
@@ -57,10 +66,27 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
   }
   const size_t colon = options.listen.rfind(':');
   server->address_ = absl::StrCat(options.listen.substr(0, colon), ":", server->port_);
+  if (!options.health_listen.empty()) {
+    // Its own grpc::Server: a port of the main one would serve every service there too. It
+    // gets the default health service, whose status SetServing keeps equal to the main one's.
+    grpc::ServerBuilder health_builder;
+    int health_port = 0;
+    health_builder.AddListeningPort(options.health_listen, grpc::InsecureServerCredentials(),
+                                    &health_port);
+    server->health_server_ = health_builder.BuildAndStart();
+    if (server->health_server_ == nullptr || health_port == 0) {
+      return absl::UnavailableError(absl::StrCat("cannot listen on ", options.health_listen,
+                                                 " (--health_listen): address in use, or not "
+                                                 "an address of this host"));
+    }
+    const size_t health_colon = options.health_listen.rfind(':');
+    server->health_address_ =
+        absl::StrCat(options.health_listen.substr(0, health_colon), ":", health_port);
+  }
   // The default health service starts out SERVING; say otherwise until the galleries are
   // loaded. (A probe in the microseconds between the two would see SERVING, but every RPC
   // is refused "loading" until LoadGalleries is done, so nothing can be served early.)
-  server->server_->GetHealthCheckService()->SetServingStatus(false);
+  server->SetServing(false);
   return server;
 }
 
@@ -83,14 +109,14 @@ absl::StatusOr<LoadReport> ShapeIdServer::LoadGalleries() {
   load_report_ = report;
   if (shut_down_) return report;
   service_->StartServing();
-  server_->GetHealthCheckService()->SetServingStatus(true);
+  SetServing(true);
   return report;
 }
 
 void ShapeIdServer::Shutdown(absl::Duration grace) {
   if (shut_down_ || server_ == nullptr) return;
   shut_down_ = true;
-  server_->GetHealthCheckService()->SetServingStatus(false);
+  SetServing(false);
   // Drain ourselves, then shut gRPC down at once: Server::Shutdown(deadline) alone would also
   // wait for idle client connections and so always take the whole grace period.
   service_->StartDraining();
@@ -100,6 +126,15 @@ void ShapeIdServer::Shutdown(absl::Duration grace) {
   }
   server_->Shutdown(std::chrono::system_clock::now());  // cancels whatever is left
   server_->Wait();
+  if (health_server_ != nullptr) {
+    health_server_->Shutdown(std::chrono::system_clock::now());
+    health_server_->Wait();
+  }
+}
+
+void ShapeIdServer::SetServing(bool serving) {
+  server_->GetHealthCheckService()->SetServingStatus(serving);
+  if (health_server_ != nullptr) health_server_->GetHealthCheckService()->SetServingStatus(serving);
 }
 
 ShapeIdServer::~ShapeIdServer() { Shutdown(absl::ZeroDuration()); }

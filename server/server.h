@@ -26,7 +26,8 @@ struct LoadReport {
 
 // A running shapeid server: the ShapeId service over a gallery registry kept in a durable
 // store, grpc.health.v1 health checking and server reflection, so grpcurl and standard probes
-// work.
+// work. Health and reflection need no API key (docs/security.md); health may also be served on
+// a plaintext port of its own (ServerOptions::health_listen).
 //
 // Start-up is two steps so that probes can watch it: Bind opens the store (taking its lock)
 // and listens, with health NOT_SERVING and every RPC refused UNAVAILABLE ("loading");
@@ -36,8 +37,11 @@ class ShapeIdServer {
   // Bind, then LoadGalleries: returns a serving server (load_report() says what loaded).
   static absl::StatusOr<std::unique_ptr<ShapeIdServer>> Start(const ServerOptions& options);
 
-  // Opens the store and binds. Unavailable if the address cannot be bound; the store's
-  // errors (another server holds the data directory: FailedPrecondition).
+  // Loads the API keys and TLS files (server/security.h), opens the store and binds.
+  // FailedPrecondition for a non-loopback address with neither TLS nor keys (unless
+  // options.security.insecure); InvalidArgument / NotFound for a bad key or TLS file;
+  // Unavailable if the address cannot be bound; the store's errors (another server holds the
+  // data directory: FailedPrecondition).
   static absl::StatusOr<std::unique_ptr<ShapeIdServer>> Bind(const ServerOptions& options);
 
   // Loads every stored gallery, then serves. On error (a damaged store, see
@@ -46,6 +50,14 @@ class ShapeIdServer {
   const LoadReport& load_report() const { return load_report_; }
 
   ~ShapeIdServer();
+
+  // How callers are checked, for the start-up log: "TLS, 2 API keys (...)". No secrets.
+  const std::string& security() const { return security_; }
+  // Calls of the ShapeId service admitted and not yet done (streams until gRPC is done with
+  // them, a moment after their answer).
+  int64_t calls_in_flight() const { return service_->calls_in_flight(); }
+  // "HOST:PORT" of the health-only port (ServerOptions::health_listen), or empty.
+  const std::string& health_address() const { return health_address_; }
 
   // "HOST:PORT" with the port actually bound (useful after listening on port 0).
   const std::string& address() const { return address_; }
@@ -62,8 +74,14 @@ class ShapeIdServer {
   std::shared_ptr<SqliteGalleryStore> store_;  // null when not persistent
   std::shared_ptr<GalleryRegistry> registry_;
   std::unique_ptr<ShapeIdService> service_;
+  // Sets the health of the main port and of the health-only port alike.
+  void SetServing(bool serving);
+
   std::unique_ptr<grpc::Server> server_;
+  std::unique_ptr<grpc::Server> health_server_;  // only with options.health_listen
+  std::string health_address_;
   std::string address_;
+  std::string security_;
   int port_ = 0;
   LoadReport load_report_;
   bool shut_down_ = false;

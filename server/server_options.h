@@ -4,6 +4,7 @@
 #include <string>
 
 #include "core/gallery/gallery_options.h"
+#include "server/security_options.h"
 #include "server/service_options.h"
 
 namespace shapeid {
@@ -14,6 +15,11 @@ struct ServerOptions {
   // HOST:PORT to listen on. Port 0 lets the system pick (the chosen one is in
   // ShapeIdServer::address()). The loopback default keeps a laptop's server private.
   std::string listen = "127.0.0.1:50051";
+  // HOST:PORT of a second, plaintext port that serves only grpc.health.v1 (no keys, no TLS),
+  // mirroring the main port's status. Empty, the default: none. For Kubernetes' native gRPC
+  // probes, which can speak neither TLS nor send metadata, when `listen` has TLS. It tells
+  // anyone who reaches it only SERVING or NOT_SERVING.
+  std::string health_listen;
   // Largest single gRPC message. Clouds stream in chunks, so this bounds one chunk, not a
   // cloud; 16 MiB leaves clients room for chunks far above the recommended 192 KiB.
   int max_message_bytes = 16 << 20;
@@ -25,6 +31,8 @@ struct ServerOptions {
   // (reported at start-up). Off by default: a damaged store stops the server, so that no
   // gallery silently disappears from service.
   bool set_aside_damaged = false;
+  // TLS, API keys, and whether a server open to the network may start (docs/security.md).
+  SecurityOptions security;
   ServiceOptions service;
   // Samples per gallery and number of galleries; points per cloud comes from `service`.
   GalleryLimits gallery_limits;

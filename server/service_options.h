@@ -4,6 +4,7 @@
 #include <cstddef>
 #include <string>
 
+#include "absl/time/time.h"
 #include "core/descriptor_registry.h"
 
 namespace shapeid {
@@ -15,6 +16,20 @@ struct ServiceOptions {
   // few seconds of describing: enough for a dense scan, small enough that one client cannot
   // exhaust the server's memory.
   size_t max_points_per_cloud = 10'000'000;
+  // Samples one Train stream may carry. A stream holds its described samples until it ends
+  // (10,000 x 240 floats is 9.6 MB, times 1 + views with augmentation), and commits them in
+  // one transaction; larger batches belong in several streams. 0: no limit.
+  int64_t max_samples_per_train = 10'000;
+  // Streams (Describe, Train, Classify, ExportGallery, ImportGallery) one client may have open
+  // at once; a client is the peer's IP address (every process of one host counts together).
+  // Each open stream may hold a cloud being assembled, so this bounds what one host can pin.
+  // 64 is far above what the CLI opens (--jobs, default 4). 0: no limit.
+  int max_streams_per_client = 64;
+  // Longest a stream may run: one whose client asked for a later deadline, or none, is ended
+  // DEADLINE_EXCEEDED when this has passed, so an idle or endless stream cannot hold its slot
+  // and memory for ever. Unary calls are bounded by the message size instead. Zero: no
+  // ceiling. Ten minutes fits an export or import of a 10^6-sample gallery over a slow link.
+  absl::Duration max_call = absl::Minutes(10);
   // Spec used by Describe when neither a spec nor a gallery is given.
   std::string default_descriptor_spec = kDefaultDescriptorSpec;
 };

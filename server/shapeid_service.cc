@@ -1,6 +1,7 @@
 #include "server/shapeid_service.h"
 
 #include <memory>
+#include <optional>
 #include <set>
 #include <utility>
 #include <vector>
@@ -11,6 +12,8 @@
 #include "core/descriptor_registry.h"
 #include "core/gallery/gallery.h"
 #include "core/status_macros.h"
+#include "server/call_gate.h"
+#include "server/ceiling_alarm.h"
 #include "server/cloud_assembler.h"
 #include "server/gallery_export.h"
 #include "server/grpc_status.h"
@@ -20,18 +23,17 @@
 namespace shapeid {
 namespace {
 
-// Finishes a unary call with the status `handler` returns (UNAVAILABLE while loading or
-// draining).
+// Full method names, as the call gate's scope table (server/authorization.cc) knows them.
+#define SHAPEID_METHOD(name) "/shapeid.v1.ShapeId/" #name
+
+// Finishes a unary call of `method` with the status `handler` returns, once the call gate has
+// admitted it (key and scope; UNAVAILABLE while loading or draining).
 template <typename Handler>
-grpc::ServerUnaryReactor* Unary(grpc::CallbackServerContext* context, CallTracker& tracker,
-                                Handler handler) {
+grpc::ServerUnaryReactor* Unary(grpc::CallbackServerContext* context, CallGate& gate,
+                                absl::string_view method, Handler handler) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  if (!tracker.Enter()) {
-    reactor->Finish(tracker.Refusal());
-    return reactor;
-  }
-  reactor->Finish(ToGrpcStatus(handler()));
-  tracker.Exit();
+  absl::StatusOr<CallGate::Pass> pass = gate.Admit(*context, method, CallGate::Kind::kUnary);
+  reactor->Finish(ToGrpcStatus(pass.ok() ? handler() : pass.status()));
   return reactor;
 }
 
@@ -70,10 +72,10 @@ absl::Status DescribeInto(const Descriptor& descriptor, const PointCloud& cloud,
 
 class DescribeReactor final : public StreamReactor<v1::DescribeRequest> {
  public:
-  DescribeReactor(grpc::CallbackServerContext* context, CallTracker* tracker,
+  DescribeReactor(grpc::CallbackServerContext* context, CallGate* gate,
                   const ServiceOptions& options, const GalleryRegistry& registry,
                   v1::DescribeResponse* response)
-      : StreamReactor(context, tracker),
+      : StreamReactor(context, gate, SHAPEID_METHOD(Describe)),
         options_(options),
         registry_(registry),
         response_(response),
@@ -126,11 +128,11 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest> {
 // OK, so an error or a cut stream (the reactor dies without OnEnd) publishes nothing.
 class TrainReactor final : public StreamReactor<v1::TrainRequest> {
  public:
-  TrainReactor(grpc::CallbackServerContext* context, CallTracker* tracker,
-               const ServiceOptions& options, const GalleryRegistry& registry,
-               v1::TrainResponse* response)
-      : StreamReactor(context, tracker),
+  TrainReactor(grpc::CallbackServerContext* context, CallGate* gate, const ServiceOptions& options,
+               const GalleryRegistry& registry, v1::TrainResponse* response)
+      : StreamReactor(context, gate, SHAPEID_METHOD(Train)),
         registry_(registry),
+        max_samples_(options.max_samples_per_train),
         response_(response),
         assembler_(options.max_points_per_cloud) {
     StartReading();
@@ -157,6 +159,13 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest> {
         if (batch_ == nullptr) {
           return absl::InvalidArgumentError("Train: the first message must be a TrainHeader");
         }
+        if (max_samples_ > 0 && sample_headers_ >= max_samples_) {
+          return absl::ResourceExhaustedError(absl::StrCat(
+              "Train: the stream carries more than ", max_samples_,
+              " samples, the limit per stream (max_samples_per_train); send them in several "
+              "streams"));
+        }
+        ++sample_headers_;
         SHAPEID_RETURN_IF_ERROR(FinishSample());
         sample_ = request.sample();
         return assembler_.Start(sample_.expected_points());
@@ -206,11 +215,13 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest> {
   }
 
   const GalleryRegistry& registry_;
+  const int64_t max_samples_;
   v1::TrainResponse* response_;
   CloudAssembler assembler_;
   std::unique_ptr<TrainBatch> batch_;
   std::shared_ptr<Gallery> batch_gallery_;
   v1::SampleHeader sample_;
+  int64_t sample_headers_ = 0;
   int64_t samples_ = 0;
   absl::Duration describe_time_;
 };
@@ -244,10 +255,10 @@ absl::Status ClassifyInto(const Gallery& gallery, const PointCloud& cloud,
 
 class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest> {
  public:
-  ClassifyReactor(grpc::CallbackServerContext* context, CallTracker* tracker,
+  ClassifyReactor(grpc::CallbackServerContext* context, CallGate* gate,
                   const ServiceOptions& options, const GalleryRegistry& registry,
                   v1::ClassifyResponse* response)
-      : StreamReactor(context, tracker),
+      : StreamReactor(context, gate, SHAPEID_METHOD(Classify)),
         registry_(registry),
         response_(response),
         assembler_(options.max_points_per_cloud) {
@@ -291,20 +302,29 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest> {
 };
 
 // Streams one snapshot of a gallery, one chunk in flight at a time (gRPC's flow control
-// paces the writes), so memory stays at one chunk whatever the gallery's size.
+// paces the writes), so memory stays at one chunk whatever the gallery's size. Past the
+// server's ceiling (CallGate::CutOff) the next write is not started: the call ends
+// DEADLINE_EXCEEDED. A client that stops reading leaves a write pending for ever, which only
+// cancelling ends: the alarm does that a second after the ceiling.
 class ExportReactor final : public grpc::ServerWriteReactor<v1::GalleryExportChunk> {
  public:
-  ExportReactor(CallTracker* tracker, const GalleryRegistry& registry,
-                const v1::ExportGalleryRequest& request)
-      : tracker_(tracker), entered_(tracker->Enter()) {
-    if (!entered_) {
-      Finish(tracker_->Refusal());
+  ExportReactor(grpc::CallbackServerContext* context, CallGate* gate,
+                const GalleryRegistry& registry, const v1::ExportGalleryRequest& request)
+      : context_(context),
+        max_call_(gate->max_call()),
+        pass_(gate->Admit(*context, SHAPEID_METHOD(ExportGallery), CallGate::Kind::kStream)) {
+    if (!pass_.ok()) {
+      Finish(ToGrpcStatus(pass_.status()));
       return;
     }
     const absl::Status started = Start(registry, request.name());
     if (!started.ok()) {
-      Finish(ToGrpcStatus(started));
+      End(ToGrpcStatus(started));
       return;
+    }
+    if (const std::optional<absl::Time> cut = gate->CutOff(*context)) {
+      cut_at_ = *cut;
+      ceiling_.Arm(*cut + absl::Seconds(1), [this] { context_->TryCancel(); });
     }
     WriteNext();
   }
@@ -318,28 +338,39 @@ class ExportReactor final : public grpc::ServerWriteReactor<v1::GalleryExportChu
   }
 
   void WriteNext() {
-    if (exporter_->Next(&chunk_)) {
-      StartWrite(&chunk_);
+    if (!exporter_->Next(&chunk_)) {
+      End(grpc::Status::OK);
+    } else if (absl::Now() >= cut_at_) {
+      End(ToGrpcStatus(CeilingExceeded(max_call_)));
     } else {
-      Finish(grpc::Status::OK);
+      StartWrite(&chunk_);
     }
   }
 
   void OnWriteDone(bool ok) override {
     if (!ok) {  // cancelled, past its deadline, or the client went away: stop streaming
-      Finish(grpc::Status(grpc::StatusCode::CANCELLED, "the export was cancelled"));
+      End(grpc::Status(grpc::StatusCode::CANCELLED, "the export was cancelled"));
       return;
     }
     WriteNext();
   }
 
+  // Finish, with the client's stream slot freed first (CallGate::Pass::ReleaseSlot).
+  void End(const grpc::Status& status) {
+    pass_->ReleaseSlot();
+    Finish(status);
+  }
+
   void OnDone() override {
-    if (entered_) tracker_->Exit();
+    ceiling_.Disarm();
     delete this;
   }
 
-  CallTracker* const tracker_;
-  const bool entered_;
+  grpc::CallbackServerContext* const context_;
+  const absl::Duration max_call_;
+  absl::StatusOr<CallGate::Pass> pass_;
+  absl::Time cut_at_ = absl::InfiniteFuture();
+  CeilingAlarm ceiling_;
   std::unique_ptr<GalleryExporter> exporter_;
   v1::GalleryExportChunk chunk_;
 };
@@ -349,9 +380,9 @@ class ExportReactor final : public grpc::ServerWriteReactor<v1::GalleryExportChu
 // ends complete and undamaged.
 class ImportReactor final : public StreamReactor<v1::ImportGalleryRequest> {
  public:
-  ImportReactor(grpc::CallbackServerContext* context, CallTracker* tracker,
-                GalleryRegistry& registry, v1::Gallery* response)
-      : StreamReactor(context, tracker),
+  ImportReactor(grpc::CallbackServerContext* context, CallGate* gate, GalleryRegistry& registry,
+                v1::Gallery* response)
+      : StreamReactor(context, gate, SHAPEID_METHOD(ImportGallery)),
         registry_(registry),
         response_(response),
         assembler_(registry.limits().max_samples_per_gallery) {
@@ -390,17 +421,17 @@ class ImportReactor final : public StreamReactor<v1::ImportGalleryRequest> {
 
 grpc::ServerReadReactor<v1::DescribeRequest>* ShapeIdService::Describe(
     grpc::CallbackServerContext* context, v1::DescribeResponse* response) {
-  return new DescribeReactor(context, &tracker_, options_, *registry_, response);
+  return new DescribeReactor(context, &gate_, options_, *registry_, response);
 }
 
 grpc::ServerReadReactor<v1::TrainRequest>* ShapeIdService::Train(
     grpc::CallbackServerContext* context, v1::TrainResponse* response) {
-  return new TrainReactor(context, &tracker_, options_, *registry_, response);
+  return new TrainReactor(context, &gate_, options_, *registry_, response);
 }
 
 grpc::ServerReadReactor<v1::ClassifyRequest>* ShapeIdService::Classify(
     grpc::CallbackServerContext* context, v1::ClassifyResponse* response) {
-  return new ClassifyReactor(context, &tracker_, options_, *registry_, response);
+  return new ClassifyReactor(context, &gate_, options_, *registry_, response);
 }
 
 absl::StatusOr<PointCloud> ShapeIdService::CloudInOneMessage(uint64_t expected_points,
@@ -415,7 +446,7 @@ absl::StatusOr<PointCloud> ShapeIdService::CloudInOneMessage(uint64_t expected_p
 grpc::ServerUnaryReactor* ShapeIdService::DescribeCloud(grpc::CallbackServerContext* context,
                                                         const v1::DescribeCloudRequest* request,
                                                         v1::DescribeResponse* response) {
-  return Unary(context, tracker_, [&]() -> absl::Status {
+  return Unary(context, gate_, SHAPEID_METHOD(DescribeCloud), [&]() -> absl::Status {
     SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<const Descriptor> descriptor,
                              DescriptorToUse(request->header(), options_, *registry_));
     SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud,
@@ -428,7 +459,7 @@ grpc::ServerUnaryReactor* ShapeIdService::DescribeCloud(grpc::CallbackServerCont
 grpc::ServerUnaryReactor* ShapeIdService::ClassifyCloud(grpc::CallbackServerContext* context,
                                                         const v1::ClassifyCloudRequest* request,
                                                         v1::ClassifyResponse* response) {
-  return Unary(context, tracker_, [&]() -> absl::Status {
+  return Unary(context, gate_, SHAPEID_METHOD(ClassifyCloud), [&]() -> absl::Status {
     if (!request->has_header()) {
       return absl::InvalidArgumentError("ClassifyCloud: the request has no header");
     }
@@ -444,7 +475,7 @@ grpc::ServerUnaryReactor* ShapeIdService::ClassifyCloud(grpc::CallbackServerCont
 grpc::ServerUnaryReactor* ShapeIdService::CreateGallery(grpc::CallbackServerContext* context,
                                                         const v1::CreateGalleryRequest* request,
                                                         v1::Gallery* response) {
-  return Unary(context, tracker_, [&]() -> absl::Status {
+  return Unary(context, gate_, SHAPEID_METHOD(CreateGallery), [&]() -> absl::Status {
     SHAPEID_ASSIGN_OR_RETURN(const GalleryOptions options, GalleryOptionsFromProto(*request));
     SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
                              registry_->Create(request->name(), options));
@@ -456,7 +487,7 @@ grpc::ServerUnaryReactor* ShapeIdService::CreateGallery(grpc::CallbackServerCont
 grpc::ServerUnaryReactor* ShapeIdService::GetGallery(grpc::CallbackServerContext* context,
                                                      const v1::GetGalleryRequest* request,
                                                      v1::Gallery* response) {
-  return Unary(context, tracker_, [&]() -> absl::Status {
+  return Unary(context, gate_, SHAPEID_METHOD(GetGallery), [&]() -> absl::Status {
     SHAPEID_RETURN_IF_ERROR(RequireGalleryName("GetGallery", request->name()));
     SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
                              registry_->Get(request->name()));
@@ -468,7 +499,7 @@ grpc::ServerUnaryReactor* ShapeIdService::GetGallery(grpc::CallbackServerContext
 grpc::ServerUnaryReactor* ShapeIdService::ListGalleries(grpc::CallbackServerContext* context,
                                                         const v1::ListGalleriesRequest* /*request*/,
                                                         v1::ListGalleriesResponse* response) {
-  return Unary(context, tracker_, [&]() -> absl::Status {
+  return Unary(context, gate_, SHAPEID_METHOD(ListGalleries), [&]() -> absl::Status {
     for (const std::string& name : registry_->List()) {
       auto gallery = registry_->Get(name);
       if (!gallery.ok()) continue;  // deleted since List: not an error for the caller
@@ -481,7 +512,7 @@ grpc::ServerUnaryReactor* ShapeIdService::ListGalleries(grpc::CallbackServerCont
 grpc::ServerUnaryReactor* ShapeIdService::DeleteGallery(grpc::CallbackServerContext* context,
                                                         const v1::DeleteGalleryRequest* request,
                                                         v1::DeleteGalleryResponse* response) {
-  return Unary(context, tracker_, [&]() -> absl::Status {
+  return Unary(context, gate_, SHAPEID_METHOD(DeleteGallery), [&]() -> absl::Status {
     SHAPEID_RETURN_IF_ERROR(RequireGalleryName("DeleteGallery", request->name()));
     SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
                              registry_->Get(request->name()));
@@ -495,7 +526,7 @@ grpc::ServerUnaryReactor* ShapeIdService::DeleteGallery(grpc::CallbackServerCont
 grpc::ServerUnaryReactor* ShapeIdService::RemoveSamples(grpc::CallbackServerContext* context,
                                                         const v1::RemoveSamplesRequest* request,
                                                         v1::RemoveSamplesResponse* response) {
-  return Unary(context, tracker_, [&]() -> absl::Status {
+  return Unary(context, gate_, SHAPEID_METHOD(RemoveSamples), [&]() -> absl::Status {
     SHAPEID_RETURN_IF_ERROR(RequireGalleryName("RemoveSamples", request->gallery()));
     SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
                              registry_->Get(request->gallery()));
@@ -523,19 +554,19 @@ grpc::ServerUnaryReactor* ShapeIdService::RemoveSamples(grpc::CallbackServerCont
 }
 
 grpc::ServerWriteReactor<v1::GalleryExportChunk>* ShapeIdService::ExportGallery(
-    grpc::CallbackServerContext* /*context*/, const v1::ExportGalleryRequest* request) {
-  return new ExportReactor(&tracker_, *registry_, *request);
+    grpc::CallbackServerContext* context, const v1::ExportGalleryRequest* request) {
+  return new ExportReactor(context, &gate_, *registry_, *request);
 }
 
 grpc::ServerReadReactor<v1::ImportGalleryRequest>* ShapeIdService::ImportGallery(
     grpc::CallbackServerContext* context, v1::Gallery* response) {
-  return new ImportReactor(context, &tracker_, *registry_, response);
+  return new ImportReactor(context, &gate_, *registry_, response);
 }
 
 grpc::ServerUnaryReactor* ShapeIdService::ListDescriptors(
     grpc::CallbackServerContext* context, const v1::ListDescriptorsRequest* /*request*/,
     v1::ListDescriptorsResponse* response) {
-  return Unary(context, tracker_, [&]() -> absl::Status {
+  return Unary(context, gate_, SHAPEID_METHOD(ListDescriptors), [&]() -> absl::Status {
     for (const DescriptorKind& kind : RegisteredDescriptors()) {
       v1::DescriptorKind* out = response->add_descriptors();
       out->set_kind(kind.kind);

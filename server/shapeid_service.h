@@ -8,6 +8,8 @@
 #include "absl/strings/string_view.h"
 #include "core/gallery/gallery_registry.h"
 #include "core/point_cloud.h"
+#include "server/api_keys.h"
+#include "server/call_gate.h"
 #include "server/service_options.h"
 #include "server/stream_reactor.h"
 #include "shapeid/v1/shapeid.grpc.pb.h"
@@ -20,10 +22,17 @@ namespace shapeid {
 //
 // The streaming methods do their CPU work (describing a cloud) on gRPC's callback threads
 // when the stream ends; a 100,000-point cloud costs about 2 ms there.
+//
+// Every call passes the call gate first (server/call_gate.h): with `keys` non-empty, its API
+// key must cover the method's scope (server/authorization.h); streams are counted per client
+// and ended at the ceiling of `options`.
 class ShapeIdService final : public v1::ShapeId::CallbackService {
  public:
-  ShapeIdService(ServiceOptions options, std::shared_ptr<GalleryRegistry> registry)
-      : options_(std::move(options)), registry_(std::move(registry)) {}
+  ShapeIdService(ServiceOptions options, std::shared_ptr<GalleryRegistry> registry,
+                 std::shared_ptr<const ApiKeyStore> keys = nullptr)
+      : options_(std::move(options)),
+        registry_(std::move(registry)),
+        gate_(std::move(keys), options_.max_streams_per_client, options_.max_call) {}
 
   grpc::ServerReadReactor<v1::DescribeRequest>* Describe(grpc::CallbackServerContext* context,
                                                          v1::DescribeResponse* response) override;
@@ -68,20 +77,20 @@ class ShapeIdService final : public v1::ShapeId::CallbackService {
 
   // Refuses every call with UNAVAILABLE "loading" until StartServing (a new service serves
   // at once; the server holds it while it loads galleries from the store).
-  void HoldUntilLoaded() { tracker_.SetState(CallTracker::State::kLoading); }
-  void StartServing() { tracker_.SetState(CallTracker::State::kServing); }
+  void HoldUntilLoaded() { gate_.tracker().SetState(CallTracker::State::kLoading); }
+  void StartServing() { gate_.tracker().SetState(CallTracker::State::kServing); }
   // Refuses new calls (UNAVAILABLE) from now on; calls already running continue.
-  void StartDraining() { tracker_.StartDraining(); }
-  int64_t calls_in_flight() const { return tracker_.in_flight(); }
+  void StartDraining() { gate_.tracker().StartDraining(); }
+  int64_t calls_in_flight() const { return gate_.tracker().in_flight(); }
 
  private:
   // The cloud of a DescribeCloud or ClassifyCloud request, checked as a stream's would be.
   absl::StatusOr<PointCloud> CloudInOneMessage(uint64_t expected_points,
                                                absl::string_view xyz) const;
 
-  CallTracker tracker_;
   const ServiceOptions options_;
   const std::shared_ptr<GalleryRegistry> registry_;
+  CallGate gate_;
 };
 
 }  // namespace shapeid

@@ -1,78 +1,47 @@
 #ifndef SHAPEID_SERVER_STREAM_REACTOR_H_
 #define SHAPEID_SERVER_STREAM_REACTOR_H_
 
-#include <atomic>
-#include <cstdint>
+#include <mutex>
+#include <optional>
 
+#include "absl/base/thread_annotations.h"
 #include "absl/status/status.h"
+#include "absl/strings/string_view.h"
 #include "grpcpp/grpcpp.h"
+#include "server/call_gate.h"
+#include "server/ceiling_alarm.h"
 #include "server/grpc_status.h"
 
 namespace shapeid {
 
-// Counts the calls in progress so a shutdown can drain them, and refuses calls while the
-// server is not ready: before its galleries are loaded (a client must not see an empty
-// registry and conclude a gallery is gone) and once draining has started (the server waits
-// only for the calls already running). gRPC's own Server::Shutdown(deadline) also waits for
-// idle client connections, which robots keep open, so on its own it would always take the full
-// grace period.
-class CallTracker {
- public:
-  enum class State { kLoading, kServing, kDraining };
-
-  // Registers a call; false (and nothing registered) unless serving.
-  bool Enter() {
-    in_flight_.fetch_add(1);
-    if (state_.load() != State::kServing) {
-      Exit();
-      return false;
-    }
-    return true;
-  }
-  void Exit() { in_flight_.fetch_sub(1); }
-  // kLoading -> kServing; draining is final.
-  void SetState(State state) {
-    State expected = state_.load();
-    while (expected != State::kDraining && !state_.compare_exchange_weak(expected, state)) {
-    }
-  }
-  void StartDraining() { state_.store(State::kDraining); }
-  int64_t in_flight() const { return in_flight_.load(); }
-
-  // The status a refused call gets.
-  grpc::Status Refusal() const {
-    if (state_.load() == State::kLoading) {
-      return grpc::Status(grpc::StatusCode::UNAVAILABLE,
-                          "the server is loading its galleries; retry shortly");
-    }
-    return grpc::Status(grpc::StatusCode::UNAVAILABLE,
-                        "the server is shutting down; retry on another replica or shortly");
-  }
-
- private:
-  std::atomic<int64_t> in_flight_{0};
-  std::atomic<State> state_{State::kServing};
-};
-
-// The shape every client-streaming RPC of the service shares: read messages one by one,
-// hand each to OnMessage, and when the client half-closes, answer with OnEnd. The first error
-// either returns ends the call at once with that status (the rest of the stream is not read).
-// A cancelled call (client gone, deadline passed) ends without calling OnEnd, so a cut Train
-// stream publishes nothing. Deletes itself when gRPC is done with it.
+// The shape every client-streaming RPC of the service shares: pass the call gate, read
+// messages one by one, hand each to OnMessage, and when the client half-closes, answer with
+// OnEnd. The first error either returns ends the call at once with that status (the rest of
+// the stream is not read). A cancelled call (client gone, deadline passed) ends without
+// calling OnEnd, so a cut Train stream publishes nothing. A stream still reading at the
+// server's ceiling (CallGate::CutOff) is ended DEADLINE_EXCEEDED, also without OnEnd; once
+// OnEnd has started, the call is left to finish with its answer. Deletes itself when gRPC is
+// done with it.
 template <typename Request>
 class StreamReactor : public grpc::ServerReadReactor<Request> {
  public:
-  StreamReactor(grpc::CallbackServerContext* context, CallTracker* tracker)
-      : context_(context), tracker_(tracker), entered_(tracker->Enter()) {}
+  StreamReactor(grpc::CallbackServerContext* context, CallGate* gate, absl::string_view method)
+      : context_(context),
+        gate_(gate),
+        pass_(gate->Admit(*context, method, CallGate::Kind::kStream)) {}
 
-  // Call once, at the end of the derived constructor: starts reading, or refuses the call
-  // when the server is draining.
+  // Call once, at the end of the derived constructor: starts reading, or refuses the call.
   void StartReading() {
-    if (entered_) {
-      this->StartRead(&request_);
-    } else {
-      this->Finish(tracker_->Refusal());
+    if (!pass_.ok()) {
+      std::lock_guard<std::mutex> lock(mu_);
+      FinishLocked(ToGrpcStatus(pass_.status()));
+      return;
     }
+    if (const std::optional<absl::Time> cut = gate_->CutOff(*context_)) {
+      ceiling_.Arm(*cut, [this] { Cut(); });
+    }
+    std::lock_guard<std::mutex> lock(mu_);
+    if (state_ == State::kReading) this->StartRead(&request_);
   }
 
  protected:
@@ -80,32 +49,62 @@ class StreamReactor : public grpc::ServerReadReactor<Request> {
   virtual absl::Status OnEnd() = 0;
 
  private:
+  enum class State { kReading, kEnding, kFinished };
+
+  // gRPC runs neither OnReadDone nor OnDone inside StartRead or Finish (their reactions are
+  // scheduled), so calling them under mu_ cannot deadlock.
+  void FinishLocked(const grpc::Status& status) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
+    state_ = State::kFinished;
+    if (pass_.ok()) pass_->ReleaseSlot();
+    this->Finish(status);
+  }
+
   void OnReadDone(bool ok) override {
     if (!ok) {
-      if (context_->IsCancelled()) {
-        this->Finish(grpc::Status(grpc::StatusCode::CANCELLED, "the call was cancelled"));
-      } else {
-        this->Finish(ToGrpcStatus(OnEnd()));
+      {
+        std::lock_guard<std::mutex> lock(mu_);
+        if (state_ != State::kReading) return;  // cut at the ceiling
+        state_ = State::kEnding;                // from here the ceiling leaves the call alone
       }
+      const grpc::Status status =
+          context_->IsCancelled()
+              ? grpc::Status(grpc::StatusCode::CANCELLED, "the call was cancelled")
+              : ToGrpcStatus(OnEnd());
+      std::lock_guard<std::mutex> lock(mu_);
+      FinishLocked(status);
       return;
     }
+    // The ceiling may end the call while OnMessage works; its work is then dropped.
     const absl::Status status = OnMessage(request_);
+    std::lock_guard<std::mutex> lock(mu_);
+    if (state_ != State::kReading) return;
     if (!status.ok()) {
-      this->Finish(ToGrpcStatus(status));
+      FinishLocked(ToGrpcStatus(status));
       return;
     }
     request_.Clear();
     this->StartRead(&request_);
   }
 
-  void OnDone() override {
-    if (entered_) tracker_->Exit();
-    delete this;
+  // The ceiling alarm. Finishing with a read outstanding is allowed; that read then ends
+  // with ok = false.
+  void Cut() {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (state_ != State::kReading) return;
+    FinishLocked(ToGrpcStatus(CeilingExceeded(gate_->max_call())));
   }
 
-  grpc::CallbackServerContext* context_;
-  CallTracker* tracker_;
-  const bool entered_;
+  void OnDone() override {
+    ceiling_.Disarm();
+    delete this;  // releases the pass: out of the in-flight count, the stream slot free
+  }
+
+  grpc::CallbackServerContext* const context_;
+  CallGate* const gate_;
+  absl::StatusOr<CallGate::Pass> pass_;
+  CeilingAlarm ceiling_;
+  std::mutex mu_;
+  State state_ ABSL_GUARDED_BY(mu_) = State::kReading;
   Request request_;
 };
 

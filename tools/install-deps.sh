@@ -20,8 +20,13 @@ packages=(
   libtinyobjloader-dev
   # the embedded gallery store (server/storage): SQLite, WAL mode, synchronous commits
   libsqlite3-dev
+  # security (server/api_keys.cc, server/security.cc): libcrypto's SHA-256, CRYPTO_memcmp and
+  # RAND_bytes for API keys, and the start-up check of TLS files; gRPC uses the same OpenSSL
+  libssl-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
+  # the security tests make their certificates with the openssl CLI (tests/make_test_certificates.sh)
+  openssl
   # Python interop test (tests/python): a client generated from the proto with grpc_python_plugin,
   # run by Debian's /usr/bin/python3
   python3-grpcio python3-protobuf

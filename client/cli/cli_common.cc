@@ -4,10 +4,13 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <thread>
 #include <utility>
 
+#include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 
@@ -48,7 +51,9 @@ void PrintError(std::FILE* err, absl::string_view what, const absl::Status& stat
   std::string line = absl::StrCat("shapeid: ", what, what.empty() ? "" : ": ", status.message());
   if (absl::IsUnavailable(status) && !target.empty()) {
     absl::StrAppend(&line, " (is shapeid-server running at ", target,
-                    "? set --server or SHAPEID_SERVER)");
+                    "? set --server or SHAPEID_SERVER; a TLS server needs --tls-ca)");
+  } else if (absl::IsUnauthenticated(status)) {
+    absl::StrAppend(&line, " (give the key in SHAPEID_API_KEY or --api-key-file)");
   }
   line += '\n';
   WriteAll(err, line);
@@ -57,10 +62,36 @@ void PrintError(std::FILE* err, absl::string_view what, const absl::Status& stat
 std::unique_ptr<Client> ConnectOrReport(const CliContext& context) {
   absl::StatusOr<std::unique_ptr<Client>> client = Client::Connect(context.client);
   if (!client.ok()) {
-    PrintError(context.err, "--server", client.status());
+    PrintError(context.err, "connecting", client.status());
     return nullptr;
   }
   return std::move(client).value();
+}
+
+absl::StatusOr<std::string> ReadApiKeyFile(const std::string& path) {
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (f == nullptr) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("cannot read the API key file '", path, "': ", std::strerror(errno)));
+  }
+  std::string text;
+  char buf[4096];
+  size_t n;
+  while ((n = std::fread(buf, 1, sizeof(buf), f)) > 0 && text.size() < (1 << 16)) {
+    text.append(buf, n);
+  }
+  std::fclose(f);
+  const absl::string_view key = absl::StripAsciiWhitespace(text);
+  if (key.empty()) {
+    return absl::InvalidArgumentError(absl::StrCat("the API key file '", path, "' is empty"));
+  }
+  for (char c : key) {
+    if (c <= ' ' || c == 0x7f) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "the API key file '", path, "' holds more than one word; it must hold only the key"));
+    }
+  }
+  return std::string(key);
 }
 
 bool WriteAll(std::FILE* file, absl::string_view text) {

@@ -50,7 +50,9 @@ struct CliContext {
   std::FILE* err = stderr;
   OutputFormat format = OutputFormat::kTable;
   ProgressMode progress = ProgressMode::kAuto;
-  ClientOptions client;  // target from --server / SHAPEID_SERVER, deadline from --timeout
+  // target from --server / SHAPEID_SERVER, deadline from --timeout, TLS from --tls*, the key
+  // from SHAPEID_API_KEY / --api-key-file
+  ClientOptions client;
 };
 
 // The exit code for a command that failed as a whole with `status`: UNAVAILABLE and
@@ -67,8 +69,14 @@ bool StopsBatch(const absl::Status& status);
 void PrintError(std::FILE* err, absl::string_view what, const absl::Status& status,
                 const std::string& target = "");
 
-// Connects, mapping a bad option to a usage error line. Null and an error line on failure.
+// Connects, mapping a bad option (target, TLS file, API key) to a usage error line. Null and
+// an error line on failure.
 std::unique_ptr<Client> ConnectOrReport(const CliContext& context);
+
+// The API key held in the file `path` (--api-key-file): its whole content, surrounding
+// whitespace ignored. InvalidArgument when it cannot be read, is empty or holds more than one
+// word; the message names the file, never its content.
+absl::StatusOr<std::string> ReadApiKeyFile(const std::string& path);
 
 // Writes `text` to `file`; false if the stream is in error afterwards.
 bool WriteAll(std::FILE* file, absl::string_view text);

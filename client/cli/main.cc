@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <string>
+#include <utility>
 
 #include "CLI/CLI.hpp"
 #include "client/cli/cli_common.h"
@@ -17,8 +18,14 @@ namespace {
 
 constexpr char kMainFooter[] =
     "Server: --server HOST:PORT, or the SHAPEID_SERVER environment variable (default\n"
-    "127.0.0.1:50051). Global flags (--server, --timeout, --format, --quiet) go before or\n"
-    "after the command.\n"
+    "127.0.0.1:50051). Global flags (--server, --timeout, --format, --quiet, --tls*,\n"
+    "--api-key-file) go before or after the command.\n"
+    "\n"
+    "Secure servers (docs/security.md): the API key comes from SHAPEID_API_KEY or\n"
+    "--api-key-file (not a flag of its own: command lines are visible to every user of the\n"
+    "machine); --tls-ca CA.pem (SHAPEID_TLS_CA) turns TLS on and trusts that CA, --tls alone\n"
+    "trusts the system's CAs; --tls-client-cert/--tls-client-key\n"
+    "(SHAPEID_TLS_CLIENT_CERT/_KEY) for mutual TLS.\n"
     "\n"
     "Output (--format): table for people (default), json (one JSON object per line) for\n"
     "scripts, csv (header row, RFC 4180) for spreadsheets. Results go to stdout; errors and\n"
@@ -109,6 +116,27 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"table", "text", "json", "csv"}))
       ->capture_default_str();
   app.add_flag("--quiet,-q", quiet, "No progress or summary lines on stderr");
+  std::string api_key_file;
+  app.add_option("--api-key-file", api_key_file,
+                 "File holding the API key to send (instead of SHAPEID_API_KEY)")
+      ->envname("SHAPEID_API_KEY_FILE");
+  app.add_flag("--tls", context.client.tls,
+               "Connect with TLS, trusting the system's CAs (implied by --tls-ca)")
+      ->envname("SHAPEID_TLS");
+  app.add_option("--tls-ca", context.client.tls_ca_file,
+                 "PEM file of the CA that signs the server's certificate; turns TLS on")
+      ->envname("SHAPEID_TLS_CA");
+  // Not SHAPEID_TLS_CERT/_KEY: those are the server's own certificate (shapeid-server
+  // --tls_cert), and a container that runs both must not mix them up.
+  app.add_option("--tls-client-cert", context.client.tls_cert_file,
+                 "PEM certificate of this client, for servers that require one (mutual TLS)")
+      ->envname("SHAPEID_TLS_CLIENT_CERT");
+  app.add_option("--tls-client-key", context.client.tls_key_file,
+                 "PEM private key of --tls-client-cert")
+      ->envname("SHAPEID_TLS_CLIENT_KEY");
+  app.add_option("--tls-server-name", context.client.tls_server_name,
+                 "Name the server's certificate must carry, when not the --server host")
+      ->envname("SHAPEID_TLS_SERVER_NAME");
 
   // describe
   shapeid::DescribeOptions describe;
@@ -273,6 +301,24 @@ int main(int argc, char** argv) {
   context.format = *shapeid::ParseOutputFormat(format);  // checked by IsMember above
   context.progress = quiet ? shapeid::ProgressMode::kOff : shapeid::ProgressMode::kAuto;
   context.client.deadline = absl::Seconds(timeout_seconds);
+  // The key: from the environment only, or from a file; never echoed.
+  if (const char* key = std::getenv("SHAPEID_API_KEY"); key != nullptr && *key) {
+    context.client.api_key = key;
+  }
+  if (!api_key_file.empty()) {
+    if (!context.client.api_key.empty()) {
+      std::fprintf(stderr,
+                   "shapeid: both SHAPEID_API_KEY and --api-key-file (or SHAPEID_API_KEY_FILE) "
+                   "are set; keep one\n");
+      return shapeid::kExitUsage;
+    }
+    absl::StatusOr<std::string> key = shapeid::ReadApiKeyFile(api_key_file);
+    if (!key.ok()) {
+      std::fprintf(stderr, "shapeid: %s\n", std::string(key.status().message()).c_str());
+      return shapeid::kExitUsage;
+    }
+    context.client.api_key = *std::move(key);
+  }
 
   if (*describe_cmd) return shapeid::RunDescribe(describe, context);
   if (*create_cmd) return shapeid::RunGalleryCreate(create, context);
