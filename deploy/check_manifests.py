@@ -83,7 +83,8 @@ KUSTOMIZATION = {"apiVersion", "kind", "resources", "images", "labels", "commonL
                  "configMapGenerator", "secretGenerator", "generatorOptions", "replicas",
                  "components"}
 KINDS = {"ConfigMap": "v1", "Service": "v1", "PersistentVolumeClaim": "v1",
-         "Deployment": "apps/v1"}
+         "Secret": "v1", "Deployment": "apps/v1"}
+SECRET = {"apiVersion", "kind", "metadata", "type", "data", "stringData", "immutable"}
 COMPOSE_TOP = {"name", "services", "volumes", "networks", "configs", "secrets", "version",
                "include"}
 # The fields of a Compose service these checks understand; others are reported so that a typo
@@ -410,6 +411,33 @@ def check_k8s(c, k8s_dir, image):
                     is None:
                 c.error(file, "resources.requests.storage missing or not a quantity")
             claims.add(name)
+    secrets = set()
+    for (kind, name), (file, doc) in objects.items():
+        if kind == "Secret":
+            c.fields(f"{file} Secret", doc, SECRET)
+            for key, value in (doc.get("stringData") or {}).items():
+                if not isinstance(value, str):
+                    c.error(f"{file} Secret", f"stringData.{key} must be a string")
+            secrets.add(name)
+    # The server's own rule (docs/security.md): a listen address other than loopback needs
+    # API keys or TLS, or an explicit SHAPEID_INSECURE; otherwise the pod would crash-loop.
+    for name, data in configmaps.items():
+        listen = data.get("SHAPEID_LISTEN", "")
+        if listen and not listen.startswith(("127.", "localhost:", "[::1]")) and not (
+                data.get("SHAPEID_API_KEYS_FILE") or data.get("SHAPEID_TLS_CERT")
+                or data.get("SHAPEID_INSECURE", "false").lower() == "true"):
+            c.error(f"ConfigMap {name}", f"SHAPEID_LISTEN {listen} without SHAPEID_API_KEYS_FILE "
+                    "or SHAPEID_TLS_CERT: the server refuses to start")
+    for (kind, _), (file, doc) in objects.items():
+        if kind != "Deployment":
+            continue
+        volumes = ((((doc.get("spec") or {}).get("template") or {}).get("spec") or {})
+                   .get("volumes") or [])
+        for volume in volumes:
+            secret = (volume.get("secret") or {}).get("secretName") if isinstance(volume, dict) \
+                else None
+            if secret is not None and secret not in secrets:
+                c.error(f"{file} Deployment", f"Secret '{secret}' is not defined")
     deployments = [check_deployment(c, f"{file} Deployment", doc, configmaps, claims, image)
                    for (kind, _), (file, doc) in objects.items() if kind == "Deployment"]
     if not deployments:
