@@ -246,8 +246,7 @@ absl::Status KnnIndex::Remove(absl::Span<const uint64_t> ids) {
 
 KnnIndex::ApproximateStep KnnIndex::PlanApproximate(const ApproximateOptions& options,
                                                     FeatureScaling scaling) const {
-  // The lists hold whole blocks only, so the exact tail starts on a block boundary.
-  const int64_t whole_blocks = num_rows() / kBlockLanes * kBlockLanes;
+  const int64_t whole_blocks = WholeBlockRows();
   if (options.min_vectors == 0 || num_rows() < options.min_vectors ||
       dim_ <= knn_internal::kKdTreeMaxDimension || whole_blocks == 0) {
     return lists_ != nullptr ? ApproximateStep::kDrop : ApproximateStep::kNothing;
@@ -279,7 +278,7 @@ absl::Status KnnIndex::UpdateApproximate(const ApproximateOptions& options,
     return absl::InvalidArgumentError(
         absl::StrCat("invalid feature scaling value ", static_cast<int>(scaling)));
   }
-  const int64_t whole_blocks = num_rows() / kBlockLanes * kBlockLanes;
+  const int64_t whole_blocks = WholeBlockRows();
   const int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   const float* scale = ScaleData(scaling);
   switch (PlanApproximate(options, scaling)) {

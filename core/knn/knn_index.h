@@ -237,6 +237,11 @@ class KnnIndex {
   // What UpdateApproximate has to do (valid options).
   enum class ApproximateStep { kNothing, kDrop, kBuild, kExtend };
   ApproximateStep PlanApproximate(const ApproximateOptions& options, FeatureScaling scaling) const;
+  // Rows in whole blocks: what inverted lists hold, so the exact tail starts on a block
+  // boundary.
+  int64_t WholeBlockRows() const {
+    return num_rows() / knn_internal::kBlockLanes * knn_internal::kBlockLanes;
+  }
   // The nearest distinct samples' best (squared distance, row, query), best first. Queries
   // already validated. Sets *approximate (if not null) when the lists were read.
   std::vector<knn_internal::Candidate> FindNearest(absl::Span<const float> queries, int k,

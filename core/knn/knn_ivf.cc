@@ -16,9 +16,8 @@ void CopyRow(const BlockedView& view, int64_t row, float* out) {
 
 // Row-major vectors into blocked storage (zero-padded to whole blocks).
 AlignedFloats ToBlocked(const std::vector<float>& rows, int64_t count, int dim) {
-  AlignedFloats blocked(static_cast<std::size_t>((count + kBlockLanes - 1) / kBlockLanes) *
-                            BlockFloats(dim),
-                        0.0f);
+  AlignedFloats blocked(
+      static_cast<std::size_t>((count + kBlockLanes - 1) / kBlockLanes) * BlockFloats(dim), 0.0f);
   for (int64_t r = 0; r < count; ++r) {
     for (int j = 0; j < dim; ++j) {
       blocked[FeatureOffset(r, dim, j)] = rows[static_cast<std::size_t>(r * dim + j)];
@@ -43,15 +42,23 @@ void ParallelRanges(int64_t count, int threads, const Body& body) {
 
 }  // namespace
 
-BlockedView InvertedLists::List(int list) const {
-  const std::size_t l = static_cast<std::size_t>(list);
-  return BlockedView{data_.data() + static_cast<std::size_t>(list_start_[l] / kBlockLanes) *
-                                        BlockFloats(dim_),
-                     list_size_[l], dim_, 0, row_ids_.data() + list_start_[l]};
+std::shared_ptr<InvertedLists> InvertedLists::WithSameCells() const {
+  std::shared_ptr<InvertedLists> ivf(new InvertedLists());
+  ivf->dim_ = dim_;
+  ivf->num_centroids_ = num_centroids_;
+  ivf->centroids_ = centroids_;
+  return ivf;
 }
 
-void InvertedLists::Assign(SimdLevel level, const float* vectors, int64_t count,
-                           const float* scale, int threads, int32_t* cell) const {
+BlockedView InvertedLists::List(int list) const {
+  const std::size_t l = static_cast<std::size_t>(list);
+  return BlockedView{
+      data_.data() + static_cast<std::size_t>(list_start_[l] / kBlockLanes) * BlockFloats(dim_),
+      list_size_[l], dim_, 0, row_ids_.data() + list_start_[l]};
+}
+
+void InvertedLists::Assign(SimdLevel level, const float* vectors, int64_t count, const float* scale,
+                           int threads, int32_t* cell) const {
   const BlockedView centroids = Centroids();
   ParallelRanges(count, threads, [&](int64_t begin, int64_t end) {
     for (int64_t i = begin; i < end; ++i) {
@@ -80,7 +87,8 @@ void InvertedLists::Fill(const BlockedView& gallery, int64_t rows,
   row_ids_.assign(static_cast<std::size_t>(stored), -1);
   std::vector<int64_t> next = list_start_;
   for (int64_t row = 0; row < rows; ++row) {
-    const int64_t dst = next[static_cast<std::size_t>(cell_of_row_[static_cast<std::size_t>(row)])]++;
+    const int64_t dst =
+        next[static_cast<std::size_t>(cell_of_row_[static_cast<std::size_t>(row)])]++;
     row_ids_[static_cast<std::size_t>(dst)] = row;
     for (int j = 0; j < dim_; ++j) {
       data_[FeatureOffset(dst, dim_, j)] = gallery.data[FeatureOffset(row, dim_, j)];
@@ -89,11 +97,13 @@ void InvertedLists::Fill(const BlockedView& gallery, int64_t rows,
 }
 
 std::shared_ptr<const InvertedLists> InvertedLists::Build(SimdLevel level,
-                                                          const BlockedView& gallery,
-                                                          int64_t rows, const float* scale,
-                                                          int lists, int threads,
+                                                          const BlockedView& gallery, int64_t rows,
+                                                          const float* scale, int lists,
+                                                          int threads,
                                                           const std::atomic<bool>* cancel) {
-  auto cancelled = [cancel] { return cancel != nullptr && cancel->load(std::memory_order_relaxed); };
+  auto cancelled = [cancel] {
+    return cancel != nullptr && cancel->load(std::memory_order_relaxed);
+  };
   std::shared_ptr<InvertedLists> ivf(new InvertedLists());
   const int d = gallery.dim;
   const std::size_t dim = static_cast<std::size_t>(d);
@@ -105,7 +115,8 @@ std::shared_ptr<const InvertedLists> InvertedLists::Build(SimdLevel level,
   // class, so a prefix would miss whole classes. Deterministic, unlike a random sample.
   const int64_t m = std::min(rows, k * kTrainRowsPerList);
   std::vector<float> train(static_cast<std::size_t>(m) * dim);
-  for (int64_t i = 0; i < m; ++i) CopyRow(gallery, i * rows / m, &train[static_cast<std::size_t>(i) * dim]);
+  for (int64_t i = 0; i < m; ++i)
+    CopyRow(gallery, i * rows / m, &train[static_cast<std::size_t>(i) * dim]);
 
   // Lloyd's k-means from k training rows spread evenly; cells that empty are re-seeded by
   // splitting the largest one (as Faiss does), so every list keeps a centroid.
@@ -126,18 +137,20 @@ std::shared_ptr<const InvertedLists> InvertedLists::Build(SimdLevel level,
     for (int64_t i = 0; i < m; ++i) {
       const std::size_t c = static_cast<std::size_t>(cell[static_cast<std::size_t>(i)]);
       ++counts[c];
-      for (std::size_t j = 0; j < dim; ++j) sums[c * dim + j] += train[static_cast<std::size_t>(i) * dim + j];
+      for (std::size_t j = 0; j < dim; ++j)
+        sums[c * dim + j] += train[static_cast<std::size_t>(i) * dim + j];
     }
     for (std::size_t c = 0; c < counts.size(); ++c) {
       if (counts[c] == 0) continue;
       for (std::size_t j = 0; j < dim; ++j) {
-        centroids[c * dim + j] = static_cast<float>(sums[c * dim + j] / static_cast<double>(counts[c]));
+        centroids[c * dim + j] =
+            static_cast<float>(sums[c * dim + j] / static_cast<double>(counts[c]));
       }
     }
     for (std::size_t c = 0; c < counts.size(); ++c) {
       if (counts[c] != 0) continue;
-      const std::size_t big = static_cast<std::size_t>(
-          std::max_element(counts.begin(), counts.end()) - counts.begin());
+      const std::size_t big =
+          static_cast<std::size_t>(std::max_element(counts.begin(), counts.end()) - counts.begin());
       if (counts[big] < 2) break;
       constexpr float kEpsilon = 1.0f / 1024.0f;
       for (std::size_t j = 0; j < dim; ++j) {
@@ -159,21 +172,19 @@ std::shared_ptr<const InvertedLists> InvertedLists::Build(SimdLevel level,
   for (int64_t begin = 0; begin < rows; begin += kChunk) {
     if (cancelled()) return nullptr;
     const int64_t count = std::min(kChunk, rows - begin);
-    for (int64_t i = 0; i < count; ++i) CopyRow(gallery, begin + i, &chunk[static_cast<std::size_t>(i) * dim]);
-    ivf->Assign(level, chunk.data(), count, scale, threads, &cell_of_row[static_cast<std::size_t>(begin)]);
+    for (int64_t i = 0; i < count; ++i)
+      CopyRow(gallery, begin + i, &chunk[static_cast<std::size_t>(i) * dim]);
+    ivf->Assign(level, chunk.data(), count, scale, threads,
+                &cell_of_row[static_cast<std::size_t>(begin)]);
   }
   ivf->Fill(gallery, rows, cell_of_row);
   return ivf;
 }
 
 std::shared_ptr<const InvertedLists> InvertedLists::Extend(SimdLevel level,
-                                                           const BlockedView& gallery,
-                                                           int64_t rows, const float* scale,
-                                                           int threads) const {
-  std::shared_ptr<InvertedLists> ivf(new InvertedLists());
-  ivf->dim_ = dim_;
-  ivf->num_centroids_ = num_centroids_;
-  ivf->centroids_ = centroids_;
+                                                           const BlockedView& gallery, int64_t rows,
+                                                           const float* scale, int threads) const {
+  std::shared_ptr<InvertedLists> ivf = WithSameCells();
   std::vector<int32_t> cell_of_row = cell_of_row_;
   cell_of_row.resize(static_cast<std::size_t>(rows));
   const int64_t added = rows - indexed_rows_;
@@ -190,13 +201,11 @@ std::shared_ptr<const InvertedLists> InvertedLists::Extend(SimdLevel level,
 std::shared_ptr<const InvertedLists> InvertedLists::Renumber(
     const BlockedView& gallery, absl::Span<const int64_t> new_row_of_old) const {
   int64_t kept = 0;
-  for (int64_t row = 0; row < indexed_rows_; ++row) kept += new_row_of_old[static_cast<std::size_t>(row)] >= 0;
+  for (int64_t row = 0; row < indexed_rows_; ++row)
+    kept += new_row_of_old[static_cast<std::size_t>(row)] >= 0;
   const int64_t rows = kept / kBlockLanes * kBlockLanes;
   if (rows == 0) return nullptr;
-  std::shared_ptr<InvertedLists> ivf(new InvertedLists());
-  ivf->dim_ = dim_;
-  ivf->num_centroids_ = num_centroids_;
-  ivf->centroids_ = centroids_;
+  std::shared_ptr<InvertedLists> ivf = WithSameCells();
   // The kept indexed rows keep their order, so they are exactly new rows [0, kept).
   std::vector<int32_t> cell_of_row(static_cast<std::size_t>(rows));
   for (int64_t row = 0; row < indexed_rows_; ++row) {
@@ -221,7 +230,8 @@ void InvertedLists::Search(SimdLevel level, const float* queries, int num_querie
     TopK nearest(probes);
     ScanBlocks(level, Centroids(), queries + static_cast<std::size_t>(q) * dim, 1, scale,
                /*abandon=*/true, &nearest);
-    for (const Candidate& c : nearest.TakeSorted()) picks.emplace_back(static_cast<int32_t>(c.row), q);
+    for (const Candidate& c : nearest.TakeSorted())
+      picks.emplace_back(static_cast<int32_t>(c.row), q);
   }
   std::sort(picks.begin(), picks.end());
   // Each list once, with the query vectors that chose it side by side.

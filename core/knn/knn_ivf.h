@@ -47,8 +47,7 @@ class InvertedLists {
   // cell's list (rows a multiple of kBlockLanes, >= indexed_rows()). Cost: the new rows
   // times lists * dim, plus a copy of the lists.
   std::shared_ptr<const InvertedLists> Extend(SimdLevel level, const BlockedView& gallery,
-                                              int64_t rows, const float* scale,
-                                              int threads) const;
+                                              int64_t rows, const float* scale, int threads) const;
 
   // The same cells after the gallery dropped rows and closed up, keeping order (`gallery`
   // is the gallery after the removal): new_row_of_old[row] is each old row's new number,
@@ -80,9 +79,11 @@ class InvertedLists {
  private:
   InvertedLists() = default;
 
+  // A new, empty set of lists over this one's cells (Extend and Renumber fill it).
+  std::shared_ptr<InvertedLists> WithSameCells() const;
   // The nearest centroid of each of `count` row-major vectors.
-  void Assign(SimdLevel level, const float* vectors, int64_t count, const float* scale,
-              int threads, int32_t* cell) const;
+  void Assign(SimdLevel level, const float* vectors, int64_t count, const float* scale, int threads,
+              int32_t* cell) const;
   // Fills the lists from the cells of gallery rows [0, rows).
   void Fill(const BlockedView& gallery, int64_t rows, absl::Span<const int32_t> cell_of_row);
   BlockedView Centroids() const { return BlockedView{centroids_.data(), num_centroids_, dim_}; }
