@@ -4,7 +4,7 @@
 // The vector operations that shapeid's kernels share, one struct per instruction set, so a
 // kernel body written once against `Ops::Add`, `Ops::Load`... compiles for each set (see
 // core/descriptors/rphsd_kernels.cc). Each struct is defined under its own
-// `#pragma GCC target`, so it may only be used from functions compiled for that set, which
+// `SHAPEID_TARGET_REGION_BEGIN`, so it may only be used from functions compiled for that set, which
 // run after dispatch on ActiveSimdLevel() (core/simd.h). A kernel that needs more derives
 // from these structs inside its own target region.
 //
@@ -12,15 +12,16 @@
 
 #if defined(__x86_64__)
 
+#include <immintrin.h>
+
 #include <cstddef>
 #include <cstdint>
 
-#include <immintrin.h>
+#include "core/target_region.h"
 
 namespace shapeid::simd {
 
-#pragma GCC push_options
-#pragma GCC target("avx2")
+SHAPEID_TARGET_REGION_BEGIN("avx2")
 struct Avx2Ops {
   using Vec = __m256;
   using IVec = __m256i;
@@ -55,14 +56,13 @@ struct Avx2Ops {
     return _mm256_srli_epi32(a, kBits);
   }
 };
-#pragma GCC pop_options
+SHAPEID_TARGET_REGION_END
 
-#pragma GCC push_options
-#pragma GCC target("avx512f")
+SHAPEID_TARGET_REGION_BEGIN("avx512f")
 #pragma GCC diagnostic push
 // GCC 12's AVX-512 headers trip these on their own placeholders (GCC bug 105593).
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#pragma GCC diagnostic ignored "-Wuninitialized"
+SHAPEID_IGNORE_GCC_WARNING("-Wmaybe-uninitialized")
+SHAPEID_IGNORE_GCC_WARNING("-Wuninitialized")
 struct Avx512Ops {
   using Vec = __m512;
   using IVec = __m512i;
@@ -97,7 +97,7 @@ struct Avx512Ops {
   }
 };
 #pragma GCC diagnostic pop
-#pragma GCC pop_options
+SHAPEID_TARGET_REGION_END
 
 }  // namespace shapeid::simd
 

@@ -17,6 +17,7 @@
 // rules without the promise take them at every level.
 #include "core/descriptors/cnsd_kernels.h"
 #include "core/simd_ops.h"
+#include "core/target_region.h"
 
 #if defined(__x86_64__)
 #include <immintrin.h>
@@ -32,8 +33,8 @@
 
 // GCC 12's AVX-512 headers trip -W(maybe-)uninitialized on their own _mm512_undefined_*
 // placeholders (a known false positive, GCC bug 105593).
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#pragma GCC diagnostic ignored "-Wuninitialized"
+SHAPEID_IGNORE_GCC_WARNING("-Wmaybe-uninitialized")
+SHAPEID_IGNORE_GCC_WARNING("-Wuninitialized")
 
 namespace shapeid::cnsd_internal {
 namespace {
@@ -184,8 +185,7 @@ void PairDegrees(const PairData& p, const BucketTables& t, uint64_t* degree_sum,
 
 #if defined(__x86_64__)
 
-#pragma GCC push_options
-#pragma GCC target("avx2")
+SHAPEID_TARGET_REGION_BEGIN("avx2")
 namespace avx2 {
 struct Ops : simd::Avx2Ops {
   static float ReduceMax(Vec v) {
@@ -261,10 +261,9 @@ struct Ops : simd::Avx2Ops {
 #include "core/descriptors/cnsd_kernel_body.inc"
 #include "core/descriptors/cnsd_packed_kernel.inc"
 }  // namespace avx2
-#pragma GCC pop_options
+SHAPEID_TARGET_REGION_END
 
-#pragma GCC push_options
-#pragma GCC target("avx512f")
+SHAPEID_TARGET_REGION_BEGIN("avx512f")
 namespace avx512 {
 struct Ops : simd::Avx512Ops {
   static float ReduceMax(Vec v) { return _mm512_reduce_max_ps(v); }
@@ -330,7 +329,7 @@ struct Ops : simd::Avx512Ops {
 #include "core/descriptors/cnsd_kernel_body.inc"
 #include "core/descriptors/cnsd_packed_kernel.inc"
 }  // namespace avx512
-#pragma GCC pop_options
+SHAPEID_TARGET_REGION_END
 
 #endif  // __x86_64__
 

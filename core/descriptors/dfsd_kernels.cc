@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <vector>
 
+#include "core/target_region.h"
+
 #if defined(__x86_64__)
 #include <immintrin.h>
 
@@ -11,7 +13,7 @@
 
 // GCC 12's AVX-512 headers trip -Wmaybe-uninitialized on their own _mm512_undefined_*
 // placeholders (a known false positive, GCC bug 105593).
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+SHAPEID_IGNORE_GCC_WARNING("-Wmaybe-uninitialized")
 
 namespace shapeid::dfsd_internal {
 namespace {
@@ -40,22 +42,20 @@ void KernelScalar(const FieldInput& in, float* out) {
 #if defined(__x86_64__)
 
 // core/descriptors/dfsd_kernel_body.inc compiled once per instruction set, each copy inside
-// its own `#pragma GCC target` region and namespace, over that set's operations.
-#pragma GCC push_options
-#pragma GCC target("avx2")
+// its own target region and namespace, over that set's operations.
+SHAPEID_TARGET_REGION_BEGIN("avx2")
 namespace avx2 {
 using Ops = simd::Avx2Ops;
 #include "core/descriptors/dfsd_kernel_body.inc"
 }  // namespace avx2
-#pragma GCC pop_options
+SHAPEID_TARGET_REGION_END
 
-#pragma GCC push_options
-#pragma GCC target("avx512f")
+SHAPEID_TARGET_REGION_BEGIN("avx512f")
 namespace avx512 {
 using Ops = simd::Avx512Ops;
 #include "core/descriptors/dfsd_kernel_body.inc"
 }  // namespace avx512
-#pragma GCC pop_options
+SHAPEID_TARGET_REGION_END
 
 #endif  // __x86_64__
 

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <vector>
 
+#include "core/target_region.h"
+
 #if defined(__x86_64__)
 #include <immintrin.h>
 
@@ -12,7 +14,7 @@
 
 // GCC 12's AVX-512 headers trip -Wmaybe-uninitialized on their own _mm512_undefined_*
 // placeholders (a known false positive, GCC bug 105593).
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+SHAPEID_IGNORE_GCC_WARNING("-Wmaybe-uninitialized")
 
 namespace shapeid::rphsd_internal {
 namespace {
@@ -43,10 +45,9 @@ void AccumulateScalar(const HistogramInput& in, uint32_t* counts) {
 #if defined(__x86_64__)
 
 // The vector kernels: core/descriptors/rphsd_kernel_body.inc compiled once per instruction
-// set, each copy inside its own `#pragma GCC target` region and namespace, over that set's
+// set, each copy inside its own target region and namespace, over that set's
 // operations from core/simd_ops.h.
-#pragma GCC push_options
-#pragma GCC target("avx2")
+SHAPEID_TARGET_REGION_BEGIN("avx2")
 namespace avx2 {
 using Ops = simd::Avx2Ops;
 #include "core/descriptors/rphsd_kernel_body.inc"
@@ -61,10 +62,9 @@ void Accumulate(const HistogramInput& in, uint32_t* counts) {
   }
 }
 }  // namespace avx2
-#pragma GCC pop_options
+SHAPEID_TARGET_REGION_END
 
-#pragma GCC push_options
-#pragma GCC target("avx512f")
+SHAPEID_TARGET_REGION_BEGIN("avx512f")
 namespace avx512 {
 using Ops = simd::Avx512Ops;
 #include "core/descriptors/rphsd_kernel_body.inc"
@@ -77,7 +77,7 @@ void Accumulate(const HistogramInput& in, uint32_t* counts) {
   }
 }
 }  // namespace avx512
-#pragma GCC pop_options
+SHAPEID_TARGET_REGION_END
 
 #endif  // __x86_64__
 

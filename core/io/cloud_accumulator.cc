@@ -51,7 +51,7 @@ absl::StatusOr<ReadResult> CloudAccumulator::Finish(const ReadOptions& options) 
       const bool blame_hi = hi > kFloatMax;
       return absl::InvalidArgumentError(
           absl::StrCat(name_, ": ", where_label_, " ", blame_hi ? max_where_[a] : min_where_[a],
-                       ": ", absl::string_view("xyz" + a, 1), " = ", blame_hi ? max_[a] : min_[a],
+                       ": ", absl::string_view(&"xyz"[a], 1), " = ", blame_hi ? max_[a] : min_[a],
                        " does not fit in a float",
                        options.recenter ? " even after recentering" : " (recentering is off)"));
     }

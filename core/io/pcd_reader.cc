@@ -198,7 +198,7 @@ absl::StatusOr<Layout> MakeLayout(Header& h, absl::string_view name) {
                        absl::StrCat("field ", QuoteForMessage(h.fields[i]), " has COUNT 0"));
     }
     for (int a = 0; a < 3; ++a) {
-      if (h.fields[i] != absl::string_view("xyz" + a, 1)) continue;
+      if (h.fields[i] != absl::string_view(&"xyz"[a], 1)) continue;
       if (coord_field[a] >= 0) {
         return LineError(name, h.fields_line,
                          absl::StrCat("field ", QuoteForMessage(h.fields[i]), " appears twice"));
