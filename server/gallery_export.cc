@@ -305,6 +305,18 @@ absl::StatusOr<StoredGallery> GalleryImportAssembler::Finish() {
                                               announced_, " samples, no trailer"));
     return error_;
   }
+  // The trailer's checksum covers the bytes, not their sense: an export written by hand or by
+  // another tool may repeat an id, which would otherwise surface as ALREADY_EXISTS, the code
+  // of a gallery name that is taken.
+  std::vector<uint64_t> ids;
+  ids.reserve(gallery_.samples.size());
+  for (const StoredSample& sample : gallery_.samples) ids.push_back(sample.id);
+  std::sort(ids.begin(), ids.end());
+  if (auto twice = std::adjacent_find(ids.begin(), ids.end()); twice != ids.end()) {
+    error_ = absl::InvalidArgumentError(
+        absl::StrCat("export malformed: sample id ", *twice, " appears more than once"));
+    return error_;
+  }
   finished_ = true;
   return std::move(gallery_);
 }

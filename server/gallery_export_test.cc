@@ -202,6 +202,20 @@ TEST(GalleryExportTest, CrcIsZlibsOverIdLabelAndFeaturesLittleEndian) {
             crc32(0, reinterpret_cast<const Bytef*>("\1\0\0\0\0\0\0\0a\2\0\0\0\0\0\0\0b"), 18));
 }
 
+// An export whose checksum is right but which repeats an id (written by hand or by another
+// tool) is malformed, not a name clash: INVALID_ARGUMENT rather than the index's
+// ALREADY_EXISTS (found by the bad-input corpus, tests/bad_input_test.cc).
+TEST(GalleryExportTest, AnIdTwiceIsMalformed) {
+  StoredGallery twice = OddGallery(6);
+  twice.samples[4].id = twice.samples[2].id;
+  GalleryExporter exporter(twice, 300);
+  const absl::Status status = Assemble(Export(exporter)).status();
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(
+      std::string(status.message()),
+      HasSubstr(absl::StrCat("sample id ", twice.samples[2].id, " appears more than once")));
+}
+
 class AssemblerErrorTest : public ::testing::Test {
  protected:
   void SetUp() override {

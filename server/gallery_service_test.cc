@@ -20,6 +20,7 @@
 #include "grpcpp/grpcpp.h"
 #include "gtest/gtest.h"
 #include "server/server.h"
+#include "server/testing/raw_call.h"
 #include "shapeid/v1/shapeid.grpc.pb.h"
 
 namespace shapeid {
@@ -48,8 +49,8 @@ class GalleryServiceTest : public ::testing::Test {
     auto server = ShapeIdServer::Start(options);
     ASSERT_TRUE(server.ok()) << server.status();
     server_ = std::move(server).value();
-    stub_ = v1::ShapeId::NewStub(
-        grpc::CreateChannel(server_->address(), grpc::InsecureChannelCredentials()));
+    channel_ = grpc::CreateChannel(server_->address(), grpc::InsecureChannelCredentials());
+    stub_ = v1::ShapeId::NewStub(channel_);
   }
 
   grpc::Status Create(const std::string& name, const std::string& spec = "", double reject = 0,
@@ -178,6 +179,7 @@ class GalleryServiceTest : public ::testing::Test {
   }
 
   std::unique_ptr<ShapeIdServer> server_;
+  std::shared_ptr<grpc::Channel> channel_;
   std::unique_ptr<v1::ShapeId::Stub> stub_;
   std::unique_ptr<ShapeIdServer> other_;
   std::unique_ptr<v1::ShapeId::Stub> other_stub_;
@@ -281,8 +283,8 @@ TEST_F(GalleryServiceTest, BulkTrainThenClassifyRecognisesShapes) {
 }
 
 grpc::Status ClassifyCloud(v1::ShapeId::Stub& stub, const std::string& gallery,
-                           const PointCloud& cloud, v1::ClassifyResponse* response,
-                           uint32_t k = 0, uint64_t expected_points = 0) {
+                           const PointCloud& cloud, v1::ClassifyResponse* response, uint32_t k = 0,
+                           uint64_t expected_points = 0) {
   grpc::ClientContext context;
   v1::ClassifyCloudRequest request;
   request.mutable_header()->set_gallery(gallery);
@@ -424,6 +426,52 @@ TEST_F(GalleryServiceTest, ACutTrainStreamLeavesNoTrace) {
   EXPECT_EQ(writer->Finish().error_code(), grpc::StatusCode::CANCELLED);
   std::this_thread::sleep_for(std::chrono::milliseconds(100));
   EXPECT_EQ(Get("g").sample_count(), 0u);
+}
+
+// gRPC reports a streamed message that does not parse exactly as the end of the stream; the
+// service reads its streams raw so that such a message fails the call (found by the
+// bad-input corpus, tests/bad_input_test.cc: the samples before it used to be committed).
+TEST_F(GalleryServiceTest, AMessageThatDoesNotParseFailsTheWholeStream) {
+  ASSERT_TRUE(Create("g").ok());
+  v1::TrainRequest header;
+  header.mutable_header()->set_gallery("g");
+  v1::TrainRequest sample;
+  sample.mutable_sample()->set_label("box");
+  v1::TrainRequest points;
+  const PointCloud cloud = Shape(0, 1);
+  points.mutable_points()->set_xyz(Bytes(cloud, 0, cloud.size()));
+  const std::vector<std::string> valid = {header.SerializeAsString(), sample.SerializeAsString(),
+                                          points.SerializeAsString()};
+  std::string invalid_label;  // proto3 refuses a string field that is not UTF-8
+  v1::TrainRequest bad_label;
+  bad_label.mutable_sample()->set_label("x");
+  invalid_label = bad_label.SerializeAsString();
+  invalid_label.back() = '\xff';
+  for (const std::string& last : {std::string("\xff\xff\xff\xff"), invalid_label}) {
+    std::vector<std::string> messages = valid;
+    messages.push_back(last);
+    const grpc::Status status =
+        testing_raw::RawCall(channel_, "/shapeid.v1.ShapeId/Train", messages);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_THAT(status.error_message(),
+                HasSubstr("Train: message 4 of the stream is not a valid shapeid.v1.TrainRequest"));
+    EXPECT_EQ(Get("g").sample_count(), 0u);
+  }
+  // The same three valid messages alone train one sample: the raw path parses like gRPC's.
+  v1::TrainResponse trained;
+  std::string reply;
+  ASSERT_TRUE(testing_raw::RawCall(channel_, "/shapeid.v1.ShapeId/Train", valid, &reply).ok());
+  ASSERT_TRUE(trained.ParseFromString(reply));
+  EXPECT_EQ(trained.gallery_sample_count(), 1u);
+
+  // A unary request that does not parse is INVALID_ARGUMENT too (gRPC would say UNIMPLEMENTED,
+  // which clients take for "an older server").
+  const grpc::Status unary =
+      testing_raw::RawCall(channel_, "/shapeid.v1.ShapeId/ClassifyCloud", {"\xff\xff\xff"});
+  EXPECT_EQ(unary.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(
+      unary.error_message(),
+      HasSubstr("ClassifyCloud: the request is not a valid shapeid.v1.ClassifyCloudRequest"));
 }
 
 TEST_F(GalleryServiceTest, StreamErrorsAreNamed) {

@@ -26,14 +26,35 @@ namespace {
 // Full method names, as the call gate's scope table (server/authorization.cc) knows them.
 #define SHAPEID_METHOD(name) "/shapeid.v1.ShapeId/" #name
 
-// Finishes a unary call of `method` with the status `handler` returns, once the call gate has
-// admitted it (key and scope; UNAVAILABLE while loading or draining).
-template <typename Handler>
+// Finishes a unary call of `method`: the call gate first (key and scope; UNAVAILABLE while
+// loading or draining), then the request, parsed here because gRPC answers a request that
+// does not parse with UNIMPLEMENTED, which clients read as "an older server"; here it is
+// INVALID_ARGUMENT. Then `handler(request, &response)`, whose status ends the call.
+template <typename Request, typename Response, typename Handler>
 grpc::ServerUnaryReactor* Unary(grpc::CallbackServerContext* context, CallGate& gate,
-                                absl::string_view method, Handler handler) {
+                                absl::string_view method, const grpc::ByteBuffer* raw_request,
+                                grpc::ByteBuffer* raw_response, Handler handler) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   absl::StatusOr<CallGate::Pass> pass = gate.Admit(*context, method, CallGate::Kind::kUnary);
-  reactor->Finish(ToGrpcStatus(pass.ok() ? handler() : pass.status()));
+  if (!pass.ok()) {
+    reactor->Finish(ToGrpcStatus(pass.status()));
+    return reactor;
+  }
+  Request request;
+  grpc::ByteBuffer bytes(*raw_request);  // shares the received slices; parsing consumes it
+  if (!grpc::SerializationTraits<Request>::Deserialize(&bytes, &request).ok()) {
+    reactor->Finish(ToGrpcStatus(absl::InvalidArgumentError(absl::StrCat(
+        method.substr(method.rfind('/') + 1), ": the request is not a valid ",
+        Request::descriptor()->full_name(), " (damaged, or from another protocol version)"))));
+    return reactor;
+  }
+  Response response;
+  grpc::Status status = ToGrpcStatus(handler(request, &response));
+  if (status.ok()) {
+    bool own_buffer = false;
+    status = grpc::SerializationTraits<Response>::Serialize(response, raw_response, &own_buffer);
+  }
+  reactor->Finish(status);
   return reactor;
 }
 
@@ -45,15 +66,16 @@ absl::Status RequireGalleryName(absl::string_view rpc, const std::string& name) 
 
 // The descriptor a DescribeHeader asks for, shared by the stream and the one-message call:
 // its spec, else the named gallery's, else the server's default.
-absl::StatusOr<std::shared_ptr<const Descriptor>> DescriptorToUse(
-    const v1::DescribeHeader& header, const ServiceOptions& options,
-    const GalleryRegistry& registry) {
+absl::StatusOr<std::shared_ptr<const Descriptor>> DescriptorToUse(const v1::DescribeHeader& header,
+                                                                  const ServiceOptions& options,
+                                                                  const GalleryRegistry& registry) {
   if (header.descriptor_spec().empty() && !header.gallery().empty()) {
-    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry.Get(header.gallery()));
+    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
+                             registry.Get(header.gallery()));
     return gallery->Snapshot()->shared_descriptor();
   }
-  const std::string& spec = header.descriptor_spec().empty() ? options.default_descriptor_spec
-                                                             : header.descriptor_spec();
+  const std::string& spec =
+      header.descriptor_spec().empty() ? options.default_descriptor_spec : header.descriptor_spec();
   SHAPEID_ASSIGN_OR_RETURN(std::unique_ptr<Descriptor> descriptor, CreateDescriptor(spec));
   return std::shared_ptr<const Descriptor>(std::move(descriptor));
 }
@@ -70,15 +92,14 @@ absl::Status DescribeInto(const Descriptor& descriptor, const PointCloud& cloud,
   return absl::OkStatus();
 }
 
-class DescribeReactor final : public StreamReactor<v1::DescribeRequest> {
+class DescribeReactor final : public StreamReactor<v1::DescribeRequest, v1::DescribeResponse> {
  public:
   DescribeReactor(grpc::CallbackServerContext* context, CallGate* gate,
                   const ServiceOptions& options, const GalleryRegistry& registry,
-                  v1::DescribeResponse* response)
-      : StreamReactor(context, gate, SHAPEID_METHOD(Describe)),
+                  grpc::ByteBuffer* response)
+      : StreamReactor(context, gate, SHAPEID_METHOD(Describe), response),
         options_(options),
         registry_(registry),
-        response_(response),
         assembler_(options.max_points_per_cloud) {
     StartReading();
   }
@@ -113,12 +134,11 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest> {
       return absl::InvalidArgumentError("Describe: the stream ended without a DescribeHeader");
     }
     SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud, assembler_.Finish());
-    return DescribeInto(*descriptor_, cloud, response_);
+    return DescribeInto(*descriptor_, cloud, response());
   }
 
   const ServiceOptions& options_;
   const GalleryRegistry& registry_;
-  v1::DescribeResponse* response_;
   CloudAssembler assembler_;
   std::shared_ptr<const Descriptor> descriptor_;
 };
@@ -126,14 +146,13 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest> {
 // One Train stream: TrainHeader, then samples (SampleHeader + PointChunks). Each sample is
 // described as soon as its points are complete; the batch commits only when the stream ends
 // OK, so an error or a cut stream (the reactor dies without OnEnd) publishes nothing.
-class TrainReactor final : public StreamReactor<v1::TrainRequest> {
+class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainResponse> {
  public:
   TrainReactor(grpc::CallbackServerContext* context, CallGate* gate, const ServiceOptions& options,
-               const GalleryRegistry& registry, v1::TrainResponse* response)
-      : StreamReactor(context, gate, SHAPEID_METHOD(Train)),
+               const GalleryRegistry& registry, grpc::ByteBuffer* response)
+      : StreamReactor(context, gate, SHAPEID_METHOD(Train), response),
         registry_(registry),
         max_samples_(options.max_samples_per_train),
-        response_(response),
         assembler_(options.max_points_per_cloud) {
     StartReading();
   }
@@ -206,17 +225,16 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest> {
     SHAPEID_RETURN_IF_ERROR(FinishSample());
     if (samples_ == 0) return absl::InvalidArgumentError("Train: the stream carried no sample");
     SHAPEID_ASSIGN_OR_RETURN(const CommitResult committed, batch_->Commit());
-    response_->mutable_sample_ids()->Assign(committed.ids.begin(), committed.ids.end());
-    response_->set_gallery_version(committed.version);
-    response_->set_gallery_sample_count(
+    response()->mutable_sample_ids()->Assign(committed.ids.begin(), committed.ids.end());
+    response()->set_gallery_version(committed.version);
+    response()->set_gallery_sample_count(
         static_cast<uint64_t>(batch_gallery_->Snapshot()->num_samples()));
-    ToProto(describe_time_, response_->mutable_describe_time());
+    ToProto(describe_time_, response()->mutable_describe_time());
     return absl::OkStatus();
   }
 
   const GalleryRegistry& registry_;
   const int64_t max_samples_;
-  v1::TrainResponse* response_;
   CloudAssembler assembler_;
   std::unique_ptr<TrainBatch> batch_;
   std::shared_ptr<Gallery> batch_gallery_;
@@ -253,14 +271,13 @@ absl::Status ClassifyInto(const Gallery& gallery, const PointCloud& cloud,
   return absl::OkStatus();
 }
 
-class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest> {
+class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest, v1::ClassifyResponse> {
  public:
   ClassifyReactor(grpc::CallbackServerContext* context, CallGate* gate,
                   const ServiceOptions& options, const GalleryRegistry& registry,
-                  v1::ClassifyResponse* response)
-      : StreamReactor(context, gate, SHAPEID_METHOD(Classify)),
+                  grpc::ByteBuffer* response)
+      : StreamReactor(context, gate, SHAPEID_METHOD(Classify), response),
         registry_(registry),
-        response_(response),
         assembler_(options.max_points_per_cloud) {
     StartReading();
   }
@@ -291,11 +308,10 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest> {
     if (gallery_ == nullptr)
       return absl::InvalidArgumentError("Classify: the stream ended without a ClassifyHeader");
     SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud, assembler_.Finish());
-    return ClassifyInto(*gallery_, cloud, header_, response_);
+    return ClassifyInto(*gallery_, cloud, header_, response());
   }
 
   const GalleryRegistry& registry_;
-  v1::ClassifyResponse* response_;
   CloudAssembler assembler_;
   std::shared_ptr<Gallery> gallery_;
   v1::ClassifyHeader header_;
@@ -378,13 +394,12 @@ class ExportReactor final : public grpc::ServerWriteReactor<v1::GalleryExportChu
 // ImportGallery: the chunks go into a GalleryImportAssembler as they arrive, so a malformed
 // export fails at its first bad chunk; the registry sees the gallery only when the stream
 // ends complete and undamaged.
-class ImportReactor final : public StreamReactor<v1::ImportGalleryRequest> {
+class ImportReactor final : public StreamReactor<v1::ImportGalleryRequest, v1::Gallery> {
  public:
   ImportReactor(grpc::CallbackServerContext* context, CallGate* gate, GalleryRegistry& registry,
-                v1::Gallery* response)
-      : StreamReactor(context, gate, SHAPEID_METHOD(ImportGallery)),
+                grpc::ByteBuffer* response)
+      : StreamReactor(context, gate, SHAPEID_METHOD(ImportGallery), response),
         registry_(registry),
-        response_(response),
         assembler_(registry.limits().max_samples_per_gallery) {
     StartReading();
   }
@@ -406,12 +421,11 @@ class ImportReactor final : public StreamReactor<v1::ImportGalleryRequest> {
     SHAPEID_ASSIGN_OR_RETURN(StoredGallery stored, assembler_.Finish());
     if (!name_.empty()) stored.name = name_;
     SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry_.Import(stored));
-    ToProto(*gallery->Snapshot(), response_);
+    ToProto(*gallery->Snapshot(), response());
     return absl::OkStatus();
   }
 
   GalleryRegistry& registry_;
-  v1::Gallery* response_;
   GalleryImportAssembler assembler_;
   std::string name_;
   int64_t messages_ = 0;
@@ -419,18 +433,18 @@ class ImportReactor final : public StreamReactor<v1::ImportGalleryRequest> {
 
 }  // namespace
 
-grpc::ServerReadReactor<v1::DescribeRequest>* ShapeIdService::Describe(
-    grpc::CallbackServerContext* context, v1::DescribeResponse* response) {
+grpc::ServerReadReactor<grpc::ByteBuffer>* ShapeIdService::Describe(
+    grpc::CallbackServerContext* context, grpc::ByteBuffer* response) {
   return new DescribeReactor(context, &gate_, options_, *registry_, response);
 }
 
-grpc::ServerReadReactor<v1::TrainRequest>* ShapeIdService::Train(
-    grpc::CallbackServerContext* context, v1::TrainResponse* response) {
+grpc::ServerReadReactor<grpc::ByteBuffer>* ShapeIdService::Train(
+    grpc::CallbackServerContext* context, grpc::ByteBuffer* response) {
   return new TrainReactor(context, &gate_, options_, *registry_, response);
 }
 
-grpc::ServerReadReactor<v1::ClassifyRequest>* ShapeIdService::Classify(
-    grpc::CallbackServerContext* context, v1::ClassifyResponse* response) {
+grpc::ServerReadReactor<grpc::ByteBuffer>* ShapeIdService::Classify(
+    grpc::CallbackServerContext* context, grpc::ByteBuffer* response) {
   return new ClassifyReactor(context, &gate_, options_, *registry_, response);
 }
 
@@ -444,113 +458,130 @@ absl::StatusOr<PointCloud> ShapeIdService::CloudInOneMessage(uint64_t expected_p
 }
 
 grpc::ServerUnaryReactor* ShapeIdService::DescribeCloud(grpc::CallbackServerContext* context,
-                                                        const v1::DescribeCloudRequest* request,
-                                                        v1::DescribeResponse* response) {
-  return Unary(context, gate_, SHAPEID_METHOD(DescribeCloud), [&]() -> absl::Status {
-    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<const Descriptor> descriptor,
-                             DescriptorToUse(request->header(), options_, *registry_));
-    SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud,
-                             CloudInOneMessage(request->header().expected_points(),
-                                               request->points().xyz()));
-    return DescribeInto(*descriptor, cloud, response);
-  });
+                                                        const grpc::ByteBuffer* raw_request,
+                                                        grpc::ByteBuffer* raw_response) {
+  return Unary<v1::DescribeCloudRequest, v1::DescribeResponse>(
+      context, gate_, SHAPEID_METHOD(DescribeCloud), raw_request, raw_response,
+      [&](const v1::DescribeCloudRequest& request, v1::DescribeResponse* response) -> absl::Status {
+        SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<const Descriptor> descriptor,
+                                 DescriptorToUse(request.header(), options_, *registry_));
+        SHAPEID_ASSIGN_OR_RETURN(
+            const PointCloud cloud,
+            CloudInOneMessage(request.header().expected_points(), request.points().xyz()));
+        return DescribeInto(*descriptor, cloud, response);
+      });
 }
 
 grpc::ServerUnaryReactor* ShapeIdService::ClassifyCloud(grpc::CallbackServerContext* context,
-                                                        const v1::ClassifyCloudRequest* request,
-                                                        v1::ClassifyResponse* response) {
-  return Unary(context, gate_, SHAPEID_METHOD(ClassifyCloud), [&]() -> absl::Status {
-    if (!request->has_header()) {
-      return absl::InvalidArgumentError("ClassifyCloud: the request has no header");
-    }
-    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
-                             GalleryToClassify(*registry_, request->header()));
-    SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud,
-                             CloudInOneMessage(request->header().expected_points(),
-                                               request->points().xyz()));
-    return ClassifyInto(*gallery, cloud, request->header(), response);
-  });
+                                                        const grpc::ByteBuffer* raw_request,
+                                                        grpc::ByteBuffer* raw_response) {
+  return Unary<v1::ClassifyCloudRequest, v1::ClassifyResponse>(
+      context, gate_, SHAPEID_METHOD(ClassifyCloud), raw_request, raw_response,
+      [&](const v1::ClassifyCloudRequest& request, v1::ClassifyResponse* response) -> absl::Status {
+        if (!request.has_header()) {
+          return absl::InvalidArgumentError("ClassifyCloud: the request has no header");
+        }
+        SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
+                                 GalleryToClassify(*registry_, request.header()));
+        SHAPEID_ASSIGN_OR_RETURN(
+            const PointCloud cloud,
+            CloudInOneMessage(request.header().expected_points(), request.points().xyz()));
+        return ClassifyInto(*gallery, cloud, request.header(), response);
+      });
 }
 
 grpc::ServerUnaryReactor* ShapeIdService::CreateGallery(grpc::CallbackServerContext* context,
-                                                        const v1::CreateGalleryRequest* request,
-                                                        v1::Gallery* response) {
-  return Unary(context, gate_, SHAPEID_METHOD(CreateGallery), [&]() -> absl::Status {
-    SHAPEID_ASSIGN_OR_RETURN(const GalleryOptions options, GalleryOptionsFromProto(*request));
-    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
-                             registry_->Create(request->name(), options));
-    ToProto(*gallery->Snapshot(), response);
-    return absl::OkStatus();
-  });
+                                                        const grpc::ByteBuffer* raw_request,
+                                                        grpc::ByteBuffer* raw_response) {
+  return Unary<v1::CreateGalleryRequest, v1::Gallery>(
+      context, gate_, SHAPEID_METHOD(CreateGallery), raw_request, raw_response,
+      [&](const v1::CreateGalleryRequest& request, v1::Gallery* response) -> absl::Status {
+        SHAPEID_ASSIGN_OR_RETURN(const GalleryOptions options, GalleryOptionsFromProto(request));
+        SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
+                                 registry_->Create(request.name(), options));
+        ToProto(*gallery->Snapshot(), response);
+        return absl::OkStatus();
+      });
 }
 
 grpc::ServerUnaryReactor* ShapeIdService::GetGallery(grpc::CallbackServerContext* context,
-                                                     const v1::GetGalleryRequest* request,
-                                                     v1::Gallery* response) {
-  return Unary(context, gate_, SHAPEID_METHOD(GetGallery), [&]() -> absl::Status {
-    SHAPEID_RETURN_IF_ERROR(RequireGalleryName("GetGallery", request->name()));
-    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
-                             registry_->Get(request->name()));
-    ToProto(*gallery->Snapshot(), response);
-    return absl::OkStatus();
-  });
+                                                     const grpc::ByteBuffer* raw_request,
+                                                     grpc::ByteBuffer* raw_response) {
+  return Unary<v1::GetGalleryRequest, v1::Gallery>(
+      context, gate_, SHAPEID_METHOD(GetGallery), raw_request, raw_response,
+      [&](const v1::GetGalleryRequest& request, v1::Gallery* response) -> absl::Status {
+        SHAPEID_RETURN_IF_ERROR(RequireGalleryName("GetGallery", request.name()));
+        SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
+                                 registry_->Get(request.name()));
+        ToProto(*gallery->Snapshot(), response);
+        return absl::OkStatus();
+      });
 }
 
 grpc::ServerUnaryReactor* ShapeIdService::ListGalleries(grpc::CallbackServerContext* context,
-                                                        const v1::ListGalleriesRequest* /*request*/,
-                                                        v1::ListGalleriesResponse* response) {
-  return Unary(context, gate_, SHAPEID_METHOD(ListGalleries), [&]() -> absl::Status {
-    for (const std::string& name : registry_->List()) {
-      auto gallery = registry_->Get(name);
-      if (!gallery.ok()) continue;  // deleted since List: not an error for the caller
-      ToProto(*(*gallery)->Snapshot(), response->add_galleries());
-    }
-    return absl::OkStatus();
-  });
+                                                        const grpc::ByteBuffer* raw_request,
+                                                        grpc::ByteBuffer* raw_response) {
+  return Unary<v1::ListGalleriesRequest, v1::ListGalleriesResponse>(
+      context, gate_, SHAPEID_METHOD(ListGalleries), raw_request, raw_response,
+      [&](const v1::ListGalleriesRequest& /*request*/,
+          v1::ListGalleriesResponse* response) -> absl::Status {
+        for (const std::string& name : registry_->List()) {
+          auto gallery = registry_->Get(name);
+          if (!gallery.ok()) continue;  // deleted since List: not an error for the caller
+          ToProto(*(*gallery)->Snapshot(), response->add_galleries());
+        }
+        return absl::OkStatus();
+      });
 }
 
 grpc::ServerUnaryReactor* ShapeIdService::DeleteGallery(grpc::CallbackServerContext* context,
-                                                        const v1::DeleteGalleryRequest* request,
-                                                        v1::DeleteGalleryResponse* response) {
-  return Unary(context, gate_, SHAPEID_METHOD(DeleteGallery), [&]() -> absl::Status {
-    SHAPEID_RETURN_IF_ERROR(RequireGalleryName("DeleteGallery", request->name()));
-    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
-                             registry_->Get(request->name()));
-    const int64_t samples = gallery->Snapshot()->num_samples();
-    SHAPEID_RETURN_IF_ERROR(registry_->Delete(request->name()));
-    response->set_samples_deleted(static_cast<uint64_t>(samples));
-    return absl::OkStatus();
-  });
+                                                        const grpc::ByteBuffer* raw_request,
+                                                        grpc::ByteBuffer* raw_response) {
+  return Unary<v1::DeleteGalleryRequest, v1::DeleteGalleryResponse>(
+      context, gate_, SHAPEID_METHOD(DeleteGallery), raw_request, raw_response,
+      [&](const v1::DeleteGalleryRequest& request,
+          v1::DeleteGalleryResponse* response) -> absl::Status {
+        SHAPEID_RETURN_IF_ERROR(RequireGalleryName("DeleteGallery", request.name()));
+        SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
+                                 registry_->Get(request.name()));
+        const int64_t samples = gallery->Snapshot()->num_samples();
+        SHAPEID_RETURN_IF_ERROR(registry_->Delete(request.name()));
+        response->set_samples_deleted(static_cast<uint64_t>(samples));
+        return absl::OkStatus();
+      });
 }
 
 grpc::ServerUnaryReactor* ShapeIdService::RemoveSamples(grpc::CallbackServerContext* context,
-                                                        const v1::RemoveSamplesRequest* request,
-                                                        v1::RemoveSamplesResponse* response) {
-  return Unary(context, gate_, SHAPEID_METHOD(RemoveSamples), [&]() -> absl::Status {
-    SHAPEID_RETURN_IF_ERROR(RequireGalleryName("RemoveSamples", request->gallery()));
-    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
-                             registry_->Get(request->gallery()));
-    if (request->sample_ids().empty() && request->labels().empty()) {
-      return absl::InvalidArgumentError("RemoveSamples: give sample_ids, labels or both");
-    }
-    // One removal of the union, so the call is all-or-nothing. Labels are resolved against
-    // the gallery as it is now; a label with no samples is NOT_FOUND.
-    std::set<uint64_t> ids(request->sample_ids().begin(), request->sample_ids().end());
-    const auto snapshot = gallery->Snapshot();
-    for (const std::string& label : request->labels()) {
-      const std::vector<uint64_t> labelled = snapshot->IdsWithLabel(label);
-      if (labelled.empty()) {
-        return absl::NotFoundError(
-            absl::StrCat("gallery '", gallery->name(), "' has no samples labelled '", label, "'"));
-      }
-      ids.insert(labelled.begin(), labelled.end());
-    }
-    const std::vector<uint64_t> all(ids.begin(), ids.end());
-    SHAPEID_ASSIGN_OR_RETURN(const int64_t removed, gallery->RemoveSamples(all));
-    response->set_removed(static_cast<uint64_t>(removed));
-    response->set_remaining(static_cast<uint64_t>(gallery->Snapshot()->num_samples()));
-    return absl::OkStatus();
-  });
+                                                        const grpc::ByteBuffer* raw_request,
+                                                        grpc::ByteBuffer* raw_response) {
+  return Unary<v1::RemoveSamplesRequest, v1::RemoveSamplesResponse>(
+      context, gate_, SHAPEID_METHOD(RemoveSamples), raw_request, raw_response,
+      [&](const v1::RemoveSamplesRequest& request,
+          v1::RemoveSamplesResponse* response) -> absl::Status {
+        SHAPEID_RETURN_IF_ERROR(RequireGalleryName("RemoveSamples", request.gallery()));
+        SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
+                                 registry_->Get(request.gallery()));
+        if (request.sample_ids().empty() && request.labels().empty()) {
+          return absl::InvalidArgumentError("RemoveSamples: give sample_ids, labels or both");
+        }
+        // One removal of the union, so the call is all-or-nothing. Labels are resolved against
+        // the gallery as it is now; a label with no samples is NOT_FOUND.
+        std::set<uint64_t> ids(request.sample_ids().begin(), request.sample_ids().end());
+        const auto snapshot = gallery->Snapshot();
+        for (const std::string& label : request.labels()) {
+          const std::vector<uint64_t> labelled = snapshot->IdsWithLabel(label);
+          if (labelled.empty()) {
+            return absl::NotFoundError(absl::StrCat("gallery '", gallery->name(),
+                                                    "' has no samples labelled '", label, "'"));
+          }
+          ids.insert(labelled.begin(), labelled.end());
+        }
+        const std::vector<uint64_t> all(ids.begin(), ids.end());
+        SHAPEID_ASSIGN_OR_RETURN(const int64_t removed, gallery->RemoveSamples(all));
+        response->set_removed(static_cast<uint64_t>(removed));
+        response->set_remaining(static_cast<uint64_t>(gallery->Snapshot()->num_samples()));
+        return absl::OkStatus();
+      });
 }
 
 grpc::ServerWriteReactor<v1::GalleryExportChunk>* ShapeIdService::ExportGallery(
@@ -558,32 +589,35 @@ grpc::ServerWriteReactor<v1::GalleryExportChunk>* ShapeIdService::ExportGallery(
   return new ExportReactor(context, &gate_, *registry_, *request);
 }
 
-grpc::ServerReadReactor<v1::ImportGalleryRequest>* ShapeIdService::ImportGallery(
-    grpc::CallbackServerContext* context, v1::Gallery* response) {
+grpc::ServerReadReactor<grpc::ByteBuffer>* ShapeIdService::ImportGallery(
+    grpc::CallbackServerContext* context, grpc::ByteBuffer* response) {
   return new ImportReactor(context, &gate_, *registry_, response);
 }
 
-grpc::ServerUnaryReactor* ShapeIdService::ListDescriptors(
-    grpc::CallbackServerContext* context, const v1::ListDescriptorsRequest* /*request*/,
-    v1::ListDescriptorsResponse* response) {
-  return Unary(context, gate_, SHAPEID_METHOD(ListDescriptors), [&]() -> absl::Status {
-    for (const DescriptorKind& kind : RegisteredDescriptors()) {
-      v1::DescriptorKind* out = response->add_descriptors();
-      out->set_kind(kind.kind);
-      out->set_summary(kind.summary);
-      for (const DescriptorParam& p : kind.params) {
-        v1::DescriptorParameter* param = out->add_parameters();
-        param->set_name(p.name);
-        param->set_default_value(p.default_value);
-        param->set_help(p.help);
-      }
-      SHAPEID_ASSIGN_OR_RETURN(const std::unique_ptr<Descriptor> defaults,
-                               CreateDescriptor(kind.kind));
-      out->set_default_spec(defaults->spec().ToString());
-      out->set_default_dimension(static_cast<uint32_t>(defaults->dimension()));
-    }
-    return absl::OkStatus();
-  });
+grpc::ServerUnaryReactor* ShapeIdService::ListDescriptors(grpc::CallbackServerContext* context,
+                                                          const grpc::ByteBuffer* raw_request,
+                                                          grpc::ByteBuffer* raw_response) {
+  return Unary<v1::ListDescriptorsRequest, v1::ListDescriptorsResponse>(
+      context, gate_, SHAPEID_METHOD(ListDescriptors), raw_request, raw_response,
+      [&](const v1::ListDescriptorsRequest& /*request*/,
+          v1::ListDescriptorsResponse* response) -> absl::Status {
+        for (const DescriptorKind& kind : RegisteredDescriptors()) {
+          v1::DescriptorKind* out = response->add_descriptors();
+          out->set_kind(kind.kind);
+          out->set_summary(kind.summary);
+          for (const DescriptorParam& p : kind.params) {
+            v1::DescriptorParameter* param = out->add_parameters();
+            param->set_name(p.name);
+            param->set_default_value(p.default_value);
+            param->set_help(p.help);
+          }
+          SHAPEID_ASSIGN_OR_RETURN(const std::unique_ptr<Descriptor> defaults,
+                                   CreateDescriptor(kind.kind));
+          out->set_default_spec(defaults->spec().ToString());
+          out->set_default_dimension(static_cast<uint32_t>(defaults->dimension()));
+        }
+        return absl::OkStatus();
+      });
 }
 
 }  // namespace shapeid

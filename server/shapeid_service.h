@@ -16,6 +16,24 @@
 
 namespace shapeid {
 
+// The methods that take requests are registered raw (their messages arrive as bytes and are
+// parsed by the service): gRPC reports a streamed message that does not parse as the end of
+// the stream, and a unary request that does not parse as UNIMPLEMENTED; shapeid answers both
+// INVALID_ARGUMENT and keeps nothing of the call. ExportGallery stays typed (its request is a
+// name).
+using ShapeIdRawService =
+    v1::ShapeId::WithRawCallbackMethod_Describe<v1::ShapeId::WithRawCallbackMethod_DescribeCloud<
+        v1::ShapeId::WithRawCallbackMethod_Train<v1::ShapeId::WithRawCallbackMethod_Classify<
+            v1::ShapeId::WithRawCallbackMethod_ClassifyCloud<
+                v1::ShapeId::WithRawCallbackMethod_CreateGallery<
+                    v1::ShapeId::WithRawCallbackMethod_GetGallery<
+                        v1::ShapeId::WithRawCallbackMethod_ListGalleries<
+                            v1::ShapeId::WithRawCallbackMethod_DeleteGallery<
+                                v1::ShapeId::WithRawCallbackMethod_RemoveSamples<
+                                    v1::ShapeId::WithRawCallbackMethod_ImportGallery<
+                                        v1::ShapeId::WithRawCallbackMethod_ListDescriptors<
+                                            v1::ShapeId::CallbackService>>>>>>>>>>>>;
+
 // The gRPC edge of shapeid: each method turns its messages into calls on core/ (descriptors,
 // the gallery registry) and the result into one status through ToGrpcStatus
 // (server/grpc_status.h). All state lives in the registry; thread-safe.
@@ -26,7 +44,7 @@ namespace shapeid {
 // Every call passes the call gate first (server/call_gate.h): with `keys` non-empty, its API
 // key must cover the method's scope (server/authorization.h); streams are counted per client
 // and ended at the ceiling of `options`.
-class ShapeIdService final : public v1::ShapeId::CallbackService {
+class ShapeIdService final : public ShapeIdRawService {
  public:
   ShapeIdService(ServiceOptions options, std::shared_ptr<GalleryRegistry> registry,
                  std::shared_ptr<const ApiKeyStore> keys = nullptr)
@@ -34,46 +52,50 @@ class ShapeIdService final : public v1::ShapeId::CallbackService {
         registry_(std::move(registry)),
         gate_(std::move(keys), options_.max_streams_per_client, options_.max_call) {}
 
-  grpc::ServerReadReactor<v1::DescribeRequest>* Describe(grpc::CallbackServerContext* context,
-                                                         v1::DescribeResponse* response) override;
-  grpc::ServerReadReactor<v1::TrainRequest>* Train(grpc::CallbackServerContext* context,
-                                                   v1::TrainResponse* response) override;
-  grpc::ServerReadReactor<v1::ClassifyRequest>* Classify(grpc::CallbackServerContext* context,
-                                                         v1::ClassifyResponse* response) override;
+  // Client streams: messages v1::DescribeRequest, TrainRequest, ClassifyRequest; answers
+  // v1::DescribeResponse, TrainResponse, ClassifyResponse.
+  grpc::ServerReadReactor<grpc::ByteBuffer>* Describe(grpc::CallbackServerContext* context,
+                                                      grpc::ByteBuffer* response) override;
+  grpc::ServerReadReactor<grpc::ByteBuffer>* Train(grpc::CallbackServerContext* context,
+                                                   grpc::ByteBuffer* response) override;
+  grpc::ServerReadReactor<grpc::ByteBuffer>* Classify(grpc::CallbackServerContext* context,
+                                                      grpc::ByteBuffer* response) override;
+  // Unary calls: the request and response types of the proto, as bytes.
   grpc::ServerUnaryReactor* DescribeCloud(grpc::CallbackServerContext* context,
-                                          const v1::DescribeCloudRequest* request,
-                                          v1::DescribeResponse* response) override;
+                                          const grpc::ByteBuffer* raw_request,
+                                          grpc::ByteBuffer* raw_response) override;
   grpc::ServerUnaryReactor* ClassifyCloud(grpc::CallbackServerContext* context,
-                                          const v1::ClassifyCloudRequest* request,
-                                          v1::ClassifyResponse* response) override;
+                                          const grpc::ByteBuffer* raw_request,
+                                          grpc::ByteBuffer* raw_response) override;
 
   grpc::ServerUnaryReactor* CreateGallery(grpc::CallbackServerContext* context,
-                                          const v1::CreateGalleryRequest* request,
-                                          v1::Gallery* response) override;
+                                          const grpc::ByteBuffer* raw_request,
+                                          grpc::ByteBuffer* raw_response) override;
   grpc::ServerUnaryReactor* GetGallery(grpc::CallbackServerContext* context,
-                                       const v1::GetGalleryRequest* request,
-                                       v1::Gallery* response) override;
+                                       const grpc::ByteBuffer* raw_request,
+                                       grpc::ByteBuffer* raw_response) override;
   grpc::ServerUnaryReactor* ListGalleries(grpc::CallbackServerContext* context,
-                                          const v1::ListGalleriesRequest* request,
-                                          v1::ListGalleriesResponse* response) override;
+                                          const grpc::ByteBuffer* raw_request,
+                                          grpc::ByteBuffer* raw_response) override;
   grpc::ServerUnaryReactor* DeleteGallery(grpc::CallbackServerContext* context,
-                                          const v1::DeleteGalleryRequest* request,
-                                          v1::DeleteGalleryResponse* response) override;
+                                          const grpc::ByteBuffer* raw_request,
+                                          grpc::ByteBuffer* raw_response) override;
   grpc::ServerUnaryReactor* RemoveSamples(grpc::CallbackServerContext* context,
-                                          const v1::RemoveSamplesRequest* request,
-                                          v1::RemoveSamplesResponse* response) override;
+                                          const grpc::ByteBuffer* raw_request,
+                                          grpc::ByteBuffer* raw_response) override;
   // Streams one snapshot of the gallery (server/gallery_export.h), so training during the
   // export does not tear it; stops at the first failed write (client gone, deadline).
   grpc::ServerWriteReactor<v1::GalleryExportChunk>* ExportGallery(
       grpc::CallbackServerContext* context, const v1::ExportGalleryRequest* request) override;
   // Assembles and checks the export as it arrives (the first error ends the call), then
-  // GalleryRegistry::Import: all-or-nothing.
-  grpc::ServerReadReactor<v1::ImportGalleryRequest>* ImportGallery(
-      grpc::CallbackServerContext* context, v1::Gallery* response) override;
+  // GalleryRegistry::Import: all-or-nothing. Messages v1::ImportGalleryRequest; answer
+  // v1::Gallery.
+  grpc::ServerReadReactor<grpc::ByteBuffer>* ImportGallery(grpc::CallbackServerContext* context,
+                                                           grpc::ByteBuffer* response) override;
 
   grpc::ServerUnaryReactor* ListDescriptors(grpc::CallbackServerContext* context,
-                                            const v1::ListDescriptorsRequest* request,
-                                            v1::ListDescriptorsResponse* response) override;
+                                            const grpc::ByteBuffer* raw_request,
+                                            grpc::ByteBuffer* raw_response) override;
 
   // Refuses every call with UNAVAILABLE "loading" until StartServing (a new service serves
   // at once; the server holds it while it loads galleries from the store).

@@ -9,7 +9,10 @@ namespace shapeid {
 
 namespace {
 
+// NotFound, or InvalidArgument for a name no gallery can have (as the API documents), so that
+// a typo like "../x" or a 200-character name says what is wrong with it.
 absl::Status NoSuchGallery(absl::string_view name) {
+  if (absl::Status valid = ValidateGalleryName(name); !valid.ok()) return valid;
   return absl::NotFoundError(absl::StrCat("no gallery named '", name, "'"));
 }
 

@@ -3,8 +3,8 @@
 #include <condition_variable>
 #include <memory>
 #include <mutex>
-#include <thread>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "core/gallery/gallery_store.h"
@@ -75,6 +75,13 @@ TEST(GalleryRegistryTest, Errors) {
   EXPECT_EQ(missing.code(), absl::StatusCode::kNotFound);
   EXPECT_THAT(missing.message(), AllOf(HasSubstr("'zzz'"), Not(HasSubstr("'a'"))));
   EXPECT_EQ(registry.Delete("zzz").code(), absl::StatusCode::kNotFound);
+  // A name no gallery can have says what is wrong with it, not that it is missing.
+  for (const char* bad : {"../x", "", "a/b", ".hidden"}) {
+    EXPECT_EQ(registry.Get(bad).status().code(), absl::StatusCode::kInvalidArgument) << bad;
+    EXPECT_EQ(registry.Delete(bad).code(), absl::StatusCode::kInvalidArgument) << bad;
+  }
+  EXPECT_EQ(registry.Get(std::string(129, 'a')).status().code(),
+            absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(registry.List(), ElementsAre("a"));
 }
 

@@ -289,7 +289,7 @@ absl::StatusOr<ReadResult> ParsePly(absl::string_view contents, absl::string_vie
   }
   size_t coord[3];
   for (int a = 0; a < 3; ++a) {
-    const int found = FindScalar(*vertex, absl::string_view("xyz" + a, 1));
+    const int found = FindScalar(*vertex, absl::string_view(&"xyz"[a], 1));
     coord[a] = static_cast<size_t>(found);
     if (found < 0) {
       return LineError(name, vertex->line,
@@ -329,6 +329,9 @@ absl::StatusOr<ReadResult> ParsePly(absl::string_view contents, absl::string_vie
     const bool is_vertex = &e == vertex;
     const bool is_face = &e == face && sample;
     values.assign(e.properties.size(), 0.0);
+    // A binary element without properties has instances of zero bytes: nothing to read,
+    // however many the header announces (counting to 2^64 - 1 would hang the reader).
+    if (e.properties.empty() && !ascii) continue;
     for (uint64_t i = 0; i < e.count; ++i) {
       uint64_t where = 0;
       SHAPEID_RETURN_IF_ERROR(reader.BeginInstance(&where));

@@ -183,6 +183,22 @@ TEST(PlyReaderTest, HugeCountsDoNotAllocate) {
   ExpectError(r, absl::StatusCode::kInvalidArgument, "huge.ply", "truncated");
 }
 
+// Found by the bad-input corpus (tests/bad_input_test.cc): an element without properties has
+// zero-byte instances, and a count of 2^64 - 1 of them used to spin the reader for ever.
+TEST(PlyReaderTest, AnElementWithoutPropertiesIsSkippedWhateverItsCount) {
+  const std::string file =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n"
+      "property float y\nproperty float z\nelement nothing 18446744073709551615\nend_header\n" +
+      std::string("\0\0\0\0\0\0\x80\x3f\0\0\0\x40", 12);
+  ReadOptions keep_coordinates;
+  keep_coordinates.recenter = false;
+  const absl::StatusOr<ReadResult> r = ParsePly(file, "empty-element.ply", keep_coordinates);
+  ASSERT_TRUE(r.ok()) << r.status();
+  ASSERT_EQ(r->cloud.size(), 1u);
+  EXPECT_EQ(r->cloud.point(0).y(), 1.0f);
+  EXPECT_EQ(r->cloud.point(0).z(), 2.0f);
+}
+
 // Every prefix and random corruptions: read or rejected, never a crash (run under ASan).
 TEST(PlyReaderTest, TruncationsAndCorruptionsAreHandled) {
   const char replacements[] = "0123456789 \n.-e#x\xff\x80";
