@@ -35,8 +35,8 @@ constexpr auto& kShapes = testing_clouds::kShapeNames;
 
 std::string ScratchDir(absl::string_view what) {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const std::string dir = absl::StrCat(::testing::TempDir(), "/persistence_", getpid(), "_",
-                                       info->name(), "_", what);
+  const std::string dir =
+      absl::StrCat(::testing::TempDir(), "/persistence_", getpid(), "_", info->name(), "_", what);
   std::system(absl::StrCat("rm -rf '", dir, "'").c_str());
   std::system(absl::StrCat("mkdir -p '", dir, "'").c_str());
   return dir;
@@ -55,13 +55,13 @@ std::unique_ptr<ServerProcess> StartOn(const std::string& data_dir,
                                        std::vector<std::string> flags = {}) {
   flags.push_back("--data_dir=" + data_dir);
   auto server = std::make_unique<ServerProcess>(flags);
-  EXPECT_FALSE(server->address().empty())
-      << "shapeid-server did not start; stderr:\n" << server->StderrText();
+  EXPECT_FALSE(server->address().empty()) << "shapeid-server did not start; stderr:\n"
+                                          << server->StderrText();
   return server;
 }
 
-absl::Status Train(Client& client, const std::string& gallery, const std::string& label,
-                   int kind, uint32_t seed, int count, size_t points = 300) {
+absl::Status Train(Client& client, const std::string& gallery, const std::string& label, int kind,
+                   uint32_t seed, int count, size_t points = 300) {
   std::vector<PointCloud> clouds;
   for (int i = 0; i < count; ++i) clouds.push_back(ShapeCloud(kind, seed + i, points));
   std::vector<TrainSample> samples;
@@ -218,6 +218,7 @@ TEST(PersistenceE2ETest, KillDuringTrainingLosesNoAcknowledgedSample) {
 
     // 8 clients train until the server is killed under them.
     std::atomic<bool> stop{false};
+    std::atomic<int> acked_this_round{0};
     std::vector<std::map<std::string, bool>> outcomes(kClients);
     std::vector<std::thread> threads;
     for (int c = 0; c < kClients; ++c) {
@@ -230,16 +231,22 @@ TEST(PersistenceE2ETest, KillDuringTrainingLosesNoAcknowledgedSample) {
         if (!own.ok()) return;
         for (int s = 0; !stop.load(); ++s) {
           const std::string label = absl::StrCat("r", round, "c", c, "s", s);
-          const bool ok = Train(**own, "crash", label, (c + s) % 3,
-                                static_cast<uint32_t>(round * 100000 + c * 1000 + s), kPerStream,
-                                200)
-                              .ok();
+          const bool ok =
+              Train(**own, "crash", label, (c + s) % 3,
+                    static_cast<uint32_t>(round * 100000 + c * 1000 + s), kPerStream, 200)
+                  .ok();
           outcomes[c][label] = ok;
           if (!ok) break;  // the server is gone
+          acked_this_round.fetch_add(1);
         }
       });
     }
+    // A random moment, but not before some streams were acknowledged (a slow build, such as
+    // the sanitizer one, would otherwise kill the server before it trained anything).
     std::this_thread::sleep_for(std::chrono::milliseconds(50 + rng() % 250));
+    for (int waited = 0; acked_this_round.load() < 5 && waited < 2000; ++waited) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
     server->Kill();
     stop.store(true);
     for (std::thread& t : threads) t.join();
@@ -269,11 +276,11 @@ TEST(PersistenceE2ETest, KillDuringTrainingLosesNoAcknowledgedSample) {
     }
   }
   EXPECT_GT(total_acked, rounds * 4) << "the clients barely trained; the test proves little";
-  std::printf("%d rounds: %lld streams acknowledged (all present), %lld cut by the kill "
-              "(%lld of those committed before the reply was lost, the rest absent)\n",
-              rounds, static_cast<long long>(total_acked),
-              static_cast<long long>(total_unknown_outcome),
-              static_cast<long long>(unknown_present));
+  std::printf(
+      "%d rounds: %lld streams acknowledged (all present), %lld cut by the kill "
+      "(%lld of those committed before the reply was lost, the rest absent)\n",
+      rounds, static_cast<long long>(total_acked), static_cast<long long>(total_unknown_outcome),
+      static_cast<long long>(unknown_present));
 }
 
 TEST(PersistenceE2ETest, DamagedStoreStopsStartUpUnlessSetAside) {
