@@ -27,6 +27,9 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   # the security tests make their certificates with the openssl CLI (tests/make_test_certificates.sh)
   openssl
+  # reliability (docs/reliability.md): clang and libFuzzer for the fuzz targets, and
+  # llvm-symbolizer for readable sanitizer reports (GCC's sanitizers use it too)
+  clang-14 libclang-rt-14-dev llvm-14
   # Python interop test (tests/python): a client generated from the proto with grpc_python_plugin,
   # run by Debian's /usr/bin/python3
   python3-grpcio python3-protobuf

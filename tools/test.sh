@@ -1,15 +1,55 @@
 #!/usr/bin/env bash
-# The test command (README, .ci/run): on a fresh Debian 12 machine, installs the packages,
-# builds the `ci` preset (optimised, assertions on, warnings are errors) and runs every test,
-# then the container test (deploy/test_container.sh: the image built from deploy/Dockerfile
-# with buildah, run, trained, restarted on its volume; base images and layers are reused
-# between runs on one machine). Tests that need ../shared/data skip with a message where it
-# is absent.
+# The test command (README, .ci/run). On a fresh Debian 12 machine it installs the packages,
+# then runs five stages; the first failure (a sanitizer report included) stops it, non-zero:
+#   ci         the `ci` preset (optimised, assertions on, warnings are errors): every test;
+#   container  deploy/test_container.sh: the image of deploy/Dockerfile built with buildah,
+#              run, trained, restarted on its volume (base images and layers are reused
+#              between runs on one machine);
+#   asan       the `asan` preset: every test again under AddressSanitizer + UndefinedBehavior-
+#              Sanitizer, leaks included;
+#   tsan       the `tsan` preset: the tests marked CONCURRENT under ThreadSanitizer;
+#   fuzz       the `fuzz` preset (clang, libFuzzer): each fuzz target for
+#              $SHAPEID_FUZZ_SECONDS (default 60) seconds (fuzz/run_fuzzers.sh).
+# `tools/test.sh asan tsan` runs only those stages. Tests that need ../shared/data skip with a
+# message where it is absent. docs/reliability.md says what each stage proves.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+stages=("$@")
+[ ${#stages[@]} -gt 0 ] || stages=(ci container asan tsan fuzz)
+
 tools/install-deps.sh
-cmake --preset ci
-cmake --build --preset ci -j "$(nproc)"
-ctest --preset ci
-deploy/test_container.sh build/ci/client/cli/shapeid
+
+# ccache is shared by every clone on this machine (CI tests a fresh clone each time): paths
+# under the clone are hashed relative to it, and the sanitizer builds need more room than
+# ccache's default 5 GB. Only compiler outputs are cached, never test results.
+export CCACHE_BASEDIR=$PWD CCACHE_NOHASHDIR=true
+export CCACHE_MAXSIZE=${CCACHE_MAXSIZE:-16G}
+export ASAN_SYMBOLIZER_PATH=/usr/lib/llvm-14/bin/llvm-symbolizer
+
+timings=()
+stage() {  # NAME COMMAND...
+  local name=$1 start=$SECONDS
+  shift
+  echo "=== test.sh: $name"
+  "$@"
+  timings+=("$(printf '%-10s %3d min %02d s' "$name" $(((SECONDS - start) / 60)) $(((SECONDS - start) % 60)))")
+}
+preset() {  # NAME: configure, build and test one preset
+  cmake --preset "$1"
+  cmake --build --preset "$1" -j "$(nproc)"
+  ctest --preset "$1"
+}
+
+for s in "${stages[@]}"; do
+  case $s in
+    ci|asan|tsan) stage "$s" preset "$s" ;;
+    container) stage container deploy/test_container.sh build/ci/client/cli/shapeid ;;
+    fuzz)
+      stage fuzz bash -c 'cmake --preset fuzz && cmake --build --preset fuzz -j "$(nproc)" &&
+        fuzz/run_fuzzers.sh build/fuzz "${SHAPEID_FUZZ_SECONDS:-60}"' ;;
+    *) echo "test.sh: unknown stage '$s' (ci, container, asan, tsan, fuzz)" >&2; exit 2 ;;
+  esac
+done
+echo "=== test.sh: all stages passed"
+printf '  %s\n' "${timings[@]}"
