@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Writes the checked-in seed corpora of the file-reader and spec fuzz targets (fuzz/corpus/).
+"""Writes the checked-in seed corpora of the file-reader and spec fuzz targets (fuzz/testdata/corpus/).
 
 Small files that between them use every feature each reader documents (core/io/*_reader.h):
 ascii and binary encodings, both byte orders, padding fields, organised clouds with NaN,
@@ -21,7 +21,7 @@ def points(n, seed=1):
 
 
 def write(target, name, data):
-    d = os.path.join(HERE, 'corpus', target)
+    d = os.path.join(HERE, 'testdata', 'corpus', target)
     os.makedirs(d, exist_ok=True)
     with open(os.path.join(d, name), 'wb') as f:
         f.write(data.encode() if isinstance(data, str) else data)

@@ -1,7 +1,7 @@
 // A main() for a libFuzzer target built without libFuzzer (any compiler, any sanitizer): runs
 // LLVMFuzzerTestOneInput once on each file named, and on every file of each directory named,
 // in name order. CTest runs every target this way on its seed corpus and its saved crashes
-// (fuzz/regressions/), so each input that once crashed stays a test in every build.
+// (fuzz/testdata/regressions/), so each input that once crashed stays a test in every build.
 
 #include <algorithm>
 #include <cstddef>

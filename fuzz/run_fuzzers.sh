@@ -7,13 +7,13 @@
 #   fuzz/run_fuzzers.sh [BUILD_DIR [SECONDS_PER_TARGET [TARGET...]]]
 #   fuzz/run_fuzzers.sh build/fuzz 600 pcd_fuzzer      # ten minutes on the PCD reader
 #
-# Seeds: fuzz/corpus/TARGET (checked in), the service seeds written by the build, the
-# malformed files of tests/bad_input/files, and, where ../shared/data exists, a few real
+# Seeds: fuzz/testdata/corpus/TARGET (checked in), the service seeds written by the build, the
+# malformed files of tests/bad_input/testdata, and, where ../shared/data exists, a few real
 # ModelNet10 PCD and DALES XYZ files. The corpus each target
 # grows is kept in $SHAPEID_FUZZ_CACHE (default /var/tmp/shapeid-fuzz), so that a later run
 # on the same machine starts where the last one stopped; deleting it is always safe.
 # A crash leaves its input in BUILD_DIR/fuzz-run/TARGET/; the message says how to keep it as
-# a regression test (fuzz/regressions/TARGET/, replayed by ctest in every build).
+# a regression test (fuzz/testdata/regressions/TARGET/, replayed by ctest in every build).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=$(cd "${1:-$root/build/fuzz}" && pwd)
@@ -32,9 +32,9 @@ rm -rf "$out"
 mkdir -p "$out"
 
 # A few real files per format, and the bad-input corpus's malformed files of that format
-# (tests/bad_input/files), as extra read-only seeds.
+# (tests/bad_input/testdata), as extra read-only seeds.
 real_seeds() {  # TARGET -> prints a directory (maybe empty)
-  local dir=$out/real/$1 bad=$root/tests/bad_input/files
+  local dir=$out/real/$1 bad=$root/tests/bad_input/testdata
   mkdir -p "$dir"
   case $1 in
     pcd_fuzzer) cp "$bad"/*.pcd "$dir"/ 2>/dev/null || true ;;&
@@ -62,10 +62,10 @@ real_seeds() {  # TARGET -> prints a directory (maybe empty)
 
 run_one() {  # TARGET
   local target=$1 binary=$build/fuzz/$1
-  local seeds=("$root/fuzz/corpus/$target")
-  [ "$target" = service_fuzzer ] && seeds=("$build/fuzz/corpus/service_fuzzer")
+  local seeds=("$root/fuzz/testdata/corpus/$target")
+  [ "$target" = service_fuzzer ] && seeds=("$build/fuzz/testdata/corpus/service_fuzzer")
   seeds+=("$(real_seeds "$target")")
-  [ -d "$root/fuzz/regressions/$target" ] && seeds+=("$root/fuzz/regressions/$target")
+  [ -d "$root/fuzz/testdata/regressions/$target" ] && seeds+=("$root/fuzz/testdata/regressions/$target")
   mkdir -p "$cache/$target" "$out/$target"
   # -malloc_limit_mb: a header announcing 10^12 points must be refused, not allocated.
   # -timeout: no input of these sizes may take seconds (a quadratic path would).
@@ -113,7 +113,7 @@ if [ ${#failed[@]} -gt 0 ]; then
       [ -e "$artifact" ] || continue
       echo "input: $artifact"
       echo "  reproduce: $build/fuzz/$target $artifact"
-      echo "  keep as a regression test: cp $artifact $root/fuzz/regressions/$target/"
+      echo "  keep as a regression test: cp $artifact $root/fuzz/testdata/regressions/$target/"
     done
   done
   exit 1

@@ -1,5 +1,5 @@
 // Bad input (issue 10): a table of malformed requests and a corpus of malformed files
-// (tests/bad_input/files), each row with the status code the proto documents, or the exit code
+// (tests/bad_input/testdata), each row with the status code the proto documents, or the exit code
 // and message docs/cli.md and the README document. After every row the server process must
 // still be alive, answer its health check SERVING, hold exactly the galleries it held before
 // (samples, versions, times, labels), and classify a fixed probe cloud exactly as before.
@@ -220,7 +220,7 @@ struct RpcCase {
 enum Command : unsigned { kDescribe = 1, kClassify = 2, kTrain = 4, kViews = 8, kImport = 16 };
 
 struct FileCase {
-  std::string file;  // in tests/bad_input/files, or "$scratch/..." made by the test
+  std::string file;  // in tests/bad_input/testdata, or "$scratch/..." made by the test
   unsigned commands;
   int exit_code;
   std::string message;  // exit code != 0: a substring of stderr, which must also name the file
@@ -1093,7 +1093,7 @@ void BadInputTest::MakeScratchFiles() {
   fs::create_directories(scratch_ / "folder_with_notes");
   std::ofstream(scratch_ / "folder_with_notes/notes.md") << "no clouds here\n";
   fs::create_directories(scratch_ / "folder_with_one_bad_file/sub");
-  fs::copy_file(fs::path(SHAPEID_SOURCE_DIR) / "tests/bad_input/files/xyz_two_columns.xyz",
+  fs::copy_file(fs::path(SHAPEID_SOURCE_DIR) / "tests/bad_input/testdata/xyz_two_columns.xyz",
                 scratch_ / "folder_with_one_bad_file/sub/two_columns.xyz");
   WriteExportFile(scratch_ / "copy_of_g.shapeid", export_);
   WriteExportFile(scratch_ / "cut_in_half.shapeid", export_,
@@ -1205,7 +1205,7 @@ std::vector<FileCase> BadInputTest::FileTable() {
 
 TEST_F(BadInputTest, FilesGetTheirDocumentedExitCodeAndChangeNothing) {
   MakeScratchFiles();
-  const fs::path corpus = fs::path(SHAPEID_SOURCE_DIR) / "tests/bad_input/files";
+  const fs::path corpus = fs::path(SHAPEID_SOURCE_DIR) / "tests/bad_input/testdata";
   const std::vector<FileCase> table = FileTable();
   for (const FileCase& row : table) {
     const std::string path = absl::StartsWith(row.file, "$scratch/")
