@@ -63,7 +63,7 @@ real_seeds() {  # TARGET -> prints a directory (maybe empty)
 run_one() {  # TARGET
   local target=$1 binary=$build/fuzz/$1
   local seeds=("$root/fuzz/testdata/corpus/$target")
-  [ "$target" = service_fuzzer ] && seeds=("$build/fuzz/testdata/corpus/service_fuzzer")
+  [ "$target" = service_fuzzer ] && seeds=("$build/fuzz/corpus/service_fuzzer")
   seeds+=("$(real_seeds "$target")")
   [ -d "$root/fuzz/testdata/regressions/$target" ] && seeds+=("$root/fuzz/testdata/regressions/$target")
   mkdir -p "$cache/$target" "$out/$target"
