@@ -127,7 +127,7 @@ int Run(int argc, char** argv) {
                                           gallery.samples[0]);
           for (StoredSample& s : batch) s.id = next_id++;
           const absl::Time a0 = absl::Now();
-          if (!(*store)->AppendSamples("bench", batch, absl::Now()).ok()) return 1;
+          if (!(*store)->AppendSamples("bench", batch, absl::Now(), 0).ok()) return 1;
           append_ms[b].push_back(absl::ToDoubleMilliseconds(absl::Now() - a0));
         }
       }

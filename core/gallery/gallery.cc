@@ -223,6 +223,7 @@ absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Restore(const StoredGallery& s
     }
   }
   snapshot->updated_ = stored.updated;
+  snapshot->version_ = stored.version;
   snapshot->next_assigned_id_ = next_assigned;
   return std::shared_ptr<Gallery>(
       new Gallery(stored.name, limits, std::move(store), std::move(snapshot)));
@@ -266,6 +267,38 @@ absl::Status Gallery::MarkDeleted(const std::function<absl::Status()>& forget) {
 }
 
 absl::StatusOr<CommitResult> Gallery::CommitBatch(std::vector<StoredSample>& samples) {
+  // An attempt fills in assigned ids; a retry must choose them afresh from the caught-up
+  // snapshot (another server may have handed out the same ones meanwhile).
+  std::vector<size_t> to_assign;
+  for (size_t i = 0; i < samples.size(); ++i) {
+    if (samples[i].id == 0) to_assign.push_back(i);
+  }
+  return RetryIfStale<CommitResult>([&] {
+    for (size_t i : to_assign) samples[i].id = 0;
+    return CommitBatchOnce(samples);
+  });
+}
+
+template <typename T>
+absl::StatusOr<T> Gallery::RetryIfStale(const std::function<absl::StatusOr<T>()>& write) {
+  bool caught_up_for_not_found = false;
+  for (int attempt = 1;; ++attempt) {
+    absl::StatusOr<T> result = write();
+    if (store_ == nullptr || !store_->shared() || attempt == kStaleAttempts) return result;
+    // NotFound (an id or label to remove) may only mean that another server's change has not
+    // reached this one yet: catch up and look once more, so a client that trained through
+    // one replica can remove through another at once.
+    const bool stale = absl::IsAborted(result.status()) ||
+                       (absl::IsNotFound(result.status()) && !caught_up_for_not_found);
+    if (!stale) return result;
+    if (absl::IsNotFound(result.status())) caught_up_for_not_found = true;
+    // A shared store found this server's copy behind: apply what the others wrote, then
+    // rebuild the change on top of it (outside the writer lock, which catching up needs).
+    SHAPEID_RETURN_IF_ERROR(store_->CatchUp(name_));
+  }
+}
+
+absl::StatusOr<CommitResult> Gallery::CommitBatchOnce(std::vector<StoredSample>& samples) {
   std::lock_guard<std::mutex> lock(writer_mu_);
   if (deleted_) return DeletedError();
   const std::shared_ptr<const GallerySnapshot> current = Snapshot();
@@ -309,7 +342,8 @@ absl::StatusOr<CommitResult> Gallery::CommitBatch(std::vector<StoredSample>& sam
   next->version_ = current->version_ + 1;
   next->updated_ = std::max(absl::Now(), current->updated_);
   if (store_ != nullptr) {
-    SHAPEID_RETURN_IF_ERROR(store_->AppendSamples(name_, samples, next->updated_));
+    SHAPEID_RETURN_IF_ERROR(
+        store_->AppendSamples(name_, samples, next->updated_, next->version_));
   }
   result.version = next->version_;
   Publish(std::move(next));
@@ -331,6 +365,10 @@ absl::Status Gallery::UpdateApproximateIndex(const std::atomic<bool>* cancel) {
 }
 
 absl::StatusOr<int64_t> Gallery::RemoveSamples(absl::Span<const uint64_t> ids) {
+  return RetryIfStale<int64_t>([&] { return RemoveSamplesOnce(ids); });
+}
+
+absl::StatusOr<int64_t> Gallery::RemoveSamplesOnce(absl::Span<const uint64_t> ids) {
   std::lock_guard<std::mutex> lock(writer_mu_);
   if (deleted_) return DeletedError();
   const std::shared_ptr<const GallerySnapshot> current = Snapshot();
@@ -348,6 +386,10 @@ absl::StatusOr<int64_t> Gallery::RemoveSamples(absl::Span<const uint64_t> ids) {
 }
 
 absl::StatusOr<int64_t> Gallery::RemoveLabel(absl::string_view label) {
+  return RetryIfStale<int64_t>([&] { return RemoveLabelOnce(label); });
+}
+
+absl::StatusOr<int64_t> Gallery::RemoveLabelOnce(absl::string_view label) {
   std::lock_guard<std::mutex> lock(writer_mu_);
   if (deleted_) return DeletedError();
   const std::shared_ptr<const GallerySnapshot> current = Snapshot();
@@ -369,10 +411,58 @@ absl::StatusOr<int64_t> Gallery::RemoveLocked(const GallerySnapshot& current,
   next->version_ = current.version_ + 1;
   next->updated_ = std::max(absl::Now(), current.updated_);
   if (store_ != nullptr) {
-    SHAPEID_RETURN_IF_ERROR(store_->RemoveSamples(name_, ids, next->updated_));
+    SHAPEID_RETURN_IF_ERROR(store_->RemoveSamples(name_, ids, next->updated_, next->version_));
   }
   Publish(std::move(next));
   return static_cast<int64_t>(ids.size());
+}
+
+absl::Status Gallery::ApplyStoredAppend(absl::Span<const StoredSample> samples, absl::Time updated,
+                                        uint64_t version) {
+  std::lock_guard<std::mutex> lock(writer_mu_);
+  if (deleted_) return DeletedError();
+  const std::shared_ptr<const GallerySnapshot> current = Snapshot();
+  SHAPEID_RETURN_IF_ERROR(CheckNextVersion(*current, version));
+  if (version <= current->version_) return absl::OkStatus();
+  std::shared_ptr<GallerySnapshot> next(new GallerySnapshot(*current));
+  for (const StoredSample& sample : samples) {
+    SHAPEID_RETURN_IF_ERROR(next->index_.Add(sample.id, sample.label, sample.features));
+    if (sample.id >= kFirstAssignedId) {
+      next->next_assigned_id_ = std::max(next->next_assigned_id_, sample.id + 1);
+    }
+  }
+  SHAPEID_RETURN_IF_ERROR(
+      next->index_.UpdateApproximate(limits_.approximate, next->options_.knn.scaling));
+  next->version_ = version;
+  next->updated_ = updated;
+  Publish(std::move(next));
+  return absl::OkStatus();
+}
+
+absl::Status Gallery::ApplyStoredRemove(absl::Span<const uint64_t> ids, absl::Time updated,
+                                        uint64_t version) {
+  std::lock_guard<std::mutex> lock(writer_mu_);
+  if (deleted_) return DeletedError();
+  const std::shared_ptr<const GallerySnapshot> current = Snapshot();
+  SHAPEID_RETURN_IF_ERROR(CheckNextVersion(*current, version));
+  if (version <= current->version_) return absl::OkStatus();
+  std::shared_ptr<GallerySnapshot> next(new GallerySnapshot(*current));
+  SHAPEID_RETURN_IF_ERROR(next->index_.Remove(ids));
+  SHAPEID_RETURN_IF_ERROR(
+      next->index_.UpdateApproximate(limits_.approximate, next->options_.knn.scaling));
+  next->version_ = version;
+  next->updated_ = updated;
+  Publish(std::move(next));
+  return absl::OkStatus();
+}
+
+absl::Status Gallery::CheckNextVersion(const GallerySnapshot& current, uint64_t version) const {
+  if (version > current.version_ + 1) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("gallery '", name_, "' is at version ", current.version_,
+                     "; a stored change to version ", version, " cannot apply (changes missed)"));
+  }
+  return absl::OkStatus();
 }
 
 }  // namespace shapeid

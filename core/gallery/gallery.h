@@ -178,6 +178,16 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
   // turns true meanwhile.
   absl::Status UpdateApproximateIndex(const std::atomic<bool>* cancel = nullptr);
 
+  // Replication, for a store shared by several servers: apply a change another server has
+  // already stored, without writing to the store. `version` is the gallery's version after
+  // the change. A change this gallery already holds (version <= its own) is skipped;
+  // FailedPrecondition if changes are missing before it (version > own + 1): reload the
+  // gallery instead (GalleryRegistry::ApplyStoredGallery). NotFound after a Delete.
+  absl::Status ApplyStoredAppend(absl::Span<const StoredSample> samples, absl::Time updated,
+                                 uint64_t version);
+  absl::Status ApplyStoredRemove(absl::Span<const uint64_t> ids, absl::Time updated,
+                                 uint64_t version);
+
  private:
   friend class TrainBatch;
   friend class GalleryRegistry;
@@ -192,7 +202,18 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
   static absl::StatusOr<std::unique_ptr<GallerySnapshot>> StoredSnapshot(
       const StoredGallery& stored);
 
+  // Writes retry when a shared store answers Aborted (it found this server's copy behind):
+  // CatchUp, then the write again, up to kStaleAttempts in all. NotFound is retried once
+  // after a CatchUp too (see RetryIfStale).
+  static constexpr int kStaleAttempts = 5;
+  template <typename T>
+  absl::StatusOr<T> RetryIfStale(const std::function<absl::StatusOr<T>()>& write);
+
   absl::StatusOr<CommitResult> CommitBatch(std::vector<StoredSample>& samples);
+  absl::StatusOr<CommitResult> CommitBatchOnce(std::vector<StoredSample>& samples);
+  absl::StatusOr<int64_t> RemoveSamplesOnce(absl::Span<const uint64_t> ids);
+  absl::StatusOr<int64_t> RemoveLabelOnce(absl::string_view label);
+  absl::Status CheckNextVersion(const GallerySnapshot& current, uint64_t version) const;
   absl::StatusOr<int64_t> RemoveLocked(const GallerySnapshot& current, std::vector<uint64_t> ids)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(writer_mu_);
   void Publish(std::shared_ptr<const GallerySnapshot> next);

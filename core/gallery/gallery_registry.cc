@@ -148,6 +148,31 @@ absl::Status GalleryRegistry::Delete(absl::string_view name) {
   return absl::OkStatus();
 }
 
+absl::Status GalleryRegistry::ApplyStoredGallery(const StoredGallery& stored) {
+  SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<Gallery> gallery,
+                           Gallery::Restore(stored, limits_, store_));
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = galleries_.find(stored.name);
+  if (it != galleries_.end()) {
+    // The store is the truth: the copy this replaces stops accepting writes (as after Delete).
+    (void)it->second->MarkDeleted([] { return absl::OkStatus(); });
+    it->second = std::move(gallery);
+  } else {
+    // No max_galleries check: the gallery exists already; refusing to mirror it would only
+    // make this server answer differently from the one that created it.
+    galleries_.emplace(stored.name, std::move(gallery));
+  }
+  return absl::OkStatus();
+}
+
+void GalleryRegistry::ApplyStoredDelete(absl::string_view name) {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = galleries_.find(name);
+  if (it == galleries_.end()) return;
+  (void)it->second->MarkDeleted([] { return absl::OkStatus(); });
+  galleries_.erase(it);
+}
+
 size_t GalleryRegistry::size() const {
   std::lock_guard<std::mutex> lock(mu_);
   return galleries_.size();

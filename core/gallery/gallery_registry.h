@@ -73,6 +73,16 @@ class GalleryRegistry {
   // NotFound, or the store's error (gallery kept).
   absl::Status Delete(absl::string_view name);
 
+  // Replication, for a store shared by several servers: mirror a change another server has
+  // already stored, without writing to the store (see Gallery::ApplyStoredAppend for sample
+  // changes).
+  //  - ApplyStoredGallery publishes `stored` (created or imported elsewhere, or reloaded after
+  //    missed changes), replacing a gallery of that name, whose holders' later writes then
+  //    fail NotFound. Errors: Gallery::Restore's.
+  //  - ApplyStoredDelete forgets gallery `name` (nothing if it is not here).
+  absl::Status ApplyStoredGallery(const StoredGallery& stored);
+  void ApplyStoredDelete(absl::string_view name);
+
   size_t size() const;
   const GalleryLimits& limits() const { return limits_; }
 

@@ -1,6 +1,7 @@
 #include "core/gallery/gallery_registry.h"
 
 #include <condition_variable>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -9,6 +10,7 @@
 
 #include "core/gallery/gallery_store.h"
 #include "core/gallery/gallery_test_shapes.h"
+#include "core/status_macros.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 
@@ -195,7 +197,7 @@ TEST(GalleryRegistryTest, LoadFromStoreBuildsApproximateIndexesInTheBackground) 
   ASSERT_TRUE(second.LoadFromStore().ok());
   // Serving already: exact or approximate, the answer is there.
   auto snapshot = second.Get("big").value()->Snapshot();
-  EXPECT_EQ(snapshot->version(), 0u);
+  EXPECT_EQ(snapshot->version(), 1u);  // as stored: one training batch
   auto answer = snapshot->Classify(Sphere(3));
   ASSERT_TRUE(answer.ok()) << answer.status();
   EXPECT_EQ(answer->label, "sphere");
@@ -203,7 +205,7 @@ TEST(GalleryRegistryTest, LoadFromStoreBuildsApproximateIndexesInTheBackground) 
   second.WaitForApproximateIndexes();
   snapshot = second.Get("big").value()->Snapshot();
   EXPECT_TRUE(snapshot->index().approximate());
-  EXPECT_EQ(snapshot->version(), 0u);  // the same samples: not a change of the gallery
+  EXPECT_EQ(snapshot->version(), 1u);  // the same samples: not a change of the gallery
   EXPECT_EQ(snapshot->num_samples(), 70);
   EXPECT_TRUE(snapshot->Classify(Sphere(3))->knn.approximate);
   EXPECT_FALSE(second.Get("small").value()->Snapshot()->index().approximate());
@@ -283,12 +285,12 @@ class SlowSaveStore final : public GalleryStore {
   }
   absl::Status DeleteGallery(absl::string_view name) override { return inner_.DeleteGallery(name); }
   absl::Status AppendSamples(absl::string_view name, absl::Span<const StoredSample> batch,
-                             absl::Time updated) override {
-    return inner_.AppendSamples(name, batch, updated);
+                             absl::Time updated, uint64_t version) override {
+    return inner_.AppendSamples(name, batch, updated, version);
   }
   absl::Status RemoveSamples(absl::string_view name, absl::Span<const uint64_t> ids,
-                             absl::Time updated) override {
-    return inner_.RemoveSamples(name, ids, updated);
+                             absl::Time updated, uint64_t version) override {
+    return inner_.RemoveSamples(name, ids, updated, version);
   }
   absl::StatusOr<std::vector<StoredGallery>> LoadAll() override { return inner_.LoadAll(); }
 
@@ -324,6 +326,151 @@ TEST(GalleryRegistryTest, ASlowStoreWriteBlocksNeitherLookupsNorOtherNames) {
   slow_store->Release();
   creator.join();
   EXPECT_THAT(slow.List(), ElementsAre("big"));
+}
+
+// Two servers over one shared store, as PostgreSQL makes them (server/storage): the store
+// keeps a log of changes, answers Aborted when a write is built on a stale copy, and CatchUp
+// applies the log through the replication entry points.
+class SharedLog {
+ public:
+  struct Change {
+    std::string gallery;
+    std::vector<StoredSample> added;
+    std::vector<uint64_t> removed;
+    absl::Time updated;
+    uint64_t version = 0;
+  };
+  std::mutex mu;
+  std::map<std::string, uint64_t> versions;
+  std::vector<Change> log;
+};
+
+class ReplicaStore final : public GalleryStore {
+ public:
+  explicit ReplicaStore(SharedLog* shared) : shared_(shared) {}
+  void Attach(GalleryRegistry* registry) { registry_ = registry; }
+
+  absl::Status SaveGallery(const StoredGallery& gallery) override {
+    std::lock_guard<std::mutex> lock(shared_->mu);
+    shared_->versions[gallery.name] = gallery.version;
+    return absl::OkStatus();
+  }
+  absl::Status DeleteGallery(absl::string_view) override { return absl::OkStatus(); }
+  absl::Status AppendSamples(absl::string_view name, absl::Span<const StoredSample> batch,
+                             absl::Time updated, uint64_t version) override {
+    return Write({std::string(name), {batch.begin(), batch.end()}, {}, updated, version});
+  }
+  absl::Status RemoveSamples(absl::string_view name, absl::Span<const uint64_t> ids,
+                             absl::Time updated, uint64_t version) override {
+    return Write({std::string(name), {}, {ids.begin(), ids.end()}, updated, version});
+  }
+  absl::StatusOr<std::vector<StoredGallery>> LoadAll() override {
+    return std::vector<StoredGallery>{};
+  }
+  bool shared() const override { return true; }
+  absl::Status CatchUp(absl::string_view) override {
+    ++catch_ups;
+    std::vector<SharedLog::Change> pending;
+    {
+      std::lock_guard<std::mutex> lock(shared_->mu);
+      pending.assign(shared_->log.begin() + static_cast<ptrdiff_t>(applied_), shared_->log.end());
+      applied_ = shared_->log.size();
+    }
+    for (const SharedLog::Change& change : pending) {
+      auto gallery = registry_->Get(change.gallery);
+      if (!gallery.ok()) return gallery.status();
+      SHAPEID_RETURN_IF_ERROR(
+          change.added.empty()
+              ? (*gallery)->ApplyStoredRemove(change.removed, change.updated, change.version)
+              : (*gallery)->ApplyStoredAppend(change.added, change.updated, change.version));
+    }
+    return absl::OkStatus();
+  }
+
+  int catch_ups = 0;
+
+ private:
+  absl::Status Write(SharedLog::Change change) {
+    std::lock_guard<std::mutex> lock(shared_->mu);
+    uint64_t& stored = shared_->versions[change.gallery];
+    if (change.version != stored + 1) {
+      return absl::AbortedError(absl::StrCat("stale: store at ", stored));
+    }
+    stored = change.version;
+    shared_->log.push_back(std::move(change));
+    return absl::OkStatus();
+  }
+
+  SharedLog* const shared_;
+  GalleryRegistry* registry_ = nullptr;
+  size_t applied_ = 0;  // entries of shared_->log this replica holds (its own included)
+};
+
+TEST(GalleryRegistryTest, AWriteOnAStaleReplicaCatchesUpAndRetriesWithFreshIds) {
+  SharedLog shared;
+  auto store_a = std::make_shared<ReplicaStore>(&shared);
+  auto store_b = std::make_shared<ReplicaStore>(&shared);
+  GalleryRegistry a({}, store_a);
+  GalleryRegistry b({}, store_b);
+  store_a->Attach(&a);
+  store_b->Attach(&b);
+
+  auto on_a = a.Create("g", {});
+  ASSERT_TRUE(on_a.ok()) << on_a.status();
+  ASSERT_TRUE(b.ApplyStoredGallery((*on_a)->Snapshot()->ToStored()).ok());
+  auto on_b = b.Get("g");
+  ASSERT_TRUE(on_b.ok());
+
+  auto first = (*on_a)->Train({{0, "box", Box(1)}, {0, "box", Box(2)}});
+  ASSERT_TRUE(first.ok()) << first.status();
+  EXPECT_EQ(first->version, 1u);
+
+  // B has not seen A's batch: its first attempt is refused, it applies A's batch, retries.
+  auto second = (*on_b)->Train({{0, "sphere", Sphere(1)}, {7, "sphere", Sphere(2)}});
+  ASSERT_TRUE(second.ok()) << second.status();
+  EXPECT_EQ(store_b->catch_ups, 1);
+  EXPECT_EQ(second->version, 2u);
+  // The assigned id is chosen again after catching up: not one of A's.
+  EXPECT_EQ(second->ids, (std::vector<uint64_t>{first->ids[1] + 1, 7}));
+  EXPECT_EQ((*on_b)->Snapshot()->num_samples(), 4);
+
+  // A removal on A, which has not seen B's spheres: it catches up and finds them. Then both
+  // copies agree.
+  auto removed = (*on_a)->RemoveLabel("sphere");
+  ASSERT_TRUE(removed.ok()) << removed.status();
+  EXPECT_EQ(*removed, 2);
+  ASSERT_TRUE(store_b->CatchUp("g").ok());
+  for (const auto& gallery : {*on_a, *on_b}) {
+    EXPECT_EQ(gallery->Snapshot()->version(), 3u);
+    EXPECT_EQ(gallery->Snapshot()->num_samples(), 2);
+    EXPECT_EQ(gallery->Snapshot()->Classify(Sphere(3))->label, "box");
+  }
+}
+
+TEST(GalleryRegistryTest, StoredChangesApplyOnceAndInOrder) {
+  GalleryRegistry registry;
+  auto g = registry.Create("g", {});
+  ASSERT_TRUE(g.ok());
+  const std::vector<float> features = (*g)->Snapshot()->Describe(Box(1)).value();
+  const StoredSample sample{kFirstAssignedId + 41, "box", features};
+  const absl::Time now = absl::Now();
+  ASSERT_TRUE((*g)->ApplyStoredAppend({sample}, now, 1).ok());
+  // Again (a notification and a poll both delivered it): skipped, not an error.
+  ASSERT_TRUE((*g)->ApplyStoredAppend({sample}, now, 1).ok());
+  EXPECT_EQ((*g)->Snapshot()->num_samples(), 1);
+  // A gap: refused, so that the caller reloads the gallery instead.
+  EXPECT_EQ((*g)->ApplyStoredRemove({sample.id}, now, 3).code(),
+            absl::StatusCode::kFailedPrecondition);
+  // Assigned ids continue above the replicated one.
+  auto trained = (*g)->Train({{0, "box", Box(2)}});
+  ASSERT_TRUE(trained.ok());
+  EXPECT_EQ(trained->ids[0], kFirstAssignedId + 42);
+  EXPECT_EQ(trained->version, 2u);
+
+  registry.ApplyStoredDelete("g");
+  EXPECT_EQ(registry.Get("g").status().code(), absl::StatusCode::kNotFound);
+  EXPECT_EQ((*g)->Train({{0, "box", Box(3)}}).status().code(), absl::StatusCode::kNotFound);
+  registry.ApplyStoredDelete("g");  // absent: nothing to do
 }
 
 }  // namespace

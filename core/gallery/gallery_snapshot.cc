@@ -20,6 +20,7 @@ StoredGallery GallerySnapshot::ToStored() const {
   stored.options = options_;
   stored.created = created_;
   stored.updated = updated_;
+  stored.version = version_;
   stored.descriptor_version = descriptor_version_;
   stored.software_version = software_version_;
   stored.dimension = index_.dimension();

@@ -25,6 +25,7 @@ StoredGallery StoredGallery::Header() const {
   header.descriptor_version = descriptor_version;
   header.software_version = software_version;
   header.dimension = dimension;
+  header.version = version;
   return header;
 }
 
@@ -46,19 +47,20 @@ absl::Status InMemoryGalleryStore::DeleteGallery(absl::string_view name) {
 
 absl::Status InMemoryGalleryStore::AppendSamples(absl::string_view name,
                                                  absl::Span<const StoredSample> batch,
-                                                 absl::Time updated) {
+                                                 absl::Time updated, uint64_t version) {
   std::lock_guard<std::mutex> lock(mu_);
   if (!failure_.ok()) return failure_;
   auto it = galleries_.find(name);
   if (it == galleries_.end()) return NotStored(name);
   it->second.samples.insert(it->second.samples.end(), batch.begin(), batch.end());
   it->second.updated = updated;
+  it->second.version = version;
   return absl::OkStatus();
 }
 
 absl::Status InMemoryGalleryStore::RemoveSamples(absl::string_view name,
                                                  absl::Span<const uint64_t> ids,
-                                                 absl::Time updated) {
+                                                 absl::Time updated, uint64_t version) {
   std::lock_guard<std::mutex> lock(mu_);
   if (!failure_.ok()) return failure_;
   auto it = galleries_.find(name);
@@ -69,6 +71,7 @@ absl::Status InMemoryGalleryStore::RemoveSamples(absl::string_view name,
                                [&](const StoredSample& s) { return gone.contains(s.id); }),
                 samples.end());
   it->second.updated = updated;
+  it->second.version = version;
   return absl::OkStatus();
 }
 

@@ -41,6 +41,11 @@ struct StoredGallery {
   // Features per sample. Stored so that a gallery whose spec this server cannot build still
   // loads (and can be exported or deleted).
   int dimension = 0;
+  // The gallery's version (GallerySnapshot::version) as stored: 0 for a new gallery, +1 per
+  // committed change. A private store may leave it 0 (versions then restart at each load); a
+  // store shared by several servers keeps it, so that every server reports the same version
+  // and a write from a server whose copy is behind is detected (see GalleryStore).
+  uint64_t version = 0;
   std::vector<StoredSample> samples;  // in training order (the kNN tie-break order)
 
   // Every field but `samples`, which is left empty: what a store keeps about an open gallery.
@@ -57,6 +62,11 @@ struct StoredGallery {
 // call under their writer lock); calls for different galleries may run concurrently, so an
 // implementation must be thread-safe. Errors should be Unavailable / Internal / DataLoss with
 // a message naming the gallery; they reach the client as they are.
+//
+// A store shared by several servers (PostgreSQL) may also answer Aborted: the gallery was
+// changed through another server since this server's copy, so the write was built on stale
+// state and nothing was written. The gallery then calls CatchUp, which brings its copy up to
+// date, and rebuilds and retries the write (a few times) before the error reaches a client.
 class GalleryStore {
  public:
   virtual ~GalleryStore() = default;
@@ -66,13 +76,24 @@ class GalleryStore {
   virtual absl::Status SaveGallery(const StoredGallery& gallery) = 0;
   virtual absl::Status DeleteGallery(absl::string_view name) = 0;
   // One committed training batch, all or nothing; ids are final (assigned ones filled in).
+  // `version` is the gallery's version after the change (the one before it + 1).
   virtual absl::Status AppendSamples(absl::string_view name, absl::Span<const StoredSample> batch,
-                                     absl::Time updated) = 0;
+                                     absl::Time updated, uint64_t version) = 0;
   // Every id is present in the gallery; no duplicates.
   virtual absl::Status RemoveSamples(absl::string_view name, absl::Span<const uint64_t> ids,
-                                     absl::Time updated) = 0;
+                                     absl::Time updated, uint64_t version) = 0;
   // Everything saved, for GalleryRegistry::LoadFromStore at start-up.
   virtual absl::StatusOr<std::vector<StoredGallery>> LoadAll() = 0;
+
+  // True for a store shared by several servers, whose copies may be behind it.
+  virtual bool shared() const { return false; }
+
+  // After an Aborted write of gallery `name`: returns once this server's galleries hold every
+  // change the store held when it was called. A private store is never behind.
+  virtual absl::Status CatchUp(absl::string_view name) {
+    (void)name;
+    return absl::OkStatus();
+  }
 };
 
 // Persists nothing: the server's store until persistence lands (a later issue).
@@ -80,11 +101,12 @@ class NullGalleryStore final : public GalleryStore {
  public:
   absl::Status SaveGallery(const StoredGallery&) override { return absl::OkStatus(); }
   absl::Status DeleteGallery(absl::string_view) override { return absl::OkStatus(); }
-  absl::Status AppendSamples(absl::string_view, absl::Span<const StoredSample>,
-                             absl::Time) override {
+  absl::Status AppendSamples(absl::string_view, absl::Span<const StoredSample>, absl::Time,
+                             uint64_t) override {
     return absl::OkStatus();
   }
-  absl::Status RemoveSamples(absl::string_view, absl::Span<const uint64_t>, absl::Time) override {
+  absl::Status RemoveSamples(absl::string_view, absl::Span<const uint64_t>, absl::Time,
+                             uint64_t) override {
     return absl::OkStatus();
   }
   absl::StatusOr<std::vector<StoredGallery>> LoadAll() override {
@@ -99,9 +121,9 @@ class InMemoryGalleryStore final : public GalleryStore {
   absl::Status SaveGallery(const StoredGallery& gallery) override;
   absl::Status DeleteGallery(absl::string_view name) override;
   absl::Status AppendSamples(absl::string_view name, absl::Span<const StoredSample> batch,
-                             absl::Time updated) override;
+                             absl::Time updated, uint64_t version) override;
   absl::Status RemoveSamples(absl::string_view name, absl::Span<const uint64_t> ids,
-                             absl::Time updated) override;
+                             absl::Time updated, uint64_t version) override;
   absl::StatusOr<std::vector<StoredGallery>> LoadAll() override;
 
   // Every later call fails with `status` (until called again with OkStatus()).

@@ -346,7 +346,7 @@ absl::Status SqliteGalleryStore::ChangeSamples(
 
 absl::Status SqliteGalleryStore::AppendSamples(absl::string_view name,
                                                absl::Span<const StoredSample> batch,
-                                               absl::Time updated) {
+                                               absl::Time updated, uint64_t /*version*/) {
   return ChangeSamples(name, absl::StrCat("store ", batch.size(), " samples in"), updated,
                        [&](OpenGallery& g) -> absl::Status {
                          for (const StoredSample& sample : batch) {
@@ -358,7 +358,7 @@ absl::Status SqliteGalleryStore::AppendSamples(absl::string_view name,
 
 absl::Status SqliteGalleryStore::RemoveSamples(absl::string_view name,
                                                absl::Span<const uint64_t> ids,
-                                               absl::Time updated) {
+                                               absl::Time updated, uint64_t /*version*/) {
   return ChangeSamples(name, absl::StrCat("remove ", ids.size(), " samples from"), updated,
                        [&](OpenGallery& g) -> absl::Status {
                          for (uint64_t id : ids) {

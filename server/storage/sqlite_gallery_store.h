@@ -74,10 +74,11 @@ class SqliteGalleryStore final : public GalleryStore {
 
   absl::Status SaveGallery(const StoredGallery& gallery) override;
   absl::Status DeleteGallery(absl::string_view name) override;
+  // `version` is not kept: versions restart at 0 when a server loads its own galleries.
   absl::Status AppendSamples(absl::string_view name, absl::Span<const StoredSample> batch,
-                             absl::Time updated) override;
+                             absl::Time updated, uint64_t version) override;
   absl::Status RemoveSamples(absl::string_view name, absl::Span<const uint64_t> ids,
-                             absl::Time updated) override;
+                             absl::Time updated, uint64_t version) override;
   // Verifies and reads every gallery file, sorted by name; keeps each open for later writes.
   // Call once, before any write.
   absl::StatusOr<std::vector<StoredGallery>> LoadAll() override;

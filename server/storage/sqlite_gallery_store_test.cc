@@ -90,11 +90,11 @@ TEST(SqliteGalleryStoreTest, EverythingSurvivesReopeningBitForBit) {
     StoredGallery more = MakeGallery("a", 81, 3, 9);
     for (StoredSample& s : more.samples) s.id += 1000;
     a.updated += absl::Seconds(1);
-    ASSERT_TRUE(store->AppendSamples("a", more.samples, a.updated).ok());
+    ASSERT_TRUE(store->AppendSamples("a", more.samples, a.updated, 0).ok());
     a.samples.insert(a.samples.end(), more.samples.begin(), more.samples.end());
     const std::vector<uint64_t> gone = {a.samples[3].id, a.samples[10].id};
     a.updated += absl::Seconds(1);
-    ASSERT_TRUE(store->RemoveSamples("a", gone, a.updated).ok());
+    ASSERT_TRUE(store->RemoveSamples("a", gone, a.updated, 0).ok());
     a.samples.erase(a.samples.begin() + 10);
     a.samples.erase(a.samples.begin() + 3);
   }
@@ -107,7 +107,7 @@ TEST(SqliteGalleryStoreTest, EverythingSurvivesReopeningBitForBit) {
   // And it goes on accepting writes after a load.
   StoredGallery later = MakeGallery("a", 81, 1, 5);
   later.samples[0].id = 5000;
-  EXPECT_TRUE(store->AppendSamples("a", later.samples, absl::Now()).ok());
+  EXPECT_TRUE(store->AppendSamples("a", later.samples, absl::Now(), 0).ok());
 }
 
 TEST(SqliteGalleryStoreTest, DeleteIsDurableAndANewGalleryOfTheSameNameStartsEmpty) {
@@ -118,7 +118,7 @@ TEST(SqliteGalleryStoreTest, DeleteIsDurableAndANewGalleryOfTheSameNameStartsEmp
     ASSERT_TRUE(store->SaveGallery(MakeGallery("x", 8, 10, 1)).ok());
     ASSERT_TRUE(store->DeleteGallery("x").ok());
     EXPECT_FALSE(FileExists(store->GalleryPath("x")));
-    EXPECT_EQ(store->AppendSamples("x", {}, absl::Now()).code(), absl::StatusCode::kInternal);
+    EXPECT_EQ(store->AppendSamples("x", {}, absl::Now(), 0).code(), absl::StatusCode::kInternal);
     ASSERT_TRUE(store->SaveGallery(MakeGallery("x", 8, 2, 2)).ok());
   }
   auto store = OpenStore(dir);
@@ -308,7 +308,7 @@ TEST(SqliteGalleryStoreTest, FormatOneGalleriesLoadAndKeepAcceptingSamples) {
     ExpectSameStoredGallery((*loaded)[0], g);
     EXPECT_FALSE((*loaded)[0].options.augment.enabled());
     g.updated += absl::Seconds(1);
-    ASSERT_TRUE(store->AppendSamples("old", more.samples, g.updated).ok());
+    ASSERT_TRUE(store->AppendSamples("old", more.samples, g.updated, 0).ok());
     g.samples.insert(g.samples.end(), more.samples.begin(), more.samples.end());
   }
   auto store = OpenStore(dir);
@@ -378,7 +378,7 @@ TEST_F(MountedStoreTest, FullDiskFailsWritesCleanlyAndLosesNothing) {
   }
   StoredGallery more = MakeGallery("g", 81, 400, 2);
   for (StoredSample& s : more.samples) s.id += 100000;
-  const absl::Status append = store_->AppendSamples("g", more.samples, absl::Now());
+  const absl::Status append = store_->AppendSamples("g", more.samples, absl::Now(), 0);
   EXPECT_EQ(append.code(), absl::StatusCode::kResourceExhausted) << append;
   EXPECT_THAT(append.message(), AllOf(HasSubstr("gallery 'g'"), HasSubstr("full")));
   const absl::Status create = store_->SaveGallery(MakeGallery("h", 81, 400, 3));
@@ -388,7 +388,7 @@ TEST_F(MountedStoreTest, FullDiskFailsWritesCleanlyAndLosesNothing) {
   // After space is freed, writes work again and nothing stored was lost.
   ASSERT_TRUE(RemoveFileIfExists(dir_ + "/filler").ok());
   more.samples.resize(5);
-  ASSERT_TRUE(store_->AppendSamples("g", more.samples, g.updated).ok());
+  ASSERT_TRUE(store_->AppendSamples("g", more.samples, g.updated, 0).ok());
   store_.reset();
   store_ = OpenStore(dir_);
   auto loaded = store_->LoadAll();
@@ -422,12 +422,12 @@ TEST_F(MountedStoreTest, ReadOnlyDiskServesAndFailsWritesAsUnavailable) {
 
   StoredGallery more = MakeGallery("g", 8, 2, 2);
   for (StoredSample& s : more.samples) s.id += 100;
-  const absl::Status append = store_->AppendSamples("g", more.samples, absl::Now());
+  const absl::Status append = store_->AppendSamples("g", more.samples, absl::Now(), 0);
   EXPECT_EQ(append.code(), absl::StatusCode::kUnavailable) << append;
   EXPECT_THAT(append.message(), AllOf(HasSubstr("gallery 'g'"), HasSubstr("read-only")));
   EXPECT_EQ(store_->SaveGallery(MakeGallery("h", 8, 1, 3)).code(),
             absl::StatusCode::kUnavailable);
-  EXPECT_EQ(store_->RemoveSamples("g", {g.samples[0].id}, absl::Now()).code(),
+  EXPECT_EQ(store_->RemoveSamples("g", {g.samples[0].id}, absl::Now(), 0).code(),
             absl::StatusCode::kUnavailable);
   EXPECT_EQ(store_->DeleteGallery("g").code(), absl::StatusCode::kUnavailable);
 }
