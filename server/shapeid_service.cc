@@ -420,7 +420,7 @@ class ImportReactor final : public StreamReactor<v1::ImportGalleryRequest, v1::G
   absl::Status OnEnd() override {
     SHAPEID_ASSIGN_OR_RETURN(StoredGallery stored, assembler_.Finish());
     if (!name_.empty()) stored.name = name_;
-    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry_.Import(stored));
+    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry_.Import(std::move(stored)));
     ToProto(*gallery->Snapshot(), response());
     return absl::OkStatus();
   }

@@ -1,6 +1,8 @@
 #include "core/gallery/gallery.h"
 
 #include <algorithm>
+#include <mutex>
+#include <random>
 #include <utility>
 
 #include "absl/strings/escaping.h"
@@ -185,6 +187,14 @@ absl::StatusOr<std::unique_ptr<GallerySnapshot>> Gallery::StoredSnapshot(
   return snapshot;
 }
 
+uint64_t NewGalleryIncarnation() {
+  static std::mutex mu;
+  static std::mt19937_64 engine(std::random_device{}());
+  std::lock_guard<std::mutex> lock(mu);
+  // 62 bits: positive in any signed 64-bit column, and never 0.
+  return (engine() >> 2) | 1;
+}
+
 absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Create(std::string name,
                                                          const GalleryOptions& options,
                                                          const GalleryLimits& limits,
@@ -192,6 +202,7 @@ absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Create(std::string name,
                                                          absl::Time created) {
   SHAPEID_ASSIGN_OR_RETURN(std::unique_ptr<GallerySnapshot> snapshot,
                            EmptySnapshot(name, options, created));
+  snapshot->incarnation_ = NewGalleryIncarnation();
   return std::shared_ptr<Gallery>(
       new Gallery(std::move(name), limits, std::move(store), std::move(snapshot)));
 }
@@ -224,6 +235,7 @@ absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Restore(const StoredGallery& s
   }
   snapshot->updated_ = stored.updated;
   snapshot->version_ = stored.version;
+  snapshot->incarnation_ = stored.incarnation;
   snapshot->next_assigned_id_ = next_assigned;
   return std::shared_ptr<Gallery>(
       new Gallery(stored.name, limits, std::move(store), std::move(snapshot)));

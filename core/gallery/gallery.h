@@ -117,6 +117,9 @@ class TrainBatch {
   bool committed_ = false;
 };
 
+// A fresh StoredGallery::incarnation (random, nonzero, below 2^62).
+uint64_t NewGalleryIncarnation();
+
 // A named, trained kNN gallery that many threads classify against while others train it.
 //
 // Concurrency: readers call Snapshot() and work on the immutable snapshot it returns; they

@@ -75,7 +75,8 @@ absl::StatusOr<std::shared_ptr<Gallery>> GalleryRegistry::Create(absl::string_vi
   return Add(gallery, gallery->Snapshot()->ToStored(), "create", "");
 }
 
-absl::StatusOr<std::shared_ptr<Gallery>> GalleryRegistry::Import(const StoredGallery& stored) {
+absl::StatusOr<std::shared_ptr<Gallery>> GalleryRegistry::Import(StoredGallery stored) {
+  stored.incarnation = NewGalleryIncarnation();  // a new gallery, wherever it was exported
   if (static_cast<int64_t>(stored.samples.size()) > limits_.max_samples_per_gallery) {
     return absl::ResourceExhaustedError(absl::StrCat(
         "cannot import gallery '", stored.name, "': it holds ", stored.samples.size(),
@@ -154,6 +155,10 @@ absl::Status GalleryRegistry::ApplyStoredGallery(const StoredGallery& stored) {
   std::lock_guard<std::mutex> lock(mu_);
   auto it = galleries_.find(stored.name);
   if (it != galleries_.end()) {
+    const std::shared_ptr<const GallerySnapshot> held = it->second->Snapshot();
+    if (held->incarnation() == stored.incarnation && held->version() >= stored.version) {
+      return absl::OkStatus();  // this server made it, or has it already
+    }
     // The store is the truth: the copy this replaces stops accepting writes (as after Delete).
     (void)it->second->MarkDeleted([] { return absl::OkStatus(); });
     it->second = std::move(gallery);
@@ -165,10 +170,10 @@ absl::Status GalleryRegistry::ApplyStoredGallery(const StoredGallery& stored) {
   return absl::OkStatus();
 }
 
-void GalleryRegistry::ApplyStoredDelete(absl::string_view name) {
+void GalleryRegistry::ApplyStoredDelete(absl::string_view name, uint64_t incarnation) {
   std::lock_guard<std::mutex> lock(mu_);
   auto it = galleries_.find(name);
-  if (it == galleries_.end()) return;
+  if (it == galleries_.end() || it->second->Snapshot()->incarnation() != incarnation) return;
   (void)it->second->MarkDeleted([] { return absl::OkStatus(); });
   galleries_.erase(it);
 }

@@ -62,7 +62,8 @@ class GalleryRegistry {
   // store write. Errors: Gallery::Restore's; FailedPrecondition if this server cannot
   // compute its descriptors (GallerySnapshot::incompatible()); AlreadyExists;
   // ResourceExhausted over max_galleries or max_samples_per_gallery; the store's error.
-  absl::StatusOr<std::shared_ptr<Gallery>> Import(const StoredGallery& stored);
+  // The gallery gets a fresh incarnation (StoredGallery::incarnation).
+  absl::StatusOr<std::shared_ptr<Gallery>> Import(StoredGallery stored);
 
   // NotFound naming `name` (and no other gallery).
   absl::StatusOr<std::shared_ptr<Gallery>> Get(absl::string_view name) const;
@@ -78,10 +79,12 @@ class GalleryRegistry {
   // changes).
   //  - ApplyStoredGallery publishes `stored` (created or imported elsewhere, or reloaded after
   //    missed changes), replacing a gallery of that name, whose holders' later writes then
-  //    fail NotFound. Errors: Gallery::Restore's.
-  //  - ApplyStoredDelete forgets gallery `name` (nothing if it is not here).
+  //    fail NotFound; nothing if the gallery held is that incarnation at that version or
+  //    later. Errors: Gallery::Restore's.
+  //  - ApplyStoredDelete forgets gallery `name` if it is that incarnation (a gallery made
+  //    again under the name since is kept).
   absl::Status ApplyStoredGallery(const StoredGallery& stored);
-  void ApplyStoredDelete(absl::string_view name);
+  void ApplyStoredDelete(absl::string_view name, uint64_t incarnation);
 
   size_t size() const;
   const GalleryLimits& limits() const { return limits_; }

@@ -467,10 +467,14 @@ TEST(GalleryRegistryTest, StoredChangesApplyOnceAndInOrder) {
   EXPECT_EQ(trained->ids[0], kFirstAssignedId + 42);
   EXPECT_EQ(trained->version, 2u);
 
-  registry.ApplyStoredDelete("g");
+  const uint64_t incarnation = (*g)->Snapshot()->incarnation();
+  EXPECT_NE(incarnation, 0u);
+  registry.ApplyStoredDelete("g", incarnation + 1);  // another incarnation: kept
+  EXPECT_TRUE(registry.Get("g").ok());
+  registry.ApplyStoredDelete("g", incarnation);
   EXPECT_EQ(registry.Get("g").status().code(), absl::StatusCode::kNotFound);
   EXPECT_EQ((*g)->Train({{0, "box", Box(3)}}).status().code(), absl::StatusCode::kNotFound);
-  registry.ApplyStoredDelete("g");  // absent: nothing to do
+  registry.ApplyStoredDelete("g", incarnation);  // absent: nothing to do
 }
 
 }  // namespace

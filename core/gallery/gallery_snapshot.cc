@@ -21,6 +21,7 @@ StoredGallery GallerySnapshot::ToStored() const {
   stored.created = created_;
   stored.updated = updated_;
   stored.version = version_;
+  stored.incarnation = incarnation_;
   stored.descriptor_version = descriptor_version_;
   stored.software_version = software_version_;
   stored.dimension = index_.dimension();

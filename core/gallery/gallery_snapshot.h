@@ -73,6 +73,8 @@ class GallerySnapshot {
   std::map<std::string, int64_t> LabelCounts() const;
 
   absl::Time created() const { return created_; }
+  // StoredGallery::incarnation.
+  uint64_t incarnation() const { return incarnation_; }
   // Time of the last published change; created() for a new gallery.
   absl::Time updated() const { return updated_; }
   // Published changes since the gallery was created (or loaded from its store): 0 for a
@@ -141,6 +143,7 @@ class GallerySnapshot {
   absl::Time created_;
   absl::Time updated_;
   uint64_t version_ = 0;
+  uint64_t incarnation_ = 0;
   uint64_t next_assigned_id_ = uint64_t{1} << 63;  // kFirstAssignedId
   uint32_t descriptor_version_ = 0;
   std::string software_version_;

@@ -26,6 +26,7 @@ StoredGallery StoredGallery::Header() const {
   header.software_version = software_version;
   header.dimension = dimension;
   header.version = version;
+  header.incarnation = incarnation;
   return header;
 }
 

@@ -46,6 +46,10 @@ struct StoredGallery {
   // store shared by several servers keeps it, so that every server reports the same version
   // and a write from a server whose copy is behind is detected (see GalleryStore).
   uint64_t version = 0;
+  // Drawn at random when the gallery is created or imported (never 0 then): tells a gallery
+  // from an earlier one of the same name. A shared store uses it so that a server never
+  // applies one incarnation's change to another; 0 from a store that does not keep it.
+  uint64_t incarnation = 0;
   std::vector<StoredSample> samples;  // in training order (the kNN tie-break order)
 
   // Every field but `samples`, which is left empty: what a store keeps about an open gallery.

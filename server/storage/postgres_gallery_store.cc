@@ -1,0 +1,692 @@
+#include "server/storage/postgres_gallery_store.h"
+
+#include <poll.h>
+
+#include <algorithm>
+#include <cstring>
+#include <utility>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
+#include "core/knn/knn_options.h"
+#include "core/status_macros.h"
+#include "core/views/augment.h"
+#include "server/storage/sample_checksum.h"
+
+namespace shapeid {
+namespace {
+
+constexpr char kChannel[] = "shapeid_changes";
+// pg_advisory_xact_lock key held while a change is logged, so that log sequence numbers are
+// handed out in commit order ("shapeid" in ASCII).
+constexpr int64_t kLogLockKey = 0x73686170656964;
+// Held while the tables are created: replicas starting together would otherwise race in
+// CREATE TABLE IF NOT EXISTS (which is not safe against concurrent creators).
+constexpr int64_t kSchemaLockKey = kLogLockKey + 1;
+// Samples per INSERT statement (5 parameters each; PostgreSQL allows 65,535).
+constexpr size_t kSamplesPerInsert = 1000;
+// Change-log rows older than this are deleted (by any replica, once a minute). A replica
+// whose position is older finds a gap and reloads every gallery instead.
+constexpr char kLogRetention[] = "15 minutes";
+
+constexpr char kSchema[] = R"sql(
+CREATE TABLE IF NOT EXISTS shapeid_galleries (
+  name TEXT PRIMARY KEY,
+  incarnation BIGINT NOT NULL UNIQUE,
+  descriptor_spec TEXT NOT NULL,
+  dimension INTEGER NOT NULL,
+  k INTEGER NOT NULL,
+  weighting TEXT NOT NULL,
+  scaling TEXT NOT NULL,
+  reject_distance_bits BIGINT NOT NULL,
+  augment TEXT NOT NULL,
+  descriptor_version BIGINT NOT NULL,
+  software_version TEXT NOT NULL,
+  created_unix_ns BIGINT NOT NULL,
+  updated_unix_ns BIGINT NOT NULL,
+  version BIGINT NOT NULL);
+CREATE TABLE IF NOT EXISTS shapeid_samples (
+  incarnation BIGINT NOT NULL,
+  id BIGINT NOT NULL,
+  position BIGSERIAL,
+  label BYTEA NOT NULL,
+  features BYTEA NOT NULL,
+  crc BIGINT NOT NULL,
+  PRIMARY KEY (incarnation, id));
+CREATE INDEX IF NOT EXISTS shapeid_samples_order ON shapeid_samples (incarnation, position);
+CREATE TABLE IF NOT EXISTS shapeid_changes (
+  seq BIGSERIAL PRIMARY KEY,
+  gallery TEXT NOT NULL,
+  incarnation BIGINT NOT NULL,
+  version BIGINT NOT NULL,
+  kind TEXT NOT NULL,
+  ids BIGINT[] NOT NULL,
+  updated_unix_ns BIGINT NOT NULL,
+  logged TIMESTAMPTZ NOT NULL DEFAULT now());
+)sql";
+
+constexpr char kGalleryColumns[] =
+    "name, incarnation, descriptor_spec, dimension, k, weighting, scaling, reject_distance_bits, "
+    "augment, descriptor_version, software_version, created_unix_ns, updated_unix_ns, version";
+
+int64_t DoubleBits(double value) {
+  int64_t bits;
+  std::memcpy(&bits, &value, sizeof(bits));
+  return bits;
+}
+
+double BitsDouble(int64_t bits) {
+  double value;
+  std::memcpy(&value, &bits, sizeof(value));
+  return value;
+}
+
+absl::Span<const uint8_t> Bytes(absl::string_view s) {
+  return absl::Span<const uint8_t>(reinterpret_cast<const uint8_t*>(s.data()), s.size());
+}
+
+// Inserts samples of one incarnation, kSamplesPerInsert per statement.
+absl::Status InsertSamples(PgConnection& connection, absl::string_view what, int64_t incarnation,
+                           absl::Span<const StoredSample> samples) {
+  for (size_t begin = 0; begin < samples.size(); begin += kSamplesPerInsert) {
+    const size_t end = std::min(samples.size(), begin + kSamplesPerInsert);
+    std::string sql = "INSERT INTO shapeid_samples (incarnation, id, label, features, crc) VALUES ";
+    PgParams params;
+    params.Int(incarnation);
+    for (size_t i = begin; i < end; ++i) {
+      const StoredSample& s = samples[i];
+      const int p = params.size();
+      absl::StrAppend(&sql, i == begin ? "" : ",", "($1,$", p + 1, ",$", p + 2, ",$", p + 3, ",$",
+                      p + 4, ")");
+      params.Int(AsPgId(s.id))
+          .Bytes(Bytes(s.label))
+          .Bytes(FeatureBytes(s.features))
+          .Int(SampleCrc32(0, s.id, s.label, s.features));
+    }
+    SHAPEID_RETURN_IF_ERROR(connection.Exec(what, sql, params));
+  }
+  return absl::OkStatus();
+}
+
+// Appends the change to the log (in commit order, see kLogLockKey) and notifies the other
+// replicas; both take effect at COMMIT.
+absl::Status LogChange(PgConnection& connection, absl::string_view what, absl::string_view name,
+                       int64_t incarnation, uint64_t version, absl::string_view kind,
+                       absl::Span<const int64_t> ids, absl::Time updated) {
+  SHAPEID_RETURN_IF_ERROR(connection.Exec(
+      what, "SELECT pg_advisory_xact_lock($1)", PgParams().Int(kLogLockKey)));
+  SHAPEID_RETURN_IF_ERROR(connection.Exec(
+      what,
+      "INSERT INTO shapeid_changes (gallery, incarnation, version, kind, ids, updated_unix_ns) "
+      "VALUES ($1, $2, $3, $4, $5::bigint[], $6)",
+      PgParams()
+          .Text(std::string(name))
+          .Int(incarnation)
+          .Int(static_cast<int64_t>(version))
+          .Text(std::string(kind))
+          .IntArray(ids)
+          .Int(absl::ToUnixNanos(updated))));
+  return connection.Exec(what, absl::StrCat("NOTIFY ", kChannel));
+}
+
+// libpq options that bound how long a dead or silent server can hold a call: connecting, and
+// noticing a peer that vanished without closing the connection. The caller's own settings (in
+// `conninfo`, processed after these) win.
+std::vector<std::pair<std::string, std::string>> ConnectionDefaults() {
+  return {{"connect_timeout", "3"},   {"keepalives", "1"},         {"keepalives_idle", "5"},
+          {"keepalives_interval", "2"}, {"keepalives_count", "2"}, {"tcp_user_timeout", "5000"},
+          {"application_name", "shapeid-server"}};
+}
+
+}  // namespace
+
+// One row of the change log.
+struct PostgresGalleryStore::Change {
+  int64_t seq = 0;
+  std::string gallery;
+  int64_t incarnation = 0;
+  uint64_t version = 0;
+  std::string kind;  // create, append, remove, delete
+  std::vector<int64_t> ids;
+  absl::Time updated;
+};
+
+// Connections for calls; a broken one is dropped and replaced on the next lease.
+class PostgresGalleryStore::Pool {
+ public:
+  Pool(std::string conninfo, int size) : conninfo_(std::move(conninfo)), size_(size) {}
+
+  absl::StatusOr<std::unique_ptr<PgConnection>> Lease() {
+    std::unique_lock<std::mutex> lock(mu_);
+    cv_.wait(lock, [&] { return !idle_.empty() || leased_ < size_; });
+    ++leased_;
+    if (!idle_.empty()) {
+      std::unique_ptr<PgConnection> connection = std::move(idle_.back());
+      idle_.pop_back();
+      if (connection->ok()) return connection;
+    }
+    lock.unlock();
+    absl::StatusOr<std::unique_ptr<PgConnection>> fresh = Connect(conninfo_);
+    if (!fresh.ok()) Return(nullptr);
+    return fresh;
+  }
+
+  void Return(std::unique_ptr<PgConnection> connection) {
+    std::lock_guard<std::mutex> lock(mu_);
+    --leased_;
+    if (connection != nullptr && connection->ok()) idle_.push_back(std::move(connection));
+    cv_.notify_one();
+  }
+
+  static absl::StatusOr<std::unique_ptr<PgConnection>> Connect(const std::string& conninfo) {
+    return PgConnection::Connect(conninfo, ConnectionDefaults());
+  }
+
+ private:
+  const std::string conninfo_;
+  const int size_;
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::vector<std::unique_ptr<PgConnection>> idle_;
+  int leased_ = 0;
+};
+
+absl::StatusOr<std::unique_ptr<PostgresGalleryStore>> PostgresGalleryStore::Open(
+    PostgresGalleryStoreOptions options) {
+  if (options.pool_size < 1) return absl::InvalidArgumentError("pool_size must be at least 1");
+  if (options.refresh <= absl::ZeroDuration()) {
+    return absl::InvalidArgumentError("refresh must be positive");
+  }
+  auto pool = std::make_unique<Pool>(options.conninfo, options.pool_size);
+  std::unique_ptr<PostgresGalleryStore> store(
+      new PostgresGalleryStore(std::move(options), std::move(pool)));
+  const absl::Status created =
+      store->WithConnection("cannot create shapeid's tables", [](PgConnection& c) {
+        SHAPEID_RETURN_IF_ERROR(c.Exec("cannot create shapeid's tables",
+                                       "SELECT pg_advisory_xact_lock($1)",
+                                       PgParams().Int(kSchemaLockKey)));
+        return c.ExecScript("cannot create shapeid's tables", kSchema);
+      });
+  if (!created.ok()) return created;
+  return store;
+}
+
+PostgresGalleryStore::PostgresGalleryStore(PostgresGalleryStoreOptions options,
+                                           std::unique_ptr<Pool> pool)
+    : options_(std::move(options)), pool_(std::move(pool)) {}
+
+PostgresGalleryStore::~PostgresGalleryStore() {
+  {
+    std::lock_guard<std::mutex> lock(stop_mu_);
+    stop_ = true;
+  }
+  stop_cv_.notify_all();
+  if (follower_.joinable()) follower_.join();
+}
+
+// Runs `work` in one transaction on a pooled connection: BEGIN, work, COMMIT (work's
+// statements), ROLLBACK on error. A connection found broken at BEGIN (PostgreSQL restarted
+// since it was last used) is replaced once, so a restart costs no call that could not have
+// reached it anyway.
+template <typename F>
+absl::Status PostgresGalleryStore::WithConnection(absl::string_view what, const F& work) {
+  for (int attempt = 1;; ++attempt) {
+    SHAPEID_ASSIGN_OR_RETURN(std::unique_ptr<PgConnection> connection, pool_->Lease());
+    absl::Status begun = connection->Exec(what, "BEGIN");
+    if (!begun.ok()) {
+      pool_->Return(nullptr);
+      if (absl::IsUnavailable(begun) && attempt == 1) continue;
+      return begun;
+    }
+    absl::Status status = work(*connection);
+    if (status.ok()) status = connection->Exec(what, "COMMIT");
+    if (!status.ok() && connection->ok()) (void)connection->Exec(what, "ROLLBACK");
+    pool_->Return(std::move(connection));
+    return status;
+  }
+}
+
+absl::Status PostgresGalleryStore::SaveGallery(const StoredGallery& g) {
+  const std::string what = absl::StrCat("cannot store gallery '", g.name, "'");
+  const int64_t incarnation = static_cast<int64_t>(g.incarnation);
+  if (incarnation == 0) {
+    return absl::InternalError(absl::StrCat(what, ": it has no incarnation"));
+  }
+  const absl::Status status = WithConnection(what, [&](PgConnection& c) -> absl::Status {
+    const absl::Status inserted = c.Exec(
+        what,
+        absl::StrCat("INSERT INTO shapeid_galleries (", kGalleryColumns,
+                     ") VALUES ($1,$2,$3,$4,$5,$6,$7,$8,$9,$10,$11,$12,$13,$14)"),
+        PgParams()
+            .Text(g.name)
+            .Int(incarnation)
+            .Text(g.options.descriptor_spec)
+            .Int(g.dimension)
+            .Int(g.options.knn.k)
+            .Text(std::string(VoteWeightingName(g.options.knn.weighting)))
+            .Text(std::string(FeatureScalingName(g.options.knn.scaling)))
+            .Int(DoubleBits(g.options.reject_distance))
+            .Text(AugmentOptionsToString(g.options.augment))
+            .Int(g.descriptor_version)
+            .Text(g.software_version)
+            .Int(absl::ToUnixNanos(g.created))
+            .Int(absl::ToUnixNanos(g.updated))
+            .Int(static_cast<int64_t>(g.version)));
+    if (absl::IsAlreadyExists(inserted)) {
+      return absl::AlreadyExistsError(absl::StrCat(
+          "gallery '", g.name, "' already exists (created through another replica)"));
+    }
+    SHAPEID_RETURN_IF_ERROR(inserted);
+    SHAPEID_RETURN_IF_ERROR(InsertSamples(c, what, incarnation, g.samples));
+    SHAPEID_RETURN_IF_ERROR(LogChange(c, what, g.name, incarnation, g.version, "create", {},
+                                      g.updated));
+    // Before COMMIT: the follower may read the change the moment it commits, and must then
+    // know it as this replica's own.
+    std::lock_guard<std::mutex> lock(incarnations_mu_);
+    incarnations_[g.name] = incarnation;
+    return absl::OkStatus();
+  });
+  if (!status.ok()) {
+    std::lock_guard<std::mutex> lock(incarnations_mu_);
+    auto it = incarnations_.find(g.name);
+    if (it != incarnations_.end() && it->second == incarnation) incarnations_.erase(it);
+  }
+  return status;
+}
+
+absl::Status PostgresGalleryStore::DeleteGallery(absl::string_view name) {
+  const std::string what = absl::StrCat("cannot delete gallery '", name, "'");
+  return WithConnection(what, [&](PgConnection& c) -> absl::Status {
+    SHAPEID_ASSIGN_OR_RETURN(
+        PgResult row, c.Query(what, "DELETE FROM shapeid_galleries WHERE name = $1 RETURNING "
+                                    "incarnation, version",
+                              PgParams().Text(std::string(name))));
+    // Deleted through another replica meanwhile: the gallery is gone, as asked.
+    if (row.rows() == 0) return absl::OkStatus();
+    const int64_t incarnation = row.Int(0, 0);
+    SHAPEID_RETURN_IF_ERROR(c.Exec(what, "DELETE FROM shapeid_samples WHERE incarnation = $1",
+                                   PgParams().Int(incarnation)));
+    SHAPEID_RETURN_IF_ERROR(LogChange(c, what, name, incarnation,
+                                      static_cast<uint64_t>(row.Int(0, 1)), "delete", {},
+                                      absl::Now()));
+    std::lock_guard<std::mutex> lock(incarnations_mu_);
+    incarnations_.erase(std::string(name));
+    return absl::OkStatus();
+  });
+}
+
+absl::Status PostgresGalleryStore::ChangeSamples(
+    absl::string_view name, absl::string_view what_verb, absl::Time updated, uint64_t version,
+    absl::string_view kind, absl::Span<const int64_t> ids,
+    const std::function<absl::Status(PgConnection&, int64_t)>& change) {
+  const std::string what = absl::StrCat("cannot ", what_verb, " gallery '", name, "'");
+  int64_t expected;
+  {
+    std::lock_guard<std::mutex> lock(incarnations_mu_);
+    auto it = incarnations_.find(name);
+    expected = it != incarnations_.end() ? it->second : 0;
+  }
+  return WithConnection(what, [&](PgConnection& c) -> absl::Status {
+    SHAPEID_ASSIGN_OR_RETURN(
+        PgResult row,
+        c.Query(what, "SELECT incarnation, version FROM shapeid_galleries WHERE name = $1 FOR UPDATE",
+                PgParams().Text(std::string(name))));
+    // Aborted: this replica's copy is behind the store (deleted, made again, or written
+    // through another replica); the gallery catches up and tries again.
+    if (row.rows() == 0) {
+      return absl::AbortedError(absl::StrCat(what, ": it was deleted through another replica"));
+    }
+    const int64_t incarnation = row.Int(0, 0);
+    const uint64_t stored_version = static_cast<uint64_t>(row.Int(0, 1));
+    if (incarnation != expected || stored_version + 1 != version) {
+      return absl::AbortedError(absl::StrCat(what, ": changed through another replica (stored "
+                                                   "version ",
+                                             stored_version, ", this replica's ", version - 1,
+                                             ")"));
+    }
+    SHAPEID_RETURN_IF_ERROR(change(c, incarnation));
+    SHAPEID_RETURN_IF_ERROR(c.Exec(
+        what, "UPDATE shapeid_galleries SET version = $2, updated_unix_ns = $3 WHERE name = $1",
+        PgParams()
+            .Text(std::string(name))
+            .Int(static_cast<int64_t>(version))
+            .Int(absl::ToUnixNanos(updated))));
+    return LogChange(c, what, name, incarnation, version, kind, ids, updated);
+  });
+}
+
+absl::Status PostgresGalleryStore::AppendSamples(absl::string_view name,
+                                                 absl::Span<const StoredSample> batch,
+                                                 absl::Time updated, uint64_t version) {
+  std::vector<int64_t> ids;
+  ids.reserve(batch.size());
+  for (const StoredSample& s : batch) ids.push_back(AsPgId(s.id));
+  return ChangeSamples(name, absl::StrCat("store ", batch.size(), " samples in"), updated,
+                       version, "append", ids,
+                       [&](PgConnection& c, int64_t incarnation) {
+                         return InsertSamples(c, "cannot store samples", incarnation, batch);
+                       });
+}
+
+absl::Status PostgresGalleryStore::RemoveSamples(absl::string_view name,
+                                                 absl::Span<const uint64_t> ids,
+                                                 absl::Time updated, uint64_t version) {
+  std::vector<int64_t> stored_ids;
+  stored_ids.reserve(ids.size());
+  for (uint64_t id : ids) stored_ids.push_back(AsPgId(id));
+  return ChangeSamples(
+      name, absl::StrCat("remove ", ids.size(), " samples from"), updated, version, "remove",
+      stored_ids, [&](PgConnection& c, int64_t incarnation) {
+        return c.Exec("cannot remove samples",
+                      "DELETE FROM shapeid_samples WHERE incarnation = $1 AND id = ANY($2::bigint[])",
+                      PgParams().Int(incarnation).IntArray(stored_ids));
+      });
+}
+
+absl::StatusOr<StoredGallery> PostgresGalleryStore::ReadGallery(PgConnection& c,
+                                                                absl::string_view name,
+                                                                bool* found) {
+  const std::string what = absl::StrCat("cannot read gallery '", name, "'");
+  SHAPEID_ASSIGN_OR_RETURN(
+      PgResult row,
+      c.Query(what, absl::StrCat("SELECT ", kGalleryColumns, " FROM shapeid_galleries WHERE name = $1"),
+              PgParams().Text(std::string(name))));
+  *found = row.rows() == 1;
+  if (!*found) return StoredGallery();
+  const auto damaged = [&](absl::string_view why) {
+    return absl::DataLossError(absl::StrCat("gallery '", name, "' in PostgreSQL is damaged: ", why));
+  };
+  StoredGallery g;
+  g.name = std::string(row.Value(0, 0));
+  g.incarnation = static_cast<uint64_t>(row.Int(0, 1));
+  g.options.descriptor_spec = std::string(row.Value(0, 2));
+  g.dimension = static_cast<int>(row.Int(0, 3));
+  g.options.knn.k = static_cast<int>(row.Int(0, 4));
+  absl::StatusOr<VoteWeighting> weighting = ParseVoteWeighting(row.Value(0, 5));
+  absl::StatusOr<FeatureScaling> scaling = ParseFeatureScaling(row.Value(0, 6));
+  if (!weighting.ok() || !scaling.ok()) return damaged("unreadable kNN options");
+  g.options.knn.weighting = *weighting;
+  g.options.knn.scaling = *scaling;
+  g.options.reject_distance = BitsDouble(row.Int(0, 7));
+  absl::StatusOr<AugmentOptions> augment = ParseAugmentOptions(row.Value(0, 8));
+  if (!augment.ok()) return damaged(augment.status().message());
+  g.options.augment = *augment;
+  g.descriptor_version = static_cast<uint32_t>(row.Int(0, 9));
+  g.software_version = std::string(row.Value(0, 10));
+  g.created = absl::FromUnixNanos(row.Int(0, 11));
+  g.updated = absl::FromUnixNanos(row.Int(0, 12));
+  g.version = static_cast<uint64_t>(row.Int(0, 13));
+  if (g.dimension < 1) return damaged(absl::StrCat("dimension ", g.dimension));
+
+  SHAPEID_ASSIGN_OR_RETURN(
+      PgResult samples,
+      c.Query(what,
+              "SELECT id, label, features, crc FROM shapeid_samples WHERE incarnation = $1 "
+              "ORDER BY position",
+              PgParams().Int(static_cast<int64_t>(g.incarnation)), /*binary=*/true));
+  g.samples.reserve(static_cast<size_t>(samples.rows()));
+  for (int r = 0; r < samples.rows(); ++r) {
+    StoredSample s;
+    s.id = FromPgId(samples.BinaryInt(r, 0));
+    s.label = std::string(samples.Value(r, 1));
+    const absl::string_view features = samples.Value(r, 2);
+    if (features.size() % (sizeof(float) * static_cast<size_t>(g.dimension)) != 0) {
+      return damaged(absl::StrCat("sample id ", s.id, " has ", features.size(), " feature bytes"));
+    }
+    FeaturesFromBytes(Bytes(features), &s.features);
+    if (SampleCrc32(0, s.id, s.label, s.features) !=
+        static_cast<uint32_t>(samples.BinaryInt(r, 3))) {
+      return damaged(absl::StrCat("checksum mismatch in sample id ", s.id));
+    }
+    g.samples.push_back(std::move(s));
+  }
+  return g;
+}
+
+absl::StatusOr<std::vector<StoredGallery>> PostgresGalleryStore::LoadAll() {
+  std::vector<StoredGallery> all;
+  int64_t seq = 0;
+  const absl::Status status = WithConnection("cannot load galleries", [&](PgConnection& c) {
+    // One snapshot of the database: the galleries as of the log position read with them.
+    SHAPEID_RETURN_IF_ERROR(c.Exec("cannot load galleries",
+                                   "SET TRANSACTION ISOLATION LEVEL REPEATABLE READ READ ONLY"));
+    SHAPEID_ASSIGN_OR_RETURN(
+        PgResult last, c.Query("cannot load galleries",
+                               "SELECT coalesce(max(seq), 0) FROM shapeid_changes"));
+    seq = last.Int(0, 0);
+    SHAPEID_ASSIGN_OR_RETURN(
+        PgResult names, c.Query("cannot load galleries",
+                                "SELECT name FROM shapeid_galleries ORDER BY name"));
+    for (int r = 0; r < names.rows(); ++r) {
+      bool found = false;
+      SHAPEID_ASSIGN_OR_RETURN(StoredGallery g, ReadGallery(c, names.Value(r, 0), &found));
+      if (found) all.push_back(std::move(g));
+    }
+    return absl::OkStatus();
+  });
+  SHAPEID_RETURN_IF_ERROR(status);
+  {
+    std::lock_guard<std::mutex> lock(incarnations_mu_);
+    incarnations_.clear();
+    for (const StoredGallery& g : all) incarnations_[g.name] = static_cast<int64_t>(g.incarnation);
+  }
+  std::lock_guard<std::mutex> lock(apply_mu_);
+  applied_seq_ = seq;
+  return all;
+}
+
+absl::Status PostgresGalleryStore::CatchUp(absl::string_view /*name*/) { return Sync(); }
+
+absl::Status PostgresGalleryStore::Sync() {
+  if (registry_ == nullptr) return absl::OkStatus();  // not following: nothing to apply to
+  std::lock_guard<std::mutex> lock(apply_mu_);
+  return WithConnection("cannot read the change log",
+                        [&](PgConnection& c) { return ApplyPending(c); });
+}
+
+absl::Status PostgresGalleryStore::ApplyPending(PgConnection& c) {
+  const std::string what = "cannot read the change log";
+  for (;;) {
+    SHAPEID_ASSIGN_OR_RETURN(
+        PgResult rows,
+        c.Query(what,
+                "SELECT seq, gallery, incarnation, version, kind, ids, updated_unix_ns, "
+                "(SELECT coalesce(min(seq), 0) FROM shapeid_changes) FROM shapeid_changes "
+                "WHERE seq > $1 ORDER BY seq LIMIT 1000",
+                PgParams().Int(applied_seq_)));
+    if (rows.rows() == 0) return absl::OkStatus();
+    // Rows before ours were pruned (this replica was away longer than kLogRetention): what
+    // they said is lost, so every gallery is read again.
+    if (rows.Int(0, 7) > applied_seq_ + 1 && rows.Int(0, 0) != applied_seq_ + 1) {
+      SHAPEID_ASSIGN_OR_RETURN(
+          PgResult names, c.Query(what, "SELECT name FROM shapeid_galleries"));
+      std::map<std::string, bool> stored;
+      for (int r = 0; r < names.rows(); ++r) stored[std::string(names.Value(r, 0))] = true;
+      for (const std::string& held : registry_->List()) {
+        if (stored.count(held) == 0) {
+          auto gallery = registry_->Get(held);
+          if (gallery.ok()) registry_->ApplyStoredDelete(held, (*gallery)->Snapshot()->incarnation());
+        }
+      }
+      for (const auto& [name, unused] : stored) SHAPEID_RETURN_IF_ERROR(Reload(c, name));
+    }
+    for (int r = 0; r < rows.rows(); ++r) {
+      Change change;
+      change.seq = rows.Int(r, 0);
+      change.gallery = std::string(rows.Value(r, 1));
+      change.incarnation = rows.Int(r, 2);
+      change.version = static_cast<uint64_t>(rows.Int(r, 3));
+      change.kind = std::string(rows.Value(r, 4));
+      // BIGINT[] in text form: "{1,2,3}".
+      absl::string_view ids = rows.Value(r, 5);
+      ids.remove_prefix(1);
+      ids.remove_suffix(1);
+      for (absl::string_view id : absl::StrSplit(ids, ',', absl::SkipEmpty())) {
+        int64_t value = 0;
+        if (!absl::SimpleAtoi(id, &value)) {
+          return absl::DataLossError(absl::StrCat("change ", change.seq, " has a bad id list"));
+        }
+        change.ids.push_back(value);
+      }
+      change.updated = absl::FromUnixNanos(rows.Int(r, 6));
+      SHAPEID_RETURN_IF_ERROR(ApplyOne(c, change));
+      applied_seq_ = change.seq;
+    }
+  }
+}
+
+absl::Status PostgresGalleryStore::ApplyOne(PgConnection& c, const Change& change) {
+  absl::StatusOr<std::shared_ptr<Gallery>> held = registry_->Get(change.gallery);
+  const bool same = held.ok() && (*held)->Snapshot()->incarnation() ==
+                                     static_cast<uint64_t>(change.incarnation);
+  if (change.kind == "delete") {
+    if (same) {
+      registry_->ApplyStoredDelete(change.gallery, static_cast<uint64_t>(change.incarnation));
+      std::lock_guard<std::mutex> lock(incarnations_mu_);
+      auto it = incarnations_.find(change.gallery);
+      if (it != incarnations_.end() && it->second == change.incarnation) incarnations_.erase(it);
+      changes_applied_.fetch_add(1);
+    }
+    return absl::OkStatus();
+  }
+  if (change.kind == "create") {
+    if (same) return absl::OkStatus();  // made here, or already reloaded
+    return Reload(c, change.gallery);
+  }
+  // append / remove: of the gallery this replica holds, else a later change explains it (a
+  // delete, a create) or an earlier reload already holds it.
+  if (!same) return absl::OkStatus();
+  const std::shared_ptr<Gallery>& gallery = *held;
+  if (change.version <= gallery->Snapshot()->version()) return absl::OkStatus();  // our own
+  absl::Status applied;
+  if (change.kind == "append") {
+    SHAPEID_ASSIGN_OR_RETURN(
+        PgResult rows,
+        c.Query("cannot read samples",
+                "SELECT id, label, features, crc FROM shapeid_samples WHERE incarnation = $1 AND "
+                "id = ANY($2::bigint[]) ORDER BY position",
+                PgParams().Int(change.incarnation).IntArray(change.ids), /*binary=*/true));
+    // Fewer rows: some were removed by a later change; the whole gallery is read instead.
+    if (rows.rows() != static_cast<int>(change.ids.size())) return Reload(c, change.gallery);
+    std::vector<StoredSample> samples(static_cast<size_t>(rows.rows()));
+    for (int r = 0; r < rows.rows(); ++r) {
+      StoredSample& s = samples[static_cast<size_t>(r)];
+      s.id = FromPgId(rows.BinaryInt(r, 0));
+      s.label = std::string(rows.Value(r, 1));
+      FeaturesFromBytes(Bytes(rows.Value(r, 2)), &s.features);
+      if (SampleCrc32(0, s.id, s.label, s.features) != static_cast<uint32_t>(rows.BinaryInt(r, 3))) {
+        return absl::DataLossError(absl::StrCat("gallery '", change.gallery,
+                                                "' in PostgreSQL is damaged: checksum mismatch "
+                                                "in sample id ",
+                                                s.id));
+      }
+    }
+    applied = gallery->ApplyStoredAppend(samples, change.updated, change.version);
+  } else if (change.kind == "remove") {
+    std::vector<uint64_t> ids;
+    for (int64_t id : change.ids) ids.push_back(FromPgId(id));
+    applied = gallery->ApplyStoredRemove(ids, change.updated, change.version);
+  } else {
+    return absl::DataLossError(absl::StrCat("change ", change.seq, " has unknown kind '",
+                                            change.kind, "'"));
+  }
+  // Missed changes (a gap in the versions), or a copy that no longer matches: read it whole.
+  if (absl::IsFailedPrecondition(applied) || absl::IsNotFound(applied) ||
+      absl::IsInvalidArgument(applied)) {
+    return Reload(c, change.gallery);
+  }
+  if (applied.ok()) changes_applied_.fetch_add(1);
+  return applied;
+}
+
+absl::Status PostgresGalleryStore::Reload(PgConnection& c, const std::string& name) {
+  bool found = false;
+  SHAPEID_ASSIGN_OR_RETURN(StoredGallery g, ReadGallery(c, name, &found));
+  if (!found) return absl::OkStatus();  // deleted since; its delete change follows
+  const int64_t incarnation = static_cast<int64_t>(g.incarnation);
+  SHAPEID_RETURN_IF_ERROR(registry_->ApplyStoredGallery(g));
+  // After publishing (see the class comment in the header): until now, a write through the
+  // copy this replaces fails the incarnation check.
+  std::lock_guard<std::mutex> lock(incarnations_mu_);
+  incarnations_[name] = incarnation;
+  changes_applied_.fetch_add(1);
+  return absl::OkStatus();
+}
+
+void PostgresGalleryStore::StartFollowing(GalleryRegistry* registry,
+                                          std::function<void(bool)> reachable) {
+  registry_ = registry;
+  reachable_callback_ = std::move(reachable);
+  follower_ = std::thread([this] { Follow(); });
+}
+
+void PostgresGalleryStore::SetReachable(bool reachable) {
+  if (reachable == reachable_) return;
+  reachable_ = reachable;
+  if (reachable_callback_) reachable_callback_(reachable);
+}
+
+void PostgresGalleryStore::Follow() {
+  std::unique_ptr<PgConnection> listener;
+  absl::Time last_ok = absl::Now();
+  absl::Time next_poll = absl::Now();
+  absl::Time next_prune = absl::Now() + absl::Minutes(1);
+  for (;;) {
+    {
+      std::lock_guard<std::mutex> lock(stop_mu_);
+      if (stop_) return;
+    }
+    bool poll_now = absl::Now() >= next_poll;
+    if (listener == nullptr) {
+      absl::StatusOr<std::unique_ptr<PgConnection>> fresh = Pool::Connect(options_.conninfo);
+      if (fresh.ok() && (*fresh)->Exec("cannot listen", absl::StrCat("LISTEN ", kChannel)).ok()) {
+        listener = *std::move(fresh);
+        poll_now = true;  // whatever was missed while away
+      }
+    }
+    if (listener != nullptr) {
+      // Wait for a notification, a tenth of `refresh` at most, so that a stop and the poll
+      // deadline are noticed in time.
+      pollfd fd{listener->socket(), POLLIN, 0};
+      const int timeout_ms =
+          static_cast<int>(std::max<int64_t>(1, absl::ToInt64Milliseconds(options_.refresh) / 10));
+      if (::poll(&fd, 1, timeout_ms) != 0) {
+        absl::StatusOr<std::vector<std::string>> notified = listener->TakeNotifications();
+        if (!notified.ok()) {
+          listener.reset();
+        } else if (!notified->empty()) {
+          poll_now = true;
+        }
+      }
+    } else {
+      std::unique_lock<std::mutex> lock(stop_mu_);
+      stop_cv_.wait_for(lock, std::chrono::milliseconds(std::max<int64_t>(
+                                  1, absl::ToInt64Milliseconds(options_.refresh) / 10)));
+    }
+    if (listener != nullptr && poll_now) {
+      absl::Status synced;
+      {
+        std::lock_guard<std::mutex> lock(apply_mu_);
+        synced = ApplyPending(*listener);
+      }
+      if (synced.ok()) {
+        last_ok = absl::Now();
+        next_poll = last_ok + options_.refresh;
+        SetReachable(true);
+      } else if (!listener->ok()) {
+        listener.reset();
+      }
+      if (synced.ok() && absl::Now() >= next_prune) {
+        next_prune = absl::Now() + absl::Minutes(1);
+        (void)listener->Exec("prune the change log",
+                             absl::StrCat("DELETE FROM shapeid_changes WHERE logged < now() - "
+                                          "interval '",
+                                          kLogRetention, "'"));
+      }
+    }
+    if (absl::Now() - last_ok > options_.refresh) SetReachable(false);
+  }
+}
+
+}  // namespace shapeid

@@ -1,0 +1,295 @@
+#include "server/storage/postgres_gallery_store.h"
+
+#include <atomic>
+#include <memory>
+#include <random>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+#include "core/gallery/gallery_store_testing.h"
+#include "core/gallery/gallery_test_shapes.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "server/storage/testing/postgres_instance.h"
+
+namespace shapeid {
+namespace {
+
+using gallery_testing::Box;
+using gallery_testing::ExpectSameStoredGallery;
+using gallery_testing::Sphere;
+using ::testing::HasSubstr;
+
+// One PostgreSQL for the whole binary (initdb takes a second or two); each test works in a
+// database of its own.
+class PostgresGalleryStoreTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    absl::StatusOr<std::unique_ptr<PostgresInstance>> started = PostgresInstance::Start();
+    if (started.ok()) {
+      pg_ = started->release();
+    } else {
+      start_error_ = new absl::Status(started.status());
+    }
+  }
+  static void TearDownTestSuite() {
+    delete pg_;
+    pg_ = nullptr;
+  }
+
+  void SetUp() override {
+    if (pg_ == nullptr) {
+      if (PostgresInstance::Required()) FAIL() << *start_error_;
+      GTEST_SKIP() << "no PostgreSQL to test against: " << *start_error_;
+    }
+    const std::string db = absl::StrCat(
+        "t_", ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    auto admin = PgConnection::Connect(pg_->conninfo());
+    ASSERT_TRUE(admin.ok()) << admin.status();
+    ASSERT_TRUE((*admin)->Exec("drop", absl::StrCat("DROP DATABASE IF EXISTS \"", db, "\"")).ok());
+    ASSERT_TRUE((*admin)->Exec("create", absl::StrCat("CREATE DATABASE \"", db, "\"")).ok());
+    conninfo_ = absl::StrCat("postgresql://shapeid@127.0.0.1:", pg_->port(), "/", db);
+  }
+
+  std::unique_ptr<PostgresGalleryStore> Open(absl::Duration refresh = absl::Milliseconds(200)) {
+    auto store = PostgresGalleryStore::Open({conninfo_, refresh, 4});
+    EXPECT_TRUE(store.ok()) << store.status();
+    return store.ok() ? *std::move(store) : nullptr;
+  }
+
+  // A replica: its store (following) and its registry, loaded from the store.
+  struct Replica {
+    std::shared_ptr<PostgresGalleryStore> store;
+    std::unique_ptr<GalleryRegistry> registry;
+    std::atomic<int> unreachable_reports{0};
+    std::atomic<bool> reachable{true};
+
+    ~Replica() { store.reset(); }  // stop following before the registry goes
+  };
+  std::unique_ptr<Replica> StartReplica() {
+    auto replica = std::make_unique<Replica>();
+    replica->store = Open();
+    replica->registry = std::make_unique<GalleryRegistry>(GalleryLimits{}, replica->store);
+    EXPECT_TRUE(replica->registry->LoadFromStore().ok());
+    Replica* r = replica.get();
+    replica->store->StartFollowing(replica->registry.get(), [r](bool reachable) {
+      r->reachable = reachable;
+      if (!reachable) ++r->unreachable_reports;
+    });
+    return replica;
+  }
+
+  static PostgresInstance* pg_;
+  static absl::Status* start_error_;
+  std::string conninfo_;
+};
+
+PostgresInstance* PostgresGalleryStoreTest::pg_ = nullptr;
+absl::Status* PostgresGalleryStoreTest::start_error_ = nullptr;
+
+StoredGallery MakeGallery(std::string name, int dimension, int samples, uint32_t seed) {
+  StoredGallery g;
+  g.name = std::move(name);
+  g.options.descriptor_spec = "rphsd:bins=100,refs=cubic27,variant=complete";
+  g.options.knn.k = 3;
+  g.options.knn.weighting = VoteWeighting::kDistance;
+  g.options.knn.scaling = FeatureScaling::kMaxAbs;
+  g.options.reject_distance = 0.1 + 1e-17;
+  g.created = absl::FromUnixNanos(1'700'000'000'123'456'789);
+  g.updated = g.created + absl::Nanoseconds(7);
+  g.descriptor_version = 1;
+  g.software_version = "0.1.0";
+  g.dimension = dimension;
+  g.incarnation = NewGalleryIncarnation();
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  for (int i = 0; i < samples; ++i) {
+    StoredSample s;
+    // Client ids and assigned ids (>= 2^63, stored as negative BIGINTs).
+    s.id = i % 2 ? (uint64_t{1} << 63) + static_cast<uint64_t>(i) : static_cast<uint64_t>(i + 1);
+    s.label = absl::StrCat("class-", i % 5, i == 0 ? " \xc3\xa9t\xc3\xa9" : "");
+    for (int d = 0; d < dimension; ++d) s.features.push_back(u(rng));
+    g.samples.push_back(std::move(s));
+  }
+  return g;
+}
+
+TEST_F(PostgresGalleryStoreTest, EveryWriteSurvivesBitForBit) {
+  StoredGallery a = MakeGallery("a", 12, 1500, 1);  // more than one INSERT statement
+  a.samples[3].features[0] = -0.0f;
+  {
+    auto store = Open();
+    ASSERT_NE(store, nullptr);
+    ASSERT_TRUE(store->LoadAll().ok());
+    ASSERT_TRUE(store->SaveGallery(a).ok());
+    StoredGallery more = MakeGallery("a", 12, 3, 2);
+    for (auto& s : more.samples) s.id += 100'000;
+    a.updated += absl::Seconds(1);
+    a.version = 1;
+    ASSERT_TRUE(store->AppendSamples("a", more.samples, a.updated, 1).ok());
+    a.samples.insert(a.samples.end(), more.samples.begin(), more.samples.end());
+    const std::vector<uint64_t> gone = {a.samples[0].id, a.samples[1].id};
+    a.version = 2;
+    ASSERT_TRUE(store->RemoveSamples("a", gone, a.updated, 2).ok());
+    a.samples.erase(a.samples.begin(), a.samples.begin() + 2);
+    ASSERT_TRUE(store->SaveGallery(MakeGallery("b", 4, 0, 3)).ok());
+    ASSERT_TRUE(store->DeleteGallery("b").ok());
+  }
+  auto reopened = Open();
+  ASSERT_NE(reopened, nullptr);
+  auto loaded = reopened->LoadAll();
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  ASSERT_EQ(loaded->size(), 1u);
+  ExpectSameStoredGallery((*loaded)[0], a);
+  EXPECT_EQ((*loaded)[0].version, 2u);
+  EXPECT_EQ((*loaded)[0].incarnation, a.incarnation);
+}
+
+TEST_F(PostgresGalleryStoreTest, ANameTakenThroughAnotherReplicaIsAlreadyExists) {
+  auto one = Open();
+  auto two = Open();
+  ASSERT_TRUE(one->LoadAll().ok());
+  ASSERT_TRUE(two->LoadAll().ok());
+  ASSERT_TRUE(one->SaveGallery(MakeGallery("g", 4, 2, 1)).ok());
+  const absl::Status again = two->SaveGallery(MakeGallery("g", 4, 2, 1));
+  EXPECT_EQ(again.code(), absl::StatusCode::kAlreadyExists);
+  EXPECT_THAT(again.message(), HasSubstr("another replica"));
+}
+
+TEST_F(PostgresGalleryStoreTest, ReplicasSeeEachOthersChanges) {
+  auto a = StartReplica();
+  auto b = StartReplica();
+  auto on_a = a->registry->Create("g", {});
+  ASSERT_TRUE(on_a.ok()) << on_a.status();
+  auto trained = (*on_a)->Train({{0, "box", Box(1)}, {5, "sphere", Sphere(1)}});
+  ASSERT_TRUE(trained.ok()) << trained.status();
+  ASSERT_TRUE(b->store->Sync().ok());
+
+  auto on_b = b->registry->Get("g");
+  ASSERT_TRUE(on_b.ok()) << on_b.status();
+  EXPECT_EQ((*on_b)->Snapshot()->version(), trained->version);
+  EXPECT_EQ((*on_b)->Snapshot()->num_samples(), 2);
+  EXPECT_EQ((*on_b)->Snapshot()->Classify(Sphere(2))->label, "sphere");
+
+  // Removal through B, seen by A.
+  ASSERT_TRUE((*on_b)->RemoveSamples({5}).ok());
+  ASSERT_TRUE(a->store->Sync().ok());
+  EXPECT_EQ((*on_a)->Snapshot()->num_samples(), 1);
+  EXPECT_EQ((*on_a)->Snapshot()->version(), (*on_b)->Snapshot()->version());
+
+  // Deleted through A and made again under the same name: B drops the old one and loads the
+  // new one, whose ids start afresh.
+  ASSERT_TRUE(a->registry->Delete("g").ok());
+  ASSERT_TRUE(a->registry->Create("g", {}).ok());
+  ASSERT_TRUE((*a->registry->Get("g"))->Train({{9, "cube", Box(3)}}).ok());
+  ASSERT_TRUE(b->store->Sync().ok());
+  auto again = b->registry->Get("g");
+  ASSERT_TRUE(again.ok());
+  EXPECT_NE(again->get(), on_b->get());
+  EXPECT_EQ((*again)->Snapshot()->num_samples(), 1);
+  EXPECT_TRUE((*again)->Snapshot()->Contains(9));
+  // The old copy a stream might still hold refuses writes.
+  EXPECT_EQ((*on_b)->Train({{0, "box", Box(4)}}).status().code(), absl::StatusCode::kNotFound);
+}
+
+TEST_F(PostgresGalleryStoreTest, FollowingAppliesChangesWithoutBeingAsked) {
+  auto a = StartReplica();
+  auto b = StartReplica();
+  ASSERT_TRUE(a->registry->Create("g", {}).ok());
+  ASSERT_TRUE((*a->registry->Get("g"))->Train({{1, "box", Box(1)}}).ok());
+  // NOTIFY wakes B's follower; 10 s is far beyond any reasonable delay and never reached.
+  const absl::Time deadline = absl::Now() + absl::Seconds(10);
+  while (absl::Now() < deadline) {
+    auto g = b->registry->Get("g");
+    if (g.ok() && (*g)->Snapshot()->num_samples() == 1) break;
+    absl::SleepFor(absl::Milliseconds(5));
+  }
+  auto g = b->registry->Get("g");
+  ASSERT_TRUE(g.ok());
+  EXPECT_EQ((*g)->Snapshot()->num_samples(), 1);
+  EXPECT_GE(b->store->changes_applied(), 1);  // the create (read whole, with its sample)
+}
+
+TEST_F(PostgresGalleryStoreTest, ConcurrentWritersThroughTwoReplicasLoseNothing) {
+  auto a = StartReplica();
+  auto b = StartReplica();
+  ASSERT_TRUE(a->registry->Create("g", {}).ok());
+  ASSERT_TRUE(b->store->Sync().ok());
+  constexpr int kThreads = 3;
+  constexpr int kBatches = 8;
+  std::atomic<int> failures{0};
+  std::vector<std::thread> writers;
+  for (Replica* replica : {a.get(), b.get()}) {
+    for (int t = 0; t < kThreads; ++t) {
+      writers.emplace_back([&, replica, t] {
+        auto gallery = replica->registry->Get("g");
+        for (int i = 0; i < kBatches; ++i) {
+          // Assigned ids: the ones a stale replica would pick clash unless it catches up.
+          auto done = (*gallery)->Train({{0, "box", Box(static_cast<uint32_t>(t * 100 + i))},
+                                         {0, "sphere", Sphere(static_cast<uint32_t>(i))}});
+          if (!done.ok()) {
+            ADD_FAILURE() << done.status();
+            ++failures;
+          }
+        }
+      });
+    }
+  }
+  for (auto& w : writers) w.join();
+  EXPECT_EQ(failures.load(), 0);
+  ASSERT_TRUE(a->store->Sync().ok());
+  ASSERT_TRUE(b->store->Sync().ok());
+  const int expected = 2 * kThreads * kBatches * 2;
+  for (Replica* replica : {a.get(), b.get()}) {
+    auto snapshot = (*replica->registry->Get("g"))->Snapshot();
+    EXPECT_EQ(snapshot->num_samples(), expected);
+    EXPECT_EQ(snapshot->version(), static_cast<uint64_t>(2 * kThreads * kBatches));
+  }
+  auto fresh = Open();
+  auto loaded = fresh->LoadAll();
+  ASSERT_TRUE(loaded.ok());
+  std::set<uint64_t> ids;
+  for (const auto& s : (*loaded)[0].samples) ids.insert(s.id);
+  EXPECT_EQ(ids.size(), static_cast<size_t>(expected));
+}
+
+TEST_F(PostgresGalleryStoreTest, AReplicaReportsPostgresLossAndCatchesUpAfter) {
+  auto a = StartReplica();
+  auto b = StartReplica();
+  ASSERT_TRUE(a->registry->Create("g", {}).ok());
+  ASSERT_TRUE(b->store->Sync().ok());
+
+  ASSERT_TRUE(pg_->Stop().ok());
+  // Both followers notice within `refresh` (200 ms here) plus the time to fail a connect.
+  const absl::Time deadline = absl::Now() + absl::Seconds(10);
+  while (absl::Now() < deadline && (a->reachable || b->reachable)) {
+    absl::SleepFor(absl::Milliseconds(10));
+  }
+  EXPECT_FALSE(a->reachable);
+  EXPECT_FALSE(b->reachable);
+  const absl::Status write = (*a->registry->Get("g"))->Train({{1, "box", Box(1)}}).status();
+  EXPECT_EQ(write.code(), absl::StatusCode::kUnavailable) << write;
+  EXPECT_EQ((*a->registry->Get("g"))->Snapshot()->num_samples(), 0);  // nothing published
+
+  ASSERT_TRUE(pg_->StartServer().ok());
+  // The first write after the restart reconnects (the pooled connections died with it).
+  auto trained = (*a->registry->Get("g"))->Train({{1, "box", Box(1)}});
+  ASSERT_TRUE(trained.ok()) << trained.status();
+  const absl::Time back = absl::Now() + absl::Seconds(20);
+  while (absl::Now() < back &&
+         (!a->reachable || !b->reachable ||
+          (*b->registry->Get("g"))->Snapshot()->num_samples() != 1)) {
+    absl::SleepFor(absl::Milliseconds(10));
+  }
+  EXPECT_TRUE(a->reachable);
+  EXPECT_TRUE(b->reachable);
+  EXPECT_EQ((*b->registry->Get("g"))->Snapshot()->num_samples(), 1);
+  EXPECT_GE(a->unreachable_reports.load(), 1);
+}
+
+}  // namespace
+}  // namespace shapeid
