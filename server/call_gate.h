@@ -30,7 +30,9 @@ namespace shapeid {
 // grace period.
 class CallTracker {
  public:
-  enum class State { kLoading, kServing, kDraining };
+  // kStoreUnreachable: a replica over a shared store (PostgreSQL) that has lost it; its
+  // galleries may be stale, so it answers nothing until it is back and caught up.
+  enum class State { kLoading, kServing, kStoreUnreachable, kDraining };
 
   // Registers a call; false (and nothing registered) unless serving.
   bool Enter() {
@@ -42,7 +44,7 @@ class CallTracker {
     return true;
   }
   void Exit() { in_flight_.fetch_sub(1); }
-  // kLoading -> kServing; draining is final.
+  // kLoading -> kServing <-> kStoreUnreachable; draining is final.
   void SetState(State state) {
     State expected = state_.load();
     while (expected != State::kDraining && !state_.compare_exchange_weak(expected, state)) {
@@ -55,6 +57,11 @@ class CallTracker {
   absl::Status Refusal() const {
     if (state_.load() == State::kLoading) {
       return absl::UnavailableError("the server is loading its galleries; retry shortly");
+    }
+    if (state_.load() == State::kStoreUnreachable) {
+      return absl::UnavailableError(
+          "this replica has lost its gallery store (PostgreSQL) and may be stale; retry on "
+          "another replica or shortly");
     }
     return absl::UnavailableError(
         "the server is shutting down; retry on another replica or shortly");

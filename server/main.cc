@@ -36,6 +36,16 @@ ABSL_FLAG(int32_t, max_message_bytes, 16 << 20,
 ABSL_FLAG(std::string, data_dir, "shapeid-data",
           "directory where galleries persist (created if missing; one server per directory). "
           "Empty: keep galleries in memory only, lost at exit. Env: SHAPEID_DATA_DIR");
+ABSL_FLAG(std::string, store, "",
+          "where galleries live instead of --data_dir: a PostgreSQL connection URI, "
+          "postgres://[user@]host[:port]/database[?sslmode=...], shared by any number of "
+          "replicas (docs/scaling.md). Put the password in PGPASSWORD or ~/.pgpass, not here. "
+          "Empty: --data_dir. Env: SHAPEID_STORE");
+ABSL_FLAG(int32_t, store_refresh_ms, 1000,
+          "with --store=postgres: other replicas' changes arrive at once (LISTEN/NOTIFY) and at "
+          "most this late by polling; a replica that cannot reach PostgreSQL for this long "
+          "answers UNAVAILABLE (health NOT_SERVING) until it is back. Env: "
+          "SHAPEID_STORE_REFRESH_MS");
 ABSL_FLAG(bool, set_aside_damaged, false,
           "start even if some gallery files are damaged: move them to <data_dir>/damaged/ and "
           "serve the rest (without it, a damaged gallery stops start-up with an error naming "
@@ -101,7 +111,7 @@ void OnStopSignal(int signal) {
 // Every flag may come from SHAPEID_<FLAG NAME IN CAPITALS>; a command-line flag wins.
 bool ApplyEnvironment() {
   for (const char* name :
-       {"listen", "health_listen", "data_dir", "set_aside_damaged", "max_points_per_cloud",
+       {"listen", "health_listen", "data_dir", "store", "store_refresh_ms", "set_aside_damaged", "max_points_per_cloud",
         "max_message_bytes", "approximate_min_vectors", "approximate_lists", "approximate_probes",
         "max_samples_per_gallery", "max_galleries", "max_samples_per_train",
         "max_streams_per_client", "max_call_seconds", "tls_cert", "tls_key", "tls_client_ca",
@@ -204,6 +214,12 @@ int main(int argc, char** argv) {
       static_cast<size_t>(absl::GetFlag(FLAGS_max_points_per_cloud));
   options.max_message_bytes = absl::GetFlag(FLAGS_max_message_bytes);
   options.data_dir = absl::GetFlag(FLAGS_data_dir);
+  options.store = absl::GetFlag(FLAGS_store);
+  if (absl::GetFlag(FLAGS_store_refresh_ms) < 10) {
+    std::fprintf(stderr, "shapeid-server: --store_refresh_ms must be >= 10\n");
+    return 2;
+  }
+  options.store_refresh = absl::Milliseconds(absl::GetFlag(FLAGS_store_refresh_ms));
   options.set_aside_damaged = absl::GetFlag(FLAGS_set_aside_damaged);
   options.gallery_limits.approximate.min_vectors = absl::GetFlag(FLAGS_approximate_min_vectors);
   options.gallery_limits.approximate.lists = absl::GetFlag(FLAGS_approximate_lists);
@@ -266,9 +282,12 @@ int main(int argc, char** argv) {
     return 1;
   }
   // Listening already (health answers NOT_SERVING) while the galleries load.
+  const std::string where =
+      !options.store.empty()
+          ? absl::StrCat("PostgreSQL ", shapeid::DescribeConninfo(options.store))
+          : (options.data_dir.empty() ? "nowhere (in-memory)" : options.data_dir);
   std::fprintf(stderr, "shapeid-server: bound %s; loading galleries from %s\n",
-               (*server)->address().c_str(),
-               options.data_dir.empty() ? "nowhere (in-memory)" : options.data_dir.c_str());
+               (*server)->address().c_str(), where.c_str());
   std::fprintf(stderr, "shapeid-server: security: %s\n", (*server)->security().c_str());
   if (!(*server)->health_address().empty()) {
     std::fprintf(stderr, "shapeid-server: health checks also on %s (plaintext, health only)\n",
@@ -290,8 +309,8 @@ int main(int argc, char** argv) {
   absl::StatusOr<shapeid::LoadReport> loaded = (*server)->LoadGalleries();
   if (!loaded.ok()) {
     std::fprintf(stderr, "shapeid-server: %s\n", std::string(loaded.status().message()).c_str());
-    if (loaded.status().code() == absl::StatusCode::kDataLoss ||
-        loaded.status().code() == absl::StatusCode::kFailedPrecondition) {
+    if (options.store.empty() && (loaded.status().code() == absl::StatusCode::kDataLoss ||
+                                  loaded.status().code() == absl::StatusCode::kFailedPrecondition)) {
       std::fprintf(stderr,
                    "shapeid-server: refusing to start rather than serve without that gallery. "
                    "Restore it from an export, or start with --set_aside_damaged to move it to "
@@ -304,6 +323,12 @@ int main(int argc, char** argv) {
   for (const auto& aside : loaded->set_aside) {
     std::fprintf(stderr, "shapeid-server: WARNING: gallery '%s' set aside to %s: %s\n",
                  aside.name.c_str(), aside.moved_to.c_str(), aside.reason.c_str());
+  }
+  if (!options.store.empty()) {
+    std::fprintf(stderr,
+                 "shapeid-server: galleries in %s; other replicas' changes applied within %d "
+                 "ms (--store_refresh_ms)\n",
+                 loaded->store.c_str(), absl::GetFlag(FLAGS_store_refresh_ms));
   }
   if (!loaded->persistent) {
     std::fprintf(stderr,

@@ -4,6 +4,7 @@
 #include <string>
 #include <utility>
 
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "grpcpp/ext/proto_server_reflection_plugin.h"
@@ -39,15 +40,32 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
       ListeningCredentials(options.security);
   if (!credentials.ok()) return credentials.status();
   std::unique_ptr<ShapeIdServer> server(new ShapeIdServer);
-  if (!options.data_dir.empty()) {
-    absl::StatusOr<std::unique_ptr<SqliteGalleryStore>> store = SqliteGalleryStore::Open(
+  std::shared_ptr<GalleryStore> store;
+  if (!options.store.empty()) {
+    if (!absl::StartsWith(options.store, "postgres://") &&
+        !absl::StartsWith(options.store, "postgresql://")) {
+      return absl::InvalidArgumentError(
+          "--store must be empty (galleries in --data_dir) or a PostgreSQL connection URI, "
+          "postgres://[user@]host[:port]/database[?options]");
+    }
+    absl::StatusOr<std::unique_ptr<PostgresGalleryStore>> postgres =
+        PostgresGalleryStore::Open({options.store, options.store_refresh});
+    if (!postgres.ok()) return postgres.status();
+    server->postgres_store_ = *std::move(postgres);
+    server->store_description_ =
+        absl::StrCat("PostgreSQL ", DescribeConninfo(options.store), " (shared)");
+    store = server->postgres_store_;
+  } else if (!options.data_dir.empty()) {
+    absl::StatusOr<std::unique_ptr<SqliteGalleryStore>> sqlite = SqliteGalleryStore::Open(
         SqliteGalleryStoreOptions{options.data_dir, options.set_aside_damaged});
-    if (!store.ok()) return store.status();
-    server->store_ = *std::move(store);
+    if (!sqlite.ok()) return sqlite.status();
+    server->store_ = *std::move(sqlite);
+    server->store_description_ = options.data_dir;
+    store = server->store_;
   }
   GalleryLimits limits = options.gallery_limits;
   limits.max_points_per_cloud = options.service.max_points_per_cloud;
-  server->registry_ = std::make_shared<GalleryRegistry>(limits, server->store_);
+  server->registry_ = std::make_shared<GalleryRegistry>(limits, store);
   server->service_ = std::make_unique<ShapeIdService>(options.service, server->registry_, *keys);
   server->security_ = DescribeSecurity(options.security, **keys);
   server->service_->HoldUntilLoaded();
@@ -95,7 +113,8 @@ absl::StatusOr<LoadReport> ShapeIdServer::LoadGalleries() {
   const absl::Time start = absl::Now();
   if (absl::Status status = registry_->LoadFromStore(); !status.ok()) return status;
   report.elapsed = absl::Now() - start;
-  report.persistent = store_ != nullptr;
+  report.persistent = store_ != nullptr || postgres_store_ != nullptr;
+  report.store = store_description_;
   if (store_ != nullptr) {
     report.read_only = store_->read_only();
     report.set_aside = store_->set_aside();
@@ -110,11 +129,21 @@ absl::StatusOr<LoadReport> ShapeIdServer::LoadGalleries() {
   if (shut_down_) return report;
   service_->StartServing();
   SetServing(true);
+  if (postgres_store_ != nullptr) {
+    // From here on other replicas' changes are applied as they come; losing PostgreSQL for
+    // longer than the refresh bound takes this replica out of service until it is back.
+    postgres_store_->StartFollowing(registry_.get(), [this](bool reachable) {
+      service_->SetStoreReachable(reachable);
+      SetServing(reachable);
+    });
+  }
   return report;
 }
 
 void ShapeIdServer::Shutdown(absl::Duration grace) {
   if (shut_down_ || server_ == nullptr) return;
+  // First, so that it cannot turn the service back to serving while it drains.
+  if (postgres_store_ != nullptr) postgres_store_->StopFollowing();
   shut_down_ = true;
   SetServing(false);
   // Drain ourselves, then shut gRPC down at once: Server::Shutdown(deadline) alone would also
@@ -137,6 +166,11 @@ void ShapeIdServer::SetServing(bool serving) {
   if (health_server_ != nullptr) health_server_->GetHealthCheckService()->SetServingStatus(serving);
 }
 
-ShapeIdServer::~ShapeIdServer() { Shutdown(absl::ZeroDuration()); }
+ShapeIdServer::~ShapeIdServer() {
+  // The follower calls into the registry and the service: stop it before either goes (also
+  // when Bind failed half-way and Shutdown has nothing to do).
+  if (postgres_store_ != nullptr) postgres_store_->StopFollowing();
+  Shutdown(absl::ZeroDuration());
+}
 
 }  // namespace shapeid

@@ -10,6 +10,7 @@
 #include "grpcpp/grpcpp.h"
 #include "server/server_options.h"
 #include "server/shapeid_service.h"
+#include "server/storage/postgres_gallery_store.h"
 #include "server/storage/sqlite_gallery_store.h"
 
 namespace shapeid {
@@ -21,6 +22,9 @@ struct LoadReport {
   absl::Duration elapsed;
   bool persistent = false;  // false: options.data_dir was empty
   bool read_only = false;   // the data directory is on a read-only file system
+  // Where galleries live, for the start-up log: the data directory, "PostgreSQL
+  // HOST:PORT/DB" (never a password), or empty (memory only).
+  std::string store;
   std::vector<SqliteGalleryStore::SetAside> set_aside;
 };
 
@@ -71,7 +75,9 @@ class ShapeIdServer {
  private:
   ShapeIdServer() = default;
 
-  std::shared_ptr<SqliteGalleryStore> store_;  // null when not persistent
+  std::shared_ptr<SqliteGalleryStore> store_;  // null unless galleries live in data_dir
+  std::shared_ptr<PostgresGalleryStore> postgres_store_;  // null unless options.store is set
+  std::string store_description_;
   std::shared_ptr<GalleryRegistry> registry_;
   std::unique_ptr<ShapeIdService> service_;
   // Sets the health of the main port and of the health-only port alike.

@@ -3,6 +3,8 @@
 
 #include <string>
 
+#include "absl/time/time.h"
+
 #include "core/gallery/gallery_options.h"
 #include "server/security_options.h"
 #include "server/service_options.h"
@@ -31,6 +33,16 @@ struct ServerOptions {
   // (reported at start-up). Off by default: a damaged store stops the server, so that no
   // gallery silently disappears from service.
   bool set_aside_damaged = false;
+  // A shared store instead of data_dir: "postgres://..." or "postgresql://..." (any libpq
+  // connection string starting so) keeps galleries in PostgreSQL, which any number of
+  // replicas share (server/storage/postgres_gallery_store.h); data_dir is then unused. Empty,
+  // the default: data_dir.
+  std::string store;
+  // How stale a replica over PostgreSQL may get: other replicas' changes arrive by
+  // LISTEN/NOTIFY at once and by polling at least this often, and a replica that has not
+  // reached PostgreSQL for this long stops serving (health NOT_SERVING, calls UNAVAILABLE)
+  // until it is back and caught up.
+  absl::Duration store_refresh = absl::Seconds(1);
   // TLS, API keys, and whether a server open to the network may start (docs/security.md).
   SecurityOptions security;
   ServiceOptions service;

@@ -101,6 +101,11 @@ class ShapeIdService final : public ShapeIdRawService {
   // at once; the server holds it while it loads galleries from the store).
   void HoldUntilLoaded() { gate_.tracker().SetState(CallTracker::State::kLoading); }
   void StartServing() { gate_.tracker().SetState(CallTracker::State::kServing); }
+  // A replica over a shared store: refuse every call while the store is unreachable.
+  void SetStoreReachable(bool reachable) {
+    gate_.tracker().SetState(reachable ? CallTracker::State::kServing
+                                       : CallTracker::State::kStoreUnreachable);
+  }
   // Refuses new calls (UNAVAILABLE) from now on; calls already running continue.
   void StartDraining() { gate_.tracker().StartDraining(); }
   int64_t calls_in_flight() const { return gate_.tracker().in_flight(); }

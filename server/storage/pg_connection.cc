@@ -156,6 +156,25 @@ absl::Status PgConnection::ExecScript(absl::string_view what, const std::string&
   return ok() ? absl::InternalError(text) : absl::UnavailableError(text);
 }
 
+std::string DescribeConninfo(const std::string& conninfo) {
+  char* error = nullptr;
+  PQconninfoOption* options = PQconninfoParse(conninfo.c_str(), &error);
+  if (options == nullptr) {
+    if (error != nullptr) PQfreemem(error);
+    return "(unparseable)";
+  }
+  std::string host, port, dbname;
+  for (PQconninfoOption* o = options; o->keyword != nullptr; ++o) {
+    if (o->val == nullptr) continue;
+    if (std::strcmp(o->keyword, "host") == 0) host = o->val;
+    if (std::strcmp(o->keyword, "port") == 0) port = o->val;
+    if (std::strcmp(o->keyword, "dbname") == 0) dbname = o->val;
+  }
+  PQconninfoFree(options);
+  if (host.empty()) host = "(PGHOST or local socket)";
+  return absl::StrCat(host, port.empty() ? "" : ":", port, dbname.empty() ? "" : "/", dbname);
+}
+
 absl::StatusOr<std::vector<std::string>> PgConnection::TakeNotifications() {
   if (PQconsumeInput(conn_) == 0 || !ok()) {
     return absl::UnavailableError(

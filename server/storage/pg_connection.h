@@ -101,6 +101,10 @@ class PgConnection {
   pg_conn* conn_;
 };
 
+// "HOST:PORT/DATABASE" of a connection string, for logs: never the user or the password.
+// Empty parts are left out; "(unparseable)" if libpq cannot read it.
+std::string DescribeConninfo(const std::string& conninfo);
+
 // Stored ids are BIGINT: ids at or above 2^63 (the assigned ones) are kept as their two's
 // complement, which round-trips exactly.
 inline int64_t AsPgId(uint64_t id) { return static_cast<int64_t>(id); }

@@ -216,7 +216,9 @@ PostgresGalleryStore::PostgresGalleryStore(PostgresGalleryStoreOptions options,
                                            std::unique_ptr<Pool> pool)
     : options_(std::move(options)), pool_(std::move(pool)) {}
 
-PostgresGalleryStore::~PostgresGalleryStore() {
+PostgresGalleryStore::~PostgresGalleryStore() { StopFollowing(); }
+
+void PostgresGalleryStore::StopFollowing() {
   {
     std::lock_guard<std::mutex> lock(stop_mu_);
     stop_ = true;

@@ -90,6 +90,10 @@ class PostgresGalleryStore final : public GalleryStore {
   // back and every change missed meanwhile has been applied. Call once, after LoadAll.
   void StartFollowing(GalleryRegistry* registry, std::function<void(bool)> reachable);
 
+  // Stops following and waits for the thread (within about refresh / 10). Before the
+  // registry goes; the destructor calls it too.
+  void StopFollowing();
+
   // Applies every change logged so far (tests; the follower does it on its own).
   absl::Status Sync();
 
