@@ -3,6 +3,7 @@
 #include <poll.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstring>
 #include <utility>
 
@@ -634,6 +635,7 @@ void PostgresGalleryStore::Follow() {
   absl::Time last_ok = absl::Now();
   absl::Time next_poll = absl::Now();
   absl::Time next_prune = absl::Now() + absl::Minutes(1);
+  std::string last_error;
   for (;;) {
     {
       std::lock_guard<std::mutex> lock(stop_mu_);
@@ -672,9 +674,18 @@ void PostgresGalleryStore::Follow() {
         std::lock_guard<std::mutex> lock(apply_mu_);
         synced = ApplyPending(*listener);
       }
+      if (!synced.ok() && synced.ToString() != last_error) {
+        // Once per distinct error: a replica that cannot apply the log says why.
+        last_error = synced.ToString();
+        std::fprintf(stderr, "shapeid-server: cannot apply other replicas' changes: %s\n",
+                     last_error.c_str());
+      }
       if (synced.ok()) {
+        last_error.clear();
         last_ok = absl::Now();
-        next_poll = last_ok + options_.refresh;
+        // Twice per bound: a healthy replica always has a success younger than `refresh`, so
+        // the check below never flaps between polls.
+        next_poll = last_ok + options_.refresh / 2;
         SetReachable(true);
       } else if (!listener->ok()) {
         listener.reset();

@@ -271,6 +271,8 @@ TEST_F(PostgresGalleryStoreTest, AReplicaReportsPostgresLossAndCatchesUpAfter) {
   }
   EXPECT_FALSE(a->reachable);
   EXPECT_FALSE(b->reachable);
+  std::printf("both replicas unreachable %s after PostgreSQL stopped (refresh 200 ms)\n",
+              absl::FormatDuration(absl::Now() - (deadline - absl::Seconds(10))).c_str());
   const absl::Status write = (*a->registry->Get("g"))->Train({{1, "box", Box(1)}}).status();
   EXPECT_EQ(write.code(), absl::StatusCode::kUnavailable) << write;
   EXPECT_EQ((*a->registry->Get("g"))->Snapshot()->num_samples(), 0);  // nothing published
