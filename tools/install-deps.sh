@@ -23,8 +23,13 @@ packages=(
   # security (server/api_keys.cc, server/security.cc): libcrypto's SHA-256, CRYPTO_memcmp and
   # RAND_bytes for API keys, and the start-up check of TLS files; gRPC uses the same OpenSSL
   libssl-dev
+  # the shared gallery store for several replicas (server/storage/postgres_gallery_store.cc):
+  # libpq, PostgreSQL's own C client
+  libpq-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
+  # the scale-out tests start a private PostgreSQL server (server/storage/testing/postgres_instance.h)
+  postgresql
   # the security tests make their certificates with the openssl CLI (tests/make_test_certificates.sh)
   openssl
   # reliability (docs/reliability.md): clang and libFuzzer for the fuzz targets, and
