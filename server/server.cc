@@ -162,8 +162,14 @@ void ShapeIdServer::Shutdown(absl::Duration grace) {
 }
 
 void ShapeIdServer::SetServing(bool serving) {
-  server_->GetHealthCheckService()->SetServingStatus(serving);
-  if (health_server_ != nullptr) health_server_->GetHealthCheckService()->SetServingStatus(serving);
+  for (grpc::Server* server : {server_.get(), health_server_.get()}) {
+    if (server == nullptr) continue;
+    grpc::HealthCheckServiceInterface* health = server->GetHealthCheckService();
+    health->SetServingStatus(serving);  // "" and every service: readiness
+    // Liveness: the process runs and answers, whatever its store; a replica that has lost
+    // PostgreSQL is not ready but must not be restarted for it (it reconnects by itself).
+    health->SetServingStatus(kLivenessHealthService, !shut_down_);
+  }
 }
 
 ShapeIdServer::~ShapeIdServer() {

@@ -15,6 +15,11 @@
 
 namespace shapeid {
 
+// The grpc.health.v1 service name that answers SERVING as long as the process runs and is not
+// shutting down, for liveness probes; "" (every other name) is readiness: SERVING only while
+// calls are served (loaded, not draining, the shared store reachable).
+inline constexpr char kLivenessHealthService[] = "shapeid.liveness";
+
 // What LoadGalleries found.
 struct LoadReport {
   int64_t galleries = 0;

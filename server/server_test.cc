@@ -7,12 +7,14 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
+#include "grpcpp/grpcpp.h"
 #include "client/client.h"
 #include "core/gallery/gallery_registry.h"
 #include "core/testing/test_clouds.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "server/storage/sqlite_gallery_store.h"
+#include "server/testing/raw_call.h"
 
 namespace shapeid {
 namespace {
@@ -80,6 +82,36 @@ TEST(ShapeIdServerTest, NotServingUntilEveryGalleryIsLoaded) {
   ASSERT_TRUE(galleries.ok()) << galleries.status();
   ASSERT_EQ(galleries->size(), 1u);
   EXPECT_EQ((*galleries)[0].sample_count(), 5u);
+}
+
+// grpc.health.v1 Check of `service`: the status field of the reply (1 SERVING, 2 NOT_SERVING),
+// -1 if the call failed (NOT_FOUND for an unknown service).
+int HealthOf(const ShapeIdServer& server, const std::string& service) {
+  auto channel = grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials());
+  // HealthCheckRequest { string service = 1; }
+  const std::string request = service.empty()
+                                  ? std::string()
+                                  : absl::StrCat(std::string(1, '\x0a'),
+                                                 std::string(1, static_cast<char>(service.size())),
+                                                 service);
+  std::string reply;
+  const grpc::Status status =
+      testing_raw::RawCall(channel, "/grpc.health.v1.Health/Check", {request}, &reply);
+  if (!status.ok()) return -1;
+  return reply.size() == 2 && reply[0] == '\x08' ? reply[1] : 0;  // SERVING_STATUS_UNKNOWN
+}
+
+TEST(ShapeIdServerTest, LivenessIsServingWhileReadinessIsNot) {
+  ServerOptions options;
+  options.listen = "127.0.0.1:0";
+  auto server = ShapeIdServer::Bind(options);
+  ASSERT_TRUE(server.ok()) << server.status();
+  // Loading: not ready, but alive (a liveness probe must not restart a server that loads).
+  EXPECT_EQ(HealthOf(**server, ""), 2);
+  EXPECT_EQ(HealthOf(**server, kLivenessHealthService), 1);
+  ASSERT_TRUE((*server)->LoadGalleries().ok());
+  EXPECT_EQ(HealthOf(**server, ""), 1);
+  EXPECT_EQ(HealthOf(**server, kLivenessHealthService), 1);
 }
 
 TEST(ShapeIdServerTest, ADamagedStoreNeverServes) {

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <utility>
 
@@ -135,9 +136,12 @@ absl::Status LogChange(PgConnection& connection, absl::string_view what, absl::s
 // noticing a peer that vanished without closing the connection. The caller's own settings (in
 // `conninfo`, processed after these) win.
 std::vector<std::pair<std::string, std::string>> ConnectionDefaults() {
-  return {{"connect_timeout", "3"},   {"keepalives", "1"},         {"keepalives_idle", "5"},
-          {"keepalives_interval", "2"}, {"keepalives_count", "2"}, {"tcp_user_timeout", "5000"},
-          {"application_name", "shapeid-server"}};
+  std::vector<std::pair<std::string, std::string>> defaults = {
+      {"connect_timeout", "3"},     {"keepalives", "1"},       {"keepalives_idle", "5"},
+      {"keepalives_interval", "2"}, {"keepalives_count", "2"}, {"tcp_user_timeout", "5000"}};
+  // A keyword here would hide PGAPPNAME (libpq reads the environment only for what is unset).
+  if (std::getenv("PGAPPNAME") == nullptr) defaults.push_back({"application_name", "shapeid-server"});
+  return defaults;
 }
 
 }  // namespace
