@@ -7,6 +7,7 @@
 
 #include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
 #include "core/descriptor_registry.h"
 #include "core/status_macros.h"
 #include "core/version.h"
@@ -304,6 +305,15 @@ absl::StatusOr<T> Gallery::RetryIfStale(const std::function<absl::StatusOr<T>()>
                        (absl::IsNotFound(result.status()) && !caught_up_for_not_found);
     if (!stale) return result;
     if (absl::IsNotFound(result.status())) caught_up_for_not_found = true;
+    if (absl::IsAborted(result.status()) && attempt > 1) {
+      // Lost again to a writer on another replica. Writers there are never stale for their
+      // own changes, so a steady stream of them would win every time: a random pause, growing
+      // with the attempts (up to 50 ms), lets this one in.
+      thread_local std::mt19937 jitter(std::random_device{}());
+      const int cap_ms = std::min(50, 1 << std::min(attempt, 6));
+      absl::SleepFor(absl::Milliseconds(
+          std::uniform_int_distribution<int>(0, cap_ms)(jitter)));
+    }
     // A shared store found this server's copy behind: apply what the others wrote, then
     // rebuild the change on top of it (outside the writer lock, which catching up needs).
     SHAPEID_RETURN_IF_ERROR(store_->CatchUp(name_));

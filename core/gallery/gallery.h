@@ -208,7 +208,7 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
   // Writes retry when a shared store answers Aborted (it found this server's copy behind):
   // CatchUp, then the write again, up to kStaleAttempts in all. NotFound is retried once
   // after a CatchUp too (see RetryIfStale).
-  static constexpr int kStaleAttempts = 5;
+  static constexpr int kStaleAttempts = 20;
   template <typename T>
   absl::StatusOr<T> RetryIfStale(const std::function<absl::StatusOr<T>()>& write);
 
