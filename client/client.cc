@@ -11,7 +11,9 @@
 #include <thread>
 #include <utility>
 
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
+#include "client/channel_target.h"
 #include "grpcpp/generic/generic_stub.h"
 
 // The wire carries little-endian float32; the cloud's floats are copied as they are.
@@ -99,16 +101,48 @@ absl::StatusOr<std::string> ReadPemFile(const std::string& path, absl::string_vi
   return text;
 }
 
-// The channel's credentials and arguments from the TLS fields of `options`.
+// The channel's target, balancing, credentials and arguments from `options`.
 absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const ClientOptions& options) {
+  absl::StatusOr<ChannelTarget> target = ResolveChannelTarget(options.target);
+  if (!target.ok()) return target.status();
   grpc::ChannelArguments args;
+  // The default service config (the DNS resolver's TXT lookup, which could replace it, is off
+  // by default). loadBalancingConfig rather than the older grpc.lb_policy_name argument: it
+  // is what gRPC documents now. healthCheckConfig makes round_robin leave out a replica that
+  // is loading or draining (NOT_SERVING) rather than send it calls to refuse; pick_first
+  // ignores it in gRPC 1.51.
+  // Health is watched only where there is another replica to turn to (a list, or a dns:
+  // target, whose name may have several records): a client of one server keeps reaching it
+  // while it loads or drains, and so reads the server's own reason ("loading its
+  // galleries") rather than gRPC's "backend unhealthy".
+  const bool replicas = absl::StrContains(options.target, ',') ||
+                        absl::StartsWith(options.target, "dns:");
+  if (options.load_balancing == "round_robin" && replicas) {
+    args.SetServiceConfigJSON(
+        R"({"loadBalancingConfig":[{"round_robin":{}}],"healthCheckConfig":{"serviceName":""}})");
+  } else if (options.load_balancing == "round_robin") {
+    args.SetServiceConfigJSON(R"({"loadBalancingConfig":[{"round_robin":{}}]})");
+  } else if (options.load_balancing == "pick_first") {
+    args.SetServiceConfigJSON(R"({"loadBalancingConfig":[{"pick_first":{}}]})");
+  } else {
+    return absl::InvalidArgumentError(
+        absl::StrCat("ClientOptions.load_balancing must be round_robin or pick_first, got \"",
+                     options.load_balancing, "\""));
+  }
+  if (!target->authority.empty()) args.SetString(GRPC_ARG_DEFAULT_AUTHORITY, target->authority);
   const bool tls = options.tls || !options.tls_ca_file.empty() || !options.tls_cert_file.empty() ||
                    !options.tls_key_file.empty();
   if (!tls) {
     if (!options.tls_server_name.empty()) {
       return absl::InvalidArgumentError("ClientOptions.tls_server_name is set but TLS is off");
     }
-    return grpc::CreateCustomChannel(options.target, grpc::InsecureChannelCredentials(), args);
+    return grpc::CreateCustomChannel(target->target, grpc::InsecureChannelCredentials(), args);
+  }
+  if (!target->one_host && options.tls_server_name.empty()) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "ClientOptions.target '", options.target,
+        "' lists replicas on different hosts and TLS checks one name for all of them: set "
+        "tls_server_name to a name every replica's certificate carries"));
   }
   if (options.tls_cert_file.empty() != options.tls_key_file.empty()) {
     return absl::InvalidArgumentError(
@@ -131,7 +165,7 @@ absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const ClientOptions& 
     ssl.pem_private_key = *std::move(key);
   }
   if (!options.tls_server_name.empty()) args.SetSslTargetNameOverride(options.tls_server_name);
-  return grpc::CreateCustomChannel(options.target, grpc::SslCredentials(ssl), args);
+  return grpc::CreateCustomChannel(target->target, grpc::SslCredentials(ssl), args);
 }
 
 }  // namespace
@@ -186,7 +220,7 @@ absl::Status Client::Call(bool retry, bool corked, const Attempt& attempt,
   for (int i = 0; i < attempts; ++i) {
     if (i > 0) {
       if (may_retry && !may_retry()) break;
-      if (absl::Now() + backoff >= deadline) break;  // the last answer is UNAVAILABLE
+      if (absl::Now() + backoff >= deadline) break;  // the last answer stands
       std::this_thread::sleep_for(absl::ToChronoNanoseconds(backoff));
       backoff *= 2;
     }
@@ -195,7 +229,13 @@ absl::Status Client::Call(bool retry, bool corked, const Attempt& attempt,
     if (!authorization_.empty()) context.AddMetadata("authorization", authorization_);
     if (corked) context.set_initial_metadata_corked(true);
     status = attempt(context);
-    if (status.error_code() != grpc::StatusCode::UNAVAILABLE) break;
+    // CANCELLED too: this client cancels only calls it then stops (a failing export sink, an
+    // import), so a CANCELLED here comes from a server that stopped before serving the call
+    // (a shutdown cancels what it had not started), which another replica can serve.
+    if (status.error_code() != grpc::StatusCode::UNAVAILABLE &&
+        status.error_code() != grpc::StatusCode::CANCELLED) {
+      break;
+    }
   }
   return FromGrpcStatus(status);
 }
@@ -294,7 +334,9 @@ absl::StatusOr<v1::TrainResponse> Client::Train(const std::string& gallery,
     all_ids = all_ids && samples[i].sample_id != 0;
   }
   v1::TrainResponse response;
+  int attempts = 0;
   absl::Status status = Call(all_ids, true, [&](grpc::ClientContext& context) {
+    ++attempts;
     response.Clear();
     auto writer = stub_->Train(&context, &response);
     StreamWriter<v1::TrainRequest> stream(writer.get());
@@ -312,6 +354,14 @@ absl::StatusOr<v1::TrainResponse> Client::Train(const std::string& gallery,
     stream.Close();
     return writer->Finish();
   });
+  if (absl::IsAlreadyExists(status) && attempts > 1) {
+    // A retry follows an attempt that got no answer: it may have committed all the same.
+    // Not proof enough to call it success (another call may hold these ids), so say so.
+    return absl::AlreadyExistsError(
+        absl::StrCat(status.message(),
+                     " (an earlier attempt of this Train got no answer and may have committed "
+                     "these samples: check the gallery before training them again)"));
+  }
   if (!status.ok()) return status;
   return response;
 }

@@ -46,10 +46,12 @@ struct TrainSample {
 
 class Client {
  public:
-  // Checks `options` (InvalidArgument for an empty target, max_attempts < 1, chunk_points
-  // < 1, a non-positive deadline, a TLS file that cannot be read or is not PEM, a client
+  // Checks `options` (InvalidArgument for an empty target, a bad list of endpoints (see
+  // ClientOptions::target), an unknown load_balancing, max_attempts < 1, chunk_points < 1,
+  // a non-positive deadline, a TLS file that cannot be read or is not PEM, a client
   // certificate without its key, an API key with characters metadata cannot carry) and
-  // creates the channel. Does not touch the network: a server that is down, or a TLS
+  // creates the channel. Touches the network only to look up the host names of a list of
+  // endpoints (Unavailable if DNS does not answer): a server that is down, or a TLS
   // handshake that fails, shows up as UNAVAILABLE on the first call.
   static absl::StatusOr<std::unique_ptr<Client>> Connect(ClientOptions options);
 
@@ -87,7 +89,9 @@ class Client {
                                                 const ClassifyOptions& options);
 
   // Adds `samples` to `gallery` in one stream: all of them or, on any error, none.
-  // InvalidArgument (before sending anything) if a sample has no cloud.
+  // InvalidArgument (before sending anything) if a sample has no cloud. Retried on
+  // UNAVAILABLE only when every sample has a sample_id; ALREADY_EXISTS after such a retry
+  // may mean the first attempt committed (ClientOptions::max_attempts).
   absl::StatusOr<v1::TrainResponse> Train(const std::string& gallery,
                                           absl::Span<const TrainSample> samples);
 
@@ -127,15 +131,17 @@ class Client {
       const std::string& new_name = "");
 
   // grpc.health.v1 Check of the whole server: OK when it answers SERVING, UNAVAILABLE when
-  // it answers anything else or cannot be reached.
+  // it answers anything else or cannot be reached. With replicas, of the one the call
+  // reaches: under round_robin only serving ones are, so OK while any replica serves.
   absl::Status CheckHealth();
 
  private:
   Client(ClientOptions options, std::shared_ptr<grpc::Channel> channel);
 
   // Runs `attempt` (one RPC on a fresh context) up to options_.max_attempts times while it
-  // returns UNAVAILABLE and `retry` is true, with exponential backoff, all within one
-  // deadline. `attempt` is called as grpc::Status(grpc::ClientContext&).
+  // returns UNAVAILABLE (or CANCELLED, which only a server causes here) and `retry` is true,
+  // with exponential backoff, all within one deadline. `attempt` is called as
+  // grpc::Status(grpc::ClientContext&).
   // `may_retry`, when given, is asked before each further attempt too (false: stop).
   template <typename Attempt>
   absl::Status Call(bool retry, bool corked, const Attempt& attempt,

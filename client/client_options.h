@@ -10,21 +10,56 @@ namespace shapeid {
 
 // How a Client reaches a shapeid server. Every field has a usable default.
 struct ClientOptions {
-  // gRPC target: "HOST:PORT", "dns:///host:port", "unix:///path"...
+  // Where the server is: one gRPC target, or a list of replicas.
+  //  - One target: "HOST:PORT" (gRPC looks HOST up in DNS, again whenever connections fail),
+  //    "dns:///NAME:PORT" (every A / AAAA record of NAME is a replica: the way to reach a set
+  //    of replicas that changes, such as a Kubernetes headless Service), "unix:///PATH",
+  //    "ipv4:A:P,B:P", or any other target gRPC knows.
+  //  - A list: "HOST:PORT,HOST:PORT,..." (IPv6 in brackets, "[::1]:50051") or
+  //    "unix:PATH,unix:PATH,...", never both kinds. Connect looks the host names up once
+  //    (each address is a replica) and the list stays fixed for the Client's life. With TLS,
+  //    every replica's certificate is checked against the first entry's host, so a list of
+  //    different hosts needs tls_server_name (a name all their certificates carry).
+  // Calls are spread over the replicas as `load_balancing` says.
   std::string target = "127.0.0.1:50051";
+
+  // How calls are spread over the target's addresses:
+  //  - "round_robin" (the default): a connection to each address, calls taken in turn by the
+  //    replicas that are connected and SERVING (grpc.health.v1, watched on each connection).
+  //    A replica that is down, still loading its galleries or shutting down gets no calls,
+  //    and a call that one refused UNAVAILABLE (or cancelled) is retried on another. When no
+  //    replica serves, calls fail UNAVAILABLE in the client ("backend unhealthy" when some
+  //    are up but loading) without reaching a server. Health is watched only for a list or
+  //    a "dns:" target: a client of one server reaches it whatever its state, and gets its
+  //    own reason for a refusal ("loading its galleries").
+  //  - "pick_first": one connection, to the first address that answers, used for every call
+  //    until it breaks; then the next address that answers. Spreads nothing: for a primary
+  //    with standbys. Health is not watched: a retry may go back to the same server.
+  std::string load_balancing = "round_robin";
 
   // Budget of one call, retries and backoff included. A call still running when it runs out
   // fails with DEADLINE_EXCEEDED and the server stops the work.
   absl::Duration deadline = absl::Seconds(30);
 
-  // Attempts per call when the server is UNAVAILABLE (1: no retry). Only calls that are safe
+  // Attempts per call while the server answers UNAVAILABLE or cancels the call (as one that
+  // shuts down does to calls it has not started); 1: no retry. Only calls that are safe
   // to repeat are retried: Describe, Classify, GetGallery, ListGalleries, ListDescriptors,
   // CheckHealth, ExportGallery until its first chunk reached the caller, and Train when every
   // sample carries a client-chosen id (so a repeated stream cannot add a sample twice).
   // CreateGallery, DeleteGallery, RemoveSamples and ImportGallery are sent once.
+  //
+  // A retried Train may find its first attempt committed after all (the server added the
+  // samples, then the answer was lost). Train is all-or-nothing, so the retry then fails
+  // ALREADY_EXISTS on a sample id; the client cannot tell that apart from ids another call
+  // took, so it returns that ALREADY_EXISTS, its message saying that an earlier attempt
+  // got no answer and may have committed the samples (check the gallery before training
+  // them again).
   int max_attempts = 3;
 
   // Wait before the second attempt; doubled before each further one (bounded by the deadline).
+  // Under round_robin a retry goes to another replica, and a replica stops getting calls as
+  // soon as it reports NOT_SERVING or its connection drops: one going down costs this wait
+  // to the call or two sent to it just then, not a wait per call.
   absl::Duration initial_backoff = absl::Milliseconds(100);
 
   // Points per PointChunk message. The proto recommends 16,384 (192 KiB): far below any

@@ -4,13 +4,16 @@
 
 #include "client/client.h"
 
+#include <algorithm>
 #include <atomic>
+#include <map>
 #include <random>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "client/channel_target.h"
 #include "gmock/gmock.h"
 #include "grpcpp/grpcpp.h"
 #include "gtest/gtest.h"
@@ -81,6 +84,100 @@ TEST(ClientConnectTest, RejectsBadOptions) {
   options = ClientOptions();
   options.chunk_points = 0;
   EXPECT_TRUE(absl::IsInvalidArgument(Client::Connect(options).status()));
+  options = ClientOptions();
+  options.load_balancing = "random";
+  absl::Status status = Client::Connect(options).status();
+  EXPECT_TRUE(absl::IsInvalidArgument(status)) << status;
+  EXPECT_THAT(std::string(status.message()), HasSubstr("random"));
+  options = ClientOptions();
+  options.target = "127.0.0.1:1,127.0.0.1";
+  status = Client::Connect(options).status();
+  EXPECT_TRUE(absl::IsInvalidArgument(status)) << status;
+  EXPECT_THAT(std::string(status.message()), HasSubstr("entry 2 '127.0.0.1'"));
+  // TLS checks one name for every replica: different hosts need the name given.
+  options = ClientOptions();
+  options.tls = true;
+  options.target = "127.0.0.1:1,127.0.0.2:1";
+  status = Client::Connect(options).status();
+  EXPECT_TRUE(absl::IsInvalidArgument(status)) << status;
+  EXPECT_THAT(std::string(status.message()), HasSubstr("tls_server_name"));
+  options.tls_server_name = "recognizer.lab";
+  EXPECT_TRUE(Client::Connect(options).ok());
+  options.tls_server_name.clear();
+  options.target = "127.0.0.1:1,127.0.0.1:2";  // one host: its name is checked
+  EXPECT_TRUE(Client::Connect(options).ok());
+}
+
+TEST(ClientTargetTest, OneGrpcTargetIsLeftAsItIs) {
+  for (const char* target :
+       {"127.0.0.1:50051", "recognizer:50051", "dns:///recognizer:50051", "unix:///tmp/s.sock",
+        "ipv4:127.0.0.1:1,127.0.0.1:2", "ipv6:[::1]:1,[::1]:2", "DNS:///a:1,b:2"}) {
+    absl::StatusOr<ChannelTarget> resolved = ResolveChannelTarget(target);
+    ASSERT_TRUE(resolved.ok()) << target << ": " << resolved.status();
+    EXPECT_EQ(resolved->target, target);
+    EXPECT_EQ(resolved->authority, "");
+  }
+}
+
+TEST(ClientTargetTest, ListsBecomeOneTargetOfEveryAddress) {
+  const auto resolve = [](const char* target) {
+    absl::StatusOr<ChannelTarget> resolved = ResolveChannelTarget(target);
+    EXPECT_TRUE(resolved.ok()) << target << ": " << resolved.status();
+    return resolved.ok() ? *resolved : ChannelTarget();
+  };
+  ChannelTarget t = resolve("127.0.0.1:50051,10.0.0.2:50052");
+  EXPECT_EQ(t.target, "ipv4:127.0.0.1:50051,10.0.0.2:50052");
+  EXPECT_EQ(t.authority, "127.0.0.1:50051");
+  EXPECT_FALSE(t.one_host);
+  // Blanks around entries are ignored; a repeated address counts once.
+  t = resolve(" 127.0.0.1:1 , 127.0.0.1:2,127.0.0.1:1 ");
+  EXPECT_EQ(t.target, "ipv4:127.0.0.1:1,127.0.0.1:2");
+  EXPECT_TRUE(t.one_host);
+  EXPECT_EQ(resolve("[::1]:1,[::1]:2").target, "ipv6:[::1]:1,[::1]:2");
+  // One IPv6 entry makes it an ipv6: target; the IPv4 ones go v4-mapped.
+  EXPECT_EQ(resolve("127.0.0.1:1,[::1]:2").target, "ipv6:[::ffff:127.0.0.1]:1,[::1]:2");
+  // A name is looked up (localhost: 127.0.0.1, and ::1 where /etc/hosts says so).
+  t = resolve("localhost:7,127.0.0.1:8");
+  EXPECT_THAT(t.target, HasSubstr("127.0.0.1:7")) << t.target;
+  EXPECT_THAT(t.target, ::testing::AnyOf(HasSubstr("127.0.0.1]:8"), HasSubstr("127.0.0.1:8")));
+  EXPECT_EQ(t.authority, "localhost:7");
+  EXPECT_FALSE(t.one_host);
+  EXPECT_EQ(resolve("unix:///tmp/a.sock,unix:/tmp/b.sock, unix:c.sock").target,
+            "unix:/tmp/a.sock,/tmp/b.sock,c.sock");
+  EXPECT_EQ(resolve("unix:/tmp/a.sock,/tmp/b.sock").target, "unix:/tmp/a.sock,/tmp/b.sock");
+}
+
+TEST(ClientTargetTest, BadListsNameTheEntry) {
+  const struct {
+    const char* target;
+    const char* says;
+  } cases[] = {
+      {"127.0.0.1:1,,127.0.0.1:2", "entry 2 '' is empty"},
+      {"127.0.0.1:1,", "entry 2 '' is empty"},
+      {",127.0.0.1:1", "entry 1 '' is empty"},
+      {"127.0.0.1:1,localhost", "entry 2 'localhost' has no port"},
+      {"127.0.0.1:1,localhost:", "entry 2 'localhost:' has no port"},
+      {"127.0.0.1:1,localhost:0", "entry 2 'localhost:0' has no port, or a bad one"},
+      {"127.0.0.1:1,localhost:65536", "'localhost:65536' has no port, or a bad one"},
+      {"127.0.0.1:1,localhost:http", "'localhost:http' has no port, or a bad one"},
+      {"127.0.0.1:1,:50051", "entry 2 ':50051' has no host"},
+      {"::1:50051,127.0.0.1:1", "entry 1 '::1:50051' has no port, or is an IPv6 address"},
+      {"unix:///tmp/a.sock,127.0.0.1:1", "entry 2 '127.0.0.1:1' mixes a unix: socket"},
+      {"127.0.0.1:1,unix:///tmp/a.sock", "entry 2 'unix:///tmp/a.sock' mixes"},
+      {"unix:///tmp/a.sock,unix:", "entry 2 'unix:' has no path"},
+      {"unix://host/a.sock,unix:b", "entry 1 'unix://host/a.sock' names a host"},
+      {"127.0.0.1:1,dns:///b:1", "entry 2 'dns:///b:1' is a gRPC target of its own"},
+  };
+  for (const auto& c : cases) {
+    const absl::Status status = ResolveChannelTarget(c.target).status();
+    EXPECT_TRUE(absl::IsInvalidArgument(status)) << c.target << ": " << status;
+    EXPECT_THAT(std::string(status.message()), HasSubstr(c.says)) << c.target;
+  }
+  // RFC 6761: .invalid never resolves (InvalidArgument; Unavailable where DNS is unreachable).
+  const absl::Status status = ResolveChannelTarget("127.0.0.1:1,no-such-host.invalid:1").status();
+  EXPECT_FALSE(status.ok());
+  EXPECT_THAT(std::string(status.message()),
+              HasSubstr("entry 2 'no-such-host.invalid:1' cannot be resolved"));
 }
 
 TEST_F(ClientTest, EveryCallRoundTrips) {
@@ -146,21 +243,24 @@ TEST_F(ClientTest, ClassifyInOneMessageOrStreamedGivesTheSameAnswer) {
   EXPECT_TRUE(absl::IsNotFound((*one_message_client)->Classify("missing", cloud).status()));
 }
 
-// Reads a client stream to its end, then answers OK (the response is set beforehand).
+// Reads a client stream to its end, then answers `status` (the response is set beforehand).
 template <typename Request>
 class DrainReactor final : public grpc::ServerReadReactor<Request> {
  public:
-  DrainReactor() { this->StartRead(&request_); }
+  explicit DrainReactor(grpc::Status status = grpc::Status::OK) : status_(std::move(status)) {
+    this->StartRead(&request_);
+  }
   void OnReadDone(bool ok) override {
     if (ok) {
       this->StartRead(&request_);
     } else {
-      this->Finish(grpc::Status::OK);
+      this->Finish(status_);
     }
   }
   void OnDone() override { delete this; }
 
  private:
+  const grpc::Status status_;
   Request request_;
 };
 
@@ -383,6 +483,212 @@ TEST(ClientRetryTest, UnavailableAfterBoundedRetries) {
   const auto no_chunks = [](v1::GalleryExportChunk*) -> absl::StatusOr<bool> { return false; };
   EXPECT_TRUE(absl::IsUnavailable((*client)->ImportGallery(no_chunks).status()));
   EXPECT_LT(absl::Now() - start2, absl::Milliseconds(100));
+}
+
+// A retried Train whose first attempt may have committed: ALREADY_EXISTS says so.
+class LostAnswerTrainService final : public v1::ShapeId::CallbackService {
+ public:
+  std::atomic<int> trains{0};
+
+  grpc::ServerReadReactor<v1::TrainRequest>* Train(grpc::CallbackServerContext* /*context*/,
+                                                   v1::TrainResponse* /*response*/) override {
+    if (++trains == 1) {
+      return new DrainReactor<v1::TrainRequest>(
+          grpc::Status(grpc::StatusCode::UNAVAILABLE, "connection reset"));
+    }
+    return new DrainReactor<v1::TrainRequest>(
+        grpc::Status(grpc::StatusCode::ALREADY_EXISTS, "sample id 7 already exists"));
+  }
+};
+
+TEST(ClientRetryTest, RetriedTrainThatFindsItsIdsTakenSaysTheFirstMayHaveCommitted) {
+  LostAnswerTrainService service;
+  grpc::ServerBuilder builder;
+  int port = 0;
+  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+  builder.RegisterService(&service);
+  std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+  ASSERT_NE(server, nullptr);
+  ClientOptions options;
+  options.target = absl::StrCat("127.0.0.1:", port);
+  options.initial_backoff = absl::Milliseconds(1);
+  auto client = Client::Connect(options);
+  ASSERT_TRUE(client.ok());
+  const PointCloud cloud = Shape(0, 1);
+  const std::vector<TrainSample> samples = {{"box", 7, &cloud}};
+  const absl::Status status = (*client)->Train("g", samples).status();
+  EXPECT_EQ(service.trains, 2);
+  EXPECT_TRUE(absl::IsAlreadyExists(status)) << status;
+  EXPECT_THAT(std::string(status.message()), HasSubstr("sample id 7 already exists"));
+  EXPECT_THAT(std::string(status.message()), HasSubstr("may have committed"));
+
+  // Sent once (no ids: no retry), the server's answer is left as it is.
+  service.trains = 1;
+  const std::vector<TrainSample> no_ids = {{"box", 0, &cloud}};
+  const absl::Status once = (*client)->Train("g", no_ids).status();
+  EXPECT_EQ(service.trains, 2);
+  EXPECT_EQ(once, absl::AlreadyExistsError("sample id 7 already exists"));
+  server->Shutdown();
+}
+
+// Replicas whose gallery "g" answers every Classify with the replica's own name, so the
+// label tells which one a call reached. Each is set up through a client of its own: the
+// replicas share nothing.
+class ClientReplicaTest : public ::testing::Test {
+ protected:
+  void StartReplicas(int n) {
+    for (int r = 0; r < n; ++r) {
+      const std::string name = absl::StrCat("replica", r);
+      ServerOptions server_options;
+      server_options.listen = "127.0.0.1:0";
+      auto server = ShapeIdServer::Start(server_options);
+      ASSERT_TRUE(server.ok()) << server.status();
+      ClientOptions options;
+      options.target = (*server)->address();
+      auto client = Client::Connect(options);
+      ASSERT_TRUE(client.ok()) << client.status();
+      v1::CreateGalleryRequest request;
+      request.set_name("g");
+      ASSERT_TRUE((*client)->CreateGallery(request).ok());
+      const PointCloud a = Shape(0, 1), b = Shape(1, 2);
+      const std::vector<TrainSample> samples = {{name, 1, &a}, {name, 2, &b}};
+      ASSERT_TRUE((*client)->Train("g", samples).ok());
+      replicas_.push_back(std::move(server).value());
+    }
+  }
+
+  // "ADDRESS,ADDRESS,...": every replica.
+  std::string List() const {
+    std::string list;
+    for (const auto& replica : replicas_) {
+      absl::StrAppend(&list, list.empty() ? "" : ",", replica->address());
+    }
+    return list;
+  }
+
+  std::unique_ptr<Client> Connect(const std::string& load_balancing) {
+    ClientOptions options;
+    options.target = List();
+    options.load_balancing = load_balancing;
+    auto client = Client::Connect(options);
+    EXPECT_TRUE(client.ok()) << client.status();
+    return client.ok() ? std::move(client).value() : nullptr;
+  }
+
+  // The name of the replica that answered, or the error.
+  static std::string WhoAnswers(Client& client, uint32_t seed) {
+    auto answer = client.Classify("g", Shape(seed % 2, seed));
+    return answer.ok() ? answer->label() : answer.status().ToString();
+  }
+
+  std::vector<std::unique_ptr<ShapeIdServer>> replicas_;
+};
+
+TEST_F(ClientReplicaTest, RoundRobinSpreadsCallsOverEveryReplica) {
+  ASSERT_NO_FATAL_FAILURE(StartReplicas(2));
+  std::unique_ptr<Client> client = Connect("round_robin");
+  ASSERT_NE(client, nullptr);
+  // The first calls may all go to the replica connected first; the other joins as soon as
+  // its connection is up (a loopback connect, well within this bound).
+  std::map<std::string, int> answered;
+  for (uint32_t i = 0; i < 500 && answered.size() < 2; ++i) ++answered[WhoAnswers(*client, i)];
+  ASSERT_EQ(answered.size(), 2u);
+  ASSERT_EQ(answered.count("replica0") + answered.count("replica1"), 2u);
+  // From then on, calls are taken in turn.
+  answered.clear();
+  for (uint32_t i = 0; i < 20; ++i) ++answered[WhoAnswers(*client, i)];
+  EXPECT_GE(answered["replica0"], 5);
+  EXPECT_GE(answered["replica1"], 5);
+  EXPECT_EQ(answered["replica0"] + answered["replica1"], 20);
+}
+
+TEST_F(ClientReplicaTest, AListWithIPv6ReachesIPv4ReplicasV4Mapped) {
+  ASSERT_NO_FATAL_FAILURE(StartReplicas(2));
+  ClientOptions options;
+  // One IPv6 entry makes the target "ipv6:[::ffff:127.0.0.1]:A,[::ffff:127.0.0.1]:B".
+  options.target =
+      absl::StrCat(replicas_[0]->address(), ",[::ffff:127.0.0.1]:", replicas_[1]->port());
+  auto client = Client::Connect(options);
+  ASSERT_TRUE(client.ok()) << client.status();
+  std::map<std::string, int> answered;
+  for (uint32_t i = 0; i < 500 && answered.size() < 2; ++i) ++answered[WhoAnswers(**client, i)];
+  EXPECT_EQ(answered.count("replica0") + answered.count("replica1"), 2u);
+}
+
+TEST_F(ClientReplicaTest, NoCallFailsWhenAReplicaShutsDownMidLoop) {
+  ASSERT_NO_FATAL_FAILURE(StartReplicas(2));
+  std::unique_ptr<Client> client = Connect("round_robin");
+  ASSERT_NE(client, nullptr);
+  std::map<std::string, int> answered;
+  for (uint32_t i = 0; i < 500 && answered.size() < 2; ++i) ++answered[WhoAnswers(*client, i)];
+  ASSERT_EQ(answered.size(), 2u);
+
+  // replica0 shuts down from another thread while this one keeps calling: Classify and
+  // Describe, whose one-message forms the client retries on UNAVAILABLE.
+  std::atomic<bool> start_shutdown{false};
+  std::atomic<bool> shut_down{false};
+  std::thread killer([&] {
+    while (!start_shutdown) std::this_thread::yield();
+    replicas_[0]->Shutdown(absl::Seconds(5));
+    shut_down = true;
+  });
+  int calls = 0;
+  int calls_after = 0;  // after replica0 was gone
+  std::vector<std::string> failures;
+  std::map<std::string, int> after;
+  absl::Duration slowest;
+  for (uint32_t i = 0; calls_after < 30 && i < 5000; ++i) {
+    if (i == 10) start_shutdown = true;
+    const bool gone = shut_down;
+    const absl::Time start = absl::Now();
+    std::string who;
+    if (i % 3 == 2) {
+      auto described = client->Describe(Shape(0, i));
+      who = described.ok() ? "describe" : described.status().ToString();
+      if (!described.ok()) failures.push_back(who);
+    } else {
+      who = WhoAnswers(*client, i);
+      if (who != "replica0" && who != "replica1") failures.push_back(who);
+      if (gone) ++after[who];
+    }
+    slowest = std::max(slowest, absl::Now() - start);
+    ++calls;
+    if (gone) ++calls_after;
+  }
+  killer.join();
+  EXPECT_THAT(failures, ::testing::IsEmpty());
+  EXPECT_EQ(calls_after, 30);
+  EXPECT_EQ(after["replica0"], 0);
+  EXPECT_GT(after["replica1"], 0);
+  // Not asserted (timing), kept in the test's XML report: what the shutdown cost the slowest
+  // call (one initial_backoff, 100 ms, when a call was refused or cancelled and retried).
+  RecordProperty("calls", calls);
+  RecordProperty("slowest_call", absl::FormatDuration(slowest));
+}
+
+TEST_F(ClientReplicaTest, PickFirstUsesTheFirstReplicaUntilItIsGone) {
+  ASSERT_NO_FATAL_FAILURE(StartReplicas(2));
+  std::unique_ptr<Client> client = Connect("pick_first");
+  ASSERT_NE(client, nullptr);
+  for (uint32_t i = 0; i < 10; ++i) EXPECT_EQ(WhoAnswers(*client, i), "replica0");
+  replicas_[0]->Shutdown(absl::Seconds(5));
+  for (uint32_t i = 0; i < 10; ++i) EXPECT_EQ(WhoAnswers(*client, i), "replica1");
+}
+
+TEST_F(ClientReplicaTest, RoundRobinSendsNothingToAReplicaThatIsNotServing) {
+  // A replica still loading its galleries answers health NOT_SERVING and refuses calls
+  // UNAVAILABLE: with one attempt per call, any call sent to it would fail.
+  ServerOptions server_options;
+  server_options.listen = "127.0.0.1:0";
+  auto loading = ShapeIdServer::Bind(server_options);
+  ASSERT_TRUE(loading.ok()) << loading.status();
+  ASSERT_NO_FATAL_FAILURE(StartReplicas(1));
+  ClientOptions options;
+  options.target = absl::StrCat((*loading)->address(), ",", replicas_[0]->address());
+  options.max_attempts = 1;
+  auto client = Client::Connect(options);
+  ASSERT_TRUE(client.ok()) << client.status();
+  for (uint32_t i = 0; i < 20; ++i) EXPECT_EQ(WhoAnswers(**client, i), "replica0");
 }
 
 TEST_F(ClientTest, DeadlineIsHonoured) {

@@ -153,7 +153,10 @@ void ShapeIdServer::Shutdown(absl::Duration grace) {
   while (service_->calls_in_flight() > 0 && absl::Now() < deadline) {
     absl::SleepFor(absl::Milliseconds(5));
   }
-  server_->Shutdown(std::chrono::system_clock::now());  // cancels whatever is left
+  // A moment for the refusals of calls that arrived while draining to be written (else
+  // they end CANCELLED, which clients need not know to retry), then whatever is left is
+  // cancelled.
+  server_->Shutdown(std::chrono::system_clock::now() + std::chrono::milliseconds(100));
   server_->Wait();
   if (health_server_ != nullptr) {
     health_server_->Shutdown(std::chrono::system_clock::now());

@@ -50,7 +50,8 @@ struct CliContext {
   std::FILE* err = stderr;
   OutputFormat format = OutputFormat::kTable;
   ProgressMode progress = ProgressMode::kAuto;
-  // target from --server / SHAPEID_SERVER, deadline from --timeout, TLS from --tls*, the key
+  // target from --server / SHAPEID_SERVER (one server or a comma list of replicas),
+  // load_balancing from --load-balancing, deadline from --timeout, TLS from --tls*, the key
   // from SHAPEID_API_KEY / --api-key-file
   ClientOptions client;
 };

@@ -18,8 +18,11 @@ namespace {
 
 constexpr char kMainFooter[] =
     "Server: --server HOST:PORT, or the SHAPEID_SERVER environment variable (default\n"
-    "127.0.0.1:50051). Global flags (--server, --timeout, --format, --quiet, --tls*,\n"
-    "--api-key-file) go before or after the command.\n"
+    "127.0.0.1:50051). Replicas: a comma list, HOST:PORT,HOST:PORT (names looked up once), or\n"
+    "dns:///NAME:PORT for every address of NAME; calls go to each in turn and a call a replica\n"
+    "cannot serve is retried on another (--load-balancing pick_first: one at a time). Global\n"
+    "flags (--server, --load-balancing, --timeout, --format, --quiet, --tls*, --api-key-file)\n"
+    "go before or after the command.\n"
     "\n"
     "Secure servers (docs/security.md): the API key comes from SHAPEID_API_KEY or\n"
     "--api-key-file (not a flag of its own: command lines are visible to every user of the\n"
@@ -106,8 +109,16 @@ int main(int argc, char** argv) {
   std::string format = "table";
   double timeout_seconds = 30;
   bool quiet = false;
-  app.add_option("--server", context.client.target, "shapeid-server address (HOST:PORT)")
+  app.add_option("--server", context.client.target,
+                 "shapeid-server address: HOST:PORT, a comma list of replicas, or a gRPC target "
+                 "(dns:///NAME:PORT, unix:///PATH)")
       ->envname("SHAPEID_SERVER")
+      ->capture_default_str();
+  app.add_option("--load-balancing", context.client.load_balancing,
+                 "How calls spread over replicas: round_robin (each in turn, skipping those not "
+                 "serving) or pick_first (one until it fails)")
+      ->envname("SHAPEID_LOAD_BALANCING")
+      ->check(CLI::IsMember({"round_robin", "pick_first"}))
       ->capture_default_str();
   app.add_option("--timeout", timeout_seconds, "Seconds allowed for each call, retries included")
       ->check(CLI::PositiveNumber)

@@ -394,6 +394,27 @@ absl::Status PostgresGalleryStore::RemoveSamples(absl::string_view name,
 absl::StatusOr<StoredGallery> PostgresGalleryStore::ReadGallery(PgConnection& c,
                                                                 absl::string_view name,
                                                                 bool* found) {
+  // The gallery row and its samples are two statements. Outside a REPEATABLE READ
+  // transaction (the follower's connection, catch-up) a write may commit between them, and
+  // the copy would hold samples of a version it does not claim. So: read, then check that
+  // the version has not moved, else read again.
+  for (;;) {
+    SHAPEID_ASSIGN_OR_RETURN(StoredGallery g, ReadGalleryOnce(c, name, found));
+    if (!*found) return g;
+    SHAPEID_ASSIGN_OR_RETURN(
+        PgResult now, c.Query(absl::StrCat("cannot read gallery '", name, "'"),
+                              "SELECT incarnation, version FROM shapeid_galleries WHERE name = $1",
+                              PgParams().Text(std::string(name))));
+    if (now.rows() == 1 && static_cast<uint64_t>(now.Int(0, 0)) == g.incarnation &&
+        static_cast<uint64_t>(now.Int(0, 1)) == g.version) {
+      return g;
+    }
+  }
+}
+
+absl::StatusOr<StoredGallery> PostgresGalleryStore::ReadGalleryOnce(PgConnection& c,
+                                                                    absl::string_view name,
+                                                                    bool* found) {
   const std::string what = absl::StrCat("cannot read gallery '", name, "'");
   SHAPEID_ASSIGN_OR_RETURN(
       PgResult row,
@@ -537,7 +558,18 @@ absl::Status PostgresGalleryStore::ApplyPending(PgConnection& c) {
         change.ids.push_back(value);
       }
       change.updated = absl::FromUnixNanos(rows.Int(r, 6));
-      SHAPEID_RETURN_IF_ERROR(ApplyOne(c, change));
+      const absl::Status applied = ApplyOne(c, change);
+      // Unavailable: PostgreSQL went away; this change is applied after reconnecting. Anything
+      // else (a gallery damaged in the store, one this server cannot restore) must not stop
+      // the log for every other gallery: said, and passed.
+      if (absl::IsUnavailable(applied)) return applied;
+      if (!applied.ok()) {
+        std::fprintf(stderr,
+                     "shapeid-server: ERROR: gallery '%s': change %lld cannot be applied, this "
+                     "replica's copy may differ from the store until it restarts: %s\n",
+                     change.gallery.c_str(), static_cast<long long>(change.seq),
+                     applied.ToString().c_str());
+      }
       applied_seq_ = change.seq;
     }
   }
@@ -598,13 +630,17 @@ absl::Status PostgresGalleryStore::ApplyOne(PgConnection& c, const Change& chang
     return absl::DataLossError(absl::StrCat("change ", change.seq, " has unknown kind '",
                                             change.kind, "'"));
   }
-  // Missed changes (a gap in the versions), or a copy that no longer matches: read it whole.
-  if (absl::IsFailedPrecondition(applied) || absl::IsNotFound(applied) ||
-      absl::IsInvalidArgument(applied)) {
-    return Reload(c, change.gallery);
+  if (applied.ok()) {
+    changes_applied_.fetch_add(1);
+    return applied;
   }
-  if (applied.ok()) changes_applied_.fetch_add(1);
-  return applied;
+  // Missed changes (a gap in the versions), or a copy that no longer matches the log (a
+  // duplicate or absent id): the store is the truth, so read the gallery whole. Never leave
+  // the change unapplied: the log would stop here and the replica with it.
+  std::fprintf(stderr, "shapeid-server: gallery '%s': change %lld did not apply (%s); reloading it\n",
+               change.gallery.c_str(), static_cast<long long>(change.seq),
+               applied.ToString().c_str());
+  return Reload(c, change.gallery);
 }
 
 absl::Status PostgresGalleryStore::Reload(PgConnection& c, const std::string& name) {

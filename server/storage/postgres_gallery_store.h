@@ -128,6 +128,8 @@ class PostgresGalleryStore final : public GalleryStore {
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(apply_mu_);
   absl::StatusOr<StoredGallery> ReadGallery(PgConnection& connection, absl::string_view name,
                                             bool* found);
+  absl::StatusOr<StoredGallery> ReadGalleryOnce(PgConnection& connection, absl::string_view name,
+                                                bool* found);
 
   void Follow();
   void SetReachable(bool reachable);

@@ -293,5 +293,33 @@ TEST_F(PostgresGalleryStoreTest, AReplicaReportsPostgresLossAndCatchesUpAfter) {
   EXPECT_GE(a->unreachable_reports.load(), 1);
 }
 
+TEST_F(PostgresGalleryStoreTest, AChangeThatDoesNotApplyReloadsTheGalleryInsteadOfStopping) {
+  auto a = StartReplica();
+  auto b = StartReplica();
+  ASSERT_TRUE(a->registry->Create("g", {}).ok());
+  ASSERT_TRUE((*a->registry->Get("g"))->Train({{1, "box", Box(1)}}).ok());
+  ASSERT_TRUE(b->store->Sync().ok());
+  // A log entry B's copy cannot take: it appends id 1, which B holds already (the state a
+  // torn read would leave). B must read the gallery again from the store, not stop there.
+  auto admin = PgConnection::Connect(conninfo_);
+  ASSERT_TRUE(admin.ok());
+  ASSERT_TRUE((*admin)
+                  ->Exec("log",
+                         "INSERT INTO shapeid_changes (gallery, incarnation, version, kind, ids, "
+                         "updated_unix_ns) SELECT name, incarnation, version + 1, 'append', "
+                         "'{1}', updated_unix_ns FROM shapeid_galleries WHERE name = 'g'")
+                  .ok());
+  ASSERT_TRUE((*admin)->Exec("bump", "UPDATE shapeid_galleries SET version = version + 1").ok());
+  ASSERT_TRUE(b->store->Sync().ok());
+  auto on_b = (*b->registry->Get("g"))->Snapshot();
+  EXPECT_EQ(on_b->version(), 2u);
+  EXPECT_EQ(on_b->num_samples(), 1);
+  // And the log goes on: a later change through A reaches B.
+  ASSERT_TRUE(a->store->Sync().ok());
+  ASSERT_TRUE((*a->registry->Get("g"))->Train({{2, "box", Box(2)}}).ok());
+  ASSERT_TRUE(b->store->Sync().ok());
+  EXPECT_EQ((*b->registry->Get("g"))->Snapshot()->num_samples(), 2);
+}
+
 }  // namespace
 }  // namespace shapeid
