@@ -22,6 +22,7 @@
 #include <spawn.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
+#include <sys/sysinfo.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -368,6 +369,7 @@ int Run(int argc, char** argv) {
   std::string server = SHAPEID_SERVER_PATH;
   std::string store;
   bool logs = false;
+  bool pin = false;
   app.add_option("--replicas", replica_counts, "replica counts to measure")
       ->delimiter(',')
       ->capture_default_str();
@@ -390,6 +392,8 @@ int Run(int argc, char** argv) {
   app.add_option("--store", store,
                  "an existing PostgreSQL to use (conninfo; its galleries bench* must not exist); "
                  "default: a private one");
+  app.add_flag("--pin", pin,
+               "run replica i on core i mod nproc only (taskset), so each replica is one core");
   app.add_flag("--logs", logs, "print each replica's stderr at the end (always on failure)");
   CLI11_PARSE(app, argc, argv);
   if (replica_counts.empty() || clients < 1 || runs < 1 || train_threads < 1 || points < 16 ||
@@ -418,10 +422,15 @@ int Run(int argc, char** argv) {
     stderr_paths.push_back(
         absl::StrCat("/tmp/scale_out_bench_", getpid(), "_replica", i, ".stderr"));
     replicas.push_back(std::make_unique<Replica>());
-    const absl::Status s =
-        replicas.back()->Start({server, "--listen=127.0.0.1:0", "--store=" + store,
-                                absl::StrCat("--store_refresh_ms=", refresh_ms)},
-                               stderr_paths.back());
+    std::vector<std::string> command = {server, "--listen=127.0.0.1:0", "--store=" + store,
+                                        absl::StrCat("--store_refresh_ms=", refresh_ms)};
+    // One core per replica (taskset execs the server: the pid stays the replica's), so that
+    // on a small machine the figures show what a replica adds, not how the kernel shares.
+    if (pin) {
+      command.insert(command.begin(),
+                     {"/usr/bin/taskset", "-c", std::to_string(i % std::max(1, get_nprocs()))});
+    }
+    const absl::Status s = replicas.back()->Start(std::move(command), stderr_paths.back());
     if (!s.ok()) {
       std::fprintf(stderr, "replica %d: %s\n", i, s.ToString().c_str());
       return 1;
