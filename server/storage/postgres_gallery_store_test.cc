@@ -321,5 +321,31 @@ TEST_F(PostgresGalleryStoreTest, AChangeThatDoesNotApplyReloadsTheGalleryInstead
   EXPECT_EQ((*b->registry->Get("g"))->Snapshot()->num_samples(), 2);
 }
 
+// Not a test: the figures docs/scaling.md quotes for loading from PostgreSQL (a replica's
+// start-up), run by hand:
+//   build/ci/server/storage/postgres_gallery_store_test --gtest_also_run_disabled_tests
+//       --gtest_filter='*LoadCost*'
+TEST_F(PostgresGalleryStoreTest, DISABLED_LoadCost) {
+  for (const int dimension : {81, 240}) {
+    constexpr int kSamples = 100'000;
+    const std::string name = absl::StrCat("d", dimension);
+    StoredGallery g = MakeGallery(name, dimension, kSamples, 7);
+    auto store = Open();
+    ASSERT_TRUE(store->LoadAll().ok());
+    absl::Time start = absl::Now();
+    ASSERT_TRUE(store->SaveGallery(g).ok());
+    const absl::Duration save = absl::Now() - start;
+    auto reader = Open();
+    start = absl::Now();
+    auto loaded = reader->LoadAll();
+    const absl::Duration load = absl::Now() - start;
+    ASSERT_TRUE(loaded.ok());
+    std::printf("%d samples x %d floats: saved (one import) in %s, loaded in %s (%.0f samples/s)\n",
+                kSamples, dimension, absl::FormatDuration(save).c_str(),
+                absl::FormatDuration(load).c_str(), kSamples / absl::ToDoubleSeconds(load));
+    ASSERT_TRUE(store->DeleteGallery(name).ok());
+  }
+}
+
 }  // namespace
 }  // namespace shapeid
