@@ -5,6 +5,7 @@
 #include <chrono>
 #include <mutex>
 #include <optional>
+#include <random>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -66,6 +67,18 @@ class BatchState {
   std::vector<FailedInput> failed_;
 };
 
+// A client-chosen sample id: random, in [1, 2^62). With an id on every sample the client
+// library may repeat a Train stream that a replica dropped (on another replica) without ever
+// adding a sample twice; letting the server assign ids would make the stream unrepeatable.
+// Two random ids collide with probability about n^2 / 2^63: never, in practice, and then the
+// stream fails ALREADY_EXISTS rather than mix two samples.
+uint64_t RandomSampleId() {
+  static std::mutex mu;
+  static std::mt19937_64 engine(std::random_device{}());
+  std::lock_guard<std::mutex> lock(mu);
+  return (engine() >> 2) | 1;
+}
+
 }  // namespace
 
 TrainOutcome TrainFiles(Client& client, const std::string& gallery,
@@ -112,7 +125,7 @@ TrainOutcome TrainFiles(Client& client, const std::string& gallery,
         }
         std::vector<TrainSample> samples;
         for (size_t j = 0; j < clouds.size(); ++j) {
-          samples.push_back({files[owners[j]].label, 0, &clouds[j]});
+          samples.push_back({files[owners[j]].label, RandomSampleId(), &clouds[j]});
         }
         size_t failures = read_failures;
         if (!samples.empty()) {
