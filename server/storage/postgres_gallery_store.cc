@@ -20,6 +20,9 @@ namespace shapeid {
 namespace {
 
 constexpr char kChannel[] = "shapeid_changes";
+// Reads of the log and of galleries run in one snapshot, so that a gallery read whole (a
+// reload) and the log position agree even while other replicas write.
+constexpr char kSnapshot[] = "BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY";
 // pg_advisory_xact_lock key held while a change is logged, so that log sequence numbers are
 // handed out in commit order ("shapeid" in ASCII).
 constexpr int64_t kLogLockKey = 0x73686170656964;
@@ -237,10 +240,11 @@ void PostgresGalleryStore::StopFollowing() {
 // since it was last used) is replaced once, so a restart costs no call that could not have
 // reached it anyway.
 template <typename F>
-absl::Status PostgresGalleryStore::WithConnection(absl::string_view what, const F& work) {
+absl::Status PostgresGalleryStore::WithConnection(absl::string_view what, const F& work,
+                                                  const char* begin) {
   for (int attempt = 1;; ++attempt) {
     SHAPEID_ASSIGN_OR_RETURN(std::unique_ptr<PgConnection> connection, pool_->Lease());
-    absl::Status begun = connection->Exec(what, "BEGIN");
+    absl::Status begun = connection->Exec(what, begin);
     if (!begun.ok()) {
       pool_->Return(nullptr);
       if (absl::IsUnavailable(begun) && attempt == 1) continue;
@@ -391,30 +395,10 @@ absl::Status PostgresGalleryStore::RemoveSamples(absl::string_view name,
       });
 }
 
+// Callers read in one snapshot (kSnapshot): the row and its samples are two statements.
 absl::StatusOr<StoredGallery> PostgresGalleryStore::ReadGallery(PgConnection& c,
                                                                 absl::string_view name,
                                                                 bool* found) {
-  // The gallery row and its samples are two statements. Outside a REPEATABLE READ
-  // transaction (the follower's connection, catch-up) a write may commit between them, and
-  // the copy would hold samples of a version it does not claim. So: read, then check that
-  // the version has not moved, else read again.
-  for (;;) {
-    SHAPEID_ASSIGN_OR_RETURN(StoredGallery g, ReadGalleryOnce(c, name, found));
-    if (!*found) return g;
-    SHAPEID_ASSIGN_OR_RETURN(
-        PgResult now, c.Query(absl::StrCat("cannot read gallery '", name, "'"),
-                              "SELECT incarnation, version FROM shapeid_galleries WHERE name = $1",
-                              PgParams().Text(std::string(name))));
-    if (now.rows() == 1 && static_cast<uint64_t>(now.Int(0, 0)) == g.incarnation &&
-        static_cast<uint64_t>(now.Int(0, 1)) == g.version) {
-      return g;
-    }
-  }
-}
-
-absl::StatusOr<StoredGallery> PostgresGalleryStore::ReadGalleryOnce(PgConnection& c,
-                                                                    absl::string_view name,
-                                                                    bool* found) {
   const std::string what = absl::StrCat("cannot read gallery '", name, "'");
   SHAPEID_ASSIGN_OR_RETURN(
       PgResult row,
@@ -475,10 +459,8 @@ absl::StatusOr<StoredGallery> PostgresGalleryStore::ReadGalleryOnce(PgConnection
 absl::StatusOr<std::vector<StoredGallery>> PostgresGalleryStore::LoadAll() {
   std::vector<StoredGallery> all;
   int64_t seq = 0;
+  // One snapshot of the database: the galleries as of the log position read with them.
   const absl::Status status = WithConnection("cannot load galleries", [&](PgConnection& c) {
-    // One snapshot of the database: the galleries as of the log position read with them.
-    SHAPEID_RETURN_IF_ERROR(c.Exec("cannot load galleries",
-                                   "SET TRANSACTION ISOLATION LEVEL REPEATABLE READ READ ONLY"));
     SHAPEID_ASSIGN_OR_RETURN(
         PgResult last, c.Query("cannot load galleries",
                                "SELECT coalesce(max(seq), 0) FROM shapeid_changes"));
@@ -492,7 +474,7 @@ absl::StatusOr<std::vector<StoredGallery>> PostgresGalleryStore::LoadAll() {
       if (found) all.push_back(std::move(g));
     }
     return absl::OkStatus();
-  });
+  }, kSnapshot);
   SHAPEID_RETURN_IF_ERROR(status);
   {
     std::lock_guard<std::mutex> lock(incarnations_mu_);
@@ -509,8 +491,8 @@ absl::Status PostgresGalleryStore::CatchUp(absl::string_view /*name*/) { return 
 absl::Status PostgresGalleryStore::Sync() {
   if (registry_ == nullptr) return absl::OkStatus();  // not following: nothing to apply to
   std::lock_guard<std::mutex> lock(apply_mu_);
-  return WithConnection("cannot read the change log",
-                        [&](PgConnection& c) { return ApplyPending(c); });
+  return WithConnection(
+      "cannot read the change log", [&](PgConnection& c) { return ApplyPending(c); }, kSnapshot);
 }
 
 absl::Status PostgresGalleryStore::ApplyPending(PgConnection& c) {
@@ -712,7 +694,11 @@ void PostgresGalleryStore::Follow() {
       absl::Status synced;
       {
         std::lock_guard<std::mutex> lock(apply_mu_);
-        synced = ApplyPending(*listener);
+        synced = listener->Exec("cannot read the change log", kSnapshot);
+        if (synced.ok()) synced = ApplyPending(*listener);
+        const absl::Status ended =
+            listener->Exec("cannot read the change log", synced.ok() ? "COMMIT" : "ROLLBACK");
+        if (synced.ok()) synced = ended;
       }
       if (!synced.ok() && synced.ToString() != last_error) {
         // Once per distinct error: a replica that cannot apply the log says why.

@@ -107,9 +107,10 @@ class PostgresGalleryStore final : public GalleryStore {
 
   PostgresGalleryStore(PostgresGalleryStoreOptions options, std::unique_ptr<Pool> pool);
 
-  // A connection from the pool, for one call.
+  // `work` in one transaction on a pooled connection, opened with `begin`.
   template <typename F>
-  absl::Status WithConnection(absl::string_view what, const F& work);
+  absl::Status WithConnection(absl::string_view what, const F& work,
+                              const char* begin = "BEGIN");
 
   // The write path of AppendSamples and RemoveSamples: checks incarnation and version under
   // the gallery's row lock, runs `change`, logs it, commits.
@@ -126,10 +127,10 @@ class PostgresGalleryStore final : public GalleryStore {
   // Re-reads gallery `name` whole and publishes it (a create, or changes missed).
   absl::Status Reload(PgConnection& connection, const std::string& name)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(apply_mu_);
+  // Gallery `name` whole (*found false: not stored). Call inside one snapshot (REPEATABLE
+  // READ): its row and its samples are two statements.
   absl::StatusOr<StoredGallery> ReadGallery(PgConnection& connection, absl::string_view name,
                                             bool* found);
-  absl::StatusOr<StoredGallery> ReadGalleryOnce(PgConnection& connection, absl::string_view name,
-                                                bool* found);
 
   void Follow();
   void SetReachable(bool reachable);
