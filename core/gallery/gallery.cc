@@ -190,7 +190,13 @@ absl::StatusOr<std::unique_ptr<GallerySnapshot>> Gallery::StoredSnapshot(
 
 uint64_t NewGalleryIncarnation() {
   static std::mutex mu;
-  static std::mt19937_64 engine(std::random_device{}());
+  // Seeded with 256 bits: replicas started together must not draw the same sequence.
+  static std::mt19937_64 engine = [] {
+    std::random_device device;
+    std::seed_seq seed{device(), device(), device(), device(), device(), device(), device(),
+                       device()};
+    return std::mt19937_64(seed);
+  }();
   std::lock_guard<std::mutex> lock(mu);
   // 62 bits: positive in any signed 64-bit column, and never 0.
   return (engine() >> 2) | 1;
@@ -474,6 +480,15 @@ absl::Status Gallery::ApplyStoredRemove(absl::Span<const uint64_t> ids, absl::Ti
       next->index_.UpdateApproximate(limits_.approximate, next->options_.knn.scaling));
   next->version_ = version;
   next->updated_ = updated;
+  Publish(std::move(next));
+  return absl::OkStatus();
+}
+
+absl::Status Gallery::AdoptStored(const Gallery& stored) {
+  std::lock_guard<std::mutex> lock(writer_mu_);
+  if (deleted_) return DeletedError();
+  std::shared_ptr<const GallerySnapshot> next = stored.Snapshot();
+  if (next->version() <= Snapshot()->version()) return absl::OkStatus();
   Publish(std::move(next));
   return absl::OkStatus();
 }

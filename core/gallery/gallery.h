@@ -190,6 +190,9 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
                                  uint64_t version);
   absl::Status ApplyStoredRemove(absl::Span<const uint64_t> ids, absl::Time updated,
                                  uint64_t version);
+  // Takes `stored`'s current snapshot (a reload of this same gallery from the store), unless
+  // this gallery is already at that version or later. Streams holding this gallery go on.
+  absl::Status AdoptStored(const Gallery& stored);
 
  private:
   friend class TrainBatch;

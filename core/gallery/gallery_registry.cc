@@ -152,30 +152,41 @@ absl::Status GalleryRegistry::Delete(absl::string_view name) {
 absl::Status GalleryRegistry::ApplyStoredGallery(const StoredGallery& stored) {
   SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<Gallery> gallery,
                            Gallery::Restore(stored, limits_, store_));
-  std::lock_guard<std::mutex> lock(mu_);
-  auto it = galleries_.find(stored.name);
-  if (it != galleries_.end()) {
-    const std::shared_ptr<const GallerySnapshot> held = it->second->Snapshot();
-    if (held->incarnation() == stored.incarnation && held->version() >= stored.version) {
-      return absl::OkStatus();  // this server made it, or has it already
+  std::shared_ptr<Gallery> same;     // the same incarnation, held: takes the stored state
+  std::shared_ptr<Gallery> replaced;  // another incarnation: retired
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto it = galleries_.find(stored.name);
+    if (it == galleries_.end()) {
+      // No max_galleries check: the gallery exists already; refusing to mirror it would only
+      // make this server answer differently from the one that created it.
+      galleries_.emplace(stored.name, std::move(gallery));
+      return absl::OkStatus();
     }
-    // The store is the truth: the copy this replaces stops accepting writes (as after Delete).
-    (void)it->second->MarkDeleted([] { return absl::OkStatus(); });
-    it->second = std::move(gallery);
-  } else {
-    // No max_galleries check: the gallery exists already; refusing to mirror it would only
-    // make this server answer differently from the one that created it.
-    galleries_.emplace(stored.name, std::move(gallery));
+    if (it->second->Snapshot()->incarnation() == stored.incarnation) {
+      same = it->second;
+    } else {
+      replaced = std::exchange(it->second, std::move(gallery));
+    }
   }
+  // Outside the registry's lock: both wait for the gallery's writer, which may be a store
+  // round trip away, and Get (every Classify) must not wait with them.
+  if (same != nullptr) return same->AdoptStored(*gallery);
+  // The store is the truth: the copy it replaces stops accepting writes (as after Delete).
+  (void)replaced->MarkDeleted([] { return absl::OkStatus(); });
   return absl::OkStatus();
 }
 
 void GalleryRegistry::ApplyStoredDelete(absl::string_view name, uint64_t incarnation) {
-  std::lock_guard<std::mutex> lock(mu_);
-  auto it = galleries_.find(name);
-  if (it == galleries_.end() || it->second->Snapshot()->incarnation() != incarnation) return;
-  (void)it->second->MarkDeleted([] { return absl::OkStatus(); });
-  galleries_.erase(it);
+  std::shared_ptr<Gallery> gone;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto it = galleries_.find(name);
+    if (it == galleries_.end() || it->second->Snapshot()->incarnation() != incarnation) return;
+    gone = std::move(it->second);
+    galleries_.erase(it);
+  }
+  (void)gone->MarkDeleted([] { return absl::OkStatus(); });
 }
 
 size_t GalleryRegistry::size() const {

@@ -113,6 +113,10 @@ PgConnection::~PgConnection() { PQfinish(conn_); }
 
 bool PgConnection::ok() const { return PQstatus(conn_) == CONNECTION_OK; }
 
+bool PgConnection::InFailedTransaction() const {
+  return PQtransactionStatus(conn_) == PQTRANS_INERROR;
+}
+
 int PgConnection::socket() const { return PQsocket(conn_); }
 
 absl::StatusOr<PgResult> PgConnection::Query(absl::string_view what, const std::string& sql,

@@ -90,6 +90,8 @@ class PgConnection {
 
   // False once the connection is broken; the owner drops it and connects afresh.
   bool ok() const;
+  // A statement failed inside the open transaction: until ROLLBACK, every statement fails.
+  bool InFailedTransaction() const;
   // The socket, for waiting on notifications.
   int socket() const;
   // Reads what arrived on the socket and returns the notifications' channel names (empty if

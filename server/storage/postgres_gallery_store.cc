@@ -29,10 +29,11 @@ constexpr int64_t kLogLockKey = 0x73686170656964;
 // Held while the tables are created: replicas starting together would otherwise race in
 // CREATE TABLE IF NOT EXISTS (which is not safe against concurrent creators).
 constexpr int64_t kSchemaLockKey = kLogLockKey + 1;
-// Samples per INSERT statement (5 parameters each; PostgreSQL allows 65,535).
+// Samples per INSERT statement (4 parameters each; PostgreSQL allows 65,535).
 constexpr size_t kSamplesPerInsert = 1000;
-// Change-log rows older than this are deleted (by any replica, once a minute). A replica
-// whose position is older finds a gap and reloads every gallery instead.
+// Change-log rows older than this are deleted (by any replica, once a minute), and
+// shapeid_log_floor records the last sequence number deleted. A replica whose position is
+// below the floor has missed what those rows said and reloads every gallery instead.
 constexpr char kLogRetention[] = "15 minutes";
 
 constexpr char kSchema[] = R"sql(
@@ -68,7 +69,11 @@ CREATE TABLE IF NOT EXISTS shapeid_changes (
   kind TEXT NOT NULL,
   ids BIGINT[] NOT NULL,
   updated_unix_ns BIGINT NOT NULL,
-  logged TIMESTAMPTZ NOT NULL DEFAULT now());
+  logged TIMESTAMPTZ NOT NULL DEFAULT clock_timestamp());
+CREATE TABLE IF NOT EXISTS shapeid_log_floor (
+  one BOOLEAN PRIMARY KEY DEFAULT TRUE CHECK (one),
+  seq BIGINT NOT NULL);
+INSERT INTO shapeid_log_floor (seq) VALUES (0) ON CONFLICT DO NOTHING;
 )sql";
 
 constexpr char kGalleryColumns[] =
@@ -165,6 +170,13 @@ class PostgresGalleryStore::Pool {
  public:
   Pool(std::string conninfo, int size) : conninfo_(std::move(conninfo)), size_(size) {}
 
+  // Forgets idle connections: after PostgreSQL restarted they are all dead, though libpq
+  // cannot tell until each is used.
+  void DropIdle() {
+    std::lock_guard<std::mutex> lock(mu_);
+    idle_.clear();
+  }
+
   absl::StatusOr<std::unique_ptr<PgConnection>> Lease() {
     std::unique_lock<std::mutex> lock(mu_);
     cv_.wait(lock, [&] { return !idle_.empty() || leased_ < size_; });
@@ -202,7 +214,8 @@ class PostgresGalleryStore::Pool {
 
 absl::StatusOr<std::unique_ptr<PostgresGalleryStore>> PostgresGalleryStore::Open(
     PostgresGalleryStoreOptions options) {
-  if (options.pool_size < 1) return absl::InvalidArgumentError("pool_size must be at least 1");
+  // Two at least: a catch-up holds one while it waits for a gallery whose writer needs another.
+  if (options.pool_size < 2) return absl::InvalidArgumentError("pool_size must be at least 2");
   if (options.refresh <= absl::ZeroDuration()) {
     return absl::InvalidArgumentError("refresh must be positive");
   }
@@ -247,7 +260,10 @@ absl::Status PostgresGalleryStore::WithConnection(absl::string_view what, const 
     absl::Status begun = connection->Exec(what, begin);
     if (!begun.ok()) {
       pool_->Return(nullptr);
-      if (absl::IsUnavailable(begun) && attempt == 1) continue;
+      if (absl::IsUnavailable(begun) && attempt == 1) {
+        pool_->DropIdle();  // the others died with it
+        continue;
+      }
       return begun;
     }
     absl::Status status = work(*connection);
@@ -308,7 +324,7 @@ absl::Status PostgresGalleryStore::SaveGallery(const StoredGallery& g) {
 
 absl::Status PostgresGalleryStore::DeleteGallery(absl::string_view name) {
   const std::string what = absl::StrCat("cannot delete gallery '", name, "'");
-  return WithConnection(what, [&](PgConnection& c) -> absl::Status {
+  const absl::Status status = WithConnection(what, [&](PgConnection& c) -> absl::Status {
     SHAPEID_ASSIGN_OR_RETURN(
         PgResult row, c.Query(what, "DELETE FROM shapeid_galleries WHERE name = $1 RETURNING "
                                     "incarnation, version",
@@ -318,13 +334,15 @@ absl::Status PostgresGalleryStore::DeleteGallery(absl::string_view name) {
     const int64_t incarnation = row.Int(0, 0);
     SHAPEID_RETURN_IF_ERROR(c.Exec(what, "DELETE FROM shapeid_samples WHERE incarnation = $1",
                                    PgParams().Int(incarnation)));
-    SHAPEID_RETURN_IF_ERROR(LogChange(c, what, name, incarnation,
-                                      static_cast<uint64_t>(row.Int(0, 1)), "delete", {},
-                                      absl::Now()));
+    return LogChange(c, what, name, incarnation, static_cast<uint64_t>(row.Int(0, 1)), "delete",
+                     {}, absl::Now());
+  });
+  // After COMMIT only: a delete that did not commit leaves the gallery, and its writes.
+  if (status.ok()) {
     std::lock_guard<std::mutex> lock(incarnations_mu_);
     incarnations_.erase(std::string(name));
-    return absl::OkStatus();
-  });
+  }
+  return status;
 }
 
 absl::Status PostgresGalleryStore::ChangeSamples(
@@ -462,8 +480,10 @@ absl::StatusOr<std::vector<StoredGallery>> PostgresGalleryStore::LoadAll() {
   // One snapshot of the database: the galleries as of the log position read with them.
   const absl::Status status = WithConnection("cannot load galleries", [&](PgConnection& c) {
     SHAPEID_ASSIGN_OR_RETURN(
-        PgResult last, c.Query("cannot load galleries",
-                               "SELECT coalesce(max(seq), 0) FROM shapeid_changes"));
+        PgResult last,
+        c.Query("cannot load galleries",
+                "SELECT greatest((SELECT coalesce(max(seq), 0) FROM shapeid_changes), "
+                "(SELECT seq FROM shapeid_log_floor))"));
     seq = last.Int(0, 0);
     SHAPEID_ASSIGN_OR_RETURN(
         PgResult names, c.Query("cannot load galleries",
@@ -489,8 +509,8 @@ absl::StatusOr<std::vector<StoredGallery>> PostgresGalleryStore::LoadAll() {
 absl::Status PostgresGalleryStore::CatchUp(absl::string_view /*name*/) { return Sync(); }
 
 absl::Status PostgresGalleryStore::Sync() {
-  if (registry_ == nullptr) return absl::OkStatus();  // not following: nothing to apply to
   std::lock_guard<std::mutex> lock(apply_mu_);
+  if (registry_ == nullptr) return absl::OkStatus();  // not following: nothing to apply to
   return WithConnection(
       "cannot read the change log", [&](PgConnection& c) { return ApplyPending(c); }, kSnapshot);
 }
@@ -498,17 +518,12 @@ absl::Status PostgresGalleryStore::Sync() {
 absl::Status PostgresGalleryStore::ApplyPending(PgConnection& c) {
   const std::string what = "cannot read the change log";
   for (;;) {
-    SHAPEID_ASSIGN_OR_RETURN(
-        PgResult rows,
-        c.Query(what,
-                "SELECT seq, gallery, incarnation, version, kind, ids, updated_unix_ns, "
-                "(SELECT coalesce(min(seq), 0) FROM shapeid_changes) FROM shapeid_changes "
-                "WHERE seq > $1 ORDER BY seq LIMIT 1000",
-                PgParams().Int(applied_seq_)));
-    if (rows.rows() == 0) return absl::OkStatus();
-    // Rows before ours were pruned (this replica was away longer than kLogRetention): what
-    // they said is lost, so every gallery is read again.
-    if (rows.Int(0, 7) > applied_seq_ + 1 && rows.Int(0, 0) != applied_seq_ + 1) {
+    SHAPEID_ASSIGN_OR_RETURN(PgResult floor,
+                             c.Query(what, "SELECT seq FROM shapeid_log_floor"));
+    // Rows after ours were pruned (this replica was away longer than kLogRetention): what
+    // they said is lost, so every gallery is read again (in this snapshot), and the log is
+    // followed from the floor.
+    if (floor.rows() == 1 && floor.Int(0, 0) > applied_seq_) {
       SHAPEID_ASSIGN_OR_RETURN(
           PgResult names, c.Query(what, "SELECT name FROM shapeid_galleries"));
       std::map<std::string, bool> stored;
@@ -520,7 +535,15 @@ absl::Status PostgresGalleryStore::ApplyPending(PgConnection& c) {
         }
       }
       for (const auto& [name, unused] : stored) SHAPEID_RETURN_IF_ERROR(Reload(c, name));
+      applied_seq_ = floor.Int(0, 0);
     }
+    SHAPEID_ASSIGN_OR_RETURN(
+        PgResult rows,
+        c.Query(what,
+                "SELECT seq, gallery, incarnation, version, kind, ids, updated_unix_ns "
+                "FROM shapeid_changes WHERE seq > $1 ORDER BY seq LIMIT 1000",
+                PgParams().Int(applied_seq_)));
+    if (rows.rows() == 0) return absl::OkStatus();
     for (int r = 0; r < rows.rows(); ++r) {
       Change change;
       change.seq = rows.Int(r, 0);
@@ -541,10 +564,11 @@ absl::Status PostgresGalleryStore::ApplyPending(PgConnection& c) {
       }
       change.updated = absl::FromUnixNanos(rows.Int(r, 6));
       const absl::Status applied = ApplyOne(c, change);
-      // Unavailable: PostgreSQL went away; this change is applied after reconnecting. Anything
-      // else (a gallery damaged in the store, one this server cannot restore) must not stop
-      // the log for every other gallery: said, and passed.
-      if (absl::IsUnavailable(applied)) return applied;
+      // Unavailable (PostgreSQL went away) or a failed statement (which aborts the snapshot's
+      // transaction, so every later read would fail too): this change is applied on the next
+      // attempt. Anything else (a gallery damaged in the store, one this server cannot
+      // restore) must not stop the log for every other gallery: said, and passed.
+      if (absl::IsUnavailable(applied) || c.InFailedTransaction()) return applied;
       if (!applied.ok()) {
         std::fprintf(stderr,
                      "shapeid-server: ERROR: gallery '%s': change %lld cannot be applied, this "
@@ -641,7 +665,10 @@ absl::Status PostgresGalleryStore::Reload(PgConnection& c, const std::string& na
 
 void PostgresGalleryStore::StartFollowing(GalleryRegistry* registry,
                                           std::function<void(bool)> reachable) {
-  registry_ = registry;
+  {
+    std::lock_guard<std::mutex> lock(apply_mu_);
+    registry_ = registry;
+  }
   reachable_callback_ = std::move(reachable);
   follower_ = std::thread([this] { Follow(); });
 }
@@ -658,12 +685,14 @@ void PostgresGalleryStore::Follow() {
   absl::Time next_poll = absl::Now();
   absl::Time next_prune = absl::Now() + absl::Minutes(1);
   std::string last_error;
+  bool notified_during_sync = false;
   for (;;) {
     {
       std::lock_guard<std::mutex> lock(stop_mu_);
       if (stop_) return;
     }
-    bool poll_now = absl::Now() >= next_poll;
+    bool poll_now = absl::Now() >= next_poll || notified_during_sync;
+    notified_during_sync = false;
     if (listener == nullptr) {
       absl::StatusOr<std::unique_ptr<PgConnection>> fresh = Pool::Connect(options_.conninfo);
       if (fresh.ok() && (*fresh)->Exec("cannot listen", absl::StrCat("LISTEN ", kChannel)).ok()) {
@@ -700,6 +729,12 @@ void PostgresGalleryStore::Follow() {
             listener->Exec("cannot read the change log", synced.ok() ? "COMMIT" : "ROLLBACK");
         if (synced.ok()) synced = ended;
       }
+      // Notifications for changes committed during that read came with its COMMIT's reply and
+      // sit in libpq's queue, where poll() cannot see them: look there first.
+      if (listener->ok()) {
+        absl::StatusOr<std::vector<std::string>> queued = listener->TakeNotifications();
+        notified_during_sync = queued.ok() && !queued->empty();
+      }
       if (!synced.ok() && synced.ToString() != last_error) {
         // Once per distinct error: a replica that cannot apply the log says why.
         last_error = synced.ToString();
@@ -718,10 +753,13 @@ void PostgresGalleryStore::Follow() {
       }
       if (synced.ok() && absl::Now() >= next_prune) {
         next_prune = absl::Now() + absl::Minutes(1);
-        (void)listener->Exec("prune the change log",
-                             absl::StrCat("DELETE FROM shapeid_changes WHERE logged < now() - "
-                                          "interval '",
-                                          kLogRetention, "'"));
+        (void)listener->Exec(
+            "prune the change log",
+            absl::StrCat("WITH gone AS (DELETE FROM shapeid_changes WHERE logged < "
+                         "clock_timestamp() - interval '",
+                         kLogRetention,
+                         "' RETURNING seq) UPDATE shapeid_log_floor SET seq = greatest(seq, "
+                         "(SELECT coalesce(max(seq), 0) FROM gone))"));
       }
     }
     if (absl::Now() - last_ok > options_.refresh) SetReachable(false);

@@ -32,7 +32,7 @@ struct PostgresGalleryStoreOptions {
   // connection is checked as often: a replica that cannot reach PostgreSQL for longer stops
   // serving (see StartFollowing).
   absl::Duration refresh = absl::Seconds(1);
-  // Connections for writes and catch-up reads (the follower has its own).
+  // Connections for writes and catch-up reads (the follower has its own); at least 2.
   int pool_size = 4;
 };
 

@@ -68,7 +68,9 @@ class PostgresGalleryStoreTest : public ::testing::Test {
     std::atomic<int> unreachable_reports{0};
     std::atomic<bool> reachable{true};
 
-    ~Replica() { store.reset(); }  // stop following before the registry goes
+    // Stop following before the registry goes (the registry's galleries keep the store alive,
+    // so releasing our pointer alone would not).
+    ~Replica() { store->StopFollowing(); }
   };
   std::unique_ptr<Replica> StartReplica() {
     auto replica = std::make_unique<Replica>();
@@ -299,6 +301,7 @@ TEST_F(PostgresGalleryStoreTest, AChangeThatDoesNotApplyReloadsTheGalleryInstead
   ASSERT_TRUE(a->registry->Create("g", {}).ok());
   ASSERT_TRUE((*a->registry->Get("g"))->Train({{1, "box", Box(1)}}).ok());
   ASSERT_TRUE(b->store->Sync().ok());
+  const std::shared_ptr<Gallery> held_by_a_stream = *b->registry->Get("g");
   // A log entry B's copy cannot take: it appends id 1, which B holds already (the state a
   // torn read would leave). B must read the gallery again from the store, not stop there.
   auto admin = PgConnection::Connect(conninfo_);
@@ -314,11 +317,44 @@ TEST_F(PostgresGalleryStoreTest, AChangeThatDoesNotApplyReloadsTheGalleryInstead
   auto on_b = (*b->registry->Get("g"))->Snapshot();
   EXPECT_EQ(on_b->version(), 2u);
   EXPECT_EQ(on_b->num_samples(), 1);
+  // The same gallery took the stored state: a stream holding it goes on.
+  EXPECT_EQ(b->registry->Get("g")->get(), held_by_a_stream.get());
+  EXPECT_EQ(held_by_a_stream->Snapshot()->version(), 2u);
   // And the log goes on: a later change through A reaches B.
   ASSERT_TRUE(a->store->Sync().ok());
   ASSERT_TRUE((*a->registry->Get("g"))->Train({{2, "box", Box(2)}}).ok());
   ASSERT_TRUE(b->store->Sync().ok());
   EXPECT_EQ((*b->registry->Get("g"))->Snapshot()->num_samples(), 2);
+}
+
+TEST_F(PostgresGalleryStoreTest, AReplicaAwayLongerThanTheLogKeepsReloadsEverything) {
+  auto a = StartReplica();
+  auto b = StartReplica();
+  ASSERT_TRUE(a->registry->Create("kept", {}).ok());
+  ASSERT_TRUE(a->registry->Create("dropped", {}).ok());
+  ASSERT_TRUE(b->store->Sync().ok());
+  b->store->StopFollowing();  // B is away...
+  ASSERT_TRUE((*a->registry->Get("kept"))->Train({{1, "box", Box(1)}}).ok());
+  ASSERT_TRUE(a->registry->Delete("dropped").ok());
+  // ...for longer than the log keeps: every row pruned, as the follower's prune would.
+  auto admin = PgConnection::Connect(conninfo_);
+  ASSERT_TRUE(admin.ok());
+  ASSERT_TRUE((*admin)
+                  ->Exec("prune",
+                         "WITH gone AS (DELETE FROM shapeid_changes RETURNING seq) UPDATE "
+                         "shapeid_log_floor SET seq = greatest(seq, (SELECT coalesce(max(seq), 0) "
+                         "FROM gone))")
+                  .ok());
+  // An empty log must not read as "nothing happened": the floor says rows were lost.
+  ASSERT_TRUE(b->store->Sync().ok());
+  EXPECT_EQ(b->registry->Get("dropped").status().code(), absl::StatusCode::kNotFound);
+  auto kept = b->registry->Get("kept");
+  ASSERT_TRUE(kept.ok());
+  EXPECT_EQ((*kept)->Snapshot()->num_samples(), 1);
+  // And it follows the log from there.
+  ASSERT_TRUE((*a->registry->Get("kept"))->Train({{2, "box", Box(2)}}).ok());
+  ASSERT_TRUE(b->store->Sync().ok());
+  EXPECT_EQ((*b->registry->Get("kept"))->Snapshot()->num_samples(), 2);
 }
 
 // Not a test: the figures docs/scaling.md quotes for loading from PostgreSQL (a replica's
