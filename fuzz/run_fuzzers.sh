@@ -7,9 +7,9 @@
 #   fuzz/run_fuzzers.sh [BUILD_DIR [SECONDS_PER_TARGET [TARGET...]]]
 #   fuzz/run_fuzzers.sh build/fuzz 600 pcd_fuzzer      # ten minutes on the PCD reader
 #
-# Seeds: fuzz/testdata/corpus/TARGET (checked in), the service seeds written by the build, the
-# malformed files of tests/bad_input/testdata, and, where ../shared/data exists, a few real
-# ModelNet10 PCD and DALES XYZ files. The corpus each target
+# Seeds: a reader's files of its formats in fuzz/testdata (checked in) and tests/bad_input/testdata
+# (malformed), fuzz/testdata/corpus/TARGET (the spec fuzzer's), the service seeds written by the
+# build, and, where ../shared/data exists, a few real ModelNet10 PCD and DALES XYZ files. The corpus each target
 # grows is kept in $SHAPEID_FUZZ_CACHE (default /var/tmp/shapeid-fuzz), so that a later run
 # on the same machine starts where the last one stopped; deleting it is always safe.
 # A crash leaves its input in BUILD_DIR/fuzz-run/TARGET/; the message says how to keep it as
@@ -31,17 +31,21 @@ symbolizer=/usr/lib/llvm-14/bin/llvm-symbolizer
 rm -rf "$out"
 mkdir -p "$out"
 
-# A few real files per format, and the bad-input corpus's malformed files of that format
-# (tests/bad_input/testdata), as extra read-only seeds.
+# A reader's files by format, as read-only seeds: those of fuzz/testdata (fuzz/make_seeds.py),
+# the bad-input corpus's malformed ones (tests/bad_input/testdata), and a few real files.
 real_seeds() {  # TARGET -> prints a directory (maybe empty)
-  local dir=$out/real/$1 bad=$root/tests/bad_input/testdata
+  local dir=$out/real/$1 from
   mkdir -p "$dir"
+  for from in "$root/fuzz/testdata" "$root/tests/bad_input/testdata"; do
+    case $1 in
+      pcd_fuzzer) cp "$from"/*.pcd "$dir"/ 2>/dev/null || true ;;
+      ply_fuzzer) cp "$from"/*.ply "$dir"/ 2>/dev/null || true ;;
+      off_fuzzer) cp "$from"/*.off "$dir"/ 2>/dev/null || true ;;
+      obj_fuzzer) cp "$from"/*.obj "$dir"/ 2>/dev/null || true ;;
+      xyz_fuzzer) cp "$from"/*.xyz "$from"/*.txt "$from"/*.csv "$dir"/ 2>/dev/null || true ;;
+    esac
+  done
   case $1 in
-    pcd_fuzzer) cp "$bad"/*.pcd "$dir"/ 2>/dev/null || true ;;&
-    ply_fuzzer) cp "$bad"/*.ply "$dir"/ 2>/dev/null || true ;;&
-    off_fuzzer) cp "$bad"/*.off "$dir"/ 2>/dev/null || true ;;&
-    obj_fuzzer) cp "$bad"/*.obj "$dir"/ 2>/dev/null || true ;;&
-    xyz_fuzzer) cp "$bad"/*.xyz "$bad"/*.txt "$bad"/*.csv "$dir"/ 2>/dev/null || true ;;&
     pcd_fuzzer)
       if [ -d "$data/modelnet10" ]; then
         for class in "$data"/modelnet10/*/; do
@@ -62,9 +66,9 @@ real_seeds() {  # TARGET -> prints a directory (maybe empty)
 
 run_one() {  # TARGET
   local target=$1 binary=$build/fuzz/$1
-  local seeds=("$root/fuzz/testdata/corpus/$target")
-  [ "$target" = service_fuzzer ] && seeds=("$build/fuzz/corpus/service_fuzzer")
-  seeds+=("$(real_seeds "$target")")
+  local seeds=("$(real_seeds "$target")")
+  [ -d "$root/fuzz/testdata/corpus/$target" ] && seeds+=("$root/fuzz/testdata/corpus/$target")
+  [ "$target" = service_fuzzer ] && seeds+=("$build/fuzz/corpus/service_fuzzer")
   [ -d "$root/fuzz/testdata/regressions/$target" ] && seeds+=("$root/fuzz/testdata/regressions/$target")
   mkdir -p "$cache/$target" "$out/$target"
   # -malloc_limit_mb: a header announcing 10^12 points must be refused, not allocated.
