@@ -285,16 +285,22 @@ class StreamOnlyService final : public v1::ShapeId::CallbackService {
   }
 };
 
-TEST(ClientFallbackTest, AnOlderServerWithoutOneMessageCallsGetsTheStream) {
-  StreamOnlyService service;
+// A server on a free loopback port serving only `service` (a fake); `*target` is its address.
+std::unique_ptr<grpc::Server> StartFakeServer(grpc::Service* service, std::string* target) {
   grpc::ServerBuilder builder;
   int port = 0;
   builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
-  builder.RegisterService(&service);
+  builder.RegisterService(service);
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
-  ASSERT_NE(server, nullptr);
+  *target = absl::StrCat("127.0.0.1:", port);
+  return server;
+}
+
+TEST(ClientFallbackTest, AnOlderServerWithoutOneMessageCallsGetsTheStream) {
+  StreamOnlyService service;
   ClientOptions options;
-  options.target = absl::StrCat("127.0.0.1:", port);
+  std::unique_ptr<grpc::Server> server = StartFakeServer(&service, &options.target);
+  ASSERT_NE(server, nullptr);
   auto client = Client::Connect(options);
   ASSERT_TRUE(client.ok());
   for (int call = 1; call <= 3; ++call) {
@@ -503,14 +509,9 @@ class LostAnswerTrainService final : public v1::ShapeId::CallbackService {
 
 TEST(ClientRetryTest, RetriedTrainThatFindsItsIdsTakenSaysTheFirstMayHaveCommitted) {
   LostAnswerTrainService service;
-  grpc::ServerBuilder builder;
-  int port = 0;
-  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
-  builder.RegisterService(&service);
-  std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
-  ASSERT_NE(server, nullptr);
   ClientOptions options;
-  options.target = absl::StrCat("127.0.0.1:", port);
+  std::unique_ptr<grpc::Server> server = StartFakeServer(&service, &options.target);
+  ASSERT_NE(server, nullptr);
   options.initial_backoff = absl::Milliseconds(1);
   auto client = Client::Connect(options);
   ASSERT_TRUE(client.ok());

@@ -447,35 +447,36 @@ absl::StatusOr<int64_t> Gallery::RemoveLocked(const GallerySnapshot& current,
 
 absl::Status Gallery::ApplyStoredAppend(absl::Span<const StoredSample> samples, absl::Time updated,
                                         uint64_t version) {
-  std::lock_guard<std::mutex> lock(writer_mu_);
-  if (deleted_) return DeletedError();
-  const std::shared_ptr<const GallerySnapshot> current = Snapshot();
-  SHAPEID_RETURN_IF_ERROR(CheckNextVersion(*current, version));
-  if (version <= current->version_) return absl::OkStatus();
-  std::shared_ptr<GallerySnapshot> next(new GallerySnapshot(*current));
-  for (const StoredSample& sample : samples) {
-    SHAPEID_RETURN_IF_ERROR(next->index_.Add(sample.id, sample.label, sample.features));
-    if (sample.id >= kFirstAssignedId) {
-      next->next_assigned_id_ = std::max(next->next_assigned_id_, sample.id + 1);
+  return ApplyStored(updated, version, [&](GallerySnapshot& next) -> absl::Status {
+    for (const StoredSample& sample : samples) {
+      SHAPEID_RETURN_IF_ERROR(next.index_.Add(sample.id, sample.label, sample.features));
+      if (sample.id >= kFirstAssignedId) {
+        next.next_assigned_id_ = std::max(next.next_assigned_id_, sample.id + 1);
+      }
     }
-  }
-  SHAPEID_RETURN_IF_ERROR(
-      next->index_.UpdateApproximate(limits_.approximate, next->options_.knn.scaling));
-  next->version_ = version;
-  next->updated_ = updated;
-  Publish(std::move(next));
-  return absl::OkStatus();
+    return absl::OkStatus();
+  });
 }
 
 absl::Status Gallery::ApplyStoredRemove(absl::Span<const uint64_t> ids, absl::Time updated,
                                         uint64_t version) {
+  return ApplyStored(updated, version,
+                     [&](GallerySnapshot& next) { return next.index_.Remove(ids); });
+}
+
+absl::Status Gallery::ApplyStored(absl::Time updated, uint64_t version,
+                                  const std::function<absl::Status(GallerySnapshot&)>& change) {
   std::lock_guard<std::mutex> lock(writer_mu_);
   if (deleted_) return DeletedError();
   const std::shared_ptr<const GallerySnapshot> current = Snapshot();
-  SHAPEID_RETURN_IF_ERROR(CheckNextVersion(*current, version));
-  if (version <= current->version_) return absl::OkStatus();
+  if (version <= current->version_) return absl::OkStatus();  // held already
+  if (version > current->version_ + 1) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("gallery '", name_, "' is at version ", current->version_,
+                     "; a stored change to version ", version, " cannot apply (changes missed)"));
+  }
   std::shared_ptr<GallerySnapshot> next(new GallerySnapshot(*current));
-  SHAPEID_RETURN_IF_ERROR(next->index_.Remove(ids));
+  SHAPEID_RETURN_IF_ERROR(change(*next));
   SHAPEID_RETURN_IF_ERROR(
       next->index_.UpdateApproximate(limits_.approximate, next->options_.knn.scaling));
   next->version_ = version;
@@ -490,15 +491,6 @@ absl::Status Gallery::AdoptStored(const Gallery& stored) {
   std::shared_ptr<const GallerySnapshot> next = stored.Snapshot();
   if (next->version() <= Snapshot()->version()) return absl::OkStatus();
   Publish(std::move(next));
-  return absl::OkStatus();
-}
-
-absl::Status Gallery::CheckNextVersion(const GallerySnapshot& current, uint64_t version) const {
-  if (version > current.version_ + 1) {
-    return absl::FailedPreconditionError(
-        absl::StrCat("gallery '", name_, "' is at version ", current.version_,
-                     "; a stored change to version ", version, " cannot apply (changes missed)"));
-  }
   return absl::OkStatus();
 }
 

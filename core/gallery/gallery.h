@@ -219,7 +219,10 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
   absl::StatusOr<CommitResult> CommitBatchOnce(std::vector<StoredSample>& samples);
   absl::StatusOr<int64_t> RemoveSamplesOnce(absl::Span<const uint64_t> ids);
   absl::StatusOr<int64_t> RemoveLabelOnce(absl::string_view label);
-  absl::Status CheckNextVersion(const GallerySnapshot& current, uint64_t version) const;
+  // The frame of ApplyStoredAppend / ApplyStoredRemove: under the writer lock, skip a change
+  // held already, refuse a gap, else `change` a copy of the snapshot and publish it.
+  absl::Status ApplyStored(absl::Time updated, uint64_t version,
+                           const std::function<absl::Status(GallerySnapshot&)>& change);
   absl::StatusOr<int64_t> RemoveLocked(const GallerySnapshot& current, std::vector<uint64_t> ids)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(writer_mu_);
   void Publish(std::shared_ptr<const GallerySnapshot> next);

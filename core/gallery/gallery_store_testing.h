@@ -1,11 +1,19 @@
 #ifndef SHAPEID_CORE_GALLERY_GALLERY_STORE_TESTING_H_
 #define SHAPEID_CORE_GALLERY_GALLERY_STORE_TESTING_H_
 
-// Test helper (header-only, gtest): the one definition of "two stored galleries are the
-// same", shared by the store's and the export's round-trip tests.
+// Test helpers (header-only, gtest): the one definition of "two stored galleries are the
+// same", shared by the stores' and the export's round-trip tests, and the gallery they store.
 
+#include <cstdint>
 #include <cstring>
+#include <limits>
+#include <random>
+#include <string>
+#include <utility>
 
+#include "absl/strings/str_cat.h"
+#include "absl/time/time.h"
+#include "core/gallery/gallery.h"
 #include "core/gallery/gallery_store.h"
 #include "core/views/augment.h"
 #include "gtest/gtest.h"
@@ -39,6 +47,42 @@ inline void ExpectSameStoredGallery(const StoredGallery& a, const StoredGallery&
               0)
         << "sample " << i << " features differ bitwise";
   }
+}
+
+// A stored gallery of `samples` random samples of `dimension` floats, `seed` choosing them,
+// for the stores' round-trip tests: client ids and assigned ids (>= 2^63) alternate, the first
+// label is not ASCII, and bit patterns a lossy path would change (-0, a subnormal, the largest
+// float) lead the first sample. It has an incarnation, as a created gallery has.
+inline StoredGallery MakeGallery(std::string name, int dimension, int samples, uint32_t seed) {
+  StoredGallery g;
+  g.name = std::move(name);
+  g.incarnation = NewGalleryIncarnation();
+  g.options.descriptor_spec = "rphsd:bins=100,refs=cubic27,variant=complete";
+  g.options.knn.k = 3;
+  g.options.knn.weighting = VoteWeighting::kDistance;
+  g.options.knn.scaling = FeatureScaling::kMaxAbs;
+  g.options.reject_distance = 0.1 + 1e-17;  // a double that text round trips could lose
+  g.created = absl::FromUnixNanos(1'700'000'000'123'456'789);
+  g.updated = g.created + absl::Nanoseconds(7);
+  g.descriptor_version = 1;
+  g.software_version = "0.1.0";
+  g.dimension = dimension;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  for (int i = 0; i < samples; ++i) {
+    StoredSample s;
+    s.id = i % 2 ? (uint64_t{1} << 63) + static_cast<uint64_t>(i) : static_cast<uint64_t>(i + 1);
+    s.label = absl::StrCat("class-", i % 5, i == 0 ? " \xc3\xa9t\xc3\xa9" : "");
+    s.features.resize(static_cast<size_t>(dimension));
+    for (float& f : s.features) f = u(rng);
+    g.samples.push_back(std::move(s));
+  }
+  if (samples > 0 && dimension >= 3) {
+    g.samples[0].features[0] = -0.0f;
+    g.samples[0].features[1] = std::numeric_limits<float>::denorm_min();
+    g.samples[0].features[2] = std::numeric_limits<float>::max();
+  }
+  return g;
 }
 
 }  // namespace gallery_testing

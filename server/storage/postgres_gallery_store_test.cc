@@ -21,6 +21,7 @@ namespace {
 
 using gallery_testing::Box;
 using gallery_testing::ExpectSameStoredGallery;
+using gallery_testing::MakeGallery;
 using gallery_testing::Sphere;
 using ::testing::HasSubstr;
 
@@ -92,33 +93,6 @@ class PostgresGalleryStoreTest : public ::testing::Test {
 
 PostgresInstance* PostgresGalleryStoreTest::pg_ = nullptr;
 absl::Status* PostgresGalleryStoreTest::start_error_ = nullptr;
-
-StoredGallery MakeGallery(std::string name, int dimension, int samples, uint32_t seed) {
-  StoredGallery g;
-  g.name = std::move(name);
-  g.options.descriptor_spec = "rphsd:bins=100,refs=cubic27,variant=complete";
-  g.options.knn.k = 3;
-  g.options.knn.weighting = VoteWeighting::kDistance;
-  g.options.knn.scaling = FeatureScaling::kMaxAbs;
-  g.options.reject_distance = 0.1 + 1e-17;
-  g.created = absl::FromUnixNanos(1'700'000'000'123'456'789);
-  g.updated = g.created + absl::Nanoseconds(7);
-  g.descriptor_version = 1;
-  g.software_version = "0.1.0";
-  g.dimension = dimension;
-  g.incarnation = NewGalleryIncarnation();
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(-1.f, 1.f);
-  for (int i = 0; i < samples; ++i) {
-    StoredSample s;
-    // Client ids and assigned ids (>= 2^63, stored as negative BIGINTs).
-    s.id = i % 2 ? (uint64_t{1} << 63) + static_cast<uint64_t>(i) : static_cast<uint64_t>(i + 1);
-    s.label = absl::StrCat("class-", i % 5, i == 0 ? " \xc3\xa9t\xc3\xa9" : "");
-    for (int d = 0; d < dimension; ++d) s.features.push_back(u(rng));
-    g.samples.push_back(std::move(s));
-  }
-  return g;
-}
 
 TEST_F(PostgresGalleryStoreTest, EveryWriteSurvivesBitForBit) {
   StoredGallery a = MakeGallery("a", 12, 1500, 1);  // more than one INSERT statement

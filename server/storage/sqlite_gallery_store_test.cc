@@ -24,6 +24,7 @@ namespace shapeid {
 namespace {
 
 using gallery_testing::ExpectSameStoredGallery;
+using gallery_testing::MakeGallery;
 
 using ::testing::AllOf;
 using ::testing::ElementsAre;
@@ -37,38 +38,6 @@ std::string ScratchDir(absl::string_view what) {
                                        info->name(), "_", what);
   std::system(absl::StrCat("rm -rf '", dir, "'").c_str());
   return dir;
-}
-
-StoredGallery MakeGallery(std::string name, int dimension, int samples, uint32_t seed) {
-  StoredGallery g;
-  g.name = std::move(name);
-  g.options.descriptor_spec = "rphsd:bins=100,refs=cubic27,variant=complete";
-  g.options.knn.k = 3;
-  g.options.knn.weighting = VoteWeighting::kDistance;
-  g.options.knn.scaling = FeatureScaling::kMaxAbs;
-  g.options.reject_distance = 0.1 + 1e-17;  // a double that text round trips could lose
-  g.created = absl::FromUnixNanos(1'700'000'000'123'456'789);
-  g.updated = g.created + absl::Nanoseconds(7);
-  g.descriptor_version = 1;
-  g.software_version = "0.1.0";
-  g.dimension = dimension;
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(-1.f, 1.f);
-  for (int i = 0; i < samples; ++i) {
-    StoredSample s;
-    s.id = i % 2 ? (uint64_t{1} << 63) + static_cast<uint64_t>(i) : static_cast<uint64_t>(i + 1);
-    s.label = absl::StrCat("class-", i % 5, i == 0 ? " \xc3\xa9t\xc3\xa9" : "");
-    s.features.resize(static_cast<size_t>(dimension));
-    for (float& f : s.features) f = u(rng);
-    g.samples.push_back(std::move(s));
-  }
-  // Bit patterns a lossy path would change.
-  if (samples > 0 && dimension >= 3) {
-    g.samples[0].features[0] = -0.0f;
-    g.samples[0].features[1] = std::numeric_limits<float>::denorm_min();
-    g.samples[0].features[2] = std::numeric_limits<float>::max();
-  }
-  return g;
 }
 
 std::unique_ptr<SqliteGalleryStore> OpenStore(const std::string& dir, bool set_aside = false) {
