@@ -22,12 +22,14 @@ constexpr MethodScope kMethodScopes[] = {
     {"/shapeid.v1.ShapeId/GetGallery", Scope::kRead},
     {"/shapeid.v1.ShapeId/ListGalleries", Scope::kRead},
     {"/shapeid.v1.ShapeId/ListDescriptors", Scope::kRead},
+    {"/shapeid.v1.ShapeId/GetServerStats", Scope::kRead},
     {"/shapeid.v1.ShapeId/Train", Scope::kWrite},
     {"/shapeid.v1.ShapeId/CreateGallery", Scope::kWrite},
     {"/shapeid.v1.ShapeId/RemoveSamples", Scope::kWrite},
     {"/shapeid.v1.ShapeId/ImportGallery", Scope::kWrite},
     {"/shapeid.v1.ShapeId/ExportGallery", Scope::kWrite},
     {"/shapeid.v1.ShapeId/DeleteGallery", Scope::kAdmin},
+    {"/shapeid.v1.ShapeId/SetLogLevel", Scope::kAdmin},
 };
 
 constexpr absl::string_view kOpenServicePrefix = "/grpc.health.v1.Health/";

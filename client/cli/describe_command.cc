@@ -8,7 +8,7 @@
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "client/cli/input_files.h"
-#include "client/cli/json.h"
+#include "core/json.h"
 #include "core/descriptor.h"
 #include "core/descriptor_registry.h"
 #include "core/io/point_cloud_reader.h"

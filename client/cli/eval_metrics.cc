@@ -13,7 +13,7 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/strip.h"
 #include "client/cli/cli_common.h"
-#include "client/cli/json.h"
+#include "core/json.h"
 
 namespace shapeid {
 namespace {

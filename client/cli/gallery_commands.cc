@@ -5,7 +5,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
-#include "client/cli/json.h"
+#include "core/json.h"
 #include "client/gallery_file.h"
 
 namespace shapeid {

@@ -1,8 +1,9 @@
-#ifndef SHAPEID_CLIENT_CLI_JSON_H_
-#define SHAPEID_CLIENT_CLI_JSON_H_
+#ifndef SHAPEID_CORE_JSON_H_
+#define SHAPEID_CORE_JSON_H_
 
-// The few JSON spellings the CLI writes by hand (its JSON is flat and append-only, so a JSON
-// library would add a dependency for no gain).
+// The few JSON spellings the CLI and the server's logs write by hand (their JSON is flat and
+// append-only, so a JSON library would add a dependency for no gain). Not science, but
+// core/ is the one library both link.
 
 #include <string>
 
@@ -19,4 +20,4 @@ std::string JsonNumber(double value);
 
 }  // namespace shapeid
 
-#endif  // SHAPEID_CLIENT_CLI_JSON_H_
+#endif  // SHAPEID_CORE_JSON_H_

@@ -1,4 +1,4 @@
-#include "client/cli/json.h"
+#include "core/json.h"
 
 #include <cmath>
 #include <cstdio>
