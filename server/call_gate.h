@@ -52,6 +52,21 @@ class CallTracker {
   }
   void StartDraining() { state_.store(State::kDraining); }
   int64_t in_flight() const { return in_flight_.load(); }
+  State state() const { return state_.load(); }
+  // "serving", "loading", "store unreachable", "draining": for GetServerStats.
+  static const char* StateName(State state) {
+    switch (state) {
+      case State::kLoading:
+        return "loading";
+      case State::kServing:
+        return "serving";
+      case State::kStoreUnreachable:
+        return "store unreachable";
+      case State::kDraining:
+        return "draining";
+    }
+    return "serving";
+  }
 
   // The status a refused call gets: UNAVAILABLE, loading or shutting down.
   absl::Status Refusal() const {

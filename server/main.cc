@@ -95,6 +95,20 @@ ABSL_FLAG(std::string, new_api_key, "",
           "the keys file (line 2), then exit");
 ABSL_FLAG(bool, hash_api_key, false,
           "read an API key from stdin, print its SHA-256 (the keys file's third field), exit");
+ABSL_FLAG(std::string, metrics_listen, "",
+          "HOST:PORT of a plaintext HTTP endpoint serving Prometheus metrics at /metrics (no key, "
+          "no TLS: it shows call counts, latencies, gallery names and sizes, never points or "
+          "keys). Empty: none; 9464 is the usual port. Env: SHAPEID_METRICS_LISTEN");
+ABSL_FLAG(int32_t, metrics_max_galleries, 50,
+          "galleries that get a `gallery` label of their own in the metrics; later ones are "
+          "counted together as gallery=\"_other\" (bounds the series a Prometheus stores). "
+          "Env: SHAPEID_METRICS_MAX_GALLERIES");
+ABSL_FLAG(std::string, log_format, "text",
+          "text (lines for people) or json (one JSON object per line, for a log pipeline). "
+          "Env: SHAPEID_LOG_FORMAT");
+ABSL_FLAG(std::string, log_level, "info",
+          "debug, info (a line per call), warning (failed calls and warnings) or error; change it "
+          "while running with `shapeid log-level`. Env: SHAPEID_LOG_LEVEL");
 ABSL_FLAG(int32_t, shutdown_grace_seconds, 10,
           "on SIGTERM/SIGINT, how long in-flight calls may run before they are cancelled. "
           "Env: SHAPEID_SHUTDOWN_GRACE_SECONDS");
@@ -115,7 +129,8 @@ bool ApplyEnvironment() {
         "max_message_bytes", "approximate_min_vectors", "approximate_lists", "approximate_probes",
         "max_samples_per_gallery", "max_galleries", "max_samples_per_train",
         "max_streams_per_client", "max_call_seconds", "tls_cert", "tls_key", "tls_client_ca",
-        "api_keys_file", "api_keys", "insecure", "shutdown_grace_seconds"}) {
+        "api_keys_file", "api_keys", "insecure", "shutdown_grace_seconds", "metrics_listen",
+        "metrics_max_galleries", "log_format", "log_level"}) {
     const std::string var = absl::StrCat("SHAPEID_", absl::AsciiStrToUpper(name));
     const char* value = std::getenv(var.c_str());
     if (value == nullptr) continue;
@@ -250,6 +265,25 @@ int main(int argc, char** argv) {
   options.security.api_keys_file = absl::GetFlag(FLAGS_api_keys_file);
   options.security.api_keys = absl::GetFlag(FLAGS_api_keys);
   options.security.insecure = absl::GetFlag(FLAGS_insecure);
+  options.metrics.listen = absl::GetFlag(FLAGS_metrics_listen);
+  options.metrics.max_gallery_labels = absl::GetFlag(FLAGS_metrics_max_galleries);
+  if (options.metrics.max_gallery_labels < 0) {
+    std::fprintf(stderr, "shapeid-server: --metrics_max_galleries must be >= 0\n");
+    return 2;
+  }
+  {
+    const absl::StatusOr<shapeid::LogFormat> format =
+        shapeid::ParseLogFormat(absl::GetFlag(FLAGS_log_format));
+    const absl::StatusOr<shapeid::LogLevel> level =
+        shapeid::ParseLogLevel(absl::GetFlag(FLAGS_log_level));
+    if (!format.ok() || !level.ok()) {
+      std::fprintf(stderr, "shapeid-server: --log_format / --log_level: %s\n",
+                   std::string((format.ok() ? level.status() : format.status()).message()).c_str());
+      return 2;
+    }
+    options.log.format = *format;
+    options.log.level = *level;
+  }
   // Configuration errors are usage errors (exit 2), told before anything is opened; Bind
   // checks the same again.
   absl::StatusOr<std::shared_ptr<const shapeid::ApiKeyStore>> keys =
@@ -286,64 +320,64 @@ int main(int argc, char** argv) {
       !options.store.empty()
           ? absl::StrCat("PostgreSQL ", shapeid::DescribeConninfo(options.store))
           : (options.data_dir.empty() ? "nowhere (in-memory)" : options.data_dir);
-  std::fprintf(stderr, "shapeid-server: bound %s; loading galleries from %s\n",
-               (*server)->address().c_str(), where.c_str());
-  std::fprintf(stderr, "shapeid-server: security: %s\n", (*server)->security().c_str());
+  const shapeid::Logger& log = *(*server)->logger();
+  log.Info(absl::StrCat("bound ", (*server)->address(), "; loading galleries from ", where));
+  log.Info(absl::StrCat("security: ", (*server)->security()));
   if (!(*server)->health_address().empty()) {
-    std::fprintf(stderr, "shapeid-server: health checks also on %s (plaintext, health only)\n",
-                 (*server)->health_address().c_str());
+    log.Info(absl::StrCat("health checks also on ", (*server)->health_address(),
+                          " (plaintext, health only)"));
+  }
+  if (!(*server)->metrics_address().empty()) {
+    log.Info(absl::StrCat("metrics on http://", (*server)->metrics_address(), "/metrics"),
+             {{"metrics_address", (*server)->metrics_address()}});
   }
   // The CLI's variables are one letter away from the server's; say so rather than run open.
   for (const char* cli_var : {"SHAPEID_API_KEY", "SHAPEID_API_KEY_FILE"}) {
     if ((*keys)->empty() && std::getenv(cli_var) != nullptr) {
-      std::fprintf(stderr,
-                   "shapeid-server: WARNING: %s is set but is the CLI's; the server's keys come "
-                   "from SHAPEID_API_KEYS_FILE / SHAPEID_API_KEYS, and it has none\n",
-                   cli_var);
+      log.Warning(absl::StrCat(cli_var,
+                               " is set but is the CLI's; the server's keys come from "
+                               "SHAPEID_API_KEYS_FILE / SHAPEID_API_KEYS, and it has none"));
     }
   }
   for (const std::string& warning :
        shapeid::SecurityWarnings(options.listen, options.security, **keys)) {
-    std::fprintf(stderr, "shapeid-server: WARNING: %s\n", warning.c_str());
+    log.Warning(warning);
   }
   absl::StatusOr<shapeid::LoadReport> loaded = (*server)->LoadGalleries();
   if (!loaded.ok()) {
-    std::fprintf(stderr, "shapeid-server: %s\n", std::string(loaded.status().message()).c_str());
+    log.Error(loaded.status().message());
     if (options.store.empty() && (loaded.status().code() == absl::StatusCode::kDataLoss ||
                                   loaded.status().code() == absl::StatusCode::kFailedPrecondition)) {
-      std::fprintf(stderr,
-                   "shapeid-server: refusing to start rather than serve without that gallery. "
-                   "Restore it from an export, or start with --set_aside_damaged to move it to "
-                   "%s/damaged/ and serve the others.\n",
-                   options.data_dir.c_str());
+      log.Error(absl::StrCat(
+          "refusing to start rather than serve without that gallery. Restore it from an "
+          "export, or start with --set_aside_damaged to move it to ",
+          options.data_dir, "/damaged/ and serve the others."));
     }
     (*server)->Shutdown(absl::ZeroDuration());
     return 1;
   }
   for (const auto& aside : loaded->set_aside) {
-    std::fprintf(stderr, "shapeid-server: WARNING: gallery '%s' set aside to %s: %s\n",
-                 aside.name.c_str(), aside.moved_to.c_str(), aside.reason.c_str());
+    log.Warning(absl::StrCat("gallery '", aside.name, "' set aside to ", aside.moved_to, ": ",
+                             aside.reason));
   }
   if (!options.store.empty()) {
-    std::fprintf(stderr,
-                 "shapeid-server: galleries in %s; other replicas' changes applied within %d "
-                 "ms (--store_refresh_ms)\n",
-                 loaded->store.c_str(), absl::GetFlag(FLAGS_store_refresh_ms));
+    log.Info(absl::StrCat("galleries in ", loaded->store,
+                          "; other replicas' changes applied within ",
+                          absl::GetFlag(FLAGS_store_refresh_ms), " ms (--store_refresh_ms)"));
   }
   if (!loaded->persistent) {
-    std::fprintf(stderr,
-                 "shapeid-server: WARNING: --data_dir is empty: galleries live in memory only "
-                 "and are lost when the server stops\n");
+    log.Warning(
+        "--data_dir is empty: galleries live in memory only and are lost when the server "
+        "stops");
   }
   if (loaded->read_only) {
-    std::fprintf(stderr,
-                 "shapeid-server: WARNING: %s is read-only: galleries are served, every change "
-                 "fails UNAVAILABLE\n",
-                 options.data_dir.c_str());
+    log.Warning(absl::StrCat(options.data_dir,
+                             " is read-only: galleries are served, every change fails "
+                             "UNAVAILABLE"));
   }
-  std::fprintf(stderr, "shapeid-server: loaded %lld galleries (%lld samples) in %s\n",
-               static_cast<long long>(loaded->galleries), static_cast<long long>(loaded->samples),
-               absl::FormatDuration(loaded->elapsed).c_str());
+  log.Info(absl::StrCat("loaded ", loaded->galleries, " galleries (", loaded->samples,
+                        " samples) in ", absl::FormatDuration(loaded->elapsed)),
+           {{"galleries", loaded->galleries}, {"samples", loaded->samples}});
   // The line scripts wait for: from here on, every RPC is served.
   std::printf("listening on %s\n", (*server)->address().c_str());
   std::fflush(stdout);
@@ -351,8 +385,7 @@ int main(int argc, char** argv) {
   unsigned char received = 0;
   while (read(g_stop_pipe[0], &received, 1) != 1) {
   }
-  std::fprintf(stderr, "shapeid-server: %s, shutting down\n",
-               received == SIGTERM ? "SIGTERM" : "SIGINT");
+  log.Info(absl::StrCat(received == SIGTERM ? "SIGTERM" : "SIGINT", ", shutting down"));
   (*server)->Shutdown(absl::Seconds(absl::GetFlag(FLAGS_shutdown_grace_seconds)));
   return 0;
 }

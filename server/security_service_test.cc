@@ -163,6 +163,10 @@ TEST_F(ApiKeyTest, EveryRpcGivesTheRightCodeForEveryKey) {
        }},
       {"DeleteGallery", Scope::kAdmin, absl::StatusCode::kNotFound,
        [&](const Caller& c, int) { return c.unary->DeleteGallery("absent").status(); }},
+      {"GetServerStats", Scope::kRead, absl::StatusCode::kOk,
+       [&](const Caller& c, int) { return c.unary->GetServerStats().status(); }},
+      {"SetLogLevel", Scope::kAdmin, absl::StatusCode::kOk,
+       [&](const Caller& c, int) { return c.unary->SetLogLevel("info").status(); }},
   };
   struct Key {
     const char* name;
@@ -198,7 +202,7 @@ TEST_F(ApiKeyTest, EveryRpcGivesTheRightCodeForEveryKey) {
     // Health checks need no key (Kubernetes' gRPC probes cannot send one).
     EXPECT_TRUE(unary->CheckHealth().ok()) << key.name;
   }
-  EXPECT_EQ(rpcs.size(), 13u) << "every RPC of the ShapeId service";
+  EXPECT_EQ(rpcs.size(), 15u) << "every RPC of the ShapeId service";
 }
 
 TEST_F(ApiKeyTest, ScopeDeniedNamesTheKeyNotTheKey) {

@@ -9,6 +9,7 @@
 #include "absl/time/clock.h"
 #include "grpcpp/ext/proto_server_reflection_plugin.h"
 #include "grpcpp/health_check_service_interface.h"
+#include "server/observed_gallery_store.h"
 #include "server/security.h"
 
 namespace shapeid {
@@ -40,6 +41,8 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
       ListeningCredentials(options.security);
   if (!credentials.ok()) return credentials.status();
   std::unique_ptr<ShapeIdServer> server(new ShapeIdServer);
+  server->logger_ = std::make_shared<Logger>(options.log);
+  server->metrics_ = std::make_shared<ServerMetrics>(options.metrics);
   std::shared_ptr<GalleryStore> store;
   if (!options.store.empty()) {
     if (!absl::StartsWith(options.store, "postgres://") &&
@@ -48,8 +51,12 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
           "--store must be empty (galleries in --data_dir) or a PostgreSQL connection URI, "
           "postgres://[user@]host[:port]/database[?options]");
     }
+    PostgresGalleryStoreOptions postgres_options;
+    postgres_options.conninfo = options.store;
+    postgres_options.refresh = options.store_refresh;
+    postgres_options.logger = server->logger_;
     absl::StatusOr<std::unique_ptr<PostgresGalleryStore>> postgres =
-        PostgresGalleryStore::Open({options.store, options.store_refresh});
+        PostgresGalleryStore::Open(std::move(postgres_options));
     if (!postgres.ok()) return postgres.status();
     server->postgres_store_ = *std::move(postgres);
     server->store_description_ =
@@ -63,10 +70,14 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
     server->store_description_ = options.data_dir;
     store = server->store_;
   }
+  if (store != nullptr) {
+    store = std::make_shared<ObservedGalleryStore>(std::move(store), server->metrics_);
+  }
   GalleryLimits limits = options.gallery_limits;
   limits.max_points_per_cloud = options.service.max_points_per_cloud;
   server->registry_ = std::make_shared<GalleryRegistry>(limits, store);
-  server->service_ = std::make_unique<ShapeIdService>(options.service, server->registry_, *keys);
+  server->service_ = std::make_unique<ShapeIdService>(
+      options.service, server->registry_, *keys, CallObserver(server->metrics_, server->logger_));
   server->security_ = DescribeSecurity(options.security, **keys);
   server->service_->HoldUntilLoaded();
 
@@ -101,11 +112,44 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
     server->health_address_ =
         absl::StrCat(options.health_listen.substr(0, health_colon), ":", health_port);
   }
+  if (absl::Status s = server->StartMetrics(options.metrics); !s.ok()) return s;
+  server->service_->SetDescription({server->store_description_, server->metrics_address_});
   // The default health service starts out SERVING; say otherwise until the galleries are
   // loaded. (A probe in the microseconds between the two would see SERVING, but every RPC
   // is refused "loading" until LoadGalleries is done, so nothing can be served early.)
   server->SetServing(false);
   return server;
+}
+
+absl::Status ShapeIdServer::StartMetrics(const MetricsOptions& options) {
+  ShapeIdService* service = service_.get();
+  PostgresGalleryStore* postgres = postgres_store_.get();
+  LiveSources live;
+  live.calls_in_flight = [service] { return service->calls_in_flight(); };
+  live.serving = [service] { return service->serving(); };
+  if (postgres != nullptr) {
+    live.replication = [postgres]() -> std::optional<ReplicationState> {
+      return ReplicationState{postgres->reachable(), postgres->changes_applied(),
+                              absl::Now() - postgres->last_sync()};
+    };
+  }
+  metrics_->SetSources(registry_, std::move(live));
+  if (options.listen.empty()) return absl::OkStatus();
+  // civetweb (inside prometheus-cpp) throws when it cannot listen.
+  try {
+    exposer_ = std::make_unique<prometheus::Exposer>(options.listen, /*num_threads=*/2);
+  } catch (const std::exception& e) {
+    return absl::UnavailableError(absl::StrCat("cannot listen on ", options.listen,
+                                               " (--metrics_listen): address in use, or not an "
+                                               "address of this host (",
+                                               e.what(), ")"));
+  }
+  exposer_->RegisterCollectable(metrics_);
+  const std::vector<int> ports = exposer_->GetListeningPorts();
+  const size_t colon = options.listen.rfind(':');
+  metrics_address_ = absl::StrCat(options.listen.substr(0, colon), ":",
+                                  ports.empty() ? 0 : ports.front());
+  return absl::OkStatus();
 }
 
 absl::StatusOr<LoadReport> ShapeIdServer::LoadGalleries() {
@@ -162,6 +206,8 @@ void ShapeIdServer::Shutdown(absl::Duration grace) {
     health_server_->Shutdown(std::chrono::system_clock::now());
     health_server_->Wait();
   }
+  // Last: a scrape during the drain still sees it.
+  exposer_.reset();
 }
 
 void ShapeIdServer::SetServing(bool serving) {

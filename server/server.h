@@ -8,6 +8,9 @@
 #include "absl/status/statusor.h"
 #include "absl/time/time.h"
 #include "grpcpp/grpcpp.h"
+#include "prometheus/exposer.h"
+#include "server/logger.h"
+#include "server/metrics.h"
 #include "server/server_options.h"
 #include "server/shapeid_service.h"
 #include "server/storage/postgres_gallery_store.h"
@@ -67,6 +70,11 @@ class ShapeIdServer {
   int64_t calls_in_flight() const { return service_->calls_in_flight(); }
   // "HOST:PORT" of the health-only port (ServerOptions::health_listen), or empty.
   const std::string& health_address() const { return health_address_; }
+  // "HOST:PORT" of the Prometheus endpoint (ServerOptions::metrics.listen), or empty.
+  const std::string& metrics_address() const { return metrics_address_; }
+  // The server's log, for the embedding program's own lines (start-up, shutdown).
+  const std::shared_ptr<Logger>& logger() const { return logger_; }
+  ServerMetrics& metrics() { return *metrics_; }
 
   // "HOST:PORT" with the port actually bound (useful after listening on port 0).
   const std::string& address() const { return address_; }
@@ -85,12 +93,18 @@ class ShapeIdServer {
   std::string store_description_;
   std::shared_ptr<GalleryRegistry> registry_;
   std::unique_ptr<ShapeIdService> service_;
+  // Points the metrics at this server's state and, with `options.listen`, serves them.
+  absl::Status StartMetrics(const MetricsOptions& options);
   // Sets the health of the main port and of the health-only port alike.
   void SetServing(bool serving);
 
   std::unique_ptr<grpc::Server> server_;
   std::unique_ptr<grpc::Server> health_server_;  // only with options.health_listen
   std::string health_address_;
+  std::shared_ptr<Logger> logger_;
+  std::shared_ptr<ServerMetrics> metrics_;
+  std::unique_ptr<prometheus::Exposer> exposer_;  // only with options.metrics.listen
+  std::string metrics_address_;
   std::string address_;
   std::string security_;
   int port_ = 0;

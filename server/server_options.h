@@ -6,6 +6,8 @@
 #include "absl/time/time.h"
 
 #include "core/gallery/gallery_options.h"
+#include "server/logger.h"
+#include "server/metrics.h"
 #include "server/security_options.h"
 #include "server/service_options.h"
 
@@ -48,6 +50,9 @@ struct ServerOptions {
   ServiceOptions service;
   // Samples per gallery and number of galleries; points per cloud comes from `service`.
   GalleryLimits gallery_limits;
+  // The log (a line per call at info) and the Prometheus endpoint (docs/operations.md).
+  LoggerOptions log;
+  MetricsOptions metrics;
 };
 
 }  // namespace shapeid

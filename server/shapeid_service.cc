@@ -1,5 +1,6 @@
 #include "server/shapeid_service.h"
 
+#include <algorithm>
 #include <memory>
 #include <optional>
 #include <set>
@@ -12,11 +13,13 @@
 #include "core/descriptor_registry.h"
 #include "core/gallery/gallery.h"
 #include "core/status_macros.h"
+#include "core/version.h"
 #include "server/call_gate.h"
 #include "server/ceiling_alarm.h"
 #include "server/cloud_assembler.h"
 #include "server/gallery_export.h"
 #include "server/grpc_status.h"
+#include "server/process_stats.h"
 #include "server/proto_convert.h"
 #include "server/stream_reactor.h"
 
@@ -29,34 +32,42 @@ namespace {
 // Finishes a unary call of `method`: the call gate first (key and scope; UNAVAILABLE while
 // loading or draining), then the request, parsed here because gRPC answers a request that
 // does not parse with UNIMPLEMENTED, which clients read as "an older server"; here it is
-// INVALID_ARGUMENT. Then `handler(request, &response)`, whose status ends the call.
+// INVALID_ARGUMENT. Then `handler(request, &response, call)`, whose status ends the call; the
+// handler fills in `call` (its gallery, points, samples), which the observer reports with
+// that status.
 template <typename Request, typename Response, typename Handler>
 grpc::ServerUnaryReactor* Unary(grpc::CallbackServerContext* context, CallGate& gate,
-                                absl::string_view method, const grpc::ByteBuffer* raw_request,
+                                const CallObserver& observer, absl::string_view method,
+                                const grpc::ByteBuffer* raw_request,
                                 grpc::ByteBuffer* raw_response, Handler handler) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  absl::StatusOr<CallGate::Pass> pass = gate.Admit(*context, method, CallGate::Kind::kUnary);
-  if (!pass.ok()) {
-    reactor->Finish(ToGrpcStatus(pass.status()));
+  CallRecord call = observer.Start(*context, method);
+  const auto finish = [&](const grpc::Status& status) {
+    observer.Finish(call, status);
+    reactor->Finish(status);
     return reactor;
-  }
+  };
+  absl::StatusOr<CallGate::Pass> pass = gate.Admit(*context, method, CallGate::Kind::kUnary);
+  if (!pass.ok()) return finish(ToGrpcStatus(pass.status()));
   Request request;
   grpc::ByteBuffer bytes(*raw_request);  // shares the received slices; parsing consumes it
   if (!grpc::SerializationTraits<Request>::Deserialize(&bytes, &request).ok()) {
-    reactor->Finish(ToGrpcStatus(absl::InvalidArgumentError(absl::StrCat(
-        method.substr(method.rfind('/') + 1), ": the request is not a valid ",
-        Request::descriptor()->full_name(), " (damaged, or from another protocol version)"))));
-    return reactor;
+    return finish(ToGrpcStatus(absl::InvalidArgumentError(absl::StrCat(
+        call.method, ": the request is not a valid ", Request::descriptor()->full_name(),
+        " (damaged, or from another protocol version)"))));
   }
   Response response;
-  grpc::Status status = ToGrpcStatus(handler(request, &response));
+  grpc::Status status = ToGrpcStatus(handler(request, &response, call));
   if (status.ok()) {
     bool own_buffer = false;
     status = grpc::SerializationTraits<Response>::Serialize(response, raw_response, &own_buffer);
   }
-  reactor->Finish(status);
-  return reactor;
+  return finish(status);
 }
+
+// Bytes of a PointChunk's xyz as points, for the call's report (a partial point counts
+// nothing; the assembler refuses it).
+int64_t PointsIn(const std::string& xyz) { return static_cast<int64_t>(xyz.size() / 12); }
 
 absl::Status RequireGalleryName(absl::string_view rpc, const std::string& name) {
   if (name.empty())
@@ -81,11 +92,14 @@ absl::StatusOr<std::shared_ptr<const Descriptor>> DescriptorToUse(const v1::Desc
 }
 
 absl::Status DescribeInto(const Descriptor& descriptor, const PointCloud& cloud,
+                          const CallObserver& observer, CallRecord& call,
                           v1::DescribeResponse* response) {
   const absl::Time start = absl::Now();
   std::vector<float> values;
   SHAPEID_RETURN_IF_ERROR(descriptor.Compute(cloud, &values));
-  ToProto(absl::Now() - start, response->mutable_describe_time());
+  const absl::Duration elapsed = absl::Now() - start;
+  observer.Described(call, descriptor.spec().kind, elapsed);
+  ToProto(elapsed, response->mutable_describe_time());
   response->set_descriptor_spec(descriptor.spec().ToString());
   response->mutable_values()->Assign(values.begin(), values.end());
   response->set_num_points(cloud.size());
@@ -95,9 +109,9 @@ absl::Status DescribeInto(const Descriptor& descriptor, const PointCloud& cloud,
 class DescribeReactor final : public StreamReactor<v1::DescribeRequest, v1::DescribeResponse> {
  public:
   DescribeReactor(grpc::CallbackServerContext* context, CallGate* gate,
-                  const ServiceOptions& options, const GalleryRegistry& registry,
-                  grpc::ByteBuffer* response)
-      : StreamReactor(context, gate, SHAPEID_METHOD(Describe), response),
+                  const CallObserver* observer, const ServiceOptions& options,
+                  const GalleryRegistry& registry, grpc::ByteBuffer* response)
+      : StreamReactor(context, gate, observer, SHAPEID_METHOD(Describe), response),
         options_(options),
         registry_(registry),
         assembler_(options.max_points_per_cloud) {
@@ -114,6 +128,7 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest, v1::Desc
           return absl::InvalidArgumentError(
               "Describe: the first message must be a DescribeHeader; points came first");
         }
+        call().points += PointsIn(request.points().xyz());
         return assembler_.Append(request.points().xyz());
       case v1::DescribeRequest::KIND_NOT_SET:
         break;
@@ -125,6 +140,7 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest, v1::Desc
     if (descriptor_ != nullptr) {
       return absl::InvalidArgumentError("Describe: a second DescribeHeader in one stream");
     }
+    call().gallery = header.gallery();
     SHAPEID_ASSIGN_OR_RETURN(descriptor_, DescriptorToUse(header, options_, registry_));
     return assembler_.Start(header.expected_points());
   }
@@ -134,7 +150,7 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest, v1::Desc
       return absl::InvalidArgumentError("Describe: the stream ended without a DescribeHeader");
     }
     SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud, assembler_.Finish());
-    return DescribeInto(*descriptor_, cloud, response());
+    return DescribeInto(*descriptor_, cloud, observer(), call(), response());
   }
 
   const ServiceOptions& options_;
@@ -148,9 +164,10 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest, v1::Desc
 // OK, so an error or a cut stream (the reactor dies without OnEnd) publishes nothing.
 class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainResponse> {
  public:
-  TrainReactor(grpc::CallbackServerContext* context, CallGate* gate, const ServiceOptions& options,
-               const GalleryRegistry& registry, grpc::ByteBuffer* response)
-      : StreamReactor(context, gate, SHAPEID_METHOD(Train), response),
+  TrainReactor(grpc::CallbackServerContext* context, CallGate* gate, const CallObserver* observer,
+               const ServiceOptions& options, const GalleryRegistry& registry,
+               grpc::ByteBuffer* response)
+      : StreamReactor(context, gate, observer, SHAPEID_METHOD(Train), response),
         registry_(registry),
         max_samples_(options.max_samples_per_train),
         assembler_(options.max_points_per_cloud) {
@@ -162,11 +179,13 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainRespo
     switch (request.kind_case()) {
       case v1::TrainRequest::kHeader: {
         if (batch_ != nullptr) return absl::InvalidArgumentError("Train: a second TrainHeader");
+        call().gallery = request.header().gallery();
         SHAPEID_RETURN_IF_ERROR(RequireGalleryName("Train", request.header().gallery()));
         SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
                                  registry_.Get(request.header().gallery()));
         batch_ = std::make_unique<TrainBatch>(gallery->NewBatch());
         batch_gallery_ = gallery;
+        descriptor_kind_ = gallery->Snapshot()->shared_descriptor()->spec().kind;
         if (request.header().has_augmentation()) {
           SHAPEID_ASSIGN_OR_RETURN(const AugmentOptions augment,
                                    FromProto(request.header().augmentation()));
@@ -197,6 +216,7 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainRespo
           return absl::InvalidArgumentError(
               absl::StrCat("Train: points after sample ", samples_, " without a SampleHeader"));
         }
+        call().points += PointsIn(request.points().xyz());
         return assembler_.Append(request.points().xyz());
       case v1::TrainRequest::KIND_NOT_SET:
         break;
@@ -214,8 +234,11 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainRespo
     }
     const absl::Time start = absl::Now();
     SHAPEID_RETURN_IF_ERROR(batch_->AddSample(sample_.sample_id(), sample_.label(), *cloud));
-    describe_time_ += absl::Now() - start;
+    const absl::Duration elapsed = absl::Now() - start;
+    observer().Described(call(), descriptor_kind_, elapsed);
+    describe_time_ += elapsed;
     ++samples_;
+    call().samples = samples_;
     return absl::OkStatus();
   }
 
@@ -242,6 +265,7 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainRespo
   int64_t sample_headers_ = 0;
   int64_t samples_ = 0;
   absl::Duration describe_time_;
+  std::string descriptor_kind_;
 };
 
 // Classify's checks on its header, shared by the stream and the one-message call: the
@@ -262,11 +286,15 @@ int NeighboursAsked(const v1::ClassifyHeader& header) {
 }
 
 absl::Status ClassifyInto(const Gallery& gallery, const PointCloud& cloud,
-                          const v1::ClassifyHeader& header, v1::ClassifyResponse* response) {
+                          const v1::ClassifyHeader& header, const CallObserver& observer,
+                          CallRecord& call, v1::ClassifyResponse* response) {
+  const std::shared_ptr<const GallerySnapshot> snapshot = gallery.Snapshot();
   SHAPEID_ASSIGN_OR_RETURN(
       const GalleryClassification answer,
-      gallery.Snapshot()->Classify(cloud, gallery.limits().cloud_limits(), NeighboursAsked(header),
-                                   header.exact() ? SearchMode::kExact : SearchMode::kDefault));
+      snapshot->Classify(cloud, gallery.limits().cloud_limits(), NeighboursAsked(header),
+                         header.exact() ? SearchMode::kExact : SearchMode::kDefault));
+  observer.Described(call, snapshot->shared_descriptor()->spec().kind, answer.describe_time);
+  observer.Searched(call, answer.knn.approximate, answer.search_time);
   ToProto(answer, cloud.size(), response);
   return absl::OkStatus();
 }
@@ -274,9 +302,9 @@ absl::Status ClassifyInto(const Gallery& gallery, const PointCloud& cloud,
 class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest, v1::ClassifyResponse> {
  public:
   ClassifyReactor(grpc::CallbackServerContext* context, CallGate* gate,
-                  const ServiceOptions& options, const GalleryRegistry& registry,
-                  grpc::ByteBuffer* response)
-      : StreamReactor(context, gate, SHAPEID_METHOD(Classify), response),
+                  const CallObserver* observer, const ServiceOptions& options,
+                  const GalleryRegistry& registry, grpc::ByteBuffer* response)
+      : StreamReactor(context, gate, observer, SHAPEID_METHOD(Classify), response),
         registry_(registry),
         assembler_(options.max_points_per_cloud) {
     StartReading();
@@ -288,6 +316,7 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest, v1::Clas
       case v1::ClassifyRequest::kHeader: {
         if (gallery_ != nullptr)
           return absl::InvalidArgumentError("Classify: a second ClassifyHeader");
+        call().gallery = request.header().gallery();
         SHAPEID_ASSIGN_OR_RETURN(gallery_, GalleryToClassify(registry_, request.header()));
         header_ = request.header();
         return assembler_.Start(request.header().expected_points());
@@ -297,6 +326,7 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest, v1::Clas
           return absl::InvalidArgumentError(
               "Classify: the first message must be a ClassifyHeader; points came first");
         }
+        call().points += PointsIn(request.points().xyz());
         return assembler_.Append(request.points().xyz());
       case v1::ClassifyRequest::KIND_NOT_SET:
         break;
@@ -308,7 +338,7 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest, v1::Clas
     if (gallery_ == nullptr)
       return absl::InvalidArgumentError("Classify: the stream ended without a ClassifyHeader");
     SHAPEID_ASSIGN_OR_RETURN(const PointCloud cloud, assembler_.Finish());
-    return ClassifyInto(*gallery_, cloud, header_, response());
+    return ClassifyInto(*gallery_, cloud, header_, observer(), call(), response());
   }
 
   const GalleryRegistry& registry_;
@@ -325,12 +355,17 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest, v1::Clas
 class ExportReactor final : public grpc::ServerWriteReactor<v1::GalleryExportChunk> {
  public:
   ExportReactor(grpc::CallbackServerContext* context, CallGate* gate,
-                const GalleryRegistry& registry, const v1::ExportGalleryRequest& request)
+                const CallObserver* observer, const GalleryRegistry& registry,
+                const v1::ExportGalleryRequest& request)
       : context_(context),
+        observer_(observer),
         max_call_(gate->max_call()),
+        call_(observer->Start(*context, SHAPEID_METHOD(ExportGallery))),
         pass_(gate->Admit(*context, SHAPEID_METHOD(ExportGallery), CallGate::Kind::kStream)) {
+    call_.gallery = request.name();
     if (!pass_.ok()) {
-      Finish(ToGrpcStatus(pass_.status()));
+      final_status_ = ToGrpcStatus(pass_.status());
+      Finish(final_status_);
       return;
     }
     const absl::Status started = Start(registry, request.name());
@@ -349,7 +384,9 @@ class ExportReactor final : public grpc::ServerWriteReactor<v1::GalleryExportChu
   absl::Status Start(const GalleryRegistry& registry, const std::string& name) {
     SHAPEID_RETURN_IF_ERROR(RequireGalleryName("ExportGallery", name));
     SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry.Get(name));
-    exporter_ = std::make_unique<GalleryExporter>(gallery->Snapshot());
+    const std::shared_ptr<const GallerySnapshot> snapshot = gallery->Snapshot();
+    call_.samples = snapshot->num_samples();
+    exporter_ = std::make_unique<GalleryExporter>(snapshot);
     return absl::OkStatus();
   }
 
@@ -374,16 +411,21 @@ class ExportReactor final : public grpc::ServerWriteReactor<v1::GalleryExportChu
   // Finish, with the client's stream slot freed first (CallGate::Pass::ReleaseSlot).
   void End(const grpc::Status& status) {
     pass_->ReleaseSlot();
+    final_status_ = status;
     Finish(status);
   }
 
   void OnDone() override {
     ceiling_.Disarm();
+    observer_->Finish(call_, final_status_);
     delete this;
   }
 
   grpc::CallbackServerContext* const context_;
+  const CallObserver* const observer_;
   const absl::Duration max_call_;
+  CallRecord call_;
+  grpc::Status final_status_;
   absl::StatusOr<CallGate::Pass> pass_;
   absl::Time cut_at_ = absl::InfiniteFuture();
   CeilingAlarm ceiling_;
@@ -396,9 +438,9 @@ class ExportReactor final : public grpc::ServerWriteReactor<v1::GalleryExportChu
 // ends complete and undamaged.
 class ImportReactor final : public StreamReactor<v1::ImportGalleryRequest, v1::Gallery> {
  public:
-  ImportReactor(grpc::CallbackServerContext* context, CallGate* gate, GalleryRegistry& registry,
-                grpc::ByteBuffer* response)
-      : StreamReactor(context, gate, SHAPEID_METHOD(ImportGallery), response),
+  ImportReactor(grpc::CallbackServerContext* context, CallGate* gate, const CallObserver* observer,
+                GalleryRegistry& registry, grpc::ByteBuffer* response)
+      : StreamReactor(context, gate, observer, SHAPEID_METHOD(ImportGallery), response),
         registry_(registry),
         assembler_(registry.limits().max_samples_per_gallery) {
     StartReading();
@@ -408,6 +450,7 @@ class ImportReactor final : public StreamReactor<v1::ImportGalleryRequest, v1::G
   absl::Status OnMessage(const v1::ImportGalleryRequest& request) override {
     if (messages_++ == 0) {
       name_ = request.name();
+      call().gallery = name_;
       if (!request.has_chunk() && !name_.empty()) return absl::OkStatus();  // a name alone
     } else if (!request.name().empty() && request.name() != name_) {
       return absl::InvalidArgumentError(
@@ -420,6 +463,8 @@ class ImportReactor final : public StreamReactor<v1::ImportGalleryRequest, v1::G
   absl::Status OnEnd() override {
     SHAPEID_ASSIGN_OR_RETURN(StoredGallery stored, assembler_.Finish());
     if (!name_.empty()) stored.name = name_;
+    call().gallery = stored.name;
+    call().samples = static_cast<int64_t>(stored.samples.size());
     SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry_.Import(std::move(stored)));
     ToProto(*gallery->Snapshot(), response());
     return absl::OkStatus();
@@ -435,17 +480,17 @@ class ImportReactor final : public StreamReactor<v1::ImportGalleryRequest, v1::G
 
 grpc::ServerReadReactor<grpc::ByteBuffer>* ShapeIdService::Describe(
     grpc::CallbackServerContext* context, grpc::ByteBuffer* response) {
-  return new DescribeReactor(context, &gate_, options_, *registry_, response);
+  return new DescribeReactor(context, &gate_, &observer_, options_, *registry_, response);
 }
 
 grpc::ServerReadReactor<grpc::ByteBuffer>* ShapeIdService::Train(
     grpc::CallbackServerContext* context, grpc::ByteBuffer* response) {
-  return new TrainReactor(context, &gate_, options_, *registry_, response);
+  return new TrainReactor(context, &gate_, &observer_, options_, *registry_, response);
 }
 
 grpc::ServerReadReactor<grpc::ByteBuffer>* ShapeIdService::Classify(
     grpc::CallbackServerContext* context, grpc::ByteBuffer* response) {
-  return new ClassifyReactor(context, &gate_, options_, *registry_, response);
+  return new ClassifyReactor(context, &gate_, &observer_, options_, *registry_, response);
 }
 
 absl::StatusOr<PointCloud> ShapeIdService::CloudInOneMessage(uint64_t expected_points,
@@ -461,14 +506,17 @@ grpc::ServerUnaryReactor* ShapeIdService::DescribeCloud(grpc::CallbackServerCont
                                                         const grpc::ByteBuffer* raw_request,
                                                         grpc::ByteBuffer* raw_response) {
   return Unary<v1::DescribeCloudRequest, v1::DescribeResponse>(
-      context, gate_, SHAPEID_METHOD(DescribeCloud), raw_request, raw_response,
-      [&](const v1::DescribeCloudRequest& request, v1::DescribeResponse* response) -> absl::Status {
+      context, gate_, observer_, SHAPEID_METHOD(DescribeCloud), raw_request, raw_response,
+      [&](const v1::DescribeCloudRequest& request, v1::DescribeResponse* response,
+          CallRecord& call) -> absl::Status {
+        call.gallery = request.header().gallery();
+        call.points = PointsIn(request.points().xyz());
         SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<const Descriptor> descriptor,
                                  DescriptorToUse(request.header(), options_, *registry_));
         SHAPEID_ASSIGN_OR_RETURN(
             const PointCloud cloud,
             CloudInOneMessage(request.header().expected_points(), request.points().xyz()));
-        return DescribeInto(*descriptor, cloud, response);
+        return DescribeInto(*descriptor, cloud, observer_, call, response);
       });
 }
 
@@ -476,8 +524,11 @@ grpc::ServerUnaryReactor* ShapeIdService::ClassifyCloud(grpc::CallbackServerCont
                                                         const grpc::ByteBuffer* raw_request,
                                                         grpc::ByteBuffer* raw_response) {
   return Unary<v1::ClassifyCloudRequest, v1::ClassifyResponse>(
-      context, gate_, SHAPEID_METHOD(ClassifyCloud), raw_request, raw_response,
-      [&](const v1::ClassifyCloudRequest& request, v1::ClassifyResponse* response) -> absl::Status {
+      context, gate_, observer_, SHAPEID_METHOD(ClassifyCloud), raw_request, raw_response,
+      [&](const v1::ClassifyCloudRequest& request, v1::ClassifyResponse* response,
+          CallRecord& call) -> absl::Status {
+        call.gallery = request.header().gallery();
+        call.points = PointsIn(request.points().xyz());
         if (!request.has_header()) {
           return absl::InvalidArgumentError("ClassifyCloud: the request has no header");
         }
@@ -486,7 +537,7 @@ grpc::ServerUnaryReactor* ShapeIdService::ClassifyCloud(grpc::CallbackServerCont
         SHAPEID_ASSIGN_OR_RETURN(
             const PointCloud cloud,
             CloudInOneMessage(request.header().expected_points(), request.points().xyz()));
-        return ClassifyInto(*gallery, cloud, request.header(), response);
+        return ClassifyInto(*gallery, cloud, request.header(), observer_, call, response);
       });
 }
 
@@ -494,8 +545,10 @@ grpc::ServerUnaryReactor* ShapeIdService::CreateGallery(grpc::CallbackServerCont
                                                         const grpc::ByteBuffer* raw_request,
                                                         grpc::ByteBuffer* raw_response) {
   return Unary<v1::CreateGalleryRequest, v1::Gallery>(
-      context, gate_, SHAPEID_METHOD(CreateGallery), raw_request, raw_response,
-      [&](const v1::CreateGalleryRequest& request, v1::Gallery* response) -> absl::Status {
+      context, gate_, observer_, SHAPEID_METHOD(CreateGallery), raw_request, raw_response,
+      [&](const v1::CreateGalleryRequest& request, v1::Gallery* response,
+          CallRecord& call) -> absl::Status {
+        call.gallery = request.name();
         SHAPEID_ASSIGN_OR_RETURN(const GalleryOptions options, GalleryOptionsFromProto(request));
         SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
                                  registry_->Create(request.name(), options));
@@ -508,8 +561,10 @@ grpc::ServerUnaryReactor* ShapeIdService::GetGallery(grpc::CallbackServerContext
                                                      const grpc::ByteBuffer* raw_request,
                                                      grpc::ByteBuffer* raw_response) {
   return Unary<v1::GetGalleryRequest, v1::Gallery>(
-      context, gate_, SHAPEID_METHOD(GetGallery), raw_request, raw_response,
-      [&](const v1::GetGalleryRequest& request, v1::Gallery* response) -> absl::Status {
+      context, gate_, observer_, SHAPEID_METHOD(GetGallery), raw_request, raw_response,
+      [&](const v1::GetGalleryRequest& request, v1::Gallery* response,
+          CallRecord& call) -> absl::Status {
+        call.gallery = request.name();
         SHAPEID_RETURN_IF_ERROR(RequireGalleryName("GetGallery", request.name()));
         SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
                                  registry_->Get(request.name()));
@@ -522,9 +577,9 @@ grpc::ServerUnaryReactor* ShapeIdService::ListGalleries(grpc::CallbackServerCont
                                                         const grpc::ByteBuffer* raw_request,
                                                         grpc::ByteBuffer* raw_response) {
   return Unary<v1::ListGalleriesRequest, v1::ListGalleriesResponse>(
-      context, gate_, SHAPEID_METHOD(ListGalleries), raw_request, raw_response,
-      [&](const v1::ListGalleriesRequest& /*request*/,
-          v1::ListGalleriesResponse* response) -> absl::Status {
+      context, gate_, observer_, SHAPEID_METHOD(ListGalleries), raw_request, raw_response,
+      [&](const v1::ListGalleriesRequest& /*request*/, v1::ListGalleriesResponse* response,
+          CallRecord& /*call*/) -> absl::Status {
         for (const std::string& name : registry_->List()) {
           auto gallery = registry_->Get(name);
           if (!gallery.ok()) continue;  // deleted since List: not an error for the caller
@@ -538,15 +593,17 @@ grpc::ServerUnaryReactor* ShapeIdService::DeleteGallery(grpc::CallbackServerCont
                                                         const grpc::ByteBuffer* raw_request,
                                                         grpc::ByteBuffer* raw_response) {
   return Unary<v1::DeleteGalleryRequest, v1::DeleteGalleryResponse>(
-      context, gate_, SHAPEID_METHOD(DeleteGallery), raw_request, raw_response,
-      [&](const v1::DeleteGalleryRequest& request,
-          v1::DeleteGalleryResponse* response) -> absl::Status {
+      context, gate_, observer_, SHAPEID_METHOD(DeleteGallery), raw_request, raw_response,
+      [&](const v1::DeleteGalleryRequest& request, v1::DeleteGalleryResponse* response,
+          CallRecord& call) -> absl::Status {
+        call.gallery = request.name();
         SHAPEID_RETURN_IF_ERROR(RequireGalleryName("DeleteGallery", request.name()));
         SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
                                  registry_->Get(request.name()));
         const int64_t samples = gallery->Snapshot()->num_samples();
         SHAPEID_RETURN_IF_ERROR(registry_->Delete(request.name()));
         response->set_samples_deleted(static_cast<uint64_t>(samples));
+        call.samples = samples;
         return absl::OkStatus();
       });
 }
@@ -555,9 +612,10 @@ grpc::ServerUnaryReactor* ShapeIdService::RemoveSamples(grpc::CallbackServerCont
                                                         const grpc::ByteBuffer* raw_request,
                                                         grpc::ByteBuffer* raw_response) {
   return Unary<v1::RemoveSamplesRequest, v1::RemoveSamplesResponse>(
-      context, gate_, SHAPEID_METHOD(RemoveSamples), raw_request, raw_response,
-      [&](const v1::RemoveSamplesRequest& request,
-          v1::RemoveSamplesResponse* response) -> absl::Status {
+      context, gate_, observer_, SHAPEID_METHOD(RemoveSamples), raw_request, raw_response,
+      [&](const v1::RemoveSamplesRequest& request, v1::RemoveSamplesResponse* response,
+          CallRecord& call) -> absl::Status {
+        call.gallery = request.gallery();
         SHAPEID_RETURN_IF_ERROR(RequireGalleryName("RemoveSamples", request.gallery()));
         SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
                                  registry_->Get(request.gallery()));
@@ -579,6 +637,7 @@ grpc::ServerUnaryReactor* ShapeIdService::RemoveSamples(grpc::CallbackServerCont
         const std::vector<uint64_t> all(ids.begin(), ids.end());
         SHAPEID_ASSIGN_OR_RETURN(const int64_t removed, gallery->RemoveSamples(all));
         response->set_removed(static_cast<uint64_t>(removed));
+        call.samples = removed;
         response->set_remaining(static_cast<uint64_t>(gallery->Snapshot()->num_samples()));
         return absl::OkStatus();
       });
@@ -586,21 +645,21 @@ grpc::ServerUnaryReactor* ShapeIdService::RemoveSamples(grpc::CallbackServerCont
 
 grpc::ServerWriteReactor<v1::GalleryExportChunk>* ShapeIdService::ExportGallery(
     grpc::CallbackServerContext* context, const v1::ExportGalleryRequest* request) {
-  return new ExportReactor(context, &gate_, *registry_, *request);
+  return new ExportReactor(context, &gate_, &observer_, *registry_, *request);
 }
 
 grpc::ServerReadReactor<grpc::ByteBuffer>* ShapeIdService::ImportGallery(
     grpc::CallbackServerContext* context, grpc::ByteBuffer* response) {
-  return new ImportReactor(context, &gate_, *registry_, response);
+  return new ImportReactor(context, &gate_, &observer_, *registry_, response);
 }
 
 grpc::ServerUnaryReactor* ShapeIdService::ListDescriptors(grpc::CallbackServerContext* context,
                                                           const grpc::ByteBuffer* raw_request,
                                                           grpc::ByteBuffer* raw_response) {
   return Unary<v1::ListDescriptorsRequest, v1::ListDescriptorsResponse>(
-      context, gate_, SHAPEID_METHOD(ListDescriptors), raw_request, raw_response,
-      [&](const v1::ListDescriptorsRequest& /*request*/,
-          v1::ListDescriptorsResponse* response) -> absl::Status {
+      context, gate_, observer_, SHAPEID_METHOD(ListDescriptors), raw_request, raw_response,
+      [&](const v1::ListDescriptorsRequest& /*request*/, v1::ListDescriptorsResponse* response,
+          CallRecord& /*call*/) -> absl::Status {
         for (const DescriptorKind& kind : RegisteredDescriptors()) {
           v1::DescriptorKind* out = response->add_descriptors();
           out->set_kind(kind.kind);
@@ -616,6 +675,83 @@ grpc::ServerUnaryReactor* ShapeIdService::ListDescriptors(grpc::CallbackServerCo
           out->set_default_spec(defaults->spec().ToString());
           out->set_default_dimension(static_cast<uint32_t>(defaults->dimension()));
         }
+        return absl::OkStatus();
+      });
+}
+
+grpc::ServerUnaryReactor* ShapeIdService::GetServerStats(grpc::CallbackServerContext* context,
+                                                         const grpc::ByteBuffer* raw_request,
+                                                         grpc::ByteBuffer* raw_response) {
+  return Unary<v1::GetServerStatsRequest, v1::ServerStats>(
+      context, gate_, observer_, SHAPEID_METHOD(GetServerStats), raw_request, raw_response,
+      [&](const v1::GetServerStatsRequest& /*request*/, v1::ServerStats* response,
+          CallRecord& /*call*/) -> absl::Status {
+        response->set_version(kShapeidVersion);
+        ToProto(absl::Now() - description_.started, response->mutable_uptime());
+        response->set_state(CallTracker::StateName(gate_.tracker().state()));
+        // Not counting this call itself.
+        response->set_calls_in_flight(std::max<int64_t>(0, gate_.tracker().in_flight() - 1));
+        if (const ServerMetrics* metrics = observer_.metrics()) {
+          for (const MethodSummary& summary : metrics->MethodSummaries()) {
+            v1::MethodStats* method = response->add_methods();
+            method->set_method(summary.method);
+            method->set_calls(summary.calls);
+            method->set_errors(summary.errors);
+            if (summary.p50) ToProto(*summary.p50, method->mutable_latency_p50());
+            if (summary.p99) ToProto(*summary.p99, method->mutable_latency_p99());
+          }
+          response->set_points_received(metrics->points_received());
+        }
+        std::vector<v1::GalleryStats> galleries;
+        uint64_t samples = 0;
+        for (const std::string& name : registry_->List()) {
+          const absl::StatusOr<std::shared_ptr<Gallery>> gallery = registry_->Get(name);
+          if (!gallery.ok()) continue;  // deleted since List
+          const std::shared_ptr<const GallerySnapshot> snapshot = (*gallery)->Snapshot();
+          v1::GalleryStats& stats = galleries.emplace_back();
+          stats.set_name(name);
+          stats.set_samples(static_cast<uint64_t>(snapshot->num_samples()));
+          stats.set_version(snapshot->version());
+          samples += stats.samples();
+        }
+        std::stable_sort(galleries.begin(), galleries.end(),
+                         [](const v1::GalleryStats& a, const v1::GalleryStats& b) {
+                           return a.samples() > b.samples();
+                         });
+        for (v1::GalleryStats& stats : galleries) *response->add_galleries() = std::move(stats);
+        response->set_samples(samples);
+        if (const absl::StatusOr<ProcessStats> process = ReadProcessStats(); process.ok()) {
+          response->set_resident_memory_bytes(static_cast<uint64_t>(process->resident_bytes));
+        }
+        response->set_store(description_.store.empty() ? "memory" : description_.store);
+        if (const Logger* logger = observer_.logger()) {
+          response->set_log_level(std::string(LogLevelName(logger->level())));
+        }
+        response->set_metrics_address(description_.metrics_address);
+        return absl::OkStatus();
+      });
+}
+
+grpc::ServerUnaryReactor* ShapeIdService::SetLogLevel(grpc::CallbackServerContext* context,
+                                                      const grpc::ByteBuffer* raw_request,
+                                                      grpc::ByteBuffer* raw_response) {
+  return Unary<v1::SetLogLevelRequest, v1::SetLogLevelResponse>(
+      context, gate_, observer_, SHAPEID_METHOD(SetLogLevel), raw_request, raw_response,
+      [&](const v1::SetLogLevelRequest& request, v1::SetLogLevelResponse* response,
+          CallRecord& call) -> absl::Status {
+        SHAPEID_ASSIGN_OR_RETURN(const LogLevel level, ParseLogLevel(request.level()));
+        Logger* logger = observer_.logger();
+        if (logger == nullptr) {
+          return absl::FailedPreconditionError("SetLogLevel: this service keeps no log");
+        }
+        const LogLevel previous = logger->SetLevel(level);
+        // A warning, so that the change shows at every level but error.
+        logger->Warning("log level changed", {{"from", LogLevelName(previous)},
+                                              {"to", LogLevelName(level)},
+                                              {"peer", call.peer},
+                                              {"request_id", call.request_id}});
+        response->set_previous_level(std::string(LogLevelName(previous)));
+        response->set_level(std::string(LogLevelName(level)));
         return absl::OkStatus();
       });
 }

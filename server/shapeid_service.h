@@ -10,6 +10,7 @@
 #include "core/point_cloud.h"
 #include "server/api_keys.h"
 #include "server/call_gate.h"
+#include "server/call_observer.h"
 #include "server/service_options.h"
 #include "server/stream_reactor.h"
 #include "shapeid/v1/shapeid.grpc.pb.h"
@@ -32,7 +33,9 @@ using ShapeIdRawService =
                                 v1::ShapeId::WithRawCallbackMethod_RemoveSamples<
                                     v1::ShapeId::WithRawCallbackMethod_ImportGallery<
                                         v1::ShapeId::WithRawCallbackMethod_ListDescriptors<
-                                            v1::ShapeId::CallbackService>>>>>>>>>>>>;
+                                            v1::ShapeId::WithRawCallbackMethod_GetServerStats<
+                                                v1::ShapeId::WithRawCallbackMethod_SetLogLevel<
+                                                    v1::ShapeId::CallbackService>>>>>>>>>>>>>>;
 
 // The gRPC edge of shapeid: each method turns its messages into calls on core/ (descriptors,
 // the gallery registry) and the result into one status through ToGrpcStatus
@@ -43,14 +46,25 @@ using ShapeIdRawService =
 //
 // Every call passes the call gate first (server/call_gate.h): with `keys` non-empty, its API
 // key must cover the method's scope (server/authorization.h); streams are counted per client
-// and ended at the ceiling of `options`.
+// and ended at the ceiling of `options`. Every call, admitted or not, is reported once to the
+// observer when it is answered: a log line and the metrics (server/call_observer.h).
 class ShapeIdService final : public ShapeIdRawService {
  public:
   ShapeIdService(ServiceOptions options, std::shared_ptr<GalleryRegistry> registry,
-                 std::shared_ptr<const ApiKeyStore> keys = nullptr)
+                 std::shared_ptr<const ApiKeyStore> keys = nullptr, CallObserver observer = {})
       : options_(std::move(options)),
         registry_(std::move(registry)),
-        gate_(std::move(keys), options_.max_streams_per_client, options_.max_call) {}
+        gate_(std::move(keys), options_.max_streams_per_client, options_.max_call),
+        observer_(std::move(observer)) {}
+
+  // What GetServerStats reports about the server around the service; set once, before
+  // serving.
+  struct ServerDescription {
+    std::string store;            // "shapeid-data", "PostgreSQL db:5432/shapeid (shared)"
+    std::string metrics_address;  // empty: no endpoint
+    absl::Time started = absl::Now();
+  };
+  void SetDescription(ServerDescription description) { description_ = std::move(description); }
 
   // Client streams: messages v1::DescribeRequest, TrainRequest, ClassifyRequest; answers
   // v1::DescribeResponse, TrainResponse, ClassifyResponse.
@@ -97,6 +111,16 @@ class ShapeIdService final : public ShapeIdRawService {
                                             const grpc::ByteBuffer* raw_request,
                                             grpc::ByteBuffer* raw_response) override;
 
+  // Operations (docs/operations.md): v1::ServerStats from the metrics, the registry and the
+  // call gate; SetLogLevel changes the observer's logger (INVALID_ARGUMENT for an unknown
+  // level; FAILED_PRECONDITION for a service without a logger).
+  grpc::ServerUnaryReactor* GetServerStats(grpc::CallbackServerContext* context,
+                                           const grpc::ByteBuffer* raw_request,
+                                           grpc::ByteBuffer* raw_response) override;
+  grpc::ServerUnaryReactor* SetLogLevel(grpc::CallbackServerContext* context,
+                                        const grpc::ByteBuffer* raw_request,
+                                        grpc::ByteBuffer* raw_response) override;
+
   // Refuses every call with UNAVAILABLE "loading" until StartServing (a new service serves
   // at once; the server holds it while it loads galleries from the store).
   void HoldUntilLoaded() { gate_.tracker().SetState(CallTracker::State::kLoading); }
@@ -109,6 +133,7 @@ class ShapeIdService final : public ShapeIdRawService {
   // Refuses new calls (UNAVAILABLE) from now on; calls already running continue.
   void StartDraining() { gate_.tracker().StartDraining(); }
   int64_t calls_in_flight() const { return gate_.tracker().in_flight(); }
+  bool serving() const { return gate_.tracker().state() == CallTracker::State::kServing; }
 
  private:
   // The cloud of a DescribeCloud or ClassifyCloud request, checked as a stream's would be.
@@ -118,6 +143,8 @@ class ShapeIdService final : public ShapeIdRawService {
   const ServiceOptions options_;
   const std::shared_ptr<GalleryRegistry> registry_;
   CallGate gate_;
+  const CallObserver observer_;
+  ServerDescription description_;
 };
 
 }  // namespace shapeid

@@ -12,6 +12,7 @@
 #include "grpcpp/impl/codegen/proto_utils.h"
 #include "grpcpp/support/byte_buffer.h"
 #include "server/call_gate.h"
+#include "server/call_observer.h"
 #include "server/ceiling_alarm.h"
 #include "server/grpc_status.h"
 
@@ -29,18 +30,22 @@ namespace shapeid {
 // (client gone, deadline passed) ends without calling OnEnd, so a cut Train stream publishes
 // nothing. A stream still reading at the server's ceiling (CallGate::CutOff) is ended
 // DEADLINE_EXCEEDED, also without OnEnd; once OnEnd has started, the call is left to finish with
-// its answer. Deletes itself when gRPC is done with it.
+// its answer. Deletes itself when gRPC is done with it. Every call, refused or not, is reported
+// once to the observer (a log line, the metrics) with the status it is finished with.
 template <typename Request, typename Response>
 class StreamReactor : public grpc::ServerReadReactor<grpc::ByteBuffer> {
  public:
   // `method` is the full name ("/shapeid.v1.ShapeId/Train"); `response` is where gRPC takes
   // the serialised answer from.
-  StreamReactor(grpc::CallbackServerContext* context, CallGate* gate, absl::string_view method,
+  StreamReactor(grpc::CallbackServerContext* context, CallGate* gate,
+                const CallObserver* observer, absl::string_view method,
                 grpc::ByteBuffer* response)
       : context_(context),
         gate_(gate),
+        observer_(observer),
         method_(method.substr(method.rfind('/') + 1)),
         raw_response_(response),
+        call_(observer->Start(*context, method)),
         pass_(gate->Admit(*context, method, CallGate::Kind::kStream)) {}
 
   // Call once, at the end of the derived constructor: starts reading, or refuses the call.
@@ -62,6 +67,9 @@ class StreamReactor : public grpc::ServerReadReactor<grpc::ByteBuffer> {
   // Fills response() when the stream ends well.
   virtual absl::Status OnEnd() = 0;
   Response* response() { return &response_; }
+  // What the call reports when it ends: derived reactors fill in gallery, points, samples.
+  CallRecord& call() { return call_; }
+  const CallObserver& observer() const { return *observer_; }
 
  private:
   enum class State { kReading, kEnding, kFinished };
@@ -76,6 +84,7 @@ class StreamReactor : public grpc::ServerReadReactor<grpc::ByteBuffer> {
       status =
           grpc::SerializationTraits<Response>::Serialize(response_, raw_response_, &own_buffer);
     }
+    final_status_ = status;
     this->Finish(status);
   }
 
@@ -130,13 +139,18 @@ class StreamReactor : public grpc::ServerReadReactor<grpc::ByteBuffer> {
 
   void OnDone() override {
     ceiling_.Disarm();
+    // Reported here, not at Finish: the ceiling may finish the call while OnMessage is still
+    // filling in call_, and OnDone runs after every other reaction.
+    observer_->Finish(call_, final_status_);
     delete this;  // releases the pass: out of the in-flight count, the stream slot free
   }
 
   grpc::CallbackServerContext* const context_;
   CallGate* const gate_;
+  const CallObserver* const observer_;
   const absl::string_view method_;  // "Train", for messages
   grpc::ByteBuffer* const raw_response_;
+  CallRecord call_;  // before pass_: a refused call is reported too
   absl::StatusOr<CallGate::Pass> pass_;
   CeilingAlarm ceiling_;
   std::mutex mu_;
@@ -145,6 +159,7 @@ class StreamReactor : public grpc::ServerReadReactor<grpc::ByteBuffer> {
   Request request_;
   int64_t messages_ = 0;
   Response response_;
+  grpc::Status final_status_;
 };
 
 }  // namespace shapeid

@@ -26,8 +26,13 @@ packages=(
   # the shared gallery store for several replicas (server/storage/postgres_gallery_store.cc):
   # libpq, PostgreSQL's own C client
   libpq-dev
+  # Prometheus metrics (server/metrics.cc): prometheus-cpp's registry, text format and /metrics
+  # HTTP endpoint
+  prometheus-cpp-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
+  # the operations test parses the server's JSON log lines and /metrics with a real JSON parser
+  nlohmann-json3-dev
   # the scale-out tests start a private PostgreSQL server (server/storage/testing/postgres_instance.h)
   postgresql
   # the security tests make their certificates with the openssl CLI (tests/make_test_certificates.sh)

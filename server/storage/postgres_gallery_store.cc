@@ -235,7 +235,9 @@ absl::StatusOr<std::unique_ptr<PostgresGalleryStore>> PostgresGalleryStore::Open
 
 PostgresGalleryStore::PostgresGalleryStore(PostgresGalleryStoreOptions options,
                                            std::unique_ptr<Pool> pool)
-    : options_(std::move(options)), pool_(std::move(pool)) {}
+    : options_(std::move(options)),
+      pool_(std::move(pool)),
+      logger_(options_.logger != nullptr ? options_.logger : std::make_shared<const Logger>()) {}
 
 PostgresGalleryStore::~PostgresGalleryStore() { StopFollowing(); }
 
@@ -570,11 +572,10 @@ absl::Status PostgresGalleryStore::ApplyPending(PgConnection& c) {
       // restore) must not stop the log for every other gallery: said, and passed.
       if (absl::IsUnavailable(applied) || c.InFailedTransaction()) return applied;
       if (!applied.ok()) {
-        std::fprintf(stderr,
-                     "shapeid-server: ERROR: gallery '%s': change %lld cannot be applied, this "
-                     "replica's copy may differ from the store until it restarts: %s\n",
-                     change.gallery.c_str(), static_cast<long long>(change.seq),
-                     applied.ToString().c_str());
+        logger_->Error(
+            "a change cannot be applied; this replica's copy may differ from the store until "
+            "it restarts",
+            {{"gallery", change.gallery}, {"seq", change.seq}, {"error", applied.ToString()}});
       }
       applied_seq_ = change.seq;
     }
@@ -643,9 +644,9 @@ absl::Status PostgresGalleryStore::ApplyOne(PgConnection& c, const Change& chang
   // Missed changes (a gap in the versions), or a copy that no longer matches the log (a
   // duplicate or absent id): the store is the truth, so read the gallery whole. Never leave
   // the change unapplied: the log would stop here and the replica with it.
-  std::fprintf(stderr, "shapeid-server: gallery '%s': change %lld did not apply (%s); reloading it\n",
-               change.gallery.c_str(), static_cast<long long>(change.seq),
-               applied.ToString().c_str());
+  logger_->Warning("a change did not apply; reloading the gallery",
+                   {{"gallery", change.gallery}, {"seq", change.seq},
+                    {"error", applied.ToString()}});
   return Reload(c, change.gallery);
 }
 
@@ -676,6 +677,7 @@ void PostgresGalleryStore::StartFollowing(GalleryRegistry* registry,
 void PostgresGalleryStore::SetReachable(bool reachable) {
   if (reachable == reachable_) return;
   reachable_ = reachable;
+  reachable_now_.store(reachable);
   if (reachable_callback_) reachable_callback_(reachable);
 }
 
@@ -738,12 +740,12 @@ void PostgresGalleryStore::Follow() {
       if (!synced.ok() && synced.ToString() != last_error) {
         // Once per distinct error: a replica that cannot apply the log says why.
         last_error = synced.ToString();
-        std::fprintf(stderr, "shapeid-server: cannot apply other replicas' changes: %s\n",
-                     last_error.c_str());
+        logger_->Error("cannot apply other replicas' changes", {{"error", last_error}});
       }
       if (synced.ok()) {
         last_error.clear();
         last_ok = absl::Now();
+        last_sync_nanos_.store(absl::ToUnixNanos(last_ok));
         // Twice per bound: a healthy replica always has a success younger than `refresh`, so
         // the check below never flaps between polls.
         next_poll = last_ok + options_.refresh / 2;

@@ -18,6 +18,7 @@
 #include "absl/time/time.h"
 #include "core/gallery/gallery_registry.h"
 #include "core/gallery/gallery_store.h"
+#include "server/logger.h"
 #include "server/storage/pg_connection.h"
 
 namespace shapeid {
@@ -34,6 +35,9 @@ struct PostgresGalleryStoreOptions {
   absl::Duration refresh = absl::Seconds(1);
   // Connections for writes and catch-up reads (the follower has its own); at least 2.
   int pool_size = 4;
+  // Where the follower reports changes it could not apply and lost connections; null: a
+  // text logger on stderr.
+  std::shared_ptr<const Logger> logger;
 };
 
 // Galleries in PostgreSQL, shared by any number of shapeid-server replicas (issue 11). Each
@@ -100,6 +104,10 @@ class PostgresGalleryStore final : public GalleryStore {
   // Changes applied from other replicas, and the last time a change was applied or the log
   // was found up to date (tests, metrics).
   int64_t changes_applied() const { return changes_applied_.load(); }
+  // Whether the follower reaches PostgreSQL within the bound, and when it last read the log
+  // to its end (metrics: how stale this replica may be). Before StartFollowing: true, now.
+  bool reachable() const { return reachable_now_.load(); }
+  absl::Time last_sync() const { return absl::FromUnixNanos(last_sync_nanos_.load()); }
 
  private:
   struct Change;
@@ -149,6 +157,9 @@ class PostgresGalleryStore final : public GalleryStore {
   std::function<void(bool)> reachable_callback_;
   bool reachable_ = true;  // follower thread only
   std::atomic<int64_t> changes_applied_{0};
+  std::atomic<bool> reachable_now_{true};
+  std::atomic<int64_t> last_sync_nanos_{absl::ToUnixNanos(absl::Now())};
+  std::shared_ptr<const Logger> logger_;
 
   std::mutex stop_mu_;
   std::condition_variable stop_cv_;

@@ -57,7 +57,7 @@ class PostgresGalleryStoreTest : public ::testing::Test {
   }
 
   std::unique_ptr<PostgresGalleryStore> Open(absl::Duration refresh = absl::Milliseconds(200)) {
-    auto store = PostgresGalleryStore::Open({conninfo_, refresh, 4});
+    auto store = PostgresGalleryStore::Open({conninfo_, refresh, 4, nullptr});
     EXPECT_TRUE(store.ok()) << store.status();
     return store.ok() ? *std::move(store) : nullptr;
   }
