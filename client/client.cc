@@ -11,6 +11,8 @@
 #include <thread>
 #include <utility>
 
+#include "absl/strings/ascii.h"
+#include "absl/strings/escaping.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "client/channel_target.h"
@@ -175,6 +177,23 @@ absl::Status FromGrpcStatus(const grpc::Status& status) {
   return absl::Status(static_cast<absl::StatusCode>(status.error_code()), status.error_message());
 }
 
+absl::Status CheckRequestId(absl::string_view id) {
+  constexpr char kRule[] = "a request id is 1 to 128 characters of A-Z a-z 0-9 . _ : / + = -";
+  if (id.empty() || id.size() > 128) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("the request id has ", id.size(), " characters: ", kRule));
+  }
+  for (char c : id) {
+    if (!absl::ascii_isalnum(static_cast<unsigned char>(c)) &&
+        absl::string_view("._:/+=-").find(c) == absl::string_view::npos) {
+      return absl::InvalidArgumentError(absl::StrCat("the request id \"", absl::CHexEscape(id),
+                                                     "\" holds '", absl::CHexEscape({&c, 1}),
+                                                     "': ", kRule));
+    }
+  }
+  return absl::OkStatus();
+}
+
 absl::StatusOr<std::unique_ptr<Client>> Client::Connect(ClientOptions options) {
   if (options.target.empty()) return absl::InvalidArgumentError("ClientOptions.target is empty");
   if (options.max_attempts < 1) {
@@ -196,6 +215,9 @@ absl::StatusOr<std::unique_ptr<Client>> Client::Connect(ClientOptions options) {
           "the API key holds a space, a line break or another character metadata cannot carry "
           "(a stray newline from a file?)");
     }
+  }
+  if (!options.request_id.empty()) {
+    if (absl::Status id = CheckRequestId(options.request_id); !id.ok()) return id;
   }
   absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = MakeChannel(options);
   if (!channel.ok()) return channel.status();
@@ -227,6 +249,7 @@ absl::Status Client::Call(bool retry, bool corked, const Attempt& attempt,
     grpc::ClientContext context;
     context.set_deadline(absl::ToChronoTime(deadline));
     if (!authorization_.empty()) context.AddMetadata("authorization", authorization_);
+    if (!options_.request_id.empty()) context.AddMetadata("x-request-id", options_.request_id);
     if (corked) context.set_initial_metadata_corked(true);
     status = attempt(context);
     // CANCELLED too: this client cancels only calls it then stops (a failing export sink, an
@@ -429,6 +452,28 @@ absl::StatusOr<std::vector<v1::DescriptorKind>> Client::ListDescriptors() {
   if (!status.ok()) return status;
   return std::vector<v1::DescriptorKind>(response.descriptors().begin(),
                                          response.descriptors().end());
+}
+
+absl::StatusOr<v1::ServerStats> Client::GetServerStats() {
+  v1::ServerStats response;
+  absl::Status status = Call(true, false, [&](grpc::ClientContext& context) {
+    return stub_->GetServerStats(&context, v1::GetServerStatsRequest(), &response);
+  });
+  if (!status.ok()) return status;
+  return response;
+}
+
+absl::StatusOr<v1::SetLogLevelResponse> Client::SetLogLevel(absl::string_view level) {
+  v1::SetLogLevelRequest request;
+  request.set_level(std::string(level));
+  v1::SetLogLevelResponse response;
+  // Retried: a repeated attempt sets the same level again. Its previous_level is then the
+  // new level if the lost attempt had committed; the level itself is right either way.
+  absl::Status status = Call(true, false, [&](grpc::ClientContext& context) {
+    return stub_->SetLogLevel(&context, request, &response);
+  });
+  if (!status.ok()) return status;
+  return response;
 }
 
 absl::Status Client::ExportGallery(

@@ -27,6 +27,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
 #include "absl/types/span.h"
 #include "client/client_options.h"
 #include "core/point_cloud.h"
@@ -49,7 +50,8 @@ class Client {
   // Checks `options` (InvalidArgument for an empty target, a bad list of endpoints (see
   // ClientOptions::target), an unknown load_balancing, max_attempts < 1, chunk_points < 1,
   // a non-positive deadline, a TLS file that cannot be read or is not PEM, a client
-  // certificate without its key, an API key with characters metadata cannot carry) and
+  // certificate without its key, an API key with characters metadata cannot carry, a
+  // request_id that CheckRequestId refuses) and
   // creates the channel. Touches the network only to look up the host names of a list of
   // endpoints (Unavailable if DNS does not answer): a server that is down, or a TLS
   // handshake that fails, shows up as UNAVAILABLE on the first call.
@@ -130,6 +132,16 @@ class Client {
       const std::function<absl::StatusOr<bool>(v1::GalleryExportChunk*)>& source,
       const std::string& new_name = "");
 
+  // A short live summary of the server that answers (one replica, since it started): calls
+  // and latency by method, galleries, memory, state, log level. Read scope.
+  absl::StatusOr<v1::ServerStats> GetServerStats();
+
+  // Sets the log level of the server that answers (one replica) to `level`, "debug",
+  // "info", "warning" or "error" (anything else: INVALID_ARGUMENT from the server), until it
+  // restarts. Returns the previous level and the new one (after a retried attempt whose
+  // first try was applied but not answered, previous_level is the new level). Admin scope.
+  absl::StatusOr<v1::SetLogLevelResponse> SetLogLevel(absl::string_view level);
+
   // grpc.health.v1 Check of the whole server: OK when it answers SERVING, UNAVAILABLE when
   // it answers anything else or cannot be reached. With replicas, of the one the call
   // reaches: under round_robin only serving ones are, so OK while any replica serves.
@@ -171,6 +183,11 @@ class Client {
 
 // The one conversion of a gRPC status into an absl::Status: same code, same message.
 absl::Status FromGrpcStatus(const grpc::Status& status);
+
+// OK when `id` can be a ClientOptions::request_id: 1 to 128 characters of A-Z a-z 0-9 and
+// . _ : / + = - (what the server keeps; see the proto's header). InvalidArgument otherwise,
+// naming the allowed characters.
+absl::Status CheckRequestId(absl::string_view id);
 
 }  // namespace shapeid
 

@@ -44,8 +44,9 @@ struct ClientOptions {
   // Attempts per call while the server answers UNAVAILABLE or cancels the call (as one that
   // shuts down does to calls it has not started); 1: no retry. Only calls that are safe
   // to repeat are retried: Describe, Classify, GetGallery, ListGalleries, ListDescriptors,
-  // CheckHealth, ExportGallery until its first chunk reached the caller, and Train when every
-  // sample carries a client-chosen id (so a repeated stream cannot add a sample twice).
+  // GetServerStats, SetLogLevel (setting a level twice is setting it once), CheckHealth,
+  // ExportGallery until its first chunk reached the caller, and Train when every sample
+  // carries a client-chosen id (so a repeated stream cannot add a sample twice).
   // CreateGallery, DeleteGallery, RemoveSamples and ImportGallery are sent once.
   //
   // A retried Train may find its first attempt committed after all (the server added the
@@ -85,6 +86,13 @@ struct ClientOptions {
   // Empty: none. Never put in an error message. Over plaintext on a network it can be read
   // by anyone on the path: use TLS.
   std::string api_key;
+
+  // Sent with every call, retries included, as the metadata "x-request-id": the server writes
+  // it in its log line of the call and sends it back, so one id finds every call of a job in
+  // the logs of every replica. 1 to 128 characters of A-Z a-z 0-9 . _ : / + = - (Connect
+  // refuses anything else: the server would replace it). Empty (the default): none is sent,
+  // and the server makes a random id for each call.
+  std::string request_id;
 };
 
 }  // namespace shapeid

@@ -14,6 +14,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "client/channel_target.h"
+#include "client/client_testing.h"
 #include "gmock/gmock.h"
 #include "grpcpp/grpcpp.h"
 #include "gtest/gtest.h"
@@ -22,6 +23,9 @@
 namespace shapeid {
 namespace {
 
+using client_testing::StartFakeServer;
+using ::testing::AllOf;
+using ::testing::ElementsAre;
 using ::testing::HasSubstr;
 
 PointCloud Shape(int kind, uint32_t seed, size_t n = 600) {
@@ -285,15 +289,81 @@ class StreamOnlyService final : public v1::ShapeId::CallbackService {
   }
 };
 
-// A server on a free loopback port serving only `service` (a fake); `*target` is its address.
-std::unique_ptr<grpc::Server> StartFakeServer(grpc::Service* service, std::string* target) {
-  grpc::ServerBuilder builder;
-  int port = 0;
-  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
-  builder.RegisterService(service);
-  std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
-  *target = absl::StrCat("127.0.0.1:", port);
-  return server;
+TEST(ClientOperationsTest, StatsAndLogLevelRoundTrip) {
+  v1::ServerStats stats;
+  stats.set_version("0.12.0");
+  stats.set_state("serving");
+  stats.set_log_level("info");
+  stats.mutable_uptime()->set_seconds(7980);
+  v1::MethodStats* method = stats.add_methods();
+  method->set_method("ClassifyCloud");
+  method->set_calls(1204331);
+  method->mutable_latency_p99()->set_nanos(2400000);
+  v1::GalleryStats* gallery = stats.add_galleries();
+  gallery->set_name("lab");
+  gallery->set_samples(40000);
+  client_testing::FakeOperationsService service(stats);
+  ClientOptions options;
+  std::unique_ptr<grpc::Server> server = StartFakeServer(&service, &options.target);
+  ASSERT_NE(server, nullptr);
+  auto client = Client::Connect(options);
+  ASSERT_TRUE(client.ok()) << client.status();
+
+  absl::StatusOr<v1::ServerStats> got = (*client)->GetServerStats();
+  ASSERT_TRUE(got.ok()) << got.status();
+  EXPECT_EQ(got->SerializeAsString(), stats.SerializeAsString());
+
+  absl::StatusOr<v1::SetLogLevelResponse> set = (*client)->SetLogLevel("warning");
+  ASSERT_TRUE(set.ok()) << set.status();
+  EXPECT_EQ(set->previous_level(), "info");
+  EXPECT_EQ(set->level(), "warning");
+  EXPECT_EQ((*client)->GetServerStats()->log_level(), "warning");
+  const absl::Status bad = (*client)->SetLogLevel("verbose").status();
+  EXPECT_TRUE(absl::IsInvalidArgument(bad)) << bad;
+  // No request id given: none sent (the server makes its own).
+  EXPECT_THAT(service.request_ids(), ElementsAre("", "", "", ""));
+  server->Shutdown();
+}
+
+TEST(ClientOperationsTest, EveryAttemptCarriesTheRequestId) {
+  client_testing::FakeOperationsService service;
+  ClientOptions options;
+  std::unique_ptr<grpc::Server> server = StartFakeServer(&service, &options.target);
+  ASSERT_NE(server, nullptr);
+  options.request_id = "job-42:a/b+c=d_e.f";
+  options.initial_backoff = absl::Milliseconds(1);
+  auto client = Client::Connect(options);
+  ASSERT_TRUE(client.ok()) << client.status();
+  service.RefuseNext(1);  // both calls are retried once: idempotent
+  ASSERT_TRUE((*client)->GetServerStats().ok());
+  service.RefuseNext(1);
+  ASSERT_TRUE((*client)->SetLogLevel("debug").ok());
+  EXPECT_THAT(service.request_ids(), ElementsAre(options.request_id, options.request_id,
+                                                 options.request_id, options.request_id));
+  server->Shutdown();
+}
+
+TEST(ClientOperationsTest, ABadRequestIdIsRefusedNamingTheCharacters) {
+  for (const std::string& id : {std::string("a b"), std::string("id\n"), std::string("caf\xc3\xa9"),
+                                std::string("a,b"), std::string(129, 'x')}) {
+    ClientOptions options;
+    options.request_id = id;
+    const absl::Status status = Client::Connect(options).status();
+    EXPECT_TRUE(absl::IsInvalidArgument(status)) << id << ": " << status;
+    EXPECT_THAT(std::string(status.message()),
+                AllOf(HasSubstr("request id"), HasSubstr("A-Z a-z 0-9 . _ : / + = -")));
+  }
+  EXPECT_EQ(CheckRequestId("a b").message(),
+            "the request id \"a b\" holds ' ': a request id is 1 to 128 characters of A-Z a-z 0-9 "
+            ". _ : / + = -");
+  EXPECT_THAT(std::string(CheckRequestId(std::string(129, 'x')).message()),
+              HasSubstr("has 129 characters"));
+  EXPECT_TRUE(CheckRequestId(std::string(128, 'x')).ok());
+  EXPECT_TRUE(CheckRequestId("cli-0123456789abcdef").ok());
+  EXPECT_FALSE(CheckRequestId("").ok());
+  ClientOptions options;
+  options.request_id = "Build_7.run/3:x+y=z-1";
+  EXPECT_TRUE(Client::Connect(options).ok());
 }
 
 TEST(ClientFallbackTest, AnOlderServerWithoutOneMessageCallsGetsTheStream) {

@@ -2,8 +2,6 @@
 // folders written by the test: what users and scripts rely on (results, formats, exit codes,
 // a batch that keeps going past a bad file, temporary galleries cleaned up, export / import).
 
-#include <unistd.h>
-
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -29,34 +27,12 @@ namespace {
 
 namespace fs = std::filesystem;
 using cli_testing::Captured;
+using cli_testing::PythonOnJsonLines;
 using ::testing::AllOf;
 using ::testing::HasSubstr;
 using ::testing::StartsWith;
 using testing_clouds::kShapeNames;
 using testing_clouds::ShapeCloud;
-
-// JSON Lines output parsed back by Debian's python3, as a script would: returns what the
-// python snippet prints for the parsed list `rows`.
-std::string PythonOnJsonLines(const std::string& text, const std::string& expression) {
-  // One file per process and test: ctest runs the tests of this file in parallel processes.
-  const std::string path =
-      absl::StrCat(::testing::TempDir(), "/cli_json_lines_", ::getpid(), "_",
-                   ::testing::UnitTest::GetInstance()->current_test_info()->name(), ".jsonl");
-  std::ofstream(path, std::ios::binary) << text;
-  const std::string command = absl::StrCat(
-      "/usr/bin/python3 -c 'import json,sys; rows=[json.loads(l) for l in open(sys.argv[1])]; "
-      "print(",
-      expression, ")' ", path, " 2>&1");
-  std::string out;
-  if (std::FILE* pipe = ::popen(command.c_str(), "r")) {
-    char buffer[4096];
-    size_t n;
-    while ((n = std::fread(buffer, 1, sizeof buffer, pipe)) > 0) out.append(buffer, n);
-    ::pclose(pipe);
-  }
-  while (!out.empty() && out.back() == '\n') out.pop_back();
-  return out;
-}
 
 class CliCommandsTest : public ::testing::Test {
  protected:

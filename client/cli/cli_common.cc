@@ -6,7 +6,9 @@
 #include <atomic>
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
+#include <random>
 #include <thread>
 #include <utility>
 
@@ -46,8 +48,10 @@ bool StopsBatch(const absl::Status& status) {
   }
 }
 
-void PrintError(std::FILE* err, absl::string_view what, const absl::Status& status,
-                const std::string& target) {
+namespace {
+
+std::string ErrorLine(absl::string_view what, const absl::Status& status,
+                      const std::string& target) {
   std::string line = absl::StrCat("shapeid: ", what, what.empty() ? "" : ": ", status.message());
   if (absl::IsUnavailable(status) && !target.empty()) {
     absl::StrAppend(&line, " (is shapeid-server running at ", target,
@@ -55,8 +59,31 @@ void PrintError(std::FILE* err, absl::string_view what, const absl::Status& stat
   } else if (absl::IsUnauthenticated(status)) {
     absl::StrAppend(&line, " (give the key in SHAPEID_API_KEY or --api-key-file)");
   }
-  line += '\n';
-  WriteAll(err, line);
+  return line;
+}
+
+}  // namespace
+
+void PrintError(std::FILE* err, absl::string_view what, const absl::Status& status,
+                const std::string& target) {
+  WriteAll(err, ErrorLine(what, status, target) + '\n');
+}
+
+void PrintCallError(const CliContext& context, absl::string_view what, const absl::Status& status) {
+  std::string line = ErrorLine(what, status, context.client.target);
+  if (absl::IsUnimplemented(status)) {
+    absl::StrAppend(&line, " (the server is older than this shapeid and lacks the call)");
+  }
+  if (!context.client.request_id.empty()) {
+    absl::StrAppend(&line, " [request id ", context.client.request_id, "]");
+  }
+  WriteAll(context.err, line + '\n');
+}
+
+std::string NewRequestId() {
+  std::random_device random;
+  const uint64_t bits = (uint64_t{random()} << 32) ^ random();
+  return absl::StrFormat("cli-%016x", bits);
 }
 
 std::unique_ptr<Client> ConnectOrReport(const CliContext& context) {

@@ -52,7 +52,8 @@ struct CliContext {
   ProgressMode progress = ProgressMode::kAuto;
   // target from --server / SHAPEID_SERVER (one server or a comma list of replicas),
   // load_balancing from --load-balancing, deadline from --timeout, TLS from --tls*, the key
-  // from SHAPEID_API_KEY / --api-key-file
+  // from SHAPEID_API_KEY / --api-key-file, request_id from --request-id / SHAPEID_REQUEST_ID
+  // or NewRequestId()
   ClientOptions client;
 };
 
@@ -69,6 +70,14 @@ bool StopsBatch(const absl::Status& status);
 // Writes "shapeid: <what>: <message>\n" to `err`, with a hint for an unreachable server.
 void PrintError(std::FILE* err, absl::string_view what, const absl::Status& status,
                 const std::string& target = "");
+
+// PrintError for a call to the server that failed: the hint names context.client.target (or
+// says that UNIMPLEMENTED means an older server), and the line ends with " [request id ID]"
+// (context.client.request_id, which the server logs) when there is one.
+void PrintCallError(const CliContext& context, absl::string_view what, const absl::Status& status);
+
+// A fresh random request id for one run of the tool: "cli-" and 16 hex digits.
+std::string NewRequestId();
 
 // Connects, mapping a bad option (target, TLS file, API key) to a usage error line. Null and
 // an error line on failure.

@@ -31,6 +31,28 @@ TEST(CliCommonTest, OutputFormats) {
   EXPECT_TRUE(absl::IsInvalidArgument(ParseOutputFormat("xml").status()));
 }
 
+TEST(CliCommonTest, RequestIdsAreRandomAndValid) {
+  const std::string a = NewRequestId(), b = NewRequestId();
+  EXPECT_THAT(a, ::testing::MatchesRegex("cli-[0-9a-f]{16}"));
+  EXPECT_NE(a, b);
+  EXPECT_TRUE(CheckRequestId(a).ok());
+}
+
+TEST(CliCommonTest, ACallErrorEndsWithItsRequestId) {
+  CliContext context;
+  context.err = std::tmpfile();
+  context.client.target = "10.0.0.1:50051";
+  PrintCallError(context, "gallery show parts", absl::NotFoundError("no gallery \"parts\""));
+  context.client.request_id = "cli-0123456789abcdef";
+  PrintCallError(context, "stats", absl::UnavailableError("connection refused"));
+  EXPECT_EQ(Contents(context.err),
+            "shapeid: gallery show parts: no gallery \"parts\"\n"
+            "shapeid: stats: connection refused (is shapeid-server running at 10.0.0.1:50051? set "
+            "--server or SHAPEID_SERVER; a TLS server needs --tls-ca) [request id "
+            "cli-0123456789abcdef]\n");
+  std::fclose(context.err);
+}
+
 TEST(CliCommonTest, ExitCodesSeparateUnreachableFromRefused) {
   EXPECT_EQ(ExitCodeForStatus(absl::OkStatus()), kExitOk);
   EXPECT_EQ(ExitCodeForStatus(absl::UnavailableError("down")), kExitUnreachable);

@@ -2,13 +2,15 @@
 #define SHAPEID_CLIENT_CLI_CLI_TESTING_H_
 
 // Test-only helpers for the CLI's tests: a scratch folder per process and test, a small
-// labelled dataset a classifier gets partly wrong, captured output streams, and eval's JSON
-// output with its timings blanked (the one part that differs from run to run).
+// labelled dataset a classifier gets partly wrong, captured output streams, JSON Lines parsed
+// back by python3, and eval's JSON output with its timings blanked (the one part that differs
+// from run to run).
 
 #include <unistd.h>
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <regex>
 #include <string>
 
@@ -74,6 +76,29 @@ class Captured {
  private:
   std::FILE* file_;
 };
+
+// JSON Lines output parsed back by Debian's python3, as a script would: returns what the
+// python snippet prints for the parsed list `rows`.
+inline std::string PythonOnJsonLines(const std::string& text, const std::string& expression) {
+  // One file per process and test: ctest runs the tests of a file in parallel processes.
+  const std::string path =
+      absl::StrCat(::testing::TempDir(), "/cli_json_lines_", ::getpid(), "_",
+                   ::testing::UnitTest::GetInstance()->current_test_info()->name(), ".jsonl");
+  std::ofstream(path, std::ios::binary) << text;
+  const std::string command = absl::StrCat(
+      "/usr/bin/python3 -c 'import json,sys; rows=[json.loads(l) for l in open(sys.argv[1])]; "
+      "print(",
+      expression, ")' ", path, " 2>&1");
+  std::string out;
+  if (std::FILE* pipe = ::popen(command.c_str(), "r")) {
+    char buffer[4096];
+    size_t n;
+    while ((n = std::fread(buffer, 1, sizeof buffer, pipe)) > 0) out.append(buffer, n);
+    ::pclose(pipe);
+  }
+  while (!out.empty() && out.back() == '\n') out.pop_back();
+  return out;
+}
 
 // `json` with every "...seconds" value replaced by 0: what two equal evaluations share.
 inline std::string WithoutTimes(const std::string& json) {

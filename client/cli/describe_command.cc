@@ -134,7 +134,7 @@ int RunDescribe(const DescribeOptions& options, const CliContext& context) {
       if (!response.ok() && StopsBatch(response.status())) {
         progress.Finish();
         std::fflush(out);
-        PrintError(err, "describe", response.status(), context.client.target);
+        PrintCallError(context, "describe", response.status());
         return ExitCodeForStatus(response.status());
       }
       status = response.status();

@@ -79,7 +79,11 @@ int RunEval(const EvalOptions& options, const CliContext& context) {
     if (backend == nullptr) return kExitUsage;
   }
   const auto stopped = [&](const EvalStep& step) {
-    PrintError(context.err, step.what, step.status, backend->target());
+    if (backend->target().empty()) {  // in-process: no call to name
+      PrintError(context.err, step.what, step.status);
+    } else {
+      PrintCallError(context, step.what, step.status);
+    }
     return ExitCodeForStatus(step.status);
   };
 

@@ -192,8 +192,7 @@ int RunGalleryCreate(const GalleryCreateOptions& options, const CliContext& cont
     gallery = client->GetGallery(options.name);
   }
   if (!gallery.ok()) {
-    PrintError(context.err, absl::StrCat("gallery create ", options.name), gallery.status(),
-               context.client.target);
+    PrintCallError(context, absl::StrCat("gallery create ", options.name), gallery.status());
     return ExitCodeForStatus(gallery.status());
   }
   if (context.format == OutputFormat::kJson)
@@ -207,7 +206,7 @@ int RunGalleryList(const CliContext& context) {
   if (client == nullptr) return kExitUsage;
   absl::StatusOr<std::vector<v1::Gallery>> galleries = client->ListGalleries();
   if (!galleries.ok()) {
-    PrintError(context.err, "gallery list", galleries.status(), context.client.target);
+    PrintCallError(context, "gallery list", galleries.status());
     return ExitCodeForStatus(galleries.status());
   }
   if (context.format == OutputFormat::kJson) {
@@ -225,8 +224,7 @@ int RunGalleryShow(const std::string& name, const CliContext& context) {
   if (client == nullptr) return kExitUsage;
   absl::StatusOr<v1::Gallery> gallery = client->GetGallery(name);
   if (!gallery.ok()) {
-    PrintError(context.err, absl::StrCat("gallery show ", name), gallery.status(),
-               context.client.target);
+    PrintCallError(context, absl::StrCat("gallery show ", name), gallery.status());
     return ExitCodeForStatus(gallery.status());
   }
   return PrintGallery(*gallery, context);
@@ -238,8 +236,7 @@ int RunGalleryDelete(const std::string& name, bool missing_ok, const CliContext&
   absl::StatusOr<uint64_t> deleted = client->DeleteGallery(name);
   if (!deleted.ok() && missing_ok && absl::IsNotFound(deleted.status())) deleted = 0;
   if (!deleted.ok()) {
-    PrintError(context.err, absl::StrCat("gallery delete ", name), deleted.status(),
-               context.client.target);
+    PrintCallError(context, absl::StrCat("gallery delete ", name), deleted.status());
     return ExitCodeForStatus(deleted.status());
   }
   std::string text;
@@ -267,8 +264,7 @@ int RunGalleryRemove(const GalleryRemoveOptions& options, const CliContext& cont
   absl::StatusOr<v1::RemoveSamplesResponse> removed =
       client->RemoveSamples(options.name, options.sample_ids, options.labels);
   if (!removed.ok()) {
-    PrintError(context.err, absl::StrCat("gallery remove ", options.name), removed.status(),
-               context.client.target);
+    PrintCallError(context, absl::StrCat("gallery remove ", options.name), removed.status());
     return ExitCodeForStatus(removed.status());
   }
   std::string text;
@@ -314,7 +310,7 @@ int RunGalleryExport(const std::string& name, const std::string& file, const Cli
     return kExitSomeInputsFailed;
   }
   if (!status.ok()) {  // `file` is left as it was
-    PrintError(context.err, what, status, context.client.target);
+    PrintCallError(context, what, status);
     return ExitCodeForStatus(status);
   }
   // The summary must not mix with an export written to stdout.
@@ -363,8 +359,8 @@ int RunGalleryImport(const std::string& file, const std::string& new_name,
       new_name);
   if (!gallery.ok()) {
     // A damaged file (DATA_LOSS, from the reader or the server) is a refusal too: exit 4.
-    PrintError(context.err, read_failed ? "gallery import" : absl::StrCat("gallery import ", file),
-               gallery.status(), context.client.target);
+    PrintCallError(context, read_failed ? "gallery import" : absl::StrCat("gallery import ", file),
+                   gallery.status());
     return ExitCodeForStatus(gallery.status());
   }
   return PrintGallery(*gallery, context);
@@ -375,7 +371,7 @@ int RunDescriptors(const CliContext& context) {
   if (client == nullptr) return kExitUsage;
   absl::StatusOr<std::vector<v1::DescriptorKind>> kinds = client->ListDescriptors();
   if (!kinds.ok()) {
-    PrintError(context.err, "descriptors", kinds.status(), context.client.target);
+    PrintCallError(context, "descriptors", kinds.status());
     return ExitCodeForStatus(kinds.status());
   }
   if (context.format == OutputFormat::kJson) {

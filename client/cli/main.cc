@@ -11,6 +11,7 @@
 #include "client/cli/describe_command.h"
 #include "client/cli/eval_command.h"
 #include "client/cli/gallery_commands.h"
+#include "client/cli/operations_commands.h"
 #include "client/cli/train_classify_commands.h"
 #include "client/cli/views_command.h"
 
@@ -21,8 +22,12 @@ constexpr char kMainFooter[] =
     "127.0.0.1:50051). Replicas: a comma list, HOST:PORT,HOST:PORT (names looked up once), or\n"
     "dns:///NAME:PORT for every address of NAME; calls go to each in turn and a call a replica\n"
     "cannot serve is retried on another (--load-balancing pick_first: one at a time). Global\n"
-    "flags (--server, --load-balancing, --timeout, --format, --quiet, --tls*, --api-key-file)\n"
-    "go before or after the command.\n"
+    "flags (--server, --load-balancing, --timeout, --format, --quiet, --tls*, --api-key-file,\n"
+    "--request-id) go before or after the command.\n"
+    "\n"
+    "Request ids: every call of one run carries the same x-request-id, which the server writes\n"
+    "in its log: --request-id ID (SHAPEID_REQUEST_ID), or a random \"cli-\" and 16 hex digits.\n"
+    "A failed call's error line ends with it: [request id ID]; grep the server's log for it.\n"
     "\n"
     "Secure servers (docs/security.md): the API key comes from SHAPEID_API_KEY or\n"
     "--api-key-file (not a flag of its own: command lines are visible to every user of the\n"
@@ -49,6 +54,7 @@ constexpr char kMainFooter[] =
     "  shapeid eval --gallery parts --test dataset/      # dataset/<label>/test/...\n"
     "  shapeid eval --folds 5 --spec rphsd --report report.html dataset/\n"
     "  shapeid describe --local --spec comsd:grid=50 chair.pcd\n"
+    "  shapeid stats                                     # the server's calls, latency, memory\n"
     "Run 'shapeid COMMAND --help' for each command's flags.\n";
 
 // Flags shared by the batch commands.
@@ -148,6 +154,14 @@ int main(int argc, char** argv) {
   app.add_option("--tls-server-name", context.client.tls_server_name,
                  "Name the server's certificate must carry, when not the --server host")
       ->envname("SHAPEID_TLS_SERVER_NAME");
+  app.add_option("--request-id", context.client.request_id,
+                 "Id sent with every call of this run, and logged by the server (default: a "
+                 "random cli-XXXXXXXXXXXXXXXX)")
+      ->envname("SHAPEID_REQUEST_ID")
+      ->check([](const std::string& id) {
+        const absl::Status status = shapeid::CheckRequestId(id);
+        return status.ok() ? std::string() : std::string(status.message());
+      });
 
   // describe
   shapeid::DescribeOptions describe;
@@ -218,6 +232,15 @@ int main(int argc, char** argv) {
   CLI::App* health_cmd =
       app.add_subcommand("health", "Check that the server is serving (exit 0) or not (exit 3)");
   health_cmd->fallthrough();
+
+  CLI::App* stats_cmd = app.add_subcommand(
+      "stats", "The server's live summary: state, memory, calls and latency, galleries");
+  stats_cmd->fallthrough();
+  std::string log_level;
+  CLI::App* log_level_cmd = app.add_subcommand(
+      "log-level", "Set the server's log level until it restarts (admin key on secure servers)");
+  log_level_cmd->fallthrough();
+  log_level_cmd->add_option("LEVEL", log_level, "debug, info, warning or error")->required();
 
   // train
   shapeid::TrainOptions train;
@@ -312,6 +335,8 @@ int main(int argc, char** argv) {
   context.format = *shapeid::ParseOutputFormat(format);  // checked by IsMember above
   context.progress = quiet ? shapeid::ProgressMode::kOff : shapeid::ProgressMode::kAuto;
   context.client.deadline = absl::Seconds(timeout_seconds);
+  // One id for every call of this run, so that the server's log lines of a batch share it.
+  if (context.client.request_id.empty()) context.client.request_id = shapeid::NewRequestId();
   // The key: from the environment only, or from a file; never echoed.
   if (const char* key = std::getenv("SHAPEID_API_KEY"); key != nullptr && *key) {
     context.client.api_key = key;
@@ -341,6 +366,8 @@ int main(int argc, char** argv) {
   if (*import_cmd) return shapeid::RunGalleryImport(gallery_file, import_name, context);
   if (*descriptors_cmd) return shapeid::RunDescriptors(context);
   if (*health_cmd) return shapeid::RunHealth(context);
+  if (*stats_cmd) return shapeid::RunStats(context);
+  if (*log_level_cmd) return shapeid::RunLogLevel(log_level, context);
   if (*train_cmd) return shapeid::RunTrain(train, context);
   if (*classify_cmd) return shapeid::RunClassify(classify, context);
   if (*eval_cmd) return shapeid::RunEval(eval, context);

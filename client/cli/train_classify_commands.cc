@@ -29,7 +29,7 @@ std::string FailedJson(const std::vector<FailedInput>& failed) {
 int BatchExitCode(const absl::Status& stopped, size_t failed, const CliContext& context,
                   absl::string_view what) {
   if (!stopped.ok()) {
-    PrintError(context.err, what, stopped, context.client.target);
+    PrintCallError(context, what, stopped);
     return ExitCodeForStatus(stopped);
   }
   return failed > 0 ? kExitSomeInputsFailed : kExitOk;
@@ -147,8 +147,7 @@ int RunClassify(const ClassifyOptions& options, const CliContext& context) {
   // Up front: a missing gallery fails once, and its labels size the label column.
   absl::StatusOr<v1::Gallery> gallery = client->GetGallery(options.gallery);
   if (!gallery.ok()) {
-    PrintError(context.err, absl::StrCat("classify ", options.gallery), gallery.status(),
-               context.client.target);
+    PrintCallError(context, absl::StrCat("classify ", options.gallery), gallery.status());
     return ExitCodeForStatus(gallery.status());
   }
   size_t file_width = 4, label_width = 7;  // "unknown"

@@ -1,0 +1,223 @@
+#include "client/cli/operations_commands.h"
+
+#include <algorithm>
+#include <memory>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "core/json.h"
+
+namespace shapeid {
+namespace {
+
+constexpr size_t kGalleriesShown = 10;
+
+double Seconds(const google::protobuf::Duration& d) {
+  return static_cast<double>(d.seconds()) + d.nanos() / 1e9;
+}
+
+// CSV seconds: 9 digits are plenty for a latency, and stay readable.
+std::string CsvSeconds(const google::protobuf::Duration& d) {
+  return absl::StrFormat("%.9g", Seconds(d));
+}
+
+std::string OrDash(const std::string& text) { return text.empty() ? "-" : text; }
+
+// A latency as "0.71 ms", or "-" when the server sent none (no calls).
+std::string Latency(bool set, const google::protobuf::Duration& d) {
+  return set ? FormatSeconds(Seconds(d)) : "-";
+}
+
+std::string LatencyJson(bool set, const google::protobuf::Duration& d) {
+  return set ? JsonNumber(Seconds(d)) : "null";
+}
+
+int Finish(bool written, const CliContext& context) {
+  if (std::fflush(context.out) != 0 || !written) {
+    WriteAll(context.err, "shapeid: cannot write the output\n");
+    return kExitSomeInputsFailed;
+  }
+  return kExitOk;
+}
+
+Table MethodTable(const v1::ServerStats& stats, bool csv) {
+  Table table;
+  if (csv) {
+    table.header = {"method", "calls", "errors", "latency_p50_seconds", "latency_p99_seconds"};
+  } else {
+    table.header = {"METHOD", "CALLS", "ERRORS", "P50", "P99"};
+    table.right_aligned = {false, true, true, true, true};
+  }
+  for (const v1::MethodStats& m : stats.methods()) {
+    if (csv) {
+      table.rows.push_back({m.method(), absl::StrCat(m.calls()), absl::StrCat(m.errors()),
+                            m.has_latency_p50() ? CsvSeconds(m.latency_p50()) : "",
+                            m.has_latency_p99() ? CsvSeconds(m.latency_p99()) : ""});
+    } else {
+      table.rows.push_back({m.method(), GroupDigits(m.calls()), GroupDigits(m.errors()),
+                            Latency(m.has_latency_p50(), m.latency_p50()),
+                            Latency(m.has_latency_p99(), m.latency_p99())});
+    }
+  }
+  return table;
+}
+
+bool KnownLevel(const std::string& level) {
+  return level == "debug" || level == "info" || level == "warning" || level == "error";
+}
+
+}  // namespace
+
+std::string GroupDigits(uint64_t value) {
+  const std::string digits = absl::StrCat(value);
+  std::string out;
+  for (size_t i = 0; i < digits.size(); ++i) {
+    if (i > 0 && (digits.size() - i) % 3 == 0) out += ',';
+    out += digits[i];
+  }
+  return out;
+}
+
+std::string FormatUptime(int64_t seconds) {
+  seconds = std::max<int64_t>(seconds, 0);
+  const int64_t days = seconds / 86400, hours = seconds / 3600 % 24;
+  const int64_t minutes = seconds / 60 % 60, rest = seconds % 60;
+  if (days > 0) return absl::StrCat(days, "d", hours, "h");
+  if (hours > 0) return absl::StrCat(hours, "h", minutes, "m");
+  if (minutes > 0) return absl::StrCat(minutes, "m", rest, "s");
+  return absl::StrCat(rest, "s");
+}
+
+std::string FormatBytes(uint64_t bytes) {
+  const double b = static_cast<double>(bytes);
+  if (bytes < 1024) return absl::StrCat(bytes, " B");
+  if (bytes < (uint64_t{1} << 20)) return absl::StrFormat("%.1f KiB", b / 1024);
+  if (bytes < (uint64_t{1} << 30)) return absl::StrFormat("%.0f MiB", b / (1 << 20));
+  return absl::StrFormat("%.1f GiB", b / (1 << 30));
+}
+
+std::string StatsText(const v1::ServerStats& stats, const std::string& target) {
+  std::string text = absl::StrCat(
+      "server ", target, "  shapeid ", OrDash(stats.version()), "  ", OrDash(stats.state()),
+      "  up ", FormatUptime(stats.uptime().seconds()), "  in flight ", stats.calls_in_flight(),
+      "\n", "store ", OrDash(stats.store()), "  memory ",
+      FormatBytes(stats.resident_memory_bytes()), "  log level ", OrDash(stats.log_level()),
+      "  metrics ", stats.metrics_address().empty() ? "off" : stats.metrics_address(), "\n",
+      "galleries ", GroupDigits(stats.galleries_size()), "  samples ", GroupDigits(stats.samples()),
+      "  points received ", GroupDigits(stats.points_received()), "\n\n");
+  if (stats.methods_size() == 0) {
+    absl::StrAppend(&text, "no calls yet\n");
+  } else {
+    absl::StrAppend(&text, RenderTable(MethodTable(stats, /*csv=*/false)));
+  }
+  if (stats.galleries_size() == 0) return text;
+  // Largest first, as the server sends them; sorted again so that any server's top 10 shows.
+  std::vector<v1::GalleryStats> galleries(stats.galleries().begin(), stats.galleries().end());
+  std::stable_sort(galleries.begin(), galleries.end(),
+                   [](const v1::GalleryStats& a, const v1::GalleryStats& b) {
+                     return a.samples() > b.samples();
+                   });
+  Table table{{"GALLERY", "SAMPLES", "VERSION"}, {}, {false, true, true}};
+  uint64_t rest_samples = 0;
+  for (size_t i = 0; i < galleries.size(); ++i) {
+    if (i < kGalleriesShown) {
+      table.rows.push_back({galleries[i].name(), GroupDigits(galleries[i].samples()),
+                            absl::StrCat(galleries[i].version())});
+    } else {
+      rest_samples += galleries[i].samples();
+    }
+  }
+  absl::StrAppend(&text, "\n", RenderTable(table));
+  if (galleries.size() > kGalleriesShown) {
+    absl::StrAppend(&text, "... and ", GroupDigits(galleries.size() - kGalleriesShown),
+                    " smaller galleries (", GroupDigits(rest_samples), " samples)\n");
+  }
+  return text;
+}
+
+std::string StatsJson(const v1::ServerStats& stats, const std::string& target) {
+  std::string methods;
+  for (const v1::MethodStats& m : stats.methods()) {
+    absl::StrAppend(&methods, methods.empty() ? "" : ",", "{\"method\":", JsonString(m.method()),
+                    ",\"calls\":", m.calls(), ",\"errors\":", m.errors(),
+                    ",\"latency_p50_seconds\":", LatencyJson(m.has_latency_p50(), m.latency_p50()),
+                    ",\"latency_p99_seconds\":", LatencyJson(m.has_latency_p99(), m.latency_p99()),
+                    "}");
+  }
+  std::string galleries;
+  for (const v1::GalleryStats& g : stats.galleries()) {
+    absl::StrAppend(&galleries, galleries.empty() ? "" : ",", "{\"name\":", JsonString(g.name()),
+                    ",\"samples\":", g.samples(), ",\"version\":", g.version(), "}");
+  }
+  return absl::StrCat(
+      "{\"target\":", JsonString(target), ",\"version\":", JsonString(stats.version()),
+      ",\"uptime_seconds\":", JsonNumber(Seconds(stats.uptime())),
+      ",\"state\":", JsonString(stats.state()), ",\"calls_in_flight\":", stats.calls_in_flight(),
+      ",\"store\":", JsonString(stats.store()),
+      ",\"resident_memory_bytes\":", stats.resident_memory_bytes(),
+      ",\"log_level\":", JsonString(stats.log_level()),
+      ",\"metrics_address\":", JsonString(stats.metrics_address()),
+      ",\"gallery_count\":", stats.galleries_size(), ",\"samples\":", stats.samples(),
+      ",\"points_received\":", stats.points_received(), ",\"methods\":[", methods, "]",
+      ",\"galleries\":[", galleries, "]}\n");
+}
+
+int RunStats(const CliContext& context) {
+  std::unique_ptr<Client> client = ConnectOrReport(context);
+  if (client == nullptr) return kExitUsage;
+  absl::StatusOr<v1::ServerStats> stats = client->GetServerStats();
+  if (!stats.ok()) {
+    PrintCallError(context, "stats", stats.status());
+    return ExitCodeForStatus(stats.status());
+  }
+  switch (context.format) {
+    case OutputFormat::kJson:
+      return Finish(WriteAll(context.out, StatsJson(*stats, context.client.target)), context);
+    case OutputFormat::kCsv:
+      return Finish(WriteAll(context.out, RenderCsv(MethodTable(*stats, /*csv=*/true))), context);
+    case OutputFormat::kTable:
+      break;
+  }
+  return Finish(WriteAll(context.out, StatsText(*stats, context.client.target)), context);
+}
+
+int RunLogLevel(const std::string& level, const CliContext& context) {
+  if (!KnownLevel(level)) {
+    WriteAll(context.err, absl::StrCat("shapeid: log-level: unknown level \"", level,
+                                       "\"; use debug, info, warning or error\n"));
+    return kExitUsage;
+  }
+  std::unique_ptr<Client> client = ConnectOrReport(context);
+  if (client == nullptr) return kExitUsage;
+  absl::StatusOr<v1::SetLogLevelResponse> set = client->SetLogLevel(level);
+  if (!set.ok()) {
+    PrintCallError(context, absl::StrCat("log-level ", level), set.status());
+    return ExitCodeForStatus(set.status());
+  }
+  std::string text;
+  switch (context.format) {
+    case OutputFormat::kJson:
+      text = absl::StrCat("{\"target\":", JsonString(context.client.target),
+                          ",\"previous_level\":", JsonString(set->previous_level()),
+                          ",\"level\":", JsonString(set->level()), "}\n");
+      break;
+    case OutputFormat::kCsv:
+      text = RenderCsv({{"previous_level", "level"}, {{set->previous_level(), set->level()}}, {}});
+      break;
+    case OutputFormat::kTable:
+      text = absl::StrCat("log level: ", set->previous_level(), " -> ", set->level(), "\n");
+      break;
+  }
+  // Live configuration is per replica: say so when --server names several.
+  const std::string& target = context.client.target;
+  if (context.progress != ProgressMode::kOff &&
+      (target.find(',') != std::string::npos || target.rfind("dns:", 0) == 0)) {
+    WriteAll(context.err,
+             "shapeid: log-level: only the replica that answered changed its level; give each "
+             "replica's HOST:PORT to --server to set them all\n");
+  }
+  return Finish(WriteAll(context.out, text), context);
+}
+
+}  // namespace shapeid
