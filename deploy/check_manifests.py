@@ -19,11 +19,18 @@ never lowers capacity, no claim, a disruption budget, anti-affinity, a headless 
 port is the pods' own, the database password from a Secret (never a literal), and the copies of
 k8s/ files kept identical.
 
+Metrics (issue 12): the metrics endpoint on a containerPort `metrics` that the pod annotations
+prometheus.io/scrape, /port and /path and every Service's `metrics` port name; in compose, its
+port EXPOSEd and published on loopback by default. The Grafana dashboard (grafana/): valid JSON,
+its variables, every panel titled with queries, units, and every metric and label its PromQL
+names among those the server exports (METRICS below); its kustomization for Grafana's sidecar.
+
     /usr/bin/python3 deploy/check_manifests.py [DEPLOY_DIR]
 
 Needs python3-yaml (Debian). Prints one line per problem and exits 1 if there is any.
 """
 
+import json
 import pathlib
 import re
 import sys
@@ -111,9 +118,55 @@ SERVER_SETTINGS = {"SHAPEID_LISTEN", "SHAPEID_DATA_DIR", "SHAPEID_MAX_POINTS_PER
                    "SHAPEID_SHUTDOWN_GRACE_SECONDS"}
 # The settings that only the PostgreSQL variants have.
 STORE_SETTINGS = {"SHAPEID_STORE", "SHAPEID_STORE_REFRESH_MS"}
-# Issue 11 adds them to the server together with those variants: accepted with a note while
-# server/main.cc does not define them yet. Make this empty once it does.
-PENDING_SETTINGS = set()
+# Allowed values of the settings that take one of a few (server/main.cc's flags).
+SETTING_VALUES = {"SHAPEID_LOG_FORMAT": {"text", "json"},
+                  "SHAPEID_LOG_LEVEL": {"debug", "info", "warning", "error"}}
+# The metrics shapeid-server exports (server/metrics.cc, docs/operations.md): name -> (type,
+# labels). The dashboard may name these and no others. This is the one list here; the same
+# dashboard is also checked against a real server's scrape by tests/operations_e2e_test.cc, so
+# a metric renamed in the server fails there, and this list must follow it.
+METRICS = {
+    "shapeid_requests_total": ("counter", {"method", "gallery", "code"}),
+    "shapeid_points_received_total": ("counter", {"method"}),
+    "shapeid_samples_trained_total": ("counter", {"gallery"}),
+    "shapeid_store_write_failures_total": ("counter", {"operation"}),
+    "shapeid_replication_changes_applied_total": ("counter", set()),
+    "shapeid_request_duration_seconds": ("histogram", {"method"}),
+    "shapeid_describe_duration_seconds": ("histogram", {"descriptor"}),
+    "shapeid_search_duration_seconds": ("histogram", {"index"}),
+    "shapeid_store_write_duration_seconds": ("histogram", {"operation"}),
+    "shapeid_requests_in_flight": ("gauge", set()),
+    "shapeid_serving": ("gauge", set()),
+    "shapeid_galleries": ("gauge", set()),
+    "shapeid_gallery_samples": ("gauge", {"gallery"}),
+    "shapeid_gallery_labels_folded": ("gauge", set()),
+    "shapeid_store_reachable": ("gauge", set()),
+    "shapeid_replication_sync_age_seconds": ("gauge", set()),
+    "shapeid_build_info": ("gauge", {"version"}),
+    "process_resident_memory_bytes": ("gauge", set()),
+    "process_virtual_memory_bytes": ("gauge", set()),
+    "process_cpu_seconds_total": ("counter", set()),
+    "process_open_fds": ("gauge", set()),
+    "process_max_fds": ("gauge", set()),
+    "process_start_time_seconds": ("gauge", set()),
+    "process_threads": ("gauge", set()),
+}
+# Labels that Prometheus' scrape configuration adds to every series (job and instance always;
+# the others by the usual Kubernetes relabelling).
+TARGET_LABELS = {"job", "instance", "pod", "namespace", "node", "container", "service",
+                 "endpoint"}
+HISTOGRAM_SUFFIXES = ("_bucket", "_sum", "_count")
+METRIC_NAME = re.compile(r"\b(?:shapeid|process)_[a-z_]+")
+# Label names in PromQL: in by/without/on/ignoring lists and before a matcher operator.
+LABEL_LIST = re.compile(r"\b(?:by|without|on|ignoring)\s*\(([^)]*)\)")
+SELECTOR = re.compile(r"\{([^{}]*)\}")
+MATCHER = re.compile(r"(\w+)\s*(?:=~|!~|!=|=)")
+LABEL_VALUES = re.compile(r"label_values\(\s*(?:(\w+)\s*(\{[^}]*\})?\s*,\s*)?(\w+)\s*\)")
+# Panels that show numbers, so must say their unit.
+UNIT_PANELS = {"timeseries", "stat", "bargauge", "gauge"}
+# kubectl apply keeps the whole object in an annotation, limited to 256 KiB.
+LAST_APPLIED_LIMIT = 262144
+DASHBOARD_LABEL = ("grafana_dashboard", "1")
 ABSL_FLAG = re.compile(r"ABSL_FLAG\(\s*[\w:]+\s*,\s*(\w+)\s*,")
 QUANTITY = re.compile(r"^([0-9.]+)(m|k|M|G|T|P|E|Ki|Mi|Gi|Ti|Pi|Ei)?$")
 SCALE = {None: 1, "m": 1e-3, "k": 1e3, "M": 1e6, "G": 1e9, "T": 1e12, "P": 1e15, "E": 1e18,
@@ -279,6 +332,72 @@ def check_container(c, where, container, volume_names, configmaps):
     return container, port_numbers, port_names, env, secret_env, mounts
 
 
+def check_values(c, where, env):
+    """Settings that take one of a few values, or a count."""
+    for key, allowed in SETTING_VALUES.items():
+        if key in env and env[key] not in allowed:
+            c.error(where, f"{key}={env[key]!r}: want one of {sorted(allowed)}")
+    value = env.get("SHAPEID_METRICS_MAX_GALLERIES")
+    if value is not None and not (value.isdigit() and int(value) > 0):
+        c.error(where, f"SHAPEID_METRICS_MAX_GALLERIES={value!r}: want a positive count")
+
+
+def metrics_port(c, where, env, other_ports):
+    """SHAPEID_METRICS_LISTEN's port (an int), or None when it is unset or empty. It must be
+    reachable from outside the container and differ from the other listening ports."""
+    listen = env.get("SHAPEID_METRICS_LISTEN", "")
+    if not listen:
+        return None
+    host, _, port = listen.rpartition(":")
+    if not port.isdigit():
+        c.error(where, f"SHAPEID_METRICS_LISTEN={listen}: want HOST:PORT")
+        return None
+    if host in ("127.0.0.1", "localhost", "[::1]"):
+        c.error(where, f"SHAPEID_METRICS_LISTEN={listen} is loopback-only: Prometheus cannot "
+                       "reach it")
+    if int(port) in other_ports:
+        c.error(where, f"SHAPEID_METRICS_LISTEN={listen}: its port is the gRPC or health one")
+    return int(port)
+
+
+def listen_ports(env, image):
+    """The ports of SHAPEID_LISTEN and SHAPEID_HEALTH_LISTEN."""
+    ports = set()
+    for key, default in (("SHAPEID_LISTEN", image.get("listen", "")),
+                         ("SHAPEID_HEALTH_LISTEN", "")):
+        port = env.get(key, default).rpartition(":")[2]
+        if port.isdigit():
+            ports.add(int(port))
+    return ports
+
+
+def check_pod_metrics(c, where, env, container, annotations, image):
+    """The metrics endpoint on a containerPort named `metrics`, which the prometheus.io pod
+    annotations name. Returns (port, its name) or (None, None)."""
+    for key, value in (annotations or {}).items():
+        if not isinstance(value, str):
+            c.error(where, f"pod annotation {key}: {value!r} must be a string (quote it)")
+    port = metrics_port(c, where, env, listen_ports(env, image))
+    if port is None:
+        c.error(where, "no SHAPEID_METRICS_LISTEN: these manifests are scraped by Prometheus "
+                       "(pod annotations), so the endpoint must be on")
+        return None, None
+    names = [p.get("name") for p in container.get("ports") or []
+             if isinstance(p, dict) and p.get("containerPort") == port]
+    if names != ["metrics"]:
+        c.error(where, f"SHAPEID_METRICS_LISTEN's port {port} must be one containerPort named "
+                       f"`metrics`, got names {names}")
+    if image["ports"] and port not in image["ports"]:
+        c.error(where, f"metrics port {port} is not EXPOSEd by the Dockerfile")
+    want = {"prometheus.io/scrape": "true", "prometheus.io/port": str(port),
+            "prometheus.io/path": "/metrics"}
+    for key, value in want.items():
+        if (annotations or {}).get(key) != value:
+            c.error(where, f"pod annotation {key}: {(annotations or {}).get(key)!r}, want "
+                           f"{value!r} (SHAPEID_METRICS_LISTEN)")
+    return port, "metrics"
+
+
 def pre_stop_seconds(container):
     """How long a preStop hook of `sleep N` (exec or the native sleep action) pauses, or 0."""
     hook = (container.get("lifecycle") or {}).get("preStop") or {}
@@ -379,7 +498,8 @@ def check_deployment(c, where, doc, configmaps, claims, image, scaled):
     if len(containers) != 1:
         c.error(where, f"want one container, got {len(containers)}")
     result = {"where": where, "labels": labels, "ports": set(), "port_names": set(),
-              "replicas": replicas, "secret_refs": set(), "store": None}
+              "replicas": replicas, "secret_refs": set(), "store": None,
+              "metrics": (None, None)}
     for i, container in enumerate(containers):
         cwhere = f"{where} containers[{i}]"
         container, numbers, names, env, secret_env, mounts = check_container(
@@ -391,6 +511,10 @@ def check_deployment(c, where, doc, configmaps, claims, image, scaled):
             SERVER_SETTINGS
         if unknown:
             c.error(cwhere, f"unknown settings {sorted(unknown)}")
+        check_values(c, cwhere, env)
+        result["metrics"] = check_pod_metrics(
+            c, cwhere, env, container, (template.get("metadata") or {}).get("annotations"),
+            image)
         data_dir = env.get("SHAPEID_DATA_DIR", image.get("data_dir"))
         mount = mounts.get(data_dir)
         if scaled:
@@ -463,6 +587,17 @@ def check_service(c, where, doc, deployments):
                 c.error(f"{where} ports[{i}]", f"port {port.get('port')!r} of a headless "
                                                f"Service must be a containerPort "
                                                f"{sorted(d['ports'])}: clients dial the pods")
+    # The metrics, by port name `metrics`, as ServiceMonitors select them.
+    for d in targets:
+        number, name = d["metrics"]
+        if number is None:
+            continue
+        named = [p for p in ports if isinstance(p, dict) and p.get("name") == "metrics"]
+        if len(named) != 1:
+            c.error(where, "want one port named `metrics` for the pods' metrics endpoint")
+        elif named[0].get("targetPort", named[0].get("port")) not in (number, name):
+            c.error(where, f"port `metrics` targets {named[0].get('targetPort')!r}, not the "
+                           f"pods' metrics port {name} ({number})")
     return headless
 
 
@@ -563,6 +698,7 @@ def check_k8s(c, k8s_dir, image, scaled=False, readme=""):
             unknown = {k for k in data if k.startswith("SHAPEID_")} - SERVER_SETTINGS
             if unknown:
                 c.error(f"{file} ConfigMap", f"unknown settings {sorted(unknown)}")
+            check_values(c, f"{file} ConfigMap", {k: str(v) for k, v in data.items()})
             if str(data.get("SHAPEID_STORE", "")).startswith("postgres"):
                 check_store_uri(c, f"{file} ConfigMap", data["SHAPEID_STORE"])
             configmaps[name] = {k: str(v) for k, v in data.items()}
@@ -640,6 +776,169 @@ def check_k8s(c, k8s_dir, image, scaled=False, readme=""):
             c.error(str(k8s_dir), f"no {kind}")
     stores = [d["store"] for d in deployments if d["store"] is not None]
     return len(docs), stores, secret_refs
+
+
+def check_promql(c, where, expr):
+    """Every metric an expression names is one the server exports (histograms through their
+    _bucket/_sum/_count series), and every label it names is one of theirs or a target's."""
+    text = re.sub(r'"(?:[^"\\]|\\.)*"', '""', expr)  # label values and regexes are not names
+    names, labels = set(), set(TARGET_LABELS)
+    found_names = METRIC_NAME.findall(text)
+    for found in found_names:
+        base, suffix = found, ""
+        for s in HISTOGRAM_SUFFIXES:
+            if found.endswith(s) and found[:-len(s)] in METRICS:
+                base, suffix = found[:-len(s)], s
+        if base not in METRICS:
+            c.error(where, f"{found}: not a metric the server exports (METRICS)")
+            continue
+        kind, own = METRICS[base]
+        if kind == "histogram" and not suffix:
+            c.error(where, f"{found} is a histogram: query its _bucket, _sum or _count series")
+        names.add(base)
+        labels |= own | ({"le"} if kind == "histogram" else set())
+    if not found_names:
+        c.error(where, f"names no shapeid or process metric: {expr!r}")
+    used = {w.strip() for group in LABEL_LIST.findall(text) for w in group.split(",")
+            if w.strip()}
+    used |= {m for group in SELECTOR.findall(text) for m in MATCHER.findall(group)}
+    for label in sorted(used - labels - {"__name__"}):
+        c.error(where, f"label '{label}' belongs to none of {sorted(names)}")
+    if "histogram_quantile" in text and not (
+            "_bucket" in text and any("le" in [w.strip() for w in g.split(",")]
+                                      for g in LABEL_LIST.findall(text))):
+        c.error(where, "histogram_quantile needs rate(..._bucket[...]) summed by (..., le)")
+
+
+def dashboard_panels(panels):
+    """Every panel, those inside rows (collapsed rows keep theirs in `panels`) included."""
+    for panel in panels or []:
+        yield panel
+        if isinstance(panel, dict) and panel.get("type") == "row":
+            yield from dashboard_panels(panel.get("panels"))
+
+
+def check_dashboard(c, path):
+    """The Grafana dashboard: JSON, variables, and panels whose queries name only what the
+    server exports. Returns the number of panels (rows left out)."""
+    where = f"grafana/{path.name}"
+    try:
+        text = path.read_text()
+        board = json.loads(text)
+    except (OSError, ValueError) as e:
+        c.error(where, f"not valid JSON: {e}")
+        return 0
+    if not isinstance(board, dict):
+        c.error(where, "not a JSON object")
+        return 0
+    if len(text.encode()) >= LAST_APPLIED_LIMIT:
+        c.error(where, f"{len(text.encode())} bytes: `kubectl apply` of its ConfigMap keeps "
+                       f"a copy in an annotation, limited to {LAST_APPLIED_LIMIT}")
+    for key in ("title", "uid"):
+        if not isinstance(board.get(key), str) or not board.get(key):
+            c.error(where, f"no {key}")
+    if not isinstance(board.get("schemaVersion"), int) or board["schemaVersion"] < 36:
+        c.error(where, f"schemaVersion {board.get('schemaVersion')!r}: want 36 or later "
+                       "(Grafana 9+)")
+    refresh = board.get("refresh")
+    if not (isinstance(refresh, str) and re.fullmatch(r"[0-9]+[smh]", refresh)) or \
+            refresh.endswith("s") and int(refresh[:-1]) < 10:
+        c.error(where, f"refresh {refresh!r}: want 10s or longer")
+    variables = {v.get("name"): v for v in (board.get("templating") or {}).get("list") or []
+                 if isinstance(v, dict)}
+    source = variables.get("datasource") or {}
+    if source.get("type") != "datasource" or source.get("query") != "prometheus":
+        c.error(where, "no `datasource` variable of type datasource for prometheus")
+    if not any(variables.get(n, {}).get("type") == "query" for n in ("instance", "pod")):
+        c.error(where, "no `instance` (or `pod`) query variable")
+    for name, variable in variables.items():
+        if variable.get("type") != "query":
+            continue
+        query = variable.get("query")
+        query = query.get("query") if isinstance(query, dict) else query
+        match = LABEL_VALUES.fullmatch(str(query).strip())
+        if match is None:
+            c.error(f"{where} variable {name}", f"want label_values(METRIC{{...}}, LABEL), "
+                                                f"got {query!r}")
+            continue
+        metric, selector, label = match.groups()
+        if metric is None:
+            c.error(f"{where} variable {name}", "label_values without a metric reads every "
+                                                "job's series")
+            continue
+        check_promql(c, f"{where} variable {name}", metric + (selector or ""))
+        if label not in METRICS.get(metric, ("", set()))[1] | TARGET_LABELS:
+            c.error(f"{where} variable {name}", f"{metric} has no label '{label}'")
+    ids, count = set(), 0
+    for panel in dashboard_panels(board.get("panels")):
+        if not isinstance(panel, dict):
+            c.error(where, "a panel is not an object")
+            continue
+        pwhere = f"{where} panel {panel.get('id')} {panel.get('title')!r}"
+        if panel.get("id") in ids:
+            c.error(pwhere, "duplicate id")
+        ids.add(panel.get("id"))
+        grid = panel.get("gridPos") or {}
+        if not all(isinstance(grid.get(k), int) for k in ("h", "w", "x", "y")) or \
+                grid["x"] + grid["w"] > 24:
+            c.error(pwhere, f"gridPos {grid}: want h, w, x, y within 24 columns")
+        if not isinstance(panel.get("title"), str) or not panel["title"].strip():
+            c.error(pwhere, "no title")
+        if panel.get("type") == "row":
+            continue
+        count += 1
+        if panel.get("type") in UNIT_PANELS and \
+                not ((panel.get("fieldConfig") or {}).get("defaults") or {}).get("unit"):
+            c.error(pwhere, "no unit (fieldConfig.defaults.unit)")
+        targets = panel.get("targets") or []
+        if not targets:
+            c.error(pwhere, "no targets")
+        refs = [t.get("refId") for t in targets if isinstance(t, dict)]
+        if len(set(refs)) != len(targets):
+            c.error(pwhere, f"refIds {refs}: want one distinct refId per target")
+        for target in targets:
+            for item in (panel, target):
+                uid = (item.get("datasource") or {}).get("uid") \
+                    if isinstance(item.get("datasource"), dict) else item.get("datasource")
+                if uid != "${datasource}":
+                    c.error(pwhere, f"datasource {uid!r}: want ${{datasource}}, the variable")
+            expr = target.get("expr") if isinstance(target, dict) else None
+            if not isinstance(expr, str) or not expr.strip():
+                c.error(pwhere, f"target {target.get('refId') if isinstance(target, dict) else ''}"
+                                ": no expr")
+            else:
+                check_promql(c, f"{pwhere} {target.get('refId')}", expr)
+    if not count:
+        c.error(where, "no panels")
+    return count
+
+
+def check_grafana(c, grafana_dir):
+    """The dashboard, and the kustomization that makes it a ConfigMap for Grafana's sidecar.
+    Returns the number of panels."""
+    dashboard = grafana_dir / "shapeid-dashboard.json"
+    count = check_dashboard(c, dashboard)
+    for file, doc in load_docs(c, grafana_dir, "grafana/"):
+        if not isinstance(doc, dict) or doc.get("kind") != "Kustomization":
+            c.error(file, "want only a Kustomization here")
+            continue
+        check_kustomization(c, grafana_dir, file, doc, "grafana/")
+        files = []
+        for generator in doc.get("configMapGenerator") or []:
+            for entry in generator.get("files") or []:
+                source = str(entry).split("=", 1)[-1]
+                if not (grafana_dir / source).is_file():
+                    c.error(file, f"configMapGenerator file {source} does not exist")
+                files.append(source)
+            labels = dict(((doc.get("generatorOptions") or {}).get("labels") or {}),
+                          **((generator.get("options") or {}).get("labels") or {}))
+            if labels.get(DASHBOARD_LABEL[0]) != DASHBOARD_LABEL[1]:
+                c.error(file, f"ConfigMap {generator.get('name')} lacks the label "
+                              f"{DASHBOARD_LABEL[0]}: \"{DASHBOARD_LABEL[1]}\" that Grafana's "
+                              "sidecar looks for")
+        if dashboard.name not in files:
+            c.error(file, f"no configMapGenerator for {dashboard.name}")
+    return count
 
 
 def configmap_data(path):
@@ -798,6 +1097,11 @@ def check_compose(c, path, image, scaled=False):
         if unknown:
             c.error(swhere, f"unknown settings {sorted(unknown)}")
         listen_port = env.get("SHAPEID_LISTEN", image.get("listen", "")).rpartition(":")[2]
+        check_values(c, swhere, env)
+        metrics = metrics_port(c, swhere, env, listen_ports(env, image))
+        if metrics is not None and metrics not in image["ports"]:
+            c.error(swhere, f"metrics port {metrics} is not EXPOSEd by the Dockerfile")
+        published_metrics = False
         if not service.get("ports"):
             c.error(swhere, "no published ports")
         for port in service.get("ports") or []:
@@ -805,7 +1109,18 @@ def check_compose(c, path, image, scaled=False):
             if match is None:
                 c.error(swhere, f"port {port!r}: write it as a quoted \"[IP:]HOST:CONTAINER\"")
                 continue
-            if match["container"] != listen_port or int(match["container"]) not in \
+            if metrics is not None and int(match["container"]) == metrics:
+                published_metrics = True
+                # No authentication on /metrics: loopback unless the operator says otherwise.
+                ip = re.fullmatch(r"\$\{(\w+):?-([^}]*)\}", match["ip"] or "")
+                default = ip.group(2) if ip else match["ip"]
+                if default != "127.0.0.1":
+                    c.error(swhere, f"port {port}: the metrics have no authentication: publish "
+                                    "them on 127.0.0.1 (by default)")
+                elif ip and ip.group(1) == "SHAPEID_HOST_ADDRESS":
+                    c.error(swhere, f"port {port}: give the metrics an address variable of "
+                                    "their own: opening gRPC (with keys) must not open them")
+            elif match["container"] != listen_port or int(match["container"]) not in \
                     image["ports"]:
                 c.error(swhere, f"port {port}: the container side must be the listen port "
                                 f"{listen_port}, EXPOSEd by the Dockerfile")
@@ -817,6 +1132,8 @@ def check_compose(c, path, image, scaled=False):
                     c.error(swhere, f"host port {match['host']} on {replicas} replicas: the "
                                     "second cannot bind it")
                 host_ports[key] = name
+        if metrics is not None and not published_metrics:
+            c.error(swhere, f"SHAPEID_METRICS_LISTEN's port {metrics} is not published")
         data_dir = env.get("SHAPEID_DATA_DIR", image.get("data_dir"))
         if scaled:
             store = check_store_uri(c, swhere, env.get("SHAPEID_STORE", ""))
@@ -903,8 +1220,6 @@ def main():
         flags = ABSL_FLAG.findall(main_cc.read_text())
         SERVER_SETTINGS.clear()
         SERVER_SETTINGS.update(f"SHAPEID_{flag.upper()}" for flag in flags)
-    pending = sorted(PENDING_SETTINGS - SERVER_SETTINGS)
-    SERVER_SETTINGS.update(PENDING_SETTINGS)
     readme = (deploy / "README.md").read_text() if (deploy / "README.md").is_file() else ""
     image = read_dockerfile(deploy / "Dockerfile")
     if not isinstance(image["uid"], int) or image["uid"] == 0:
@@ -917,13 +1232,12 @@ def main():
     dev = check_dev_postgres(c, deploy / "k8s" / "scaled" / "dev-postgres", stores, secret_refs)
     check_compose(c, deploy / "compose.yaml", image)
     check_compose(c, deploy / "compose.postgres.yaml", image, scaled=True)
+    panels = check_grafana(c, deploy / "grafana")
     for problem in c.problems:
         print(f"check_manifests: {problem}")
-    if pending:
-        print(f"check_manifests: note: {', '.join(pending)} accepted although server/main.cc "
-              "does not define them yet (PENDING_SETTINGS)")
     print(f"check_manifests: Kubernetes documents: {count} in k8s/, {scaled} in k8s/scaled/, "
-          f"{dev} in k8s/scaled/dev-postgres/; compose.yaml, compose.postgres.yaml: "
+          f"{dev} in k8s/scaled/dev-postgres/; {panels} dashboard panels; compose.yaml, "
+          f"compose.postgres.yaml, grafana/: "
           f"{'OK' if not c.problems else f'{len(c.problems)} problems'}")
     return 1 if c.problems else 0
 

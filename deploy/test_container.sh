@@ -5,8 +5,8 @@
 #   deploy/test_container.sh [PATH-TO-HOST-shapeid-CLI]     (default: build/ci/client/cli/shapeid,
 #                                                             or $SHAPEID_CLI)
 #
-# 1. checks the compose and Kubernetes manifests offline (deploy/check_manifests.py; both
-#    variants: one server, replicas over PostgreSQL);
+# 1. checks the compose and Kubernetes manifests and the Grafana dashboard offline
+#    (deploy/check_manifests.py; both variants: one server, replicas over PostgreSQL);
 # 2. makes the debian:bookworm and debian:bookworm-slim base images offline with debootstrap
 #    when podman does not have them yet (nothing is pulled from a registry; later runs reuse them);
 # 3. builds deploy/Dockerfile with `buildah bud --layers` (cached layers and a ccache mount make
@@ -177,7 +177,7 @@ step "Checking compose and Kubernetes manifests offline"
 pass "manifests"
 # kubectl cannot dry-run without an API server, but it builds the kustomization offline.
 if command -v kubectl >/dev/null; then
-  for dir in deploy/k8s deploy/k8s/scaled deploy/k8s/scaled/dev-postgres; do
+  for dir in deploy/k8s deploy/k8s/scaled deploy/k8s/scaled/dev-postgres deploy/grafana; do
     timeout 60 kubectl kustomize "$dir" >"$work/kustomized.yaml" || fail "kubectl kustomize $dir"
     pass "kubectl kustomize $dir ($(grep -c '^kind:' "$work/kustomized.yaml") objects)"
   done
