@@ -364,8 +364,7 @@ class ExportReactor final : public grpc::ServerWriteReactor<v1::GalleryExportChu
         pass_(gate->Admit(*context, SHAPEID_METHOD(ExportGallery), CallGate::Kind::kStream)) {
     call_.gallery = request.name();
     if (!pass_.ok()) {
-      final_status_ = ToGrpcStatus(pass_.status());
-      Finish(final_status_);
+      End(ToGrpcStatus(pass_.status()));
       return;
     }
     const absl::Status started = Start(registry, request.name());
@@ -410,22 +409,20 @@ class ExportReactor final : public grpc::ServerWriteReactor<v1::GalleryExportChu
 
   // Finish, with the client's stream slot freed first (CallGate::Pass::ReleaseSlot).
   void End(const grpc::Status& status) {
-    pass_->ReleaseSlot();
-    final_status_ = status;
+    if (pass_.ok()) pass_->ReleaseSlot();
+    observer_->Finish(call_, status);
     Finish(status);
   }
 
   void OnDone() override {
     ceiling_.Disarm();
-    observer_->Finish(call_, final_status_);
     delete this;
   }
 
   grpc::CallbackServerContext* const context_;
   const CallObserver* const observer_;
   const absl::Duration max_call_;
-  CallRecord call_;
-  grpc::Status final_status_;
+  CallRecord call_;  // before pass_: a refused call is reported too
   absl::StatusOr<CallGate::Pass> pass_;
   absl::Time cut_at_ = absl::InfiniteFuture();
   CeilingAlarm ceiling_;

@@ -76,7 +76,9 @@ class StreamReactor : public grpc::ServerReadReactor<grpc::ByteBuffer> {
 
   // gRPC runs neither OnReadDone nor OnDone inside StartRead or Finish (their reactions are
   // scheduled), so calling them under mu_ cannot deadlock.
-  void FinishLocked(grpc::Status status) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
+  // `report`: tell the observer now. Only the ceiling's Cut passes false: OnMessage may still
+  // be filling in call_ on another thread, so OnDone reports it instead.
+  void FinishLocked(grpc::Status status, bool report = true) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
     state_ = State::kFinished;
     if (pass_.ok()) pass_->ReleaseSlot();
     if (status.ok()) {
@@ -85,6 +87,9 @@ class StreamReactor : public grpc::ServerReadReactor<grpc::ByteBuffer> {
           grpc::SerializationTraits<Response>::Serialize(response_, raw_response_, &own_buffer);
     }
     final_status_ = status;
+    // Before Finish, so that a client that has its answer finds the call in the log and the
+    // metrics.
+    if (report) observer_->Finish(call_, status);
     this->Finish(status);
   }
 
@@ -134,13 +139,13 @@ class StreamReactor : public grpc::ServerReadReactor<grpc::ByteBuffer> {
   void Cut() {
     std::lock_guard<std::mutex> lock(mu_);
     if (state_ != State::kReading) return;
-    FinishLocked(ToGrpcStatus(CeilingExceeded(gate_->max_call())));
+    FinishLocked(ToGrpcStatus(CeilingExceeded(gate_->max_call())), /*report=*/false);
   }
 
   void OnDone() override {
     ceiling_.Disarm();
-    // Reported here, not at Finish: the ceiling may finish the call while OnMessage is still
-    // filling in call_, and OnDone runs after every other reaction.
+    // A call cut at the ceiling is reported here, after every other reaction (a no-op for
+    // the others, reported when finished).
     observer_->Finish(call_, final_status_);
     delete this;  // releases the pass: out of the in-flight count, the stream slot free
   }
