@@ -16,6 +16,7 @@
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "client/channel_target.h"
+#include "core/request_id.h"
 #include "grpcpp/generic/generic_stub.h"
 
 // The wire carries little-endian float32; the cloud's floats are copied as they are.
@@ -179,13 +180,12 @@ absl::Status FromGrpcStatus(const grpc::Status& status) {
 
 absl::Status CheckRequestId(absl::string_view id) {
   constexpr char kRule[] = "a request id is 1 to 128 characters of A-Z a-z 0-9 . _ : / + = -";
-  if (id.empty() || id.size() > 128) {
+  if (id.empty() || id.size() > kMaxRequestIdChars) {
     return absl::InvalidArgumentError(
         absl::StrCat("the request id has ", id.size(), " characters: ", kRule));
   }
   for (char c : id) {
-    if (!absl::ascii_isalnum(static_cast<unsigned char>(c)) &&
-        absl::string_view("._:/+=-").find(c) == absl::string_view::npos) {
+    if (!IsRequestIdChar(c)) {
       return absl::InvalidArgumentError(absl::StrCat("the request id \"", absl::CHexEscape(id),
                                                      "\" holds '", absl::CHexEscape({&c, 1}),
                                                      "': ", kRule));

@@ -30,8 +30,12 @@ absl::Status NonFiniteError(const PointCloud& cloud) {
   for (size_t i = 0; i < cloud.size(); ++i) {
     const auto p = cloud.point(i);
     if (!p.allFinite()) {
+      // Which axis and what it holds, not the point itself: errors reach server logs, which
+      // carry no point data.
+      const char* axis = !std::isfinite(p.x()) ? "x" : (!std::isfinite(p.y()) ? "y" : "z");
+      const float bad = !std::isfinite(p.x()) ? p.x() : (!std::isfinite(p.y()) ? p.y() : p.z());
       return absl::InvalidArgumentError(absl::StrCat(
-          "point ", i, " has a non-finite coordinate (", p.x(), ", ", p.y(), ", ", p.z(),
+          "point ", i, " has a non-finite coordinate (", axis, " is ", bad,
           "); drop or repair non-finite points before describing the cloud"));
     }
   }
@@ -126,8 +130,7 @@ absl::StatusOr<CloudStats> ValidateCloud(const PointCloud& cloud, const CloudLim
   if (!all_finite) return NonFiniteError(cloud);
   if (lo[0] == hi[0] && lo[1] == hi[1] && lo[2] == hi[2]) {
     return absl::InvalidArgumentError(absl::StrCat(
-        "all ", n, " points are identical (", lo[0], ", ", lo[1], ", ", lo[2],
-        "): the cloud has zero extent and no shape"));
+        "all ", n, " points are identical: the cloud has zero extent and no shape"));
   }
 
   CloudStats stats;

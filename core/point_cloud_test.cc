@@ -56,9 +56,9 @@ TEST(PointCloudTest, EveryInvalidInputNamesItsProblem) {
       {PointCloud(), absl::StatusCode::kInvalidArgument, "cloud has 0 points; at least 3"},
       {PointCloud{{1, 1, 1}}, absl::StatusCode::kInvalidArgument, "cloud has 1 point;"},
       {PointCloud{{0, 0, 0}, {1, 1, 1}, {2, -inf, 2}, {nan, 0, 0}},
-       absl::StatusCode::kInvalidArgument, "point 2 has a non-finite coordinate (2, -inf, 2)"},
+       absl::StatusCode::kInvalidArgument, "point 2 has a non-finite coordinate (y is -inf)"},
       {PointCloud{{5, 5, 5}, {5, 5, 5}, {5, 5, 5}, {5, 5, 5}}, absl::StatusCode::kInvalidArgument,
-       "all 4 points are identical (5, 5, 5)"},
+       "all 4 points are identical: the cloud has zero extent"},
       {PointCloud(std::vector<float>{1, 2, 3, 4, 5, 6, 7, 8, 9, 10}),
        absl::StatusCode::kInvalidArgument, "not a whole number of xyz points"},
   };

@@ -51,7 +51,8 @@ std::optional<Scope> RequiredScope(absl::string_view full_method) {
 }
 
 absl::Status Authorize(const ApiKeyStore& keys, absl::string_view full_method,
-                       std::optional<absl::string_view> authorization) {
+                       std::optional<absl::string_view> authorization,
+                       const ApiKeyEntry** caller) {
   if (keys.empty()) return absl::OkStatus();
   const std::optional<Scope> needed = RequiredScope(full_method);
   if (!needed.has_value()) return absl::OkStatus();
@@ -70,6 +71,7 @@ absl::Status Authorize(const ApiKeyStore& keys, absl::string_view full_method,
   const absl::string_view key = absl::StripLeadingAsciiWhitespace(value.substr(kScheme.size()));
   const ApiKeyEntry* entry = keys.Find(key);
   if (entry == nullptr) return absl::UnauthenticatedError("unknown API key");
+  if (caller != nullptr) *caller = entry;
   if (!ScopeAllows(entry->scope, *needed)) {
     return absl::PermissionDeniedError(absl::StrCat(
         "key '", entry->name, "' lacks scope ", ScopeName(*needed), " (", ShortName(full_method),

@@ -32,8 +32,11 @@ std::optional<Scope> RequiredScope(absl::string_view full_method);
 //   UNAUTHENTICATED    "missing API key" (no metadata), "unknown API key" (not in `keys`, or
 //                      not of the form "Bearer KEY");
 //   PERMISSION_DENIED  "key 'NAME' lacks scope write ...": the key's name, never the key.
+// `caller`, when given, is set to the key's entry whenever the key is known (also when its
+// scope falls short), for the log line of the call.
 absl::Status Authorize(const ApiKeyStore& keys, absl::string_view full_method,
-                       std::optional<absl::string_view> authorization);
+                       std::optional<absl::string_view> authorization,
+                       const ApiKeyEntry** caller = nullptr);
 
 }  // namespace shapeid
 

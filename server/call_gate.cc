@@ -25,9 +25,15 @@ absl::StatusOr<CallGate::Pass> CallGate::Admit(const grpc::CallbackServerContext
     if (it != metadata.end())
       authorization = absl::string_view(it->second.data(), it->second.size());
   }
-  if (absl::Status s = Authorize(*keys_, method, authorization); !s.ok()) return s;
+  const ApiKeyEntry* caller = nullptr;
+  if (absl::Status s = Authorize(*keys_, method, authorization, &caller); !s.ok()) return s;
   Pass pass;
-  if (!tracker_.Enter()) return tracker_.Refusal();
+  if (caller != nullptr) pass.caller_ = caller->name;
+  if (kind == Kind::kOperations) {
+    tracker_.EnterAnyway();
+  } else if (!tracker_.Enter()) {
+    return tracker_.Refusal();
+  }
   pass.tracker_ = &tracker_;
   if (kind == Kind::kStream) {
     absl::StatusOr<StreamLimiter::Slot> slot = streams_.Acquire(ClientOfPeer(context.peer()));

@@ -43,6 +43,9 @@ class CallTracker {
     }
     return true;
   }
+  // Registers a call whatever the state: the operator's calls (GetServerStats, SetLogLevel),
+  // which must answer most when the server is not serving.
+  void EnterAnyway() { in_flight_.fetch_add(1); }
   void Exit() { in_flight_.fetch_sub(1); }
   // kLoading -> kServing <-> kStoreUnreachable; draining is final.
   void SetState(State state) {
@@ -102,14 +105,19 @@ class CallGate {
     // opens its next stream on seeing the answer finds the slot free (the reactor itself
     // lives on a moment, until gRPC's OnDone).
     void ReleaseSlot() { slot_ = StreamLimiter::Slot(); }
+    // The name of the caller's API key (never the key); empty on a server without keys.
+    absl::string_view caller() const { return caller_; }
     Pass() = default;
     Pass(Pass&& other) noexcept
-        : tracker_(std::exchange(other.tracker_, nullptr)), slot_(std::move(other.slot_)) {}
+        : tracker_(std::exchange(other.tracker_, nullptr)),
+          slot_(std::move(other.slot_)),
+          caller_(other.caller_) {}
     Pass& operator=(Pass&& other) noexcept {
       if (this != &other) {
         Leave();
         tracker_ = std::exchange(other.tracker_, nullptr);
         slot_ = std::move(other.slot_);
+        caller_ = other.caller_;
       }
       return *this;
     }
@@ -125,9 +133,12 @@ class CallGate {
     }
     CallTracker* tracker_ = nullptr;
     StreamLimiter::Slot slot_;
+    absl::string_view caller_;  // into the gate's key store, which outlives every call
   };
 
-  enum class Kind { kUnary, kStream };
+  // kOperations: a unary call admitted in every state (loading, draining, store lost), with
+  // its key and scope checked as any other's.
+  enum class Kind { kUnary, kStream, kOperations };
 
   // Admits a new call of `method` (its full name, "/shapeid.v1.ShapeId/Train"), or returns the
   // status to end it with, checked in this order: its key covers the scope the method needs

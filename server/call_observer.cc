@@ -4,7 +4,9 @@
 
 #include "absl/random/random.h"
 #include "absl/strings/ascii.h"
+#include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
+#include "core/request_id.h"
 
 namespace shapeid {
 namespace {
@@ -33,17 +35,6 @@ LogLevel LevelOf(grpc::StatusCode code) {
 }
 
 }  // namespace
-
-bool IsValidRequestId(absl::string_view id) {
-  if (id.empty() || id.size() > 128) return false;
-  for (const char c : id) {
-    if (!absl::ascii_isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_' &&
-        c != ':' && c != '/' && c != '+' && c != '=' && c != '-') {
-      return false;
-    }
-  }
-  return true;
-}
 
 CallRecord CallObserver::Start(grpc::CallbackServerContext& context,
                                absl::string_view full_method) const {
@@ -75,9 +66,13 @@ void CallObserver::Finish(CallRecord& record, const grpc::Status& status) const 
   const LogLevel level = LevelOf(status.error_code());
   if (logger_ == nullptr || !logger_->Enabled(level)) return;
   const std::string code_name = absl::StatusCodeToString(code);
-  const std::string error = status.error_message();  // by value: LogField keeps a view
+  // Bounded, whatever a client sent: a gallery name is at most 128 bytes when valid, and an
+  // error message may quote what the client sent.
+  const absl::string_view gallery = absl::string_view(record.gallery).substr(0, 128);
+  std::string error = status.error_message();  // a copy: LogField keeps a view
+  if (error.size() > 1024) error = absl::StrCat(error.substr(0, 1024), "...");
   const LogField fields[] = {{"method", record.method},
-                             {"gallery", record.gallery},
+                             {"gallery", gallery},
                              {"code", code_name},
                              {"us", absl::ToInt64Microseconds(elapsed)},
                              {"points", record.points},
@@ -85,10 +80,11 @@ void CallObserver::Finish(CallRecord& record, const grpc::Status& status) const 
                              {"describe_us", absl::ToInt64Microseconds(record.describe_time)},
                              {"search_us", absl::ToInt64Microseconds(record.search_time)},
                              {"peer", record.peer},
+                             {"caller", record.caller},
                              {"request_id", record.request_id},
                              {"error", error}};
   // The error field only for a failed call.
-  logger_->Log(level, "rpc", absl::MakeConstSpan(fields, status.ok() ? 10 : 11));
+  logger_->Log(level, "rpc", absl::MakeConstSpan(fields, status.ok() ? 11 : 12));
 }
 
 void CallObserver::Described(CallRecord& record, absl::string_view kind,

@@ -23,15 +23,13 @@ namespace shapeid {
 
 inline constexpr char kRequestIdMetadata[] = "x-request-id";
 
-// True for 1-128 of A-Z a-z 0-9 and . _ : / + = - (what the proto promises to keep).
-bool IsValidRequestId(absl::string_view id);
-
 // One call, as its handler saw it.
 struct CallRecord {
   absl::string_view method;  // "ClassifyCloud"
   absl::Time start;
   std::string request_id;
   std::string peer;          // "ipv4:10.0.0.7:53410"
+  std::string caller;        // the API key's name once admitted (never the key)
   std::string gallery;       // the gallery the call names, if any
   int64_t points = 0;        // received in its clouds
   int64_t samples = 0;       // trained, removed, deleted, imported or exported

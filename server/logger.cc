@@ -121,7 +121,16 @@ std::string Logger::Format(LogLevel level, absl::string_view message,
   if (level != LogLevel::kInfo) {
     absl::StrAppend(&line, absl::AsciiStrToUpper(LogLevelName(level)), ": ");
   }
-  line.append(message.data(), message.size());
+  // A control character in a message (a name or an error quoted into it) must not start a
+  // forged line.
+  for (const char c : message) {
+    const unsigned char u = static_cast<unsigned char>(c);
+    if (u < 0x20 || u == 0x7f) {
+      absl::StrAppend(&line, "\\x", absl::Hex(u, absl::kZeroPad2));
+    } else {
+      line += c;
+    }
+  }
   for (const LogField& field : fields) {
     // An empty text says nothing to a reader (JSON keeps it: a fixed schema for pipelines).
     const auto* text = std::get_if<absl::string_view>(&field.value);

@@ -32,7 +32,9 @@ struct LoggerOptions {
   LogLevel level = LogLevel::kInfo;
 };
 
-// One field of a line: a key and a string, integer or real value.
+// One field of a line: a key and a string, integer or real value. It keeps views: build it
+// from strings that outlive the Log call (a temporary std::string in an array of fields dies
+// before the line is written).
 struct LogField {
   LogField(absl::string_view k, absl::string_view v) : key(k), value(v) {}
   LogField(absl::string_view k, const char* v) : key(k), value(absl::string_view(v)) {}

@@ -68,6 +68,14 @@ TEST(LoggerTest, TextLinesNameTheLevelUnlessInfo) {
                                           "shapeid-server: DEBUG: detail\n"));
 }
 
+TEST(LoggerTest, AControlCharacterInAMessageCannotStartAForgedLine) {
+  std::vector<std::string> lines;
+  const Logger log = Capturing({LogFormat::kText, LogLevel::kInfo}, &lines);
+  log.Warning("gallery 'x\nshapeid-server: forged' set aside");
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_EQ(lines[0], "shapeid-server: WARNING: gallery 'x\\x0ashapeid-server: forged' set aside\n");
+}
+
 TEST(LoggerTest, LinesBelowTheLevelAreDroppedAndTheLevelChangesLive) {
   std::vector<std::string> lines;
   Logger log = Capturing({LogFormat::kJson, LogLevel::kWarning}, &lines);

@@ -330,6 +330,15 @@ int main(int argc, char** argv) {
   if (!(*server)->metrics_address().empty()) {
     log.Info(absl::StrCat("metrics on http://", (*server)->metrics_address(), "/metrics"),
              {{"metrics_address", (*server)->metrics_address()}});
+    // The endpoint has no key and no TLS: on a network address it tells anyone who reaches
+    // it gallery names and sizes and the traffic by status (no keys, no points).
+    if (!shapeid::IsLoopbackAddress(options.metrics.listen) &&
+        (!(*keys)->empty() || !options.security.tls_cert_file.empty())) {
+      log.Warning(absl::StrCat(
+          "--metrics_listen=", options.metrics.listen,
+          " is reachable without a key or TLS and shows gallery names, sizes and call counts; "
+          "keep that port inside the cluster (docs/operations.md)"));
+    }
   }
   // The CLI's variables are one letter away from the server's; say so rather than run open.
   for (const char* cli_var : {"SHAPEID_API_KEY", "SHAPEID_API_KEY_FILE"}) {

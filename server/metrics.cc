@@ -8,6 +8,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/gallery/gallery.h"
+#include "core/gallery/gallery_options.h"
 #include "core/gallery/gallery_registry.h"
 #include "core/version.h"
 #include "server/process_stats.h"
@@ -164,14 +165,21 @@ T& ServerMetrics::Series(SeriesCache<T>& cache, prometheus::Family<T>& family,
 }
 
 void ServerMetrics::RecordCall(const CallMetrics& call) {
-  bool held = call.code == absl::StatusCode::kOk;
-  if (!held && !call.gallery.empty()) {
-    std::shared_ptr<const GalleryRegistry> galleries;
-    {
-      absl::MutexLock lock(&mu_);
-      galleries = galleries_.lock();
+  // Only a real gallery's name becomes a label: one the server holds when the call ends, or
+  // one the call just deleted. Any other name a client sends, however long or strange, is
+  // "_unknown".
+  bool held = false;
+  if (!call.gallery.empty() && ValidateGalleryName(call.gallery).ok()) {
+    if (call.code == absl::StatusCode::kOk && call.method == "DeleteGallery") {
+      held = true;
+    } else {
+      std::shared_ptr<const GalleryRegistry> galleries;
+      {
+        absl::MutexLock lock(&mu_);
+        galleries = galleries_.lock();
+      }
+      held = galleries != nullptr && galleries->Get(call.gallery).ok();
     }
-    held = galleries != nullptr && galleries->Get(call.gallery).ok();
   }
   const std::string gallery = GalleryLabel(call.gallery, held);
   const std::string method(call.method);

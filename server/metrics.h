@@ -9,8 +9,9 @@
 // Label cardinality is bounded, so that no client can grow the server's memory or a
 // Prometheus' series count by naming galleries: the `gallery` label is
 //   ""          for calls that name no gallery (ListGalleries, Describe by spec...);
-//   the name    for a gallery the server holds (or that the call just created or deleted),
-//               for the first `max_gallery_labels` names seen since start;
+//   the name    for a gallery the server holds when the call ends (or that the call just
+//               deleted), for the first `max_gallery_labels` such names since start (kept
+//               until the server stops, also if the gallery is deleted);
 //   "_other"    for every gallery after those (shapeid_gallery_labels_folded counts them);
 //   "_unknown"  for a name the server does not hold (a failed call: NOT_FOUND, a typo...).
 // Gallery names start with a letter or digit, so these never collide with one. `method` and

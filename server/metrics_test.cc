@@ -50,6 +50,9 @@ CallMetrics Call(absl::string_view method, absl::string_view gallery, absl::Stat
 
 TEST(ServerMetricsTest, CountsCallsByMethodGalleryAndCode) {
   ServerMetrics metrics;
+  auto registry = std::make_shared<GalleryRegistry>();
+  ASSERT_TRUE(registry->Create("lab", {}).ok());
+  metrics.SetSources(registry, {});
   CallMetrics train = Call("Train", "lab", absl::StatusCode::kOk);
   train.points = 3000;
   train.samples_trained = 3;
@@ -110,6 +113,28 @@ TEST(ServerMetricsTest, NamesNotHeldAreUnknownAndGalleriesPastTheLimitFold) {
   EXPECT_EQ(Value(metrics, R"(shapeid_gallery_samples{gallery="_other"})"), 0);
   EXPECT_EQ(Value(metrics, "shapeid_gallery_labels_folded"), 2);
   EXPECT_EQ(Value(metrics, R"(shapeid_gallery_samples{gallery="c"})"), -1);
+}
+
+TEST(ServerMetricsTest, OnlyGalleriesTheServerHoldsBecomeLabels) {
+  ServerMetrics metrics;
+  auto registry = std::make_shared<GalleryRegistry>();
+  ASSERT_TRUE(registry->Create("kept", {}).ok());
+  metrics.SetSources(registry, {});
+  // A Describe by spec answers OK whatever its gallery field says; a long or invalid name
+  // never becomes a label, nor takes one of the limited slots.
+  metrics.RecordCall(Call("DescribeCloud", std::string(5000, 'x'), absl::StatusCode::kOk));
+  metrics.RecordCall(Call("DescribeCloud", "_other", absl::StatusCode::kOk));
+  metrics.RecordCall(Call("DescribeCloud", "bad\xff", absl::StatusCode::kOk));
+  metrics.RecordCall(Call("DeleteGallery", "gone", absl::StatusCode::kOk));  // just deleted
+  metrics.RecordCall(Call("GetGallery", "kept", absl::StatusCode::kOk));
+  EXPECT_EQ(
+      Value(metrics, R"(shapeid_requests_total{code="OK",gallery="_unknown",method="DescribeCloud"})"),
+      3);
+  EXPECT_EQ(Value(metrics, R"(shapeid_requests_total{code="OK",gallery="gone",method="DeleteGallery"})"),
+            1);
+  EXPECT_EQ(Value(metrics, R"(shapeid_requests_total{code="OK",gallery="kept",method="GetGallery"})"),
+            1);
+  EXPECT_THAT(Scrape(metrics), Not(HasSubstr("xxxxxxxx")));
 }
 
 TEST(ServerMetricsTest, GallerySamplesAreReadAtScrapeTime) {

@@ -226,6 +226,8 @@ ShapeIdServer::~ShapeIdServer() {
   // when Bind failed half-way and Shutdown has nothing to do).
   if (postgres_store_ != nullptr) postgres_store_->StopFollowing();
   Shutdown(absl::ZeroDuration());
+  // The metrics may outlive this server (the store holds them); their sources may not.
+  if (metrics_ != nullptr) metrics_->SetSources({}, {});
 }
 
 }  // namespace shapeid

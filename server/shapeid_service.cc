@@ -35,7 +35,8 @@ namespace {
 // INVALID_ARGUMENT. Then `handler(request, &response, call)`, whose status ends the call; the
 // handler fills in `call` (its gallery, points, samples), which the observer reports with
 // that status.
-template <typename Request, typename Response, typename Handler>
+template <typename Request, typename Response, CallGate::Kind kKind = CallGate::Kind::kUnary,
+          typename Handler>
 grpc::ServerUnaryReactor* Unary(grpc::CallbackServerContext* context, CallGate& gate,
                                 const CallObserver& observer, absl::string_view method,
                                 const grpc::ByteBuffer* raw_request,
@@ -47,8 +48,9 @@ grpc::ServerUnaryReactor* Unary(grpc::CallbackServerContext* context, CallGate& 
     reactor->Finish(status);
     return reactor;
   };
-  absl::StatusOr<CallGate::Pass> pass = gate.Admit(*context, method, CallGate::Kind::kUnary);
+  absl::StatusOr<CallGate::Pass> pass = gate.Admit(*context, method, kKind);
   if (!pass.ok()) return finish(ToGrpcStatus(pass.status()));
+  call.caller = std::string(pass->caller());
   Request request;
   grpc::ByteBuffer bytes(*raw_request);  // shares the received slices; parsing consumes it
   if (!grpc::SerializationTraits<Request>::Deserialize(&bytes, &request).ok()) {
@@ -140,7 +142,7 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest, v1::Desc
     if (descriptor_ != nullptr) {
       return absl::InvalidArgumentError("Describe: a second DescribeHeader in one stream");
     }
-    call().gallery = header.gallery();
+    if (header.descriptor_spec().empty()) call().gallery = header.gallery();  // else unused
     SHAPEID_ASSIGN_OR_RETURN(descriptor_, DescriptorToUse(header, options_, registry_));
     return assembler_.Start(header.expected_points());
   }
@@ -367,6 +369,7 @@ class ExportReactor final : public grpc::ServerWriteReactor<v1::GalleryExportChu
       End(ToGrpcStatus(pass_.status()));
       return;
     }
+    call_.caller = std::string(pass_->caller());
     const absl::Status started = Start(registry, request.name());
     if (!started.ok()) {
       End(ToGrpcStatus(started));
@@ -506,7 +509,7 @@ grpc::ServerUnaryReactor* ShapeIdService::DescribeCloud(grpc::CallbackServerCont
       context, gate_, observer_, SHAPEID_METHOD(DescribeCloud), raw_request, raw_response,
       [&](const v1::DescribeCloudRequest& request, v1::DescribeResponse* response,
           CallRecord& call) -> absl::Status {
-        call.gallery = request.header().gallery();
+        if (request.header().descriptor_spec().empty()) call.gallery = request.header().gallery();
         call.points = PointsIn(request.points().xyz());
         SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<const Descriptor> descriptor,
                                  DescriptorToUse(request.header(), options_, *registry_));
@@ -679,7 +682,7 @@ grpc::ServerUnaryReactor* ShapeIdService::ListDescriptors(grpc::CallbackServerCo
 grpc::ServerUnaryReactor* ShapeIdService::GetServerStats(grpc::CallbackServerContext* context,
                                                          const grpc::ByteBuffer* raw_request,
                                                          grpc::ByteBuffer* raw_response) {
-  return Unary<v1::GetServerStatsRequest, v1::ServerStats>(
+  return Unary<v1::GetServerStatsRequest, v1::ServerStats, CallGate::Kind::kOperations>(
       context, gate_, observer_, SHAPEID_METHOD(GetServerStats), raw_request, raw_response,
       [&](const v1::GetServerStatsRequest& /*request*/, v1::ServerStats* response,
           CallRecord& /*call*/) -> absl::Status {
@@ -732,7 +735,7 @@ grpc::ServerUnaryReactor* ShapeIdService::GetServerStats(grpc::CallbackServerCon
 grpc::ServerUnaryReactor* ShapeIdService::SetLogLevel(grpc::CallbackServerContext* context,
                                                       const grpc::ByteBuffer* raw_request,
                                                       grpc::ByteBuffer* raw_response) {
-  return Unary<v1::SetLogLevelRequest, v1::SetLogLevelResponse>(
+  return Unary<v1::SetLogLevelRequest, v1::SetLogLevelResponse, CallGate::Kind::kOperations>(
       context, gate_, observer_, SHAPEID_METHOD(SetLogLevel), raw_request, raw_response,
       [&](const v1::SetLogLevelRequest& request, v1::SetLogLevelResponse* response,
           CallRecord& call) -> absl::Status {

@@ -55,6 +55,7 @@ class StreamReactor : public grpc::ServerReadReactor<grpc::ByteBuffer> {
       FinishLocked(ToGrpcStatus(pass_.status()));
       return;
     }
+    call_.caller = std::string(pass_->caller());
     if (const std::optional<absl::Time> cut = gate_->CutOff(*context_)) {
       ceiling_.Arm(*cut, [this] { Cut(); });
     }

@@ -4,6 +4,7 @@
 #include <memory>
 #include <vector>
 
+#include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "core/json.h"
@@ -63,8 +64,10 @@ Table MethodTable(const v1::ServerStats& stats, bool csv) {
   return table;
 }
 
+// As the server reads it (server/logger.cc): any case.
 bool KnownLevel(const std::string& level) {
-  return level == "debug" || level == "info" || level == "warning" || level == "error";
+  const std::string lower = absl::AsciiStrToLower(level);
+  return lower == "debug" || lower == "info" || lower == "warning" || lower == "error";
 }
 
 }  // namespace
