@@ -6,6 +6,11 @@
 //                                 1 / 4 / 16 concurrent clients (shared channel and one
 //                                 channel per client), a table and one JSON line
 //   service_bench --quick         a ~2 s smoke for CI
+//   service_bench --log_level=info --log_format=json
+//                                 the same with the server's log line per RPC (issue 12),
+//                                 written to --log_file instead of stderr; the default,
+//                                 error, logs no RPC lines, as before issue 12. Metrics are
+//                                 recorded either way (operations_bench has their cost).
 //
 // Server and load generator share this process and the machine's cores, as in the issue
 // ("the load generator runs on the same 2-core machine"). Clouds are ModelNet10 (1,024
@@ -15,10 +20,14 @@
 // Not Google Benchmark: latency percentiles and multi-client throughput over fixed durations
 // fit it poorly, so this is a plain program with its own timing.
 
+#include <fcntl.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cstdint>
 #include <cstdio>
@@ -179,6 +188,95 @@ std::string LoadAverage() {
   in >> a >> b >> c;
   return absl::StrCat(a, " ", b, " ", c);
 }
+
+// ----------------------------------------------------------------------------- the log
+
+// The server logs to fd 2. While it runs with RPC lines on, fd 2 points at a file instead
+// (a terminal would make the figures the terminal's), and Stop puts stderr back. The bench's
+// own messages to stderr in that time land in the file too.
+class LogCapture {
+ public:
+  LogCapture() = default;
+  LogCapture(const LogCapture&) = delete;
+  LogCapture& operator=(const LogCapture&) = delete;
+  ~LogCapture() { Stop(); }  // an early return must not leave stderr in the file
+
+  // False, with a message on stderr, if the file cannot be opened.
+  bool Start(const std::string& path) {
+    const int fd = open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (fd < 0) {
+      std::fprintf(stderr, "cannot open %s: %s\n", path.c_str(), std::strerror(errno));
+      return false;
+    }
+    std::fflush(stderr);
+    saved_stderr_ = dup(STDERR_FILENO);
+    dup2(fd, STDERR_FILENO);
+    close(fd);
+    path_ = path;
+    return true;
+  }
+  bool active() const { return saved_stderr_ >= 0; }
+
+  // Marks the start and the end of the measured RPC phases, for lines/s.
+  void Mark() {
+    if (!active()) return;
+    marks_.push_back({Clock::now(), Size()});
+  }
+
+  void Stop() {
+    if (!active()) return;
+    std::fflush(stderr);
+    bytes_ = Size();
+    dup2(saved_stderr_, STDERR_FILENO);
+    close(saved_stderr_);
+    saved_stderr_ = -1;
+  }
+
+  struct Summary {
+    int64_t bytes = 0, lines = 0;
+    int64_t window_lines = 0;  // between the first and the last Mark
+    double window_seconds = 0;
+  };
+  // After Stop: reads the file back to count lines.
+  Summary Summarise() const {
+    Summary s;
+    s.bytes = bytes_;
+    std::ifstream in(path_, std::ios::binary);
+    std::vector<char> buffer(1 << 20);
+    int64_t offset = 0;
+    const int64_t window_begin = marks_.size() >= 2 ? marks_.front().bytes : 0;
+    const int64_t window_end = marks_.size() >= 2 ? marks_.back().bytes : 0;
+    while (in.read(buffer.data(), static_cast<std::streamsize>(buffer.size())) || in.gcount() > 0) {
+      const int64_t n = in.gcount();
+      for (int64_t i = 0; i < n; ++i) {
+        if (buffer[i] != '\n') continue;
+        ++s.lines;
+        if (offset + i >= window_begin && offset + i < window_end) ++s.window_lines;
+      }
+      offset += n;
+    }
+    if (marks_.size() >= 2) {
+      s.window_seconds =
+          std::chrono::duration<double>(marks_.back().time - marks_.front().time).count();
+    }
+    return s;
+  }
+
+ private:
+  struct Checkpoint {
+    Clock::time_point time;
+    int64_t bytes;
+  };
+  int64_t Size() const {
+    struct stat st {};
+    return fstat(STDERR_FILENO, &st) == 0 ? static_cast<int64_t>(st.st_size) : 0;
+  }
+
+  int saved_stderr_ = -1;
+  std::string path_;
+  int64_t bytes_ = 0;
+  std::vector<Checkpoint> marks_;
+};
 
 // ----------------------------------------------------------------------------- client
 
@@ -497,6 +595,9 @@ int Run(int argc, char** argv) {
   std::string channels_mode = "both";
   std::string write_mode_name = "unary";
   size_t points = 0;
+  std::string log_level_name = "error";
+  std::string log_format_name = "text";
+  std::string log_file = "/tmp/service_bench_rpc.log";
   app.add_option("--data", data_dir, "ModelNet10 folder with <class>/{train,test}/*.pcd")->capture_default_str();
   app.add_flag("--quick", quick, "tiny numbers for a CI smoke (~2 s)");
   std::string spec;
@@ -519,6 +620,17 @@ int Run(int argc, char** argv) {
   app.add_option("--points", points,
                  "query clouds of this many points, synthetic (0: the ModelNet10 test clouds, "
                  "1,024 points)")
+      ->capture_default_str();
+  app.add_option("--log_level", log_level_name,
+                 "the server's --log_level: error logs no RPC lines (the figures before issue "
+                 "12); info logs one per call, to --log_file")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"debug", "info", "warning", "error"}));
+  app.add_option("--log_format", log_format_name, "the server's --log_format: text | json")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"text", "json"}));
+  app.add_option("--log_file", log_file,
+                 "where stderr goes while the server runs, when --log_level is below error")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   if (quick) {
@@ -555,8 +667,16 @@ int Run(int argc, char** argv) {
 
   ServerOptions options;
   options.listen = "127.0.0.1:0";
+  options.log.level = *ParseLogLevel(log_level_name);  // both checked by CLI11
+  options.log.format = *ParseLogFormat(log_format_name);
+  std::printf("server log: level %s, format %s%s\n", log_level_name.c_str(),
+              log_format_name.c_str(),
+              options.log.level < LogLevel::kError ? absl::StrCat(", to ", log_file).c_str() : "");
+  LogCapture capture;
+  if (options.log.level < LogLevel::kError && !capture.Start(log_file)) return 1;
   auto started = ShapeIdServer::Start(options);
   if (!started.ok()) {
+    capture.Stop();
     std::fprintf(stderr, "%s\n", started.status().ToString().c_str());
     return 1;
   }
@@ -592,6 +712,7 @@ int Run(int argc, char** argv) {
 
   const std::vector<Query> queries = BuildQueries(data.test);
   const InProcessResult local = InProcess(**gallery, data.test, warmup, requests, seconds);
+  capture.Mark();
   const LatencyResult rpc = SingleClient(*stub, queries, local.labels, warmup, requests, mode);
 
   std::vector<LoadResult> loads;
@@ -599,8 +720,12 @@ int Run(int argc, char** argv) {
     if (channels_mode != "per-client") loads.push_back(Load(server->address(), queries, c, false, seconds, mode));
     if (channels_mode != "shared" && c > 1) loads.push_back(Load(server->address(), queries, c, true, seconds, mode));
   }
+  capture.Mark();
   const std::string load_after = LoadAverage();
   server->Shutdown(absl::Seconds(1));
+  server.reset();
+  capture.Stop();
+  const LogCapture::Summary log = capture.Summarise();
 
   // ------------------------------------------------------------------ report
   const double ratio = local.stats.p50_us > 0 ? rpc.stats.p50_us / local.stats.p50_us : 0;
@@ -644,6 +769,17 @@ int Run(int argc, char** argv) {
                 BestAt(loads, 16),
                 !modelnet_size ? "not this size" : BestAt(loads, 16) >= 3000 ? "MET" : "MISSED");
   }
+  if (options.log.level < LogLevel::kError) {
+    const double rate = log.window_seconds > 0 ? log.window_lines / log.window_seconds : 0;
+    std::printf("\nServer log (%s, %s): %lld bytes, %lld lines (%.0f bytes/line) in %s; "
+                "%.0f lines/s, %.0f KB/s over the RPC phases (%.1f s)\n",
+                log_level_name.c_str(), log_format_name.c_str(),
+                static_cast<long long>(log.bytes), static_cast<long long>(log.lines),
+                log.lines > 0 ? static_cast<double>(log.bytes) / log.lines : 0.0,
+                log_file.c_str(), rate,
+                log.window_lines > 0 ? rate * log.bytes / log.lines / 1e3 : 0.0,
+                log.window_seconds);
+  }
   std::printf("load average after: %s\n", load_after.c_str());
 
   std::vector<std::string> load_json;
@@ -656,14 +792,17 @@ int Run(int argc, char** argv) {
   }
   std::fputs(absl::StrFormat(
       "JSON {\"bench\":\"service\",\"data\":\"%s\",\"points\":%zu,\"gallery_size\":%zu,"
-      "\"write_mode\":\"%s\","
+      "\"write_mode\":\"%s\",\"log_level\":\"%s\",\"log_format\":\"%s\","
+      "\"log_bytes\":%d,\"log_lines\":%d,\"log_lines_per_second\":%.0f,"
       "\"rpc\":%s,\"in_process\":%s,\"overhead_ratio_p50\":%.2f,"
       "\"overhead_us_p50\":%.1f,\"server_describe_us\":%.1f,\"server_search_us\":%.1f,"
       "\"in_process_2t_per_second\":%.1f,\"load\":[%s],\"best_top\":%.1f,"
       "\"loadavg_before\":\"%s\",\"loadavg_after\":\"%s\"}\n",
       data.source.rfind("SYNTHETIC", 0) == 0 ? "synthetic" : "modelnet10",
       points == 0 ? data.test[0].cloud.size() : points, gallery_size,
-      write_mode_name, StatsJson(rpc.stats), StatsJson(local.stats), ratio,
+      write_mode_name, log_level_name, log_format_name, log.bytes, log.lines,
+      log.window_seconds > 0 ? log.window_lines / log.window_seconds : 0.0,
+      StatsJson(rpc.stats), StatsJson(local.stats), ratio,
       rpc.stats.p50_us - local.stats.p50_us, rpc.server.describe_us, rpc.server.search_us,
       local.throughput_2t, absl::StrJoin(load_json, ","), best ? best->per_second : 0.0,
       load_before, load_after).c_str(), stdout);
