@@ -70,6 +70,11 @@ TEST(ShapeIdServerTest, NotServingUntilEveryGalleryIsLoaded) {
   const auto early = client->ListGalleries();
   EXPECT_EQ(early.status().code(), absl::StatusCode::kUnavailable);
   EXPECT_THAT(early.status().message(), HasSubstr("loading"));
+  // The operator's calls answer in every state: stats say why nothing else does.
+  const auto loading = client->GetServerStats();
+  ASSERT_TRUE(loading.ok()) << loading.status();
+  EXPECT_EQ(loading->state(), "loading");
+  EXPECT_TRUE(client->SetLogLevel("warning").ok());
 
   auto report = (*server)->LoadGalleries();
   ASSERT_TRUE(report.ok()) << report.status();
@@ -82,6 +87,12 @@ TEST(ShapeIdServerTest, NotServingUntilEveryGalleryIsLoaded) {
   ASSERT_TRUE(galleries.ok()) << galleries.status();
   ASSERT_EQ(galleries->size(), 1u);
   EXPECT_EQ((*galleries)[0].sample_count(), 5u);
+  const auto serving = client->GetServerStats();
+  ASSERT_TRUE(serving.ok()) << serving.status();
+  EXPECT_EQ(serving->state(), "serving");
+  EXPECT_EQ(serving->log_level(), "warning");
+  EXPECT_EQ(serving->samples(), 5u);
+  EXPECT_EQ(serving->store(), dir);
 }
 
 // grpc.health.v1 Check of `service`: the status field of the reply (1 SERVING, 2 NOT_SERVING),
