@@ -149,6 +149,9 @@ if [ "$modelnet" = 1 ]; then
   fi
 fi
 
+step "What the server saw (shapeid stats; one log line per call in $log, docs/operations.md)"
+"$shapeid" stats
+
 step "Stopping the server"
 kill -TERM "$server_pid"
 wait "$server_pid" && echo "shapeid-server stopped cleanly"
