@@ -136,7 +136,7 @@ ServerMetrics::ServerMetrics(MetricsOptions options)
 
 void ServerMetrics::SetSources(std::weak_ptr<const GalleryRegistry> galleries,
                                LiveSources live) {
-  absl::MutexLock lock(&mu_);
+  std::lock_guard<std::mutex> lock(mu_);
   galleries_ = std::move(galleries);
   live_ = std::move(live);
 }
@@ -144,7 +144,7 @@ void ServerMetrics::SetSources(std::weak_ptr<const GalleryRegistry> galleries,
 std::string ServerMetrics::GalleryLabel(absl::string_view name, bool held) const {
   if (name.empty()) return "";
   if (!held) return kUnknownGallery;
-  absl::MutexLock lock(&mu_);
+  std::lock_guard<std::mutex> lock(mu_);
   if (labelled_galleries_.contains(name)) return std::string(name);
   if (static_cast<int>(labelled_galleries_.size()) >= options_.max_gallery_labels) {
     return kOtherGalleries;
@@ -158,7 +158,7 @@ T& ServerMetrics::Series(SeriesCache<T>& cache, prometheus::Family<T>& family,
                          const prometheus::Labels& labels, Args&&... args) {
   std::string key;
   for (const auto& [name, value] : labels) absl::StrAppend(&key, value, "\x1f");
-  absl::MutexLock lock(&mu_);
+  std::lock_guard<std::mutex> lock(mu_);
   T*& series = cache[key];
   if (series == nullptr) series = &family.Add(labels, std::forward<Args>(args)...);
   return *series;
@@ -175,7 +175,7 @@ void ServerMetrics::RecordCall(const CallMetrics& call) {
     } else {
       std::shared_ptr<const GalleryRegistry> galleries;
       {
-        absl::MutexLock lock(&mu_);
+        std::lock_guard<std::mutex> lock(mu_);
         galleries = galleries_.lock();
       }
       held = galleries != nullptr && galleries->Get(call.gallery).ok();
@@ -184,7 +184,7 @@ void ServerMetrics::RecordCall(const CallMetrics& call) {
   const std::string gallery = GalleryLabel(call.gallery, held);
   const std::string method(call.method);
   {
-    absl::MutexLock lock(&mu_);
+    std::lock_guard<std::mutex> lock(mu_);
     if (std::find(methods_seen_.begin(), methods_seen_.end(), method) == methods_seen_.end()) {
       methods_seen_.push_back(method);
     }
@@ -236,7 +236,7 @@ void ServerMetrics::CollectLive(std::vector<MetricFamily>* out) const {
   std::shared_ptr<const GalleryRegistry> galleries;
   LiveSources live;
   {
-    absl::MutexLock lock(&mu_);
+    std::lock_guard<std::mutex> lock(mu_);
     galleries = galleries_.lock();
     live = live_;
   }
@@ -344,7 +344,7 @@ void ServerMetrics::CollectLive(std::vector<MetricFamily>* out) const {
 std::vector<MethodSummary> ServerMetrics::MethodSummaries() const {
   std::vector<std::string> methods;
   {
-    absl::MutexLock lock(&mu_);
+    std::lock_guard<std::mutex> lock(mu_);
     methods = methods_seen_;
   }
   std::vector<MethodSummary> summaries;

@@ -20,6 +20,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -29,7 +30,6 @@
 #include "absl/container/flat_hash_set.h"
 #include "absl/status/status.h"
 #include "absl/strings/string_view.h"
-#include "absl/synchronization/mutex.h"
 #include "absl/time/time.h"
 #include "prometheus/collectable.h"
 #include "prometheus/counter.h"
@@ -130,7 +130,9 @@ class ServerMetrics final : public prometheus::Collectable {
   prometheus::Family<prometheus::Histogram>& store_write_duration_;
   prometheus::Family<prometheus::Counter>& store_write_failures_;
 
-  mutable absl::Mutex mu_;
+  // std::mutex, not absl::Mutex: Debian's Abseil is not built for TSan, which then sees
+  // absl::Mutex's critical sections as races (core/gallery/gallery.h says the same).
+  mutable std::mutex mu_;
   // Names given a label of their own (at most options_.max_gallery_labels); assigned on
   // first sight, by a call or a scrape, and kept until the server stops.
   mutable absl::flat_hash_set<std::string> labelled_galleries_ ABSL_GUARDED_BY(mu_);

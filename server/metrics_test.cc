@@ -2,10 +2,13 @@
 
 #include <limits>
 #include <map>
+#include <set>
+#include <thread>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "absl/strings/str_cat.h"
 #include "core/gallery/gallery.h"
 #include "core/gallery/gallery_registry.h"
 #include "core/testing/test_clouds.h"
@@ -220,6 +223,57 @@ TEST(ServerMetricsTest, MethodSummariesCountErrorsAndEstimateQuantiles) {
   EXPECT_LE(*summaries[0].p99, absl::Milliseconds(50));
   EXPECT_EQ(summaries[1].method, "Train");
   EXPECT_EQ(summaries[1].calls, 1u);
+}
+
+// Calls from many threads while Prometheus scrapes and galleries come and go: every call is
+// counted once and nothing races (this file also runs under TSan: label concurrency).
+TEST(ServerMetricsTest, CallsScrapesAndGalleryChangesFromManyThreads) {
+  MetricsOptions options;
+  options.max_gallery_labels = 4;
+  ServerMetrics metrics(options);
+  auto registry = std::make_shared<GalleryRegistry>();
+  metrics.SetSources(registry, {});
+  constexpr int kThreads = 4, kCalls = 2000;
+  std::vector<std::thread> threads;
+  for (int t = 0; t < kThreads; ++t) {
+    threads.emplace_back([&, t] {
+      for (int i = 0; i < kCalls; ++i) {
+        const std::string gallery = absl::StrCat("g", (t + i) % 8);
+        metrics.RecordCall(Call("ClassifyCloud", gallery,
+                                i % 10 == 0 ? absl::StatusCode::kNotFound : absl::StatusCode::kOk));
+        metrics.ObserveDescribe("dfsd", absl::Microseconds(i));
+        metrics.ObserveStoreWrite("append", absl::Microseconds(i), i % 7 != 0);
+      }
+    });
+  }
+  threads.emplace_back([&] {
+    for (int i = 0; i < 40; ++i) {
+      const std::string name = absl::StrCat("g", i % 8);
+      if (!registry->Create(name, {}).ok()) (void)registry->Delete(name);
+    }
+  });
+  threads.emplace_back([&] {
+    for (int i = 0; i < 20; ++i) {
+      EXPECT_FALSE(Scrape(metrics).empty());
+      (void)metrics.MethodSummaries();
+    }
+  });
+  for (std::thread& thread : threads) thread.join();
+  const std::vector<MethodSummary> summaries = metrics.MethodSummaries();
+  ASSERT_EQ(summaries.size(), 1u);
+  EXPECT_EQ(summaries[0].calls, uint64_t{kThreads * kCalls});
+  EXPECT_EQ(Value(metrics, R"(shapeid_describe_duration_seconds_count{descriptor="dfsd"})"),
+            kThreads * kCalls);
+  // Never more gallery labels than the limit, plus _other and _unknown.
+  std::set<std::string> labels;
+  const std::string text = Scrape(metrics);
+  for (size_t at = 0; (at = text.find("gallery=\"", at)) != std::string::npos;) {
+    at += 9;
+    labels.insert(text.substr(at, text.find('"', at) - at));
+  }
+  labels.erase("_other");
+  labels.erase("_unknown");
+  EXPECT_LE(labels.size(), 4u);
 }
 
 TEST(HistogramQuantileTest, InterpolatesLikePrometheus) {
