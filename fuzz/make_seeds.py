@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """Writes the checked-in seeds of the file-reader and spec fuzz targets.
 
-Reader seeds go in fuzz/testdata/ itself, where each reader target takes the files of its
-formats by extension (as it takes the bad-input files of tests/bad_input/testdata/); the
-spec seeds, which have no extension, keep a corpus directory (fuzz/testdata/corpus/).
+Reader seeds go in tests/fuzz_seeds/testdata/, where each reader target takes the files of its
+formats by extension (as it takes the bad-input files of tests/bad_input/testdata/); point-cloud
+files live only in a tests/*/testdata folder. The spec seeds, which have no extension, keep a
+corpus directory (fuzz/testdata/corpus/).
 
 Small files that between them use every feature each reader documents (core/io/*_reader.h):
 ascii and binary encodings, both byte orders, padding fields, organised clouds with NaN,
@@ -26,7 +27,8 @@ def points(n, seed=1):
 
 def write(target, name, data):
     spec = target == 'descriptor_spec_fuzzer'
-    d = os.path.join(HERE, 'testdata', *(('corpus', target) if spec else ()))
+    d = (os.path.join(HERE, 'testdata', 'corpus', target) if spec else
+         os.path.join(HERE, '..', 'tests', 'fuzz_seeds', 'testdata'))
     os.makedirs(d, exist_ok=True)
     with open(os.path.join(d, name), 'wb') as f:
         f.write(data.encode() if isinstance(data, str) else data)

@@ -7,7 +7,7 @@
 #   fuzz/run_fuzzers.sh [BUILD_DIR [SECONDS_PER_TARGET [TARGET...]]]
 #   fuzz/run_fuzzers.sh build/fuzz 600 pcd_fuzzer      # ten minutes on the PCD reader
 #
-# Seeds: a reader's files of its formats in fuzz/testdata (checked in) and tests/bad_input/testdata
+# Seeds: a reader's files of its formats in tests/fuzz_seeds/testdata (checked in) and tests/bad_input/testdata
 # (malformed), fuzz/testdata/corpus/TARGET (the spec fuzzer's), the service seeds written by the
 # build, and, where ../shared/data exists, a few real ModelNet10 PCD and DALES XYZ files. The corpus each target
 # grows is kept in $SHAPEID_FUZZ_CACHE (default /var/tmp/shapeid-fuzz), so that a later run
@@ -31,12 +31,12 @@ symbolizer=/usr/lib/llvm-14/bin/llvm-symbolizer
 rm -rf "$out"
 mkdir -p "$out"
 
-# A reader's files by format, as read-only seeds: those of fuzz/testdata (fuzz/make_seeds.py),
+# A reader's files by format, as read-only seeds: those of tests/fuzz_seeds/testdata (fuzz/make_seeds.py),
 # the bad-input corpus's malformed ones (tests/bad_input/testdata), and a few real files.
 real_seeds() {  # TARGET -> prints a directory (maybe empty)
   local dir=$out/real/$1 from
   mkdir -p "$dir"
-  for from in "$root/fuzz/testdata" "$root/tests/bad_input/testdata"; do
+  for from in "$root/tests/fuzz_seeds/testdata" "$root/tests/bad_input/testdata"; do
     case $1 in
       pcd_fuzzer) cp "$from"/*.pcd "$dir"/ 2>/dev/null || true ;;
       ply_fuzzer) cp "$from"/*.ply "$dir"/ 2>/dev/null || true ;;
