@@ -195,6 +195,19 @@ std::string FormatSeconds(double seconds) {
   return absl::StrFormat("%.3g s", seconds);
 }
 
+double DurationSeconds(const google::protobuf::Duration& duration) {
+  // Division, not 1e-9 * nanos: correctly rounded, so 2.4 ms prints as 0.0024.
+  return static_cast<double>(duration.seconds()) + duration.nanos() / 1e9;
+}
+
+int FinishOutput(bool written, const CliContext& context) {
+  if (std::fflush(context.out) != 0 || !written) {
+    WriteAll(context.err, "shapeid: cannot write the output\n");
+    return kExitSomeInputsFailed;
+  }
+  return kExitOk;
+}
+
 std::string FormatPercent(double fraction) { return absl::StrFormat("%.2f", 100 * fraction); }
 
 Progress::Progress(std::FILE* err, ProgressMode mode, std::string verb, size_t total)

@@ -91,6 +91,10 @@ absl::StatusOr<std::string> ReadApiKeyFile(const std::string& path);
 // Writes `text` to `file`; false if the stream is in error afterwards.
 bool WriteAll(std::FILE* file, absl::string_view text);
 
+// The exit code of a command whose output is all written: kExitOk, or (the output could not be
+// written or flushed: a full disk, a closed pipe) kExitSomeInputsFailed after saying so.
+int FinishOutput(bool written, const CliContext& context);
+
 // A table of strings rendered as aligned columns (two spaces apart; columns listed in
 // `right_aligned` are right-aligned, for numbers) or as CSV.
 struct Table {
@@ -109,6 +113,8 @@ size_t DisplayWidth(absl::string_view text);
 
 // "12.3 ms", "850 µs", "2.41 s".
 std::string FormatSeconds(double seconds);
+// A protobuf Duration in seconds.
+double DurationSeconds(const google::protobuf::Duration& duration);
 // "12.34" for 0.1234 (no percent sign).
 std::string FormatPercent(double fraction);
 

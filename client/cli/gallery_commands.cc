@@ -33,14 +33,6 @@ bool PrintRows(const Table& table, const CliContext& context) {
                   context.format == OutputFormat::kCsv ? RenderCsv(table) : RenderTable(table));
 }
 
-int Finish(bool written, const CliContext& context) {
-  if (std::fflush(context.out) != 0 || !written) {
-    WriteAll(context.err, "shapeid: cannot write the output\n");
-    return kExitSomeInputsFailed;
-  }
-  return kExitOk;
-}
-
 std::vector<std::string> GalleryRow(const v1::Gallery& g) {
   return {g.name(),
           g.descriptor_spec(),
@@ -62,13 +54,13 @@ const std::vector<bool> kGalleryRightAligned = {false, false, true, true, false,
 // object, or the label counts (csv).
 int PrintGallery(const v1::Gallery& g, const CliContext& context) {
   if (context.format == OutputFormat::kJson)
-    return Finish(WriteAll(context.out, GalleryJson(g)), context);
+    return FinishOutput(WriteAll(context.out, GalleryJson(g)), context);
   if (context.format == OutputFormat::kCsv) {
     Table table{{"label", "count"}, {}, {}};
     for (const v1::LabelCount& lc : g.label_counts()) {
       table.rows.push_back({lc.label(), absl::StrCat(lc.count())});
     }
-    return Finish(PrintRows(table, context), context);
+    return FinishOutput(PrintRows(table, context), context);
   }
   std::string text = absl::StrCat(
       "gallery     ", g.name(), "\n", "descriptor  ", g.descriptor_spec(), " (", g.dimension(),
@@ -101,7 +93,7 @@ int PrintGallery(const v1::Gallery& g, const CliContext& context) {
     }
     absl::StrAppend(&text, "\n", RenderTable(table));
   }
-  return Finish(WriteAll(context.out, text), context);
+  return FinishOutput(WriteAll(context.out, text), context);
 }
 
 }  // namespace
@@ -196,9 +188,9 @@ int RunGalleryCreate(const GalleryCreateOptions& options, const CliContext& cont
     return ExitCodeForStatus(gallery.status());
   }
   if (context.format == OutputFormat::kJson)
-    return Finish(WriteAll(context.out, GalleryJson(*gallery)), context);
+    return FinishOutput(WriteAll(context.out, GalleryJson(*gallery)), context);
   Table table{kGalleryHeader, {GalleryRow(*gallery)}, kGalleryRightAligned};
-  return Finish(PrintRows(table, context), context);
+  return FinishOutput(PrintRows(table, context), context);
 }
 
 int RunGalleryList(const CliContext& context) {
@@ -212,11 +204,11 @@ int RunGalleryList(const CliContext& context) {
   if (context.format == OutputFormat::kJson) {
     bool written = true;
     for (const v1::Gallery& g : *galleries) written &= WriteAll(context.out, GalleryJson(g));
-    return Finish(written, context);
+    return FinishOutput(written, context);
   }
   Table table{kGalleryHeader, {}, kGalleryRightAligned};
   for (const v1::Gallery& g : *galleries) table.rows.push_back(GalleryRow(g));
-  return Finish(PrintRows(table, context), context);
+  return FinishOutput(PrintRows(table, context), context);
 }
 
 int RunGalleryShow(const std::string& name, const CliContext& context) {
@@ -251,7 +243,7 @@ int RunGalleryDelete(const std::string& name, bool missing_ok, const CliContext&
       text = absl::StrCat("deleted gallery ", name, " (", *deleted, " samples)\n");
       break;
   }
-  return Finish(WriteAll(context.out, text), context);
+  return FinishOutput(WriteAll(context.out, text), context);
 }
 
 int RunGalleryRemove(const GalleryRemoveOptions& options, const CliContext& context) {
@@ -285,7 +277,7 @@ int RunGalleryRemove(const GalleryRemoveOptions& options, const CliContext& cont
                           removed->remaining(), " remain)\n");
       break;
   }
-  return Finish(WriteAll(context.out, text), context);
+  return FinishOutput(WriteAll(context.out, text), context);
 }
 
 int RunGalleryExport(const std::string& name, const std::string& file, const CliContext& context) {
@@ -319,12 +311,12 @@ int RunGalleryExport(const std::string& name, const std::string& file, const Cli
   const uint64_t bytes = (*writer)->bytes_written();
   switch (context.format) {
     case OutputFormat::kJson:
-      return Finish(WriteAll(out, absl::StrCat("{\"name\":", JsonString(name), ",\"file\":",
+      return FinishOutput(WriteAll(out, absl::StrCat("{\"name\":", JsonString(name), ",\"file\":",
                                                JsonString(shown), ",\"samples\":", samples,
                                                ",\"bytes\":", bytes, "}\n")),
                     context);
     case OutputFormat::kCsv:
-      return Finish(
+      return FinishOutput(
           WriteAll(out, RenderCsv({{"name", "file", "samples", "bytes"},
                                    {{name, shown, absl::StrCat(samples), absl::StrCat(bytes)}},
                                    {}})),
@@ -391,7 +383,7 @@ int RunDescriptors(const CliContext& context) {
                                              ",\"default_dimension\":", kind.default_dimension(),
                                              ",\"parameters\":[", parameters, "]}\n"));
     }
-    return Finish(written, context);
+    return FinishOutput(written, context);
   }
   if (context.format == OutputFormat::kCsv) {
     Table table{{"kind", "parameter", "default", "help"}, {}, {}};
@@ -400,7 +392,7 @@ int RunDescriptors(const CliContext& context) {
         table.rows.push_back({kind.kind(), p.name(), p.default_value(), p.help()});
       }
     }
-    return Finish(PrintRows(table, context), context);
+    return FinishOutput(PrintRows(table, context), context);
   }
   std::string text;
   for (const v1::DescriptorKind& kind : *kinds) {
@@ -412,7 +404,7 @@ int RunDescriptors(const CliContext& context) {
     }
     absl::StrAppend(&text, RenderTable(table), "\n");
   }
-  return Finish(WriteAll(context.out, text), context);
+  return FinishOutput(WriteAll(context.out, text), context);
 }
 
 int RunHealth(const CliContext& context) {

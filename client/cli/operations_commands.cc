@@ -14,32 +14,20 @@ namespace {
 
 constexpr size_t kGalleriesShown = 10;
 
-double Seconds(const google::protobuf::Duration& d) {
-  return static_cast<double>(d.seconds()) + d.nanos() / 1e9;
-}
-
 // CSV seconds: 9 digits are plenty for a latency, and stay readable.
 std::string CsvSeconds(const google::protobuf::Duration& d) {
-  return absl::StrFormat("%.9g", Seconds(d));
+  return absl::StrFormat("%.9g", DurationSeconds(d));
 }
 
 std::string OrDash(const std::string& text) { return text.empty() ? "-" : text; }
 
 // A latency as "0.71 ms", or "-" when the server sent none (no calls).
 std::string Latency(bool set, const google::protobuf::Duration& d) {
-  return set ? FormatSeconds(Seconds(d)) : "-";
+  return set ? FormatSeconds(DurationSeconds(d)) : "-";
 }
 
 std::string LatencyJson(bool set, const google::protobuf::Duration& d) {
-  return set ? JsonNumber(Seconds(d)) : "null";
-}
-
-int Finish(bool written, const CliContext& context) {
-  if (std::fflush(context.out) != 0 || !written) {
-    WriteAll(context.err, "shapeid: cannot write the output\n");
-    return kExitSomeInputsFailed;
-  }
-  return kExitOk;
+  return set ? JsonNumber(DurationSeconds(d)) : "null";
 }
 
 Table MethodTable(const v1::ServerStats& stats, bool csv) {
@@ -155,7 +143,7 @@ std::string StatsJson(const v1::ServerStats& stats, const std::string& target) {
   }
   return absl::StrCat(
       "{\"target\":", JsonString(target), ",\"version\":", JsonString(stats.version()),
-      ",\"uptime_seconds\":", JsonNumber(Seconds(stats.uptime())),
+      ",\"uptime_seconds\":", JsonNumber(DurationSeconds(stats.uptime())),
       ",\"state\":", JsonString(stats.state()), ",\"calls_in_flight\":", stats.calls_in_flight(),
       ",\"store\":", JsonString(stats.store()),
       ",\"resident_memory_bytes\":", stats.resident_memory_bytes(),
@@ -176,13 +164,14 @@ int RunStats(const CliContext& context) {
   }
   switch (context.format) {
     case OutputFormat::kJson:
-      return Finish(WriteAll(context.out, StatsJson(*stats, context.client.target)), context);
+      return FinishOutput(WriteAll(context.out, StatsJson(*stats, context.client.target)), context);
     case OutputFormat::kCsv:
-      return Finish(WriteAll(context.out, RenderCsv(MethodTable(*stats, /*csv=*/true))), context);
+      return FinishOutput(WriteAll(context.out, RenderCsv(MethodTable(*stats, /*csv=*/true))),
+                          context);
     case OutputFormat::kTable:
       break;
   }
-  return Finish(WriteAll(context.out, StatsText(*stats, context.client.target)), context);
+  return FinishOutput(WriteAll(context.out, StatsText(*stats, context.client.target)), context);
 }
 
 int RunLogLevel(const std::string& level, const CliContext& context) {
@@ -220,7 +209,7 @@ int RunLogLevel(const std::string& level, const CliContext& context) {
              "shapeid: log-level: only the replica that answered changed its level; give each "
              "replica's HOST:PORT to --server to set them all\n");
   }
-  return Finish(WriteAll(context.out, text), context);
+  return FinishOutput(WriteAll(context.out, text), context);
 }
 
 }  // namespace shapeid

@@ -11,10 +11,6 @@
 namespace shapeid {
 namespace {
 
-double DurationSeconds(const google::protobuf::Duration& d) {
-  return static_cast<double>(d.seconds()) + 1e-9 * d.nanos();
-}
-
 std::string FailedJson(const std::vector<FailedInput>& failed) {
   std::string out = "[";
   for (size_t i = 0; i < failed.size(); ++i) {
@@ -218,10 +214,7 @@ int RunClassify(const ClassifyOptions& options, const CliContext& context) {
     outcome = ClassifyFiles(*client, options.gallery, options.call, *paths, options.batch, progress,
                             on_result, on_failure);
   }
-  if (std::fflush(context.out) != 0 || !written) {
-    WriteAll(context.err, "shapeid: cannot write the output\n");
-    return kExitSomeInputsFailed;
-  }
+  if (const int code = FinishOutput(written, context); code != kExitOk) return code;
   if (context.format == OutputFormat::kTable && context.progress != ProgressMode::kOff) {
     WriteAll(
         context.err,
