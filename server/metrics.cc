@@ -262,10 +262,8 @@ void ServerMetrics::CollectLive(std::vector<MetricFamily>* out) const {
   if (galleries != nullptr) {
     // Galleries past the label limit are summed under "_other".
     std::vector<std::pair<std::string, double>> held;
-    for (const std::string& name : galleries->List()) {
-      absl::StatusOr<std::shared_ptr<Gallery>> gallery = galleries->Get(name);
-      if (!gallery.ok()) continue;
-      held.emplace_back(name, static_cast<double>((*gallery)->Snapshot()->num_samples()));
+    for (const std::shared_ptr<Gallery>& gallery : galleries->All()) {
+      held.emplace_back(gallery->name(), static_cast<double>(gallery->Snapshot()->num_samples()));
     }
     const int64_t count = static_cast<int64_t>(held.size());
     int64_t folded = 0;

@@ -163,11 +163,9 @@ absl::StatusOr<LoadReport> ShapeIdServer::LoadGalleries() {
     report.read_only = store_->read_only();
     report.set_aside = store_->set_aside();
   }
-  for (const std::string& name : registry_->List()) {
-    absl::StatusOr<std::shared_ptr<Gallery>> gallery = registry_->Get(name);
-    if (!gallery.ok()) continue;
+  for (const std::shared_ptr<Gallery>& gallery : registry_->All()) {
     ++report.galleries;
-    report.samples += (*gallery)->Snapshot()->num_samples();
+    report.samples += gallery->Snapshot()->num_samples();
   }
   load_report_ = report;
   if (shut_down_) return report;

@@ -580,10 +580,8 @@ grpc::ServerUnaryReactor* ShapeIdService::ListGalleries(grpc::CallbackServerCont
       context, gate_, observer_, SHAPEID_METHOD(ListGalleries), raw_request, raw_response,
       [&](const v1::ListGalleriesRequest& /*request*/, v1::ListGalleriesResponse* response,
           CallRecord& /*call*/) -> absl::Status {
-        for (const std::string& name : registry_->List()) {
-          auto gallery = registry_->Get(name);
-          if (!gallery.ok()) continue;  // deleted since List: not an error for the caller
-          ToProto(*(*gallery)->Snapshot(), response->add_galleries());
+        for (const std::shared_ptr<Gallery>& gallery : registry_->All()) {
+          ToProto(*gallery->Snapshot(), response->add_galleries());
         }
         return absl::OkStatus();
       });
@@ -704,12 +702,10 @@ grpc::ServerUnaryReactor* ShapeIdService::GetServerStats(grpc::CallbackServerCon
         }
         std::vector<v1::GalleryStats> galleries;
         uint64_t samples = 0;
-        for (const std::string& name : registry_->List()) {
-          const absl::StatusOr<std::shared_ptr<Gallery>> gallery = registry_->Get(name);
-          if (!gallery.ok()) continue;  // deleted since List
-          const std::shared_ptr<const GallerySnapshot> snapshot = (*gallery)->Snapshot();
+        for (const std::shared_ptr<Gallery>& gallery : registry_->All()) {
+          const std::shared_ptr<const GallerySnapshot> snapshot = gallery->Snapshot();
           v1::GalleryStats& stats = galleries.emplace_back();
-          stats.set_name(name);
+          stats.set_name(gallery->name());
           stats.set_samples(static_cast<uint64_t>(snapshot->num_samples()));
           stats.set_version(snapshot->version());
           samples += stats.samples();

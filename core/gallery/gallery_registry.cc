@@ -138,6 +138,14 @@ std::vector<std::string> GalleryRegistry::List() const {
   return names;
 }
 
+std::vector<std::shared_ptr<Gallery>> GalleryRegistry::All() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  std::vector<std::shared_ptr<Gallery>> galleries;
+  galleries.reserve(galleries_.size());
+  for (const auto& [name, gallery] : galleries_) galleries.push_back(gallery);
+  return galleries;
+}
+
 absl::Status GalleryRegistry::Delete(absl::string_view name) {
   std::lock_guard<std::mutex> lock(mu_);
   auto it = galleries_.find(name);

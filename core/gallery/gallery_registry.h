@@ -70,6 +70,9 @@ class GalleryRegistry {
 
   // Names, sorted.
   std::vector<std::string> List() const;
+  // Every gallery, sorted by name, under one lock (List then Get would lock once per gallery
+  // and skip those deleted in between).
+  std::vector<std::shared_ptr<Gallery>> All() const;
 
   // NotFound, or the store's error (gallery kept).
   absl::Status Delete(absl::string_view name);

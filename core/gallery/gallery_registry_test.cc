@@ -36,6 +36,8 @@ TEST(GalleryRegistryTest, CreateGetListDelete) {
   ASSERT_TRUE(a.ok()) << a.status();
   EXPECT_THAT(registry.List(), ElementsAre("Modelnet10", "ycb"));  // sorted, byte order
   EXPECT_EQ(registry.size(), 2u);
+  // All: the galleries themselves, in the same order.
+  EXPECT_THAT(registry.All(), ElementsAre(*a, *b));
 
   auto got = registry.Get("ycb");
   ASSERT_TRUE(got.ok());
@@ -44,6 +46,7 @@ TEST(GalleryRegistryTest, CreateGetListDelete) {
 
   ASSERT_TRUE(registry.Delete("ycb").ok());
   EXPECT_THAT(registry.List(), ElementsAre("Modelnet10"));
+  EXPECT_THAT(registry.All(), ElementsAre(*a));
   EXPECT_EQ(registry.Get("ycb").status().code(), absl::StatusCode::kNotFound);
   // The name is free again, for a new empty gallery.
   auto again = registry.Create("ycb", {});
