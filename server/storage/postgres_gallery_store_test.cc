@@ -280,13 +280,15 @@ TEST_F(PostgresGalleryStoreTest, AChangeThatDoesNotApplyReloadsTheGalleryInstead
   // torn read would leave). B must read the gallery again from the store, not stop there.
   auto admin = PgConnection::Connect(conninfo_);
   ASSERT_TRUE(admin.ok());
+  // One transaction, as a real write is: a follower (both replicas follow) must never read
+  // the log entry before the version it names (it would reload version 1 and stay there).
   ASSERT_TRUE((*admin)
-                  ->Exec("log",
-                         "INSERT INTO shapeid_changes (gallery, incarnation, version, kind, ids, "
-                         "updated_unix_ns) SELECT name, incarnation, version + 1, 'append', "
-                         "'{1}', updated_unix_ns FROM shapeid_galleries WHERE name = 'g'")
+                  ->ExecScript("log and bump",
+                               "INSERT INTO shapeid_changes (gallery, incarnation, version, kind, "
+                               "ids, updated_unix_ns) SELECT name, incarnation, version + 1, "
+                               "'append', '{1}', updated_unix_ns FROM shapeid_galleries WHERE "
+                               "name = 'g'; UPDATE shapeid_galleries SET version = version + 1")
                   .ok());
-  ASSERT_TRUE((*admin)->Exec("bump", "UPDATE shapeid_galleries SET version = version + 1").ok());
   ASSERT_TRUE(b->store->Sync().ok());
   auto on_b = (*b->registry->Get("g"))->Snapshot();
   EXPECT_EQ(on_b->version(), 2u);
