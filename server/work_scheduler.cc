@@ -1,0 +1,253 @@
+#include "server/work_scheduler.h"
+
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+
+namespace shapeid {
+namespace {
+
+// How often queued work is checked for passed deadlines and cancelled calls while some is
+// waiting.
+constexpr absl::Duration kSweepInterval = absl::Milliseconds(20);
+// Work that needs at most this much memory may start while an earlier piece of its lane
+// waits for the budget (a big piece waits for memory; small ones need not wait behind it).
+constexpr size_t kSmallMemory = size_t{1} << 20;
+
+int Cores() { return std::max(1, static_cast<int>(std::thread::hardware_concurrency())); }
+
+int CheapWorkers(const WorkSchedulerOptions& options) {
+  return options.cheap_workers > 0 ? options.cheap_workers : std::max(2, Cores());
+}
+
+int HeavyWorkers(const WorkSchedulerOptions& options) {
+  if (options.heavy_workers > 0) return options.heavy_workers;
+  const int cores = Cores();
+  return std::max(1, std::min(cores - 1, cores * 3 / 4));
+}
+
+}  // namespace
+
+const char* WorkLaneName(WorkLane lane) {
+  switch (lane) {
+    case WorkLane::kCheap:
+      return "cheap";
+    case WorkLane::kHeavy:
+      return "heavy";
+    case WorkLane::kStore:
+      return "store";
+  }
+  return "cheap";
+}
+
+WorkScheduler::WorkScheduler(WorkSchedulerOptions options, std::shared_ptr<MemoryBudget> budget)
+    : options_(std::move(options)), budget_(std::move(budget)) {
+  const int workers[kNumWorkLanes] = {CheapWorkers(options_), HeavyWorkers(options_),
+                                      std::max(1, options_.store_workers)};
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    for (int lane = 0; lane < kNumWorkLanes; ++lane) lanes_[lane].workers = workers[lane];
+  }
+  for (int lane = 0; lane < kNumWorkLanes; ++lane) {
+    for (int i = 0; i < workers[lane]; ++i) {
+      threads_.emplace_back([this, lane] { Work(static_cast<WorkLane>(lane)); });
+    }
+  }
+}
+
+WorkScheduler::~WorkScheduler() {
+  Stop();
+  for (std::thread& thread : threads_) thread.join();
+}
+
+void WorkScheduler::Stop() {
+  std::lock_guard<std::mutex> lock(mu_);
+  stopping_ = true;
+  for (Lane& lane : lanes_) lane.ready.notify_all();
+}
+
+WorkLane WorkScheduler::LaneFor(const WorkOrder& order) const {
+  if (order.store) return WorkLane::kStore;
+  return order.cost >= options_.heavy_cost ? WorkLane::kHeavy : WorkLane::kCheap;
+}
+
+absl::Status WorkScheduler::Submit(WorkOrder order, std::function<void(const WorkStart&)> work) {
+  const WorkLane which = LaneFor(order);
+  if (order.memory > 0 && budget_ != nullptr && !budget_->EverFits(order.memory)) {
+    return budget_->Refusal(order.caller, order.memory, "describing this cloud");
+  }
+  std::lock_guard<std::mutex> lock(mu_);
+  if (stopping_)
+    return absl::UnavailableError("the server is shutting down; retry on another replica");
+  Lane& lane = lanes_[static_cast<int>(which)];
+  if (static_cast<int64_t>(lane.queue.size()) >= options_.max_queued) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat("the server has ", lane.queue.size(), " pieces of ", WorkLaneName(which),
+                     " work waiting, its limit (--max_queued_work); retry shortly"));
+  }
+  auto backlog = backlog_.find(order.caller);
+  if (backlog != backlog_.end() && backlog->second + order.cost > options_.max_caller_backlog) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat("this caller already has ",
+                     absl::FormatDuration(absl::Trunc(backlog->second, absl::Milliseconds(1))),
+                     " of estimated work waiting, more than a caller may have (",
+                     absl::FormatDuration(options_.max_caller_backlog),
+                     ", --max_caller_backlog_seconds); wait for answers before sending more"));
+  }
+  const double cost = std::max(absl::ToDoubleSeconds(order.cost), 1e-6);
+  double& finish = lane.last_finish[order.caller];
+  const double start = std::max(lane.virtual_time, finish);
+  finish = start + cost;
+  backlog_[order.caller] += order.cost;
+  Job job{std::move(order), std::move(work), absl::Now()};
+  lane.queue.emplace(Tag{start, next_seq_++}, std::move(job));
+  lane.ready.notify_one();
+  return absl::OkStatus();
+}
+
+void WorkScheduler::Unqueue(Lane& lane, std::map<Tag, Job>::iterator it) {
+  const auto backlog = backlog_.find(it->second.order.caller);
+  if (backlog != backlog_.end()) {
+    backlog->second -= it->second.order.cost;
+    if (backlog->second <= absl::ZeroDuration()) backlog_.erase(backlog);
+  }
+  lane.queue.erase(it);
+  // Callers whose last finish tag is behind the virtual time start afresh anyway.
+  if (lane.last_finish.size() > 2 * lane.queue.size() + 64) {
+    for (auto f = lane.last_finish.begin(); f != lane.last_finish.end();) {
+      f = f->second <= lane.virtual_time ? lane.last_finish.erase(f) : std::next(f);
+    }
+  }
+}
+
+absl::Status WorkScheduler::DropReasonLocked(const WorkOrder& order, absl::Time now) const {
+  if (stopping_) {
+    return absl::CancelledError("the server is shutting down; retry on another replica");
+  }
+  if (now >= order.deadline) {
+    return absl::DeadlineExceededError(
+        "the call's deadline passed while its work waited for a worker");
+  }
+  if (order.cancelled && order.cancelled()) {
+    return absl::CancelledError("the call was cancelled while its work waited");
+  }
+  return absl::OkStatus();
+}
+
+std::map<WorkScheduler::Tag, WorkScheduler::Job>::iterator WorkScheduler::DropLocked(
+    WorkLane which, std::map<Tag, Job>::iterator it, absl::Status status, absl::Time now,
+    std::vector<Taken>* dropped) {
+  Taken& taken = dropped->emplace_back();
+  taken.start = WorkStart{std::move(status), which, now - it->second.submitted};
+  taken.job = std::move(it->second);
+  auto next = std::next(it);
+  Unqueue(lanes_[static_cast<int>(which)], it);
+  return next;
+}
+
+void WorkScheduler::SweepLocked(absl::Time now, std::vector<Taken>* dropped) {
+  for (int which = 0; which < kNumWorkLanes; ++which) {
+    Lane& lane = lanes_[which];
+    for (auto it = lane.queue.begin(); it != lane.queue.end();) {
+      absl::Status status = DropReasonLocked(it->second.order, now);
+      it = status.ok()
+               ? std::next(it)
+               : DropLocked(static_cast<WorkLane>(which), it, std::move(status), now, dropped);
+    }
+  }
+}
+
+bool WorkScheduler::TakeLocked(WorkLane which, absl::Time now, Taken* taken,
+                               std::vector<Taken>* dropped) {
+  Lane& lane = lanes_[static_cast<int>(which)];
+  bool blocked = false;
+  for (auto it = lane.queue.begin(); it != lane.queue.end();) {
+    const WorkOrder& order = it->second.order;
+    if (absl::Status status = DropReasonLocked(order, now); !status.ok()) {
+      it = DropLocked(which, it, std::move(status), now, dropped);
+      continue;
+    }
+    if (order.memory > 0 && budget_ != nullptr) {
+      if (blocked && order.memory > kSmallMemory) {
+        ++it;
+        continue;
+      }
+      absl::StatusOr<MemoryBudget::Grant> grant =
+          budget_->Reserve(order.caller, order.memory, "describing this cloud");
+      if (!grant.ok()) {
+        blocked = true;
+        ++it;
+        continue;
+      }
+      taken->grant = *std::move(grant);
+    }
+    lane.virtual_time = it->first.first;
+    taken->start = WorkStart{absl::OkStatus(), which, now - it->second.submitted};
+    taken->job = std::move(it->second);
+    Unqueue(lane, it);
+    return true;
+  }
+  return false;
+}
+
+void WorkScheduler::Work(WorkLane which) {
+  if (which == WorkLane::kHeavy && options_.heavy_nice > 0) {
+    // Linux: a thread's own nice value. Raising it needs no privilege; failure only costs
+    // the protection.
+    (void)setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)),
+                      std::min(options_.heavy_nice, 19));
+  }
+  std::unique_lock<std::mutex> lock(mu_);
+  Lane& lane = lanes_[static_cast<int>(which)];
+  while (true) {
+    const absl::Time now = absl::Now();
+    std::vector<Taken> dropped;
+    if (stopping_ || now - last_sweep_ >= kSweepInterval) {
+      SweepLocked(now, &dropped);
+      last_sweep_ = now;
+    }
+    Taken taken;
+    const bool have = !stopping_ && TakeLocked(which, now, &taken, &dropped);
+    if (have) ++lane.running;
+    if (have || !dropped.empty()) {
+      lock.unlock();
+      for (Taken& drop : dropped) drop.job.work(drop.start);
+      dropped.clear();  // destroys what the dropped work captured, outside the lock
+      if (have) {
+        taken.job.work(taken.start);
+        taken = Taken();  // gives back its memory
+      }
+      lock.lock();
+      if (have) {
+        --lane.running;
+        // Memory came back: work of another lane may be able to start now.
+        for (Lane& other : lanes_) other.ready.notify_one();
+      }
+      continue;
+    }
+    if (stopping_) return;
+    bool queued = false;
+    for (const Lane& any : lanes_) queued = queued || !any.queue.empty();
+    // Idle: sleep until work comes. With work waiting (for memory, or in another lane),
+    // wake to sweep it and to retry the budget, which calls outside the scheduler free too.
+    if (queued) {
+      lane.ready.wait_for(lock, absl::ToChronoMilliseconds(kSweepInterval));
+    } else {
+      lane.ready.wait(lock);
+    }
+  }
+}
+
+WorkScheduler::LaneStats WorkScheduler::stats(WorkLane which) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  const Lane& lane = lanes_[static_cast<int>(which)];
+  return LaneStats{lane.workers, lane.running, static_cast<int64_t>(lane.queue.size())};
+}
+
+}  // namespace shapeid
