@@ -108,6 +108,11 @@ absl::Status WorkScheduler::Submit(WorkOrder order, std::function<void(const Wor
   Job job{std::move(order), std::move(work), absl::Now()};
   lane.queue.emplace(Tag{start, next_seq_++}, std::move(job));
   lane.ready.notify_one();
+  if (lane.running >= lane.workers) {
+    // It will wait: wake the idle workers of the other lanes too, so that they sweep it
+    // (its deadline, its call's cancellation) while this lane's workers are all busy.
+    for (Lane& other : lanes_) other.ready.notify_one();
+  }
   return absl::OkStatus();
 }
 
