@@ -12,9 +12,9 @@ absl::Status SqliteStatus(sqlite3* db, int code, absl::string_view context) {
   const int primary = code & 0xff;
   std::string detail = db != nullptr ? sqlite3_errmsg(db) : sqlite3_errstr(code);
   const int os_errno = db != nullptr ? sqlite3_system_errno(db) : 0;
-  if (os_errno != 0 && (primary == SQLITE_IOERR || primary == SQLITE_CANTOPEN ||
-                        primary == SQLITE_READONLY || primary == SQLITE_FULL ||
-                        primary == SQLITE_PERM)) {
+  if (os_errno != 0 &&
+      (primary == SQLITE_IOERR || primary == SQLITE_CANTOPEN || primary == SQLITE_READONLY ||
+       primary == SQLITE_FULL || primary == SQLITE_PERM)) {
     absl::StrAppend(&detail, " (", std::strerror(os_errno), ")");
   }
   const std::string message = absl::StrCat(context, ": ", detail);
@@ -101,8 +101,9 @@ double SqliteStatement::ColumnDouble(int column) const {
 std::string SqliteStatement::ColumnText(int column) const {
   const unsigned char* text = sqlite3_column_text(stmt_, column);
   const int bytes = sqlite3_column_bytes(stmt_, column);
-  return text == nullptr ? std::string() : std::string(reinterpret_cast<const char*>(text),
-                                                       static_cast<size_t>(bytes));
+  return text == nullptr
+             ? std::string()
+             : std::string(reinterpret_cast<const char*>(text), static_cast<size_t>(bytes));
 }
 absl::Span<const uint8_t> SqliteStatement::ColumnBlob(int column) const {
   const void* blob = sqlite3_column_blob(stmt_, column);

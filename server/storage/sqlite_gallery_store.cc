@@ -147,8 +147,8 @@ absl::StatusOr<std::unique_ptr<SqliteGalleryStore>> SqliteGalleryStore::Open(
     SHAPEID_RETURN_IF_ERROR(MakeDirectories(options.data_dir + "/galleries"));
   }
   const std::string lock_path = options.data_dir + "/LOCK";
-  const int fd = open(lock_path.c_str(), (read_only.empty() ? O_RDWR | O_CREAT : O_RDONLY) | O_CLOEXEC,
-                      0644);
+  const int fd =
+      open(lock_path.c_str(), (read_only.empty() ? O_RDWR | O_CREAT : O_RDONLY) | O_CLOEXEC, 0644);
   if (fd < 0 && !(errno == ENOENT && !read_only.empty())) {
     return absl::UnavailableError(
         absl::StrCat("cannot open ", lock_path, ": ", std::strerror(errno)));
@@ -158,10 +158,10 @@ absl::StatusOr<std::unique_ptr<SqliteGalleryStore>> SqliteGalleryStore::Open(
     char pid[32] = {};
     [[maybe_unused]] const ssize_t n = pread(fd, pid, sizeof(pid) - 1, 0);
     close(fd);
-    return absl::FailedPreconditionError(absl::StrCat(
-        "data directory ", options.data_dir, " is in use by another shapeid-server (pid ",
-        absl::StripAsciiWhitespace(pid), " per ", lock_path,
-        "); two servers must never share one directory"));
+    return absl::FailedPreconditionError(
+        absl::StrCat("data directory ", options.data_dir,
+                     " is in use by another shapeid-server (pid ", absl::StripAsciiWhitespace(pid),
+                     " per ", lock_path, "); two servers must never share one directory"));
   }
   if (read_only.empty()) {
     // The pid is only a hint for the message above; the lock is what matters.
@@ -226,7 +226,8 @@ absl::Status PrepareWrites(const std::string& path, std::unique_ptr<SqliteDb>* d
       *insert, (*db)->Prepare("INSERT INTO samples(id, label, features, crc) VALUES(?,?,?,?)"));
   SHAPEID_ASSIGN_OR_RETURN(*remove, (*db)->Prepare("DELETE FROM samples WHERE id = ?"));
   SHAPEID_ASSIGN_OR_RETURN(
-      *touch, (*db)->Prepare("UPDATE gallery SET updated_unix_ns = ?, crc = ? WHERE singleton = 1"));
+      *touch,
+      (*db)->Prepare("UPDATE gallery SET updated_unix_ns = ?, crc = ? WHERE singleton = 1"));
   return absl::OkStatus();
 }
 
@@ -268,7 +269,8 @@ absl::Status SqliteGalleryStore::SaveGallery(const StoredGallery& gallery) {
   // The whole gallery goes into a temporary file first: a crash leaves either no gallery or
   // all of it, never an empty shell with half its samples.
   absl::Status status = [&]() -> absl::Status {
-    SHAPEID_ASSIGN_OR_RETURN(std::unique_ptr<SqliteDb> db, SqliteDb::Open(tmp_path, SqliteDb::Mode::kCreate));
+    SHAPEID_ASSIGN_OR_RETURN(std::unique_ptr<SqliteDb> db,
+                             SqliteDb::Open(tmp_path, SqliteDb::Mode::kCreate));
     SHAPEID_RETURN_IF_ERROR(db->Exec(absl::StrCat(
         "PRAGMA application_id=", kApplicationId, "; PRAGMA user_version=", kFormatVersion,
         "; PRAGMA journal_mode=WAL;", kConnectionPragmas)));
@@ -335,8 +337,8 @@ absl::Status SqliteGalleryStore::ChangeSamples(
     return g->touch.Run();
   });
   if (!status.ok()) {
-    status = absl::Status(status.code(), absl::StrCat("cannot ", what, " gallery '", name,
-                                                      "': ", status.message()));
+    status = absl::Status(
+        status.code(), absl::StrCat("cannot ", what, " gallery '", name, "': ", status.message()));
     if (IsFsyncFailure(*g->db)) g->broken = status;
     return status;
   }
@@ -357,20 +359,20 @@ absl::Status SqliteGalleryStore::AppendSamples(absl::string_view name,
 }
 
 absl::Status SqliteGalleryStore::RemoveSamples(absl::string_view name,
-                                               absl::Span<const uint64_t> ids,
-                                               absl::Time updated, uint64_t /*version*/) {
-  return ChangeSamples(name, absl::StrCat("remove ", ids.size(), " samples from"), updated,
-                       [&](OpenGallery& g) -> absl::Status {
-                         for (uint64_t id : ids) {
-                           g.remove.BindInt64(1, AsStoredId(id));
-                           SHAPEID_RETURN_IF_ERROR(g.remove.Run());
-                           if (sqlite3_changes(g.db->raw()) != 1) {
-                             return absl::InternalError(
-                                 absl::StrCat("sample id ", id, " is not stored"));
-                           }
-                         }
-                         return absl::OkStatus();
-                       });
+                                               absl::Span<const uint64_t> ids, absl::Time updated,
+                                               uint64_t /*version*/) {
+  return ChangeSamples(
+      name, absl::StrCat("remove ", ids.size(), " samples from"), updated,
+      [&](OpenGallery& g) -> absl::Status {
+        for (uint64_t id : ids) {
+          g.remove.BindInt64(1, AsStoredId(id));
+          SHAPEID_RETURN_IF_ERROR(g.remove.Run());
+          if (sqlite3_changes(g.db->raw()) != 1) {
+            return absl::InternalError(absl::StrCat("sample id ", id, " is not stored"));
+          }
+        }
+        return absl::OkStatus();
+      });
 }
 
 absl::Status SqliteGalleryStore::DeleteGallery(absl::string_view name) {
@@ -388,8 +390,8 @@ absl::Status SqliteGalleryStore::DeleteGallery(absl::string_view name) {
   if (!status.ok()) {
     // Still stored: reopen so the gallery stays writable, as the registry keeps it.
     g->broken = PrepareWrites(path, &g->db, &g->insert, &g->remove, &g->touch);
-    return absl::Status(status.code(), absl::StrCat("cannot delete gallery '", name,
-                                                    "': ", status.message()));
+    return absl::Status(status.code(),
+                        absl::StrCat("cannot delete gallery '", name, "': ", status.message()));
   }
   {
     std::lock_guard<std::mutex> store_lock(mu_);
@@ -424,8 +426,8 @@ absl::StatusOr<StoredGallery> SqliteGalleryStore::ReadFile(const std::string& na
     return absl::DataLossError(absl::StrCat("gallery file ", path, " is damaged: ", what));
   };
   if (absl::Status s = ValidateGalleryName(name); !s.ok()) {
-    return absl::DataLossError(absl::StrCat(path, " is not named after a valid gallery: ",
-                                            s.message()));
+    return absl::DataLossError(
+        absl::StrCat(path, " is not named after a valid gallery: ", s.message()));
   }
   std::unique_ptr<SqliteDb> db;
   if (read_only()) {
@@ -433,8 +435,9 @@ absl::StatusOr<StoredGallery> SqliteGalleryStore::ReadFile(const std::string& na
     struct stat wal;
     if (stat((path + "-wal").c_str(), &wal) == 0 && wal.st_size > 0) {
       return absl::UnavailableError(absl::StrCat(
-          path, "-wal holds changes not yet checkpointed into the gallery, which a read-only "
-                "data directory cannot recover; start a server on it read-write once"));
+          path,
+          "-wal holds changes not yet checkpointed into the gallery, which a read-only "
+          "data directory cannot recover; start a server on it read-write once"));
     }
     SHAPEID_ASSIGN_OR_RETURN(db, SqliteDb::Open(path, SqliteDb::Mode::kReadOnlyImmutable));
   } else {
@@ -444,14 +447,17 @@ absl::StatusOr<StoredGallery> SqliteGalleryStore::ReadFile(const std::string& na
   // What the file is, before trusting anything in it.
   SHAPEID_ASSIGN_OR_RETURN(const int64_t application_id, db->QueryInt("PRAGMA application_id"));
   if (application_id != kApplicationId) {
-    return absl::DataLossError(absl::StrCat(path, " is not a shapeid gallery (SQLite application_id ",
+    return absl::DataLossError(absl::StrCat(path,
+                                            " is not a shapeid gallery (SQLite application_id ",
                                             application_id, ", expected ", kApplicationId, ")"));
   }
   SHAPEID_ASSIGN_OR_RETURN(const int64_t format, db->QueryInt("PRAGMA user_version"));
   if (format > kFormatVersion) {
-    return absl::FailedPreconditionError(absl::StrCat(
-        path, " has format version ", format, ", written by a newer shapeid; this server reads "
-        "up to version ", kFormatVersion, ". Run the newer release, or export the gallery with it"));
+    return absl::FailedPreconditionError(
+        absl::StrCat(path, " has format version ", format,
+                     ", written by a newer shapeid; this server reads "
+                     "up to version ",
+                     kFormatVersion, ". Run the newer release, or export the gallery with it"));
   }
   if (format < 1) return damaged(absl::StrCat("format version ", format));
   // quick_check: every page and b-tree structure (a truncated or overwritten file), in
@@ -510,7 +516,8 @@ absl::StatusOr<StoredGallery> SqliteGalleryStore::ReadFile(const std::string& na
       sample.id = FromStoredId(rows.ColumnInt64(1));
       sample.label = rows.ColumnText(2);
       const absl::Span<const uint8_t> blob = rows.ColumnBlob(3);
-      const std::string at = absl::StrCat("sample id ", sample.id, " (row ", rows.ColumnInt64(0), ")");
+      const std::string at =
+          absl::StrCat("sample id ", sample.id, " (row ", rows.ColumnInt64(0), ")");
       // One descriptor per view: a positive multiple of the dimension.
       if (blob.empty() || blob.size() % bytes != 0) {
         return damaged(absl::StrCat(at, " has ", blob.size(),
@@ -577,9 +584,8 @@ absl::StatusOr<std::vector<StoredGallery>> SqliteGalleryStore::LoadAll() {
     absl::StatusOr<StoredGallery> loaded = LoadFile(name, &open);
     if (!loaded.ok()) {
       if (!options_.set_aside_damaged || read_only()) {
-        return absl::Status(loaded.status().code(),
-                            absl::StrCat("cannot load gallery '", name,
-                                         "': ", loaded.status().message()));
+        return absl::Status(loaded.status().code(), absl::StrCat("cannot load gallery '", name,
+                                                                 "': ", loaded.status().message()));
       }
       open.reset();  // close before moving the file
       SHAPEID_RETURN_IF_ERROR(SetAsideFile(name, loaded.status()));

@@ -84,9 +84,9 @@ class SqliteGalleryStore final : public GalleryStore {
   absl::StatusOr<std::vector<StoredGallery>> LoadAll() override;
 
   struct SetAside {
-    std::string name;    // gallery
+    std::string name;      // gallery
     std::string moved_to;  // path under damaged/
-    std::string reason;  // the error that made it unloadable
+    std::string reason;    // the error that made it unloadable
   };
   // What the last LoadAll moved aside (set_aside_damaged only).
   std::vector<SetAside> set_aside() const;
@@ -111,13 +111,15 @@ class SqliteGalleryStore final : public GalleryStore {
   absl::Status ChangeSamples(absl::string_view name, absl::string_view what, absl::Time updated,
                              const std::function<absl::Status(OpenGallery&)>& change);
   // Verifies and reads one gallery file (LoadFile adds "is damaged" to SQLite's reports).
-  absl::StatusOr<StoredGallery> LoadFile(const std::string& name, std::shared_ptr<OpenGallery>* out);
-  absl::StatusOr<StoredGallery> ReadFile(const std::string& name, std::shared_ptr<OpenGallery>* out);
+  absl::StatusOr<StoredGallery> LoadFile(const std::string& name,
+                                         std::shared_ptr<OpenGallery>* out);
+  absl::StatusOr<StoredGallery> ReadFile(const std::string& name,
+                                         std::shared_ptr<OpenGallery>* out);
   absl::Status SetAsideFile(const std::string& name, const absl::Status& reason);
 
   const SqliteGalleryStoreOptions options_;
   const std::string galleries_dir_;
-  const int lock_fd_;        // -1 when a read-only directory has no LOCK file
+  const int lock_fd_;            // -1 when a read-only directory has no LOCK file
   const std::string read_only_;  // empty, or why the directory cannot be written
 
   mutable std::mutex mu_;

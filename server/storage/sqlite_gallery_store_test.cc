@@ -34,8 +34,8 @@ using ::testing::IsEmpty;
 // A scratch directory per process and test (ctest runs tests in parallel processes).
 std::string ScratchDir(absl::string_view what) {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const std::string dir = absl::StrCat(::testing::TempDir(), "/sqlite_store_", getpid(), "_",
-                                       info->name(), "_", what);
+  const std::string dir =
+      absl::StrCat(::testing::TempDir(), "/sqlite_store_", getpid(), "_", info->name(), "_", what);
   std::system(absl::StrCat("rm -rf '", dir, "'").c_str());
   return dir;
 }
@@ -113,8 +113,8 @@ TEST(SqliteGalleryStoreTest, StartUpFinishesInterruptedCreatesAndDeletes) {
   ASSERT_TRUE(loaded.ok()) << loaded.status();
   ASSERT_EQ(loaded->size(), 1u);
   EXPECT_EQ((*loaded)[0].name, "kept");
-  EXPECT_THAT(*ListDirectory(dir + "/galleries"), ElementsAre("kept.gallery", "kept.gallery-shm",
-                                                              "kept.gallery-wal"));
+  EXPECT_THAT(*ListDirectory(dir + "/galleries"),
+              ElementsAre("kept.gallery", "kept.gallery-shm", "kept.gallery-wal"));
 }
 
 TEST(SqliteGalleryStoreTest, OneDirectoryOneServer) {
@@ -188,8 +188,8 @@ TEST(SqliteGalleryStoreTest, TruncatedFileIsReported) {
   auto store = OpenStore(dir);
   auto loaded = store->LoadAll();
   EXPECT_EQ(loaded.status().code(), absl::StatusCode::kDataLoss);
-  EXPECT_THAT(loaded.status().message(), AllOf(HasSubstr("cannot load gallery 'bad'"),
-                                               HasSubstr(path)));
+  EXPECT_THAT(loaded.status().message(),
+              AllOf(HasSubstr("cannot load gallery 'bad'"), HasSubstr(path)));
   std::printf("truncated: %s\n", std::string(loaded.status().message()).c_str());
 }
 
@@ -212,17 +212,18 @@ TEST(SqliteGalleryStoreTest, NotAGalleryAndNewerFormatAreReported) {
   {
     auto db = SqliteDb::Open(dir + "/galleries/future.gallery", SqliteDb::Mode::kReadWrite);
     ASSERT_TRUE(db.ok());
-    ASSERT_TRUE((*db)->Exec(absl::StrCat("PRAGMA user_version=",
-                                         SqliteGalleryStore::kFormatVersion + 1))
-                    .ok());
+    ASSERT_TRUE(
+        (*db)
+            ->Exec(absl::StrCat("PRAGMA user_version=", SqliteGalleryStore::kFormatVersion + 1))
+            .ok());
   }
   auto store = OpenStore(dir);
   auto loaded = store->LoadAll();
   EXPECT_EQ(loaded.status().code(), absl::StatusCode::kFailedPrecondition);
-  EXPECT_THAT(loaded.status().message(),
-              AllOf(HasSubstr(absl::StrCat("format version ",
-                                           SqliteGalleryStore::kFormatVersion + 1)),
-                    HasSubstr("newer shapeid")));
+  EXPECT_THAT(
+      loaded.status().message(),
+      AllOf(HasSubstr(absl::StrCat("format version ", SqliteGalleryStore::kFormatVersion + 1)),
+            HasSubstr("newer shapeid")));
 }
 
 TEST(SqliteGalleryStoreTest, AugmentedGalleriesKeepTheirOptionsAndEveryView) {
@@ -394,8 +395,7 @@ TEST_F(MountedStoreTest, ReadOnlyDiskServesAndFailsWritesAsUnavailable) {
   const absl::Status append = store_->AppendSamples("g", more.samples, absl::Now(), 0);
   EXPECT_EQ(append.code(), absl::StatusCode::kUnavailable) << append;
   EXPECT_THAT(append.message(), AllOf(HasSubstr("gallery 'g'"), HasSubstr("read-only")));
-  EXPECT_EQ(store_->SaveGallery(MakeGallery("h", 8, 1, 3)).code(),
-            absl::StatusCode::kUnavailable);
+  EXPECT_EQ(store_->SaveGallery(MakeGallery("h", 8, 1, 3)).code(), absl::StatusCode::kUnavailable);
   EXPECT_EQ(store_->RemoveSamples("g", {g.samples[0].id}, absl::Now(), 0).code(),
             absl::StatusCode::kUnavailable);
   EXPECT_EQ(store_->DeleteGallery("g").code(), absl::StatusCode::kUnavailable);
