@@ -94,7 +94,8 @@ class GalleryExporter {
 //  - DataLoss: the trailer's count or checksum disagrees with what arrived ("export damaged:
 //    ..."), or Finish without a trailer ("export truncated: ...").
 // The first error poisons the assembler: every later call returns it. Names, labels, ids
-// and feature values are checked by GalleryRegistry::Import, not here.
+// and feature values (finite, within +-KnnIndex::kMaxFeatureMagnitude) are checked by
+// GalleryRegistry::Import, not here: that one check also guards stores' loads and replicas.
 // Not thread-safe; one assembler per stream.
 class GalleryImportAssembler {
  public:

@@ -15,7 +15,9 @@
 #include "absl/strings/str_cat.h"
 #include "core/descriptor_registry.h"
 #include "core/gallery/gallery.h"
+#include "core/gallery/gallery_registry.h"
 #include "core/gallery/gallery_store_testing.h"
+#include "core/knn/knn_index.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 
@@ -27,7 +29,8 @@ using gallery_testing::ExpectSameStoredGallery;
 using ::testing::HasSubstr;
 
 // A gallery with awkward values everywhere a copy could lose them: float bit patterns
-// (negative zero, subnormals, extremes), ids above 2^63, multi-byte labels, nanosecond times.
+// (negative zero, subnormals, the largest a gallery holds), ids above 2^63, multi-byte labels,
+// nanosecond times.
 StoredGallery OddGallery(int num_samples, int dimension = 21) {
   StoredGallery g;
   g.name = "odd.gallery-1";
@@ -42,7 +45,7 @@ StoredGallery OddGallery(int num_samples, int dimension = 21) {
   g.software_version = "0.1.0";
   g.dimension = dimension;
   const float odd[] = {-0.0f, std::numeric_limits<float>::denorm_min(),
-                       std::numeric_limits<float>::max(), -1e-38f, 0.1f};
+                       KnnIndex::kMaxFeatureMagnitude, -1e-38f, 0.1f};
   for (int i = 0; i < num_samples; ++i) {
     StoredSample s;
     s.id = i % 2 == 0 ? static_cast<uint64_t>(i + 1) : kFirstAssignedId + static_cast<uint64_t>(i);
@@ -214,6 +217,33 @@ TEST(GalleryExportTest, AnIdTwiceIsMalformed) {
   EXPECT_THAT(
       std::string(status.message()),
       HasSubstr(absl::StrCat("sample id ", twice.samples[2].id, " appears more than once")));
+}
+
+// Finite but huge features (+-3e38) would give infinite distances. The assembler rebuilds
+// them bit for bit like any value (it judges the stream, not the values); the registry, which
+// every import passes, refuses them: INVALID_ARGUMENT naming the sample and the bound, with
+// nothing imported. At the bound itself the import succeeds.
+TEST(GalleryExportTest, AnImportOfHugeFeaturesIsRefusedNamingTheSample) {
+  StoredGallery huge = OddGallery(6);
+  huge.samples[4].features[7] = 3e38f;
+  huge.samples[5].features[0] = -3e38f;
+  GalleryExporter exporter(huge, 300);
+  absl::StatusOr<StoredGallery> assembled = Assemble(Export(exporter));
+  ASSERT_TRUE(assembled.ok()) << assembled.status();
+  ExpectSameStoredGallery(huge, *assembled);
+
+  GalleryRegistry registry;
+  const absl::Status refused = registry.Import(*std::move(assembled)).status();
+  EXPECT_EQ(refused.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(refused.message()),
+              HasSubstr(absl::StrCat("sample id ", huge.samples[4].id)));
+  EXPECT_THAT(std::string(refused.message()), HasSubstr("feature 7 is 3e+38"));
+  EXPECT_THAT(std::string(refused.message()), HasSubstr("within +-1e+08"));
+  EXPECT_EQ(registry.size(), 0u);
+
+  huge.samples[4].features[7] = KnnIndex::kMaxFeatureMagnitude;
+  huge.samples[5].features[0] = -KnnIndex::kMaxFeatureMagnitude;
+  EXPECT_TRUE(registry.Import(huge).ok());
 }
 
 class AssemblerErrorTest : public ::testing::Test {

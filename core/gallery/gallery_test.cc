@@ -13,6 +13,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "core/descriptor_registry.h"
+#include "core/gallery/gallery_registry.h"
 #include "core/gallery/gallery_store.h"
 #include "core/gallery/gallery_test_shapes.h"
 #include "core/version.h"
@@ -576,6 +577,37 @@ TEST(GalleryTest, ToStoredRestoresBitForBit) {
   auto more = (*restored)->Train({{0, "box", Box(8)}});
   ASSERT_TRUE(more.ok());
   EXPECT_THAT(more->ids, ElementsAre(kFirstAssignedId + 1));
+}
+
+// Stored features come from outside too (an import, a store's file, another replica's
+// write): beyond KnnIndex::kMaxFeatureMagnitude, where distances would overflow, they are
+// refused wherever they enter, naming the gallery, the sample and the bound; nothing changes.
+TEST(GalleryTest, StoredFeaturesBeyondTheBoundAreRefusedOnEveryWayIn) {
+  auto g = MakeGallery();
+  ASSERT_TRUE(g->Train(ThreeShapes()).ok());
+  StoredGallery stored = g->Snapshot()->ToStored();
+  stored.samples[1].features[4] = -3e38f;
+
+  const absl::Status restored = Gallery::Restore(stored, {}, nullptr).status();
+  EXPECT_EQ(restored.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(restored.message()),
+              AllOf(HasSubstr("restoring gallery 'shapes'"), HasSubstr("sample id 2"),
+                    HasSubstr("feature 4 is -3e+38"), HasSubstr("within +-1e+08")));
+
+  auto store = std::make_shared<InMemoryGalleryStore>();
+  ASSERT_TRUE(store->SaveGallery(stored).ok());
+  GalleryRegistry registry({}, store);
+  EXPECT_EQ(registry.LoadFromStore().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(registry.size(), 0u);
+
+  StoredSample far{100, "box", std::vector<float>(static_cast<size_t>(g->Snapshot()->dimension()))};
+  far.features[0] = 3e38f;
+  const uint64_t version = g->Snapshot()->version();
+  const absl::Status appended = g->ApplyStoredAppend({far}, absl::Now(), version + 1);
+  EXPECT_EQ(appended.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(appended.message()), HasSubstr("sample 100: feature 0 is 3e+38"));
+  EXPECT_EQ(g->Snapshot()->version(), version);
+  EXPECT_EQ(g->Snapshot()->num_samples(), 9);
 }
 
 TEST(GalleryTest, AugmentedGalleryKeepsViewsPerSampleAndVotesPerObject) {

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <thread>
 #include <utility>
 
@@ -21,12 +20,20 @@ using knn_internal::kBlockLanes;
 
 namespace {
 
-// 1 / v as a float factor in [FLT_MIN, FLT_MAX]: never 0 (0 * inf would make a NaN
-// distance) and never inf, whatever the gallery's spread.
-float SafeReciprocal(double v) {
-  const double r = 1.0 / v;
-  return static_cast<float>(std::clamp(r, static_cast<double>(std::numeric_limits<float>::min()),
-                                       static_cast<double>(std::numeric_limits<float>::max())));
+// The scale factor for a spread > 0: 1 / spread, but at most 1 / kMinScaleSpread, which
+// keeps every scaled distance finite (knn_index.h). A spread is at most
+// kMaxFeatureMagnitude, so the factor is never 0 (0 * a large difference would hide it).
+float ScaleFactor(double spread) {
+  return static_cast<float>(1.0 / std::max(spread, KnnIndex::kMinScaleSpread));
+}
+
+// Finite and within +-kMaxFeatureMagnitude (false for NaN).
+bool InBound(float value) { return std::fabs(value) <= KnnIndex::kMaxFeatureMagnitude; }
+
+absl::Status OutOfBound(absl::string_view what, float value) {
+  return absl::InvalidArgumentError(absl::StrCat(what, " is ", value,
+                                                 "; features must be finite and within +-",
+                                                 KnnIndex::kMaxFeatureMagnitude));
 }
 
 }  // namespace
@@ -125,10 +132,11 @@ absl::Status KnnIndex::Add(uint64_t id, absl::string_view label, absl::Span<cons
         absl::StrCat("sample ", id, " has ", views, " views; at most ", kMaxViews, " are allowed"));
   }
   for (std::size_t i = 0; i < features.size(); ++i) {
-    if (!std::isfinite(features[i])) {
-      return absl::InvalidArgumentError(
+    if (!InBound(features[i])) {
+      return OutOfBound(
           absl::StrCat("sample ", id, ": ", views > 1 ? absl::StrCat("view ", i / dim, " ") : "",
-                       "feature ", i % dim, " is ", features[i], "; features must be finite"));
+                       "feature ", i % dim),
+          features[i]);
     }
   }
   if (label.empty()) {
@@ -343,8 +351,8 @@ void KnnIndex::UpdateScaleFactors() {
   const double n = static_cast<double>(num_rows());
   for (int j = 0; j < dim_; ++j) {
     const double std_dev = n > 0 ? std::sqrt(m2_[j] / n) : 0.0;
-    zscore_scale_[j] = std_dev > 0.0 ? SafeReciprocal(std_dev) : 1.0f;
-    maxabs_scale_[j] = max_abs_[j] > 0.0f ? SafeReciprocal(max_abs_[j]) : 1.0f;
+    zscore_scale_[j] = std_dev > 0.0 ? ScaleFactor(std_dev) : 1.0f;
+    maxabs_scale_[j] = max_abs_[j] > 0.0f ? ScaleFactor(max_abs_[j]) : 1.0f;
   }
 }
 
@@ -380,10 +388,11 @@ absl::Status KnnIndex::ValidateQuery(absl::Span<const float> queries, int k) con
         "query has ", queries.size() / dim, " vectors; at most ", kMaxViews, " are allowed"));
   }
   for (std::size_t i = 0; i < queries.size(); ++i) {
-    if (!std::isfinite(queries[i])) {
-      return absl::InvalidArgumentError(
+    if (!InBound(queries[i])) {
+      return OutOfBound(
           absl::StrCat("query ", queries.size() > dim ? absl::StrCat("vector ", i / dim, " ") : "",
-                       "feature ", i % dim, " is ", queries[i], "; features must be finite"));
+                       "feature ", i % dim),
+          queries[i]);
     }
   }
   if (empty()) {
@@ -525,7 +534,8 @@ absl::StatusOr<KnnResult> KnnIndex::Classify(absl::Span<const float> queries,
                                      vote_weight[static_cast<std::size_t>(v)]});
   }
   result.label = result.votes.front().label;
-  // total is 0 only if every neighbour is infinitely far (features near the float limit).
+  // Distances are finite (kMaxFeatureMagnitude), so the winner's weight is positive (1, or
+  // 1 / distance): total > 0 and the share is in (0, 1]. The 1.0 only guards the division.
   result.confidence = total > 0.0 ? result.votes.front().weight / total : 1.0;
   return result;
 }

@@ -37,8 +37,8 @@ enum class SearchMode {
 struct Neighbor {
   uint64_t id = 0;
   std::string label;
-  // Euclidean distance in the scaled feature space. Computed in float (the kernels' sum of
-  // squares, see knn_kernels.h), reported as double.
+  // Euclidean distance in the scaled feature space, always finite. Computed in float (the
+  // kernels' sum of squares, see knn_kernels.h), reported as double.
   double distance = 0.0;
   // Which of the sample's views and which of the query vectors are that close; among equal
   // distances, the first view, then the first query.
@@ -105,6 +105,12 @@ class KnnIndex {
   static constexpr int kMaxDimension = 1 << 16;
   // Most views per sample, and vectors per query, this index accepts.
   static constexpr int kMaxViews = 1 << 16;
+  // Largest |feature| Add and queries accept (real descriptors stay below 2e4), and the least
+  // spread (std, max|x|) that scaling divides by (real ones exceed 2e-5): docs/security.md.
+  // So |scaled difference| <= 2e8 * 1e8 = 2e16, and a squared distance over kMaxDimension
+  // (65536) dimensions <= 65536 * (2e16)^2 = 2.6e37 < FLT_MAX (3.4e38): always finite.
+  static constexpr float kMaxFeatureMagnitude = 1e8f;
+  static constexpr double kMinScaleSpread = 1e-8;
 
   // An empty index for samples of `dimension` features. InvalidArgument unless
   // 1 <= dimension <= kMaxDimension.
@@ -150,8 +156,10 @@ class KnnIndex {
 
   // Appends one sample whose views are the consecutive dimension()-long runs of
   // `features`. Errors, with nothing changed: InvalidArgument if features.size() is not a
-  // positive multiple of dimension() (or is more than kMaxViews views), a feature is NaN or
-  // infinite, or the label is empty; AlreadyExists if the id is present.
+  // positive multiple of dimension() (or is more than kMaxViews views), a feature is NaN,
+  // infinite or beyond +-kMaxFeatureMagnitude (the message names the sample, the feature and
+  // the bound), or the label is empty; AlreadyExists if the id is present. Every way into a
+  // gallery (training, imports, stores' loads, replication) passes here.
   // O(features.size()) amortised.
   absl::Status Add(uint64_t id, absl::string_view label, absl::Span<const float> features);
 
@@ -169,7 +177,8 @@ class KnnIndex {
   // vectors. Ties go to the earlier-added sample (so results equal a naive double loop's).
   // FailedPrecondition if the index is empty; InvalidArgument if k < 1, queries.size() is
   // not a positive multiple of dimension() (or is more than kMaxViews vectors), or a
-  // feature is non-finite. A one-vector query on a one-view gallery is the classic kNN.
+  // feature is non-finite or beyond +-kMaxFeatureMagnitude. Every distance is finite. A
+  // one-vector query on a one-view gallery is the classic kNN.
   // With inverted lists (UpdateApproximate) and SearchMode::kDefault the search is
   // approximate: only the rows of the probed cells, and those added since the lists were
   // last brought up to date, are looked at.
@@ -224,7 +233,8 @@ class KnnIndex {
   }
 
   // The per-dimension factors w_d that `scaling` multiplies feature differences by (all
-  // ones for kNone; 1 / std and 1 / max|x| for the others, 1 where those are 0). The
+  // ones for kNone; 1 / std and 1 / max|x| for the others, 1 where those are 0, and
+  // 1 / kMinScaleSpread where they are below kMinScaleSpread: rounding noise, not a scale). The
   // statistics count every view of every sample as one observation, so a sample with more
   // views weighs more; with one view per sample they are the per-sample statistics.
   // Empty index: all ones.

@@ -1,6 +1,7 @@
 #include "core/knn/knn_index.h"
 
 #include <cmath>
+#include <limits>
 #include <random>
 #include <string>
 #include <thread>
@@ -430,6 +431,84 @@ TEST(KnnIndexTest, InvalidInputsGiveClearErrors) {
   options.k = -2;
   EXPECT_EQ(index.Classify(std::vector<float>{1, 2, 3}, options).status().code(),
             absl::StatusCode::kInvalidArgument);
+}
+
+// Finite but huge features (an import of +-3e38) would make distances infinite: refused,
+// by sample and feature, with the bound; the bound itself is a valid feature.
+TEST(KnnIndexTest, FeaturesBeyondTheBoundAreRefused) {
+  constexpr float kMax = KnnIndex::kMaxFeatureMagnitude;
+  KnnIndex index = MakeIndex(2);
+  AddOrDie(index, 1, "a", {kMax, -kMax});
+  absl::Status status = index.Add(7, "b", std::vector<float>{0, 3e38f});
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(status.message(), HasSubstr("sample 7: feature 1 is 3e+38"));
+  EXPECT_THAT(status.message(), HasSubstr("must be finite and within +-1e+08"));
+  status = index.Add(8, "b", std::vector<float>{0, 0, std::nextafter(-kMax, -INFINITY), 0});
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(status.message(), HasSubstr("sample 8: view 1 feature 0 is"));
+  EXPECT_EQ(index.size(), 1);
+
+  auto query = index.Search(std::vector<float>{-3e38f, 0}, 1);
+  EXPECT_EQ(query.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(query.status().message(), HasSubstr("query feature 0 is -3e+38"));
+  query = index.Search(std::vector<float>{-kMax, kMax}, 1);
+  ASSERT_TRUE(query.ok()) << query.status();
+  EXPECT_FLOAT_EQ(static_cast<float>((*query)[0].distance), 2 * std::sqrt(2.0f) * kMax);
+}
+
+// A spread far below any real descriptor's would make a factor of up to FLT_MAX, and a
+// query far off in that dimension an infinite distance: the factor stops at
+// 1 / kMinScaleSpread. Spreads above it are scaled as before.
+TEST(KnnIndexTest, TinySpreadsAreScaledAtMostByTheCap) {
+  KnnIndex index = MakeIndex(3);
+  AddOrDie(index, 1, "a", {0, 0, 1});
+  AddOrDie(index, 2, "b", {1e-30f, 4e-8f, 3});
+  const float cap = static_cast<float>(1 / KnnIndex::kMinScaleSpread);
+  const std::vector<float> zscore = index.ScaleFactors(FeatureScaling::kZScore);
+  EXPECT_EQ(zscore[0], cap);
+  EXPECT_FLOAT_EQ(zscore[1], 1 / 2e-8f);
+  EXPECT_EQ(zscore[2], 1.0f);
+  const std::vector<float> maxabs = index.ScaleFactors(FeatureScaling::kMaxAbs);
+  EXPECT_EQ(maxabs[0], cap);
+  EXPECT_FLOAT_EQ(maxabs[1], 1 / 4e-8f);
+  EXPECT_FLOAT_EQ(maxabs[2], 1.0f / 3);
+}
+
+// The worst a gallery within the bound can do, in the most dimensions an index takes: a
+// spread of one subnormal in every dimension (factors at the cap) and a query at the bound.
+// Every distance stays finite and every confidence in (0, 1], whatever the scaling and vote.
+TEST(KnnIndexTest, DistancesAndConfidenceStayFiniteAtTheExtremes) {
+  constexpr int kDim = KnnIndex::kMaxDimension;
+  KnnIndex index = MakeIndex(kDim);
+  AddOrDie(index, 1, "zero", std::vector<float>(kDim, 0.0f));
+  AddOrDie(index, 2, "tiny", std::vector<float>(kDim, std::numeric_limits<float>::denorm_min()));
+  AddOrDie(index, 3, "zero", std::vector<float>(kDim, 0.0f));
+  for (const float q : {KnnIndex::kMaxFeatureMagnitude, -KnnIndex::kMaxFeatureMagnitude}) {
+    const std::vector<float> query(kDim, q);
+    for (FeatureScaling scaling :
+         {FeatureScaling::kNone, FeatureScaling::kZScore, FeatureScaling::kMaxAbs}) {
+      for (VoteWeighting weighting : {VoteWeighting::kUniform, VoteWeighting::kDistance}) {
+        const std::string where =
+            absl::StrCat(FeatureScalingName(scaling), " ", VoteWeightingName(weighting), " q=", q);
+        KnnOptions options;
+        options.k = 3;
+        options.scaling = scaling;
+        options.weighting = weighting;
+        auto result = index.Classify(query, options);
+        ASSERT_TRUE(result.ok()) << where << ": " << result.status();
+        ASSERT_EQ(result->neighbors.size(), 3u) << where;
+        for (const Neighbor& n : result->neighbors) {
+          EXPECT_TRUE(std::isfinite(n.distance) && n.distance > 0) << where << " " << n.distance;
+        }
+        for (const ClassVote& v : result->votes) {
+          EXPECT_TRUE(std::isfinite(v.weight) && v.weight > 0) << where << " " << v.weight;
+        }
+        EXPECT_GT(result->confidence, 0.0) << where;
+        EXPECT_LE(result->confidence, 1.0) << where;
+        EXPECT_EQ(result->label, "zero") << where;
+      }
+    }
+  }
 }
 
 // Views of sample i: 1 + i % 4 of them, view v = (i, v, i * v) scaled per dimension.
