@@ -1,18 +1,23 @@
 #include "server/security.h"
 
 #include <arpa/inet.h>
+#include <netdb.h>
+#include <netinet/in.h>
 #include <openssl/err.h>
 #include <openssl/pem.h>
 #include <openssl/x509.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <optional>
 #include <utility>
 #include <vector>
 
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "absl/strings/strip.h"
 #include "grpcpp/security/server_credentials.h"
 
@@ -108,32 +113,90 @@ absl::Status CheckServerPair(const std::string& cert_pem, const std::string& cer
   return absl::OkStatus();
 }
 
-// "HOST" of "HOST:PORT" or "[V6]:PORT".
+// "HOST" of "HOST:PORT" or "[V6]:PORT", split as gRPC splits it: a bare IPv6 address (two
+// colons or more, no brackets) is all host.
 absl::string_view HostOf(absl::string_view listen) {
   if (absl::StartsWith(listen, "[")) {
     const size_t close = listen.find(']');
     return close == absl::string_view::npos ? listen : listen.substr(1, close - 1);
   }
   const size_t colon = listen.rfind(':');
-  return colon == absl::string_view::npos ? listen : listen.substr(0, colon);
+  if (colon == absl::string_view::npos || listen.find(':') != colon) return listen;
+  return listen.substr(0, colon);
+}
+
+// Whether `host` is a loopback address, when it is an IPv4 or IPv6 literal; nullopt for
+// anything else (a name, "127.1", an empty host).
+std::optional<bool> IsLoopbackLiteral(const std::string& host) {
+  in_addr v4;
+  if (inet_pton(AF_INET, host.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
+  in6_addr v6;
+  if (inet_pton(AF_INET6, host.c_str(), &v6) == 1) {
+    return IN6_IS_ADDR_LOOPBACK(&v6) || (IN6_IS_ADDR_V4MAPPED(&v6) && v6.s6_addr[12] == 127);
+  }
+  return std::nullopt;
+}
+
+// Whether `listen` is local (IsLoopbackAddress) and, for a host name, what it resolved to.
+struct Reach {
+  bool local = false;
+  std::string resolved;  // empty unless the host is a name
+};
+
+Reach ReachOf(absl::string_view listen, const HostResolver& resolve) {
+  if (absl::StartsWith(listen, "unix:") || absl::StartsWith(listen, "unix-abstract:")) {
+    return {true, ""};
+  }
+  const std::string host(HostOf(listen));
+  if (host.empty()) return {false, ""};  // every interface
+  if (std::optional<bool> loopback = IsLoopbackLiteral(host)) return {*loopback, ""};
+  // A name, or a number inet_pton does not read ("127.1"): what gRPC will bind.
+  const absl::StatusOr<std::vector<std::string>> addresses = resolve(host);
+  if (!addresses.ok()) return {false, std::string(addresses.status().message())};
+  const bool local = !addresses->empty() &&
+                     std::all_of(addresses->begin(), addresses->end(), [](const std::string& a) {
+                       return IsLoopbackLiteral(a).value_or(false);
+                     });
+  return {local, absl::StrCat(host, " resolves to ", absl::StrJoin(*addresses, ", "))};
 }
 
 }  // namespace
 
-bool IsLoopbackAddress(absl::string_view listen) {
-  if (absl::StartsWith(listen, "unix:") || absl::StartsWith(listen, "unix-abstract:")) return true;
-  const std::string host(HostOf(listen));
-  if (absl::EqualsIgnoreCase(host, "localhost")) return true;
-  in_addr v4;
-  if (inet_pton(AF_INET, host.c_str(), &v4) == 1) {
-    return (ntohl(v4.s_addr) >> 24) == 127;
+absl::StatusOr<std::vector<std::string>> ResolveListenHost(const std::string& host) {
+  addrinfo hints = {};
+  hints.ai_family = AF_UNSPEC;
+  hints.ai_socktype = SOCK_STREAM;
+  hints.ai_flags = AI_PASSIVE;
+  addrinfo* found = nullptr;
+  const int error = getaddrinfo(host.c_str(), nullptr, &hints, &found);
+  if (error != 0) {
+    const std::string message = absl::StrCat("cannot resolve ", host, ": ", gai_strerror(error));
+    return error == EAI_AGAIN ? absl::UnavailableError(message) : absl::NotFoundError(message);
   }
-  in6_addr v6;
-  if (inet_pton(AF_INET6, host.c_str(), &v6) == 1) {
-    if (IN6_IS_ADDR_LOOPBACK(&v6)) return true;
-    return IN6_IS_ADDR_V4MAPPED(&v6) && v6.s6_addr[12] == 127;
+  std::vector<std::string> addresses;
+  for (const addrinfo* a = found; a != nullptr; a = a->ai_next) {
+    char text[INET6_ADDRSTRLEN] = "";
+    const void* address = nullptr;
+    if (a->ai_family == AF_INET) {
+      address = &reinterpret_cast<const sockaddr_in*>(a->ai_addr)->sin_addr;
+    } else if (a->ai_family == AF_INET6) {
+      address = &reinterpret_cast<const sockaddr_in6*>(a->ai_addr)->sin6_addr;
+    }
+    // Another family is kept as a name no literal check accepts: it is not loopback.
+    std::string entry = address != nullptr && inet_ntop(a->ai_family, address, text, sizeof(text))
+                            ? std::string(text)
+                            : absl::StrCat("an address of family ", a->ai_family);
+    if (std::find(addresses.begin(), addresses.end(), entry) == addresses.end()) {
+      addresses.push_back(std::move(entry));
+    }
   }
-  return false;  // a host name, "0.0.0.0", "[::]", or an empty host (every interface)
+  freeaddrinfo(found);
+  if (addresses.empty()) return absl::NotFoundError(absl::StrCat(host, " has no address"));
+  return addresses;
+}
+
+bool IsLoopbackAddress(absl::string_view listen, const HostResolver& resolve) {
+  return ReachOf(listen, resolve).local;
 }
 
 absl::StatusOr<std::shared_ptr<const ApiKeyStore>> LoadApiKeys(const SecurityOptions& security) {
@@ -202,12 +265,18 @@ absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> ListeningCredentials(
   return grpc::SslServerCredentials(options);
 }
 
-absl::Status CheckExposure(absl::string_view listen, const SecurityOptions& security,
-                           bool has_keys) {
+absl::Status CheckExposure(absl::string_view listen, const SecurityOptions& security, bool has_keys,
+                           const HostResolver& resolve) {
   const bool tls = !security.tls_cert_file.empty();
-  if (tls || has_keys || security.insecure || IsLoopbackAddress(listen)) return absl::OkStatus();
+  if (tls || has_keys || security.insecure) return absl::OkStatus();
+  const Reach reach = ReachOf(listen, resolve);
+  if (reach.local) return absl::OkStatus();
   return absl::FailedPreconditionError(absl::StrCat(
       "refusing to listen on ", listen,
+      reach.resolved.empty() ? ""
+                             : absl::StrCat(" (", reach.resolved,
+                                            "; a name counts as local only if every address "
+                                            "it resolves to is loopback)"),
       " with neither TLS nor API keys: anyone who can reach it could read, train and delete "
       "galleries. Give --api_keys_file (and --tls_cert/--tls_key; see docs/security.md), or "
       "--insecure to run it open on purpose"));

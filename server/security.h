@@ -4,6 +4,7 @@
 // From SecurityOptions to what the server runs with: its listening credentials, its API
 // keys, and the start-up rules (docs/security.md).
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -17,9 +18,20 @@
 
 namespace shapeid {
 
-// True when `listen` (HOST:PORT, or unix:PATH) is reachable from this machine only:
-// 127.0.0.0/8, ::1, localhost, or a Unix socket (guarded by file permissions).
-bool IsLoopbackAddress(absl::string_view listen);
+// The addresses a host name resolves to for listening, as text ("127.0.0.1", "::1"):
+// getaddrinfo, as gRPC resolves an address to listen on (/etc/hosts, then DNS; may block on
+// DNS). NotFound, or Unavailable for a temporary DNS failure, with getaddrinfo's reason.
+absl::StatusOr<std::vector<std::string>> ResolveListenHost(const std::string& host);
+
+// How the checks below resolve host names: ResolveListenHost, or a stand-in in tests.
+using HostResolver = std::function<absl::StatusOr<std::vector<std::string>>(const std::string&)>;
+
+// True when `listen` (HOST:PORT, [V6]:PORT, unix:PATH or unix-abstract:NAME) is reachable
+// from this machine only: a Unix socket; an address in 127.0.0.0/8, ::1 or
+// ::ffff:127.0.0.0/104; or a host name of which every address `resolve` gives is one of those,
+// so a "localhost" that /etc/hosts maps elsewhere, or a name that does not resolve, is not.
+// False for every interface ("0.0.0.0", "[::]", an empty host).
+bool IsLoopbackAddress(absl::string_view listen, const HostResolver& resolve = ResolveListenHost);
 
 // The API keys of `security` (its file, then its inline text), in one store; empty when
 // neither is given. InvalidArgument naming the file and line of a malformed entry, a
@@ -34,11 +46,12 @@ absl::StatusOr<std::shared_ptr<const ApiKeyStore>> LoadApiKeys(const SecurityOpt
 absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> ListeningCredentials(
     const SecurityOptions& security);
 
-// FailedPrecondition when a server would listen on a non-loopback `listen` with neither TLS
-// nor API keys (`has_keys`) and without `security.insecure`. The message is one line, what
-// shapeid-server prints before it exits 2.
-absl::Status CheckExposure(absl::string_view listen, const SecurityOptions& security,
-                           bool has_keys);
+// FailedPrecondition when a server would listen on a non-loopback `listen`
+// (IsLoopbackAddress) with neither TLS nor API keys (`has_keys`) and without
+// `security.insecure`. The message is one line, what shapeid-server prints before it exits 2;
+// for a host name it says what the name resolved to.
+absl::Status CheckExposure(absl::string_view listen, const SecurityOptions& security, bool has_keys,
+                           const HostResolver& resolve = ResolveListenHost);
 
 // What the start-up log should warn about in a configuration that starts but is weaker than
 // it may look: API keys in plaintext on a network address; a network address without keys

@@ -3,8 +3,12 @@
 #include "server/security.h"
 
 #include <cstdio>
+#include <map>
 #include <string>
+#include <utility>
+#include <vector>
 
+#include "absl/strings/str_cat.h"
 #include "core/io/test_files.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
@@ -25,6 +29,77 @@ TEST(SecurityTest, LoopbackAddresses) {
                              "recognizer.lab:50051", "[2001:db8::1]:50051", "128.0.0.1:1"}) {
     EXPECT_FALSE(IsLoopbackAddress(listen)) << listen;
   }
+}
+
+// A resolver that knows a few names, and fails the test when asked about anything else (a
+// literal address or a Unix socket must not be resolved at all).
+HostResolver FakeHosts(std::map<std::string, std::vector<std::string>> hosts) {
+  return [hosts = std::move(hosts)](
+             const std::string& host) -> absl::StatusOr<std::vector<std::string>> {
+    const auto it = hosts.find(host);
+    if (it == hosts.end()) {
+      ADD_FAILURE() << "resolved " << host;
+      return absl::NotFoundError(absl::StrCat("cannot resolve ", host, ": unknown"));
+    }
+    if (it->second.empty()) return absl::NotFoundError(absl::StrCat("cannot resolve ", host));
+    return it->second;
+  };
+}
+
+TEST(SecurityTest, LiteralsAndSocketsAreClassifiedWithoutResolving) {
+  const HostResolver none = FakeHosts({});
+  for (const char* listen :
+       {"127.0.0.1:50051", "127.255.0.9:1", "[::1]:50051", "::1", "[::ffff:127.1.2.3]:1",
+        "unix:/run/shapeid.sock", "unix:///run/shapeid.sock", "unix-abstract:shapeid"}) {
+    EXPECT_TRUE(IsLoopbackAddress(listen, none)) << listen;
+  }
+  for (const char* listen :
+       {"0.0.0.0:50051", "[::]:50051", "::", ":50051", "", "[]:1", "10.0.0.5:50051",
+        "[::ffff:10.0.0.5]:1", "[::127.0.0.1]:1", "126.255.255.255:1"}) {
+    EXPECT_FALSE(IsLoopbackAddress(listen, none)) << listen;
+  }
+}
+
+// A name is local only if every address it resolves to is loopback: gRPC listens on all of
+// them. So a "localhost" that /etc/hosts maps to a LAN address is refused, as is a name that
+// does not resolve; "127.1" (a number inet_pton does not read) is resolved like a name.
+TEST(SecurityTest, NamesAreLocalOnlyIfEveryAddressIsLoopback) {
+  const HostResolver hosts = FakeHosts({{"localhost", {"127.0.0.1", "::1"}},
+                                        {"robot", {"127.0.1.1"}},
+                                        {"127.1", {"127.0.0.1"}},
+                                        {"moved", {"10.0.0.5"}},
+                                        {"both", {"127.0.0.1", "10.0.0.5"}},
+                                        {"v6", {"::1", "2001:db8::1"}},
+                                        {"nowhere", {}}});
+  for (const char* listen : {"localhost:50051", "robot:1", "127.1:1", "[localhost]:1"}) {
+    EXPECT_TRUE(IsLoopbackAddress(listen, hosts)) << listen;
+  }
+  for (const char* listen : {"moved:50051", "both:1", "v6:1", "nowhere:1"}) {
+    EXPECT_FALSE(IsLoopbackAddress(listen, hosts)) << listen;
+  }
+
+  SecurityOptions open;
+  EXPECT_TRUE(CheckExposure("localhost:50051", open, /*has_keys=*/false, hosts).ok());
+  const absl::Status both = CheckExposure("both:50051", open, false, hosts);
+  EXPECT_TRUE(absl::IsFailedPrecondition(both));
+  EXPECT_THAT(both.message(), HasSubstr("refusing to listen on both:50051 (both resolves to "
+                                        "127.0.0.1, 10.0.0.5; a name counts as local only if "
+                                        "every address it resolves to is loopback) with neither"));
+  EXPECT_EQ(std::string(both.message()).find('\n'), std::string::npos) << "one line";
+  EXPECT_THAT(CheckExposure("nowhere:1", open, false, hosts).message(),
+              HasSubstr("(cannot resolve nowhere; a name counts as local"));
+  // With keys, TLS or --insecure nothing needs resolving.
+  EXPECT_TRUE(CheckExposure("elsewhere:1", open, /*has_keys=*/true, FakeHosts({})).ok());
+}
+
+TEST(SecurityTest, TheSystemResolverReadsHostsAndNumbers) {
+  absl::StatusOr<std::vector<std::string>> localhost = ResolveListenHost("localhost");
+  ASSERT_TRUE(localhost.ok()) << localhost.status();
+  EXPECT_THAT(*localhost, Not(::testing::IsEmpty()));
+  absl::StatusOr<std::vector<std::string>> number = ResolveListenHost("127.1");
+  ASSERT_TRUE(number.ok()) << number.status();
+  EXPECT_THAT(*number, ::testing::ElementsAre("127.0.0.1"));
+  EXPECT_TRUE(IsLoopbackAddress("127.1:50051"));
 }
 
 TEST(SecurityTest, AnOpenServerOnTheNetworkMustBeAskedFor) {
