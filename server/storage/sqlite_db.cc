@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "core/status_macros.h"
 
 namespace shapeid {
 
@@ -18,10 +19,14 @@ absl::Status SqliteStatus(sqlite3* db, int code, absl::string_view context) {
     absl::StrAppend(&detail, " (", std::strerror(os_errno), ")");
   }
   const std::string message = absl::StrCat(context, ": ", detail);
+  // A -wal or -shm that cannot be created or grown on a full disk reports an I/O error.
+  const bool no_space = os_errno == ENOSPC || os_errno == EDQUOT;
+  if (primary == SQLITE_FULL ||
+      (no_space && (primary == SQLITE_IOERR || primary == SQLITE_CANTOPEN))) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat(message, "; the disk is full, nothing was written: free space and retry"));
+  }
   switch (primary) {
-    case SQLITE_FULL:
-      return absl::ResourceExhaustedError(
-          absl::StrCat(message, "; the disk is full, nothing was written: free space and retry"));
     case SQLITE_CORRUPT:
     case SQLITE_NOTADB:
       return absl::DataLossError(message);
@@ -117,7 +122,8 @@ bool SqliteStatement::ColumnIsNull(int column) const {
 // ---------------------------------------------------------------------------------------
 // SqliteDb
 
-absl::StatusOr<std::unique_ptr<SqliteDb>> SqliteDb::Open(const std::string& path, Mode mode) {
+absl::StatusOr<std::unique_ptr<SqliteDb>> SqliteDb::Open(const std::string& path, Mode mode,
+                                                         const std::string& vfs) {
   sqlite3* db = nullptr;
   int flags = SQLITE_OPEN_NOMUTEX;  // the caller serialises use of a connection
   std::string name = path;
@@ -143,15 +149,29 @@ absl::StatusOr<std::unique_ptr<SqliteDb>> SqliteDb::Open(const std::string& path
       name = absl::StrCat("file:", escaped, "?immutable=1");
       break;
     }
+    case Mode::kReadOnlyPrivateWal:
+      flags |= SQLITE_OPEN_READONLY;
+      break;
   }
-  const int rc = sqlite3_open_v2(name.c_str(), &db, flags, nullptr);
+  const std::string vfs_name = !vfs.empty()                        ? vfs
+                               : mode == Mode::kReadOnlyPrivateWal ? "unix-none"
+                                                                   : "";
+  const int rc =
+      sqlite3_open_v2(name.c_str(), &db, flags, vfs_name.empty() ? nullptr : vfs_name.c_str());
   if (rc != SQLITE_OK) {
     absl::Status status = SqliteStatus(db, rc, absl::StrCat("cannot open ", path));
     sqlite3_close(db);  // sqlite3_open_v2 allocates a handle even on failure
     return status;
   }
   sqlite3_extended_result_codes(db, 1);
-  return std::unique_ptr<SqliteDb>(new SqliteDb(db, path));
+  auto opened = std::unique_ptr<SqliteDb>(new SqliteDb(db, path));
+  if (mode == Mode::kReadOnlyPrivateWal) {
+    // Both before the first access: exclusive locking mode keeps the WAL index in the heap
+    // (no -shm), and a read-only connection must not try to checkpoint when it closes.
+    sqlite3_db_config(db, SQLITE_DBCONFIG_NO_CKPT_ON_CLOSE, 1, nullptr);
+    SHAPEID_RETURN_IF_ERROR(opened->Exec("PRAGMA locking_mode=EXCLUSIVE"));
+  }
+  return opened;
 }
 
 SqliteDb::~SqliteDb() { sqlite3_close_v2(db_); }

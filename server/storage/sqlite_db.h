@@ -19,10 +19,12 @@ namespace shapeid {
 // Not thread-safe: the caller serialises use of a connection and its statements.
 
 // The status for SQLite result `code` on `db`, its message prefixed by `context`:
-//  - SQLITE_FULL: ResourceExhausted ("disk full");
+//  - SQLITE_FULL, and any I/O error whose errno is ENOSPC or EDQUOT (a -shm that cannot grow):
+//    ResourceExhausted ("disk full");
 //  - SQLITE_CORRUPT, SQLITE_NOTADB: DataLoss;
 //  - SQLITE_READONLY*, SQLITE_CANTOPEN, SQLITE_IOERR*, SQLITE_PERM: Unavailable, with errno;
 //  - anything else: Internal.
+// So DataLoss means damage SQLite proved, never a disk that could not be read or written.
 absl::Status SqliteStatus(sqlite3* db, int code, absl::string_view context);
 
 class SqliteStatement {
@@ -68,14 +70,24 @@ class SqliteDb {
   enum class Mode {
     kReadWrite,  // an existing database
     kCreate,     // read-write, created if missing
-    // Read-only and "immutable": SQLite reads the main file only and takes no locks, which is
-    // the only way to read a WAL-mode database on a read-only file system. The caller must
-    // make sure no -wal file holds changes (they would be ignored).
+    // Read-only and "immutable": SQLite reads the main file only and takes no locks. The
+    // caller must make sure no -wal file holds changes (they would be ignored).
     kReadOnlyImmutable,
+    // Read-only, the -wal read into private memory (locking_mode=EXCLUSIVE before the first
+    // access, over a VFS without file locks, "unix-none" by default): committed transactions
+    // still in the -wal are seen, yet no -shm is created and nothing is written, not even a
+    // checkpoint at close. How a WAL database is read on a full disk or a read-only volume,
+    // where SQLite's shared-memory index cannot be created. The caller makes sure that no
+    // other process writes the file meanwhile (no locks guard it) and that the -wal exists
+    // (SQLite would create it).
+    kReadOnlyPrivateWal,
   };
-  // Opens `path`. Extended result codes are on, so errors keep their detail
+  // Opens `path` through the registered SQLite VFS `vfs` (tests inject disk faults through
+  // one; for kReadOnlyPrivateWal it must take no locks); empty: SQLite's default ("unix-none"
+  // for kReadOnlyPrivateWal). Extended result codes are on, so errors keep their detail
   // (SQLITE_IOERR_FSYNC, SQLITE_READONLY_DBMOVED...).
-  static absl::StatusOr<std::unique_ptr<SqliteDb>> Open(const std::string& path, Mode mode);
+  static absl::StatusOr<std::unique_ptr<SqliteDb>> Open(const std::string& path, Mode mode,
+                                                        const std::string& vfs = "");
 
   SqliteDb(const SqliteDb&) = delete;
   SqliteDb& operator=(const SqliteDb&) = delete;
@@ -98,6 +110,10 @@ class SqliteDb {
   // Closes now and reports the result (the destructor cannot): callers that move or remove the
   // file afterwards must know the WAL was checkpointed.
   absl::Status Close();
+
+  // True when SQLite opened the file read-only although asked for read-write: the file or
+  // its volume cannot be written (unix falls back to read-only then).
+  bool read_only() const { return sqlite3_db_readonly(db_, "main") == 1; }
 
   sqlite3* raw() const { return db_; }
   const std::string& path() const { return path_; }
