@@ -129,6 +129,16 @@ struct SqliteGalleryStore::OpenGallery {
   StoredGallery header ABSL_GUARDED_BY(mu);
   // Set after a failed fsync; every later write fails with it.
   absl::Status broken ABSL_GUARDED_BY(mu);
+
+  // Finalizes the statements, then closes (a connection with live statements cannot close,
+  // so it would not checkpoint). Null db: the gallery is served read-only.
+  void CloseWrites() ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu) {
+    insert = SqliteStatement();
+    remove = SqliteStatement();
+    touch = SqliteStatement();
+    if (db != nullptr) (void)db->Close();
+    db.reset();
+  }
 };
 
 absl::StatusOr<std::unique_ptr<SqliteGalleryStore>> SqliteGalleryStore::Open(
@@ -202,6 +212,13 @@ std::vector<SqliteGalleryStore::SetAside> SqliteGalleryStore::set_aside() const 
   return set_aside_;
 }
 
+std::vector<SqliteGalleryStore::ReadOnlyGallery> SqliteGalleryStore::read_only_galleries() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  std::vector<ReadOnlyGallery> galleries;
+  for (const auto& [name, reason] : read_only_galleries_) galleries.push_back({name, reason});
+  return galleries;
+}
+
 absl::StatusOr<std::shared_ptr<SqliteGalleryStore::OpenGallery>> SqliteGalleryStore::Find(
     absl::string_view name) const {
   std::lock_guard<std::mutex> lock(mu_);
@@ -215,11 +232,11 @@ absl::StatusOr<std::shared_ptr<SqliteGalleryStore::OpenGallery>> SqliteGallerySt
 namespace {
 
 // Opens a gallery's database for writing: pragmas and the prepared statements.
-absl::Status PrepareWrites(const std::string& path, std::unique_ptr<SqliteDb>* db,
-                           SqliteStatement* insert, SqliteStatement* remove,
-                           SqliteStatement* touch) {
+absl::Status PrepareWrites(const std::string& path, const std::string& vfs,
+                           std::unique_ptr<SqliteDb>* db, SqliteStatement* insert,
+                           SqliteStatement* remove, SqliteStatement* touch) {
   if (*db == nullptr) {
-    SHAPEID_ASSIGN_OR_RETURN(*db, SqliteDb::Open(path, SqliteDb::Mode::kReadWrite));
+    SHAPEID_ASSIGN_OR_RETURN(*db, SqliteDb::Open(path, SqliteDb::Mode::kReadWrite, vfs));
   }
   SHAPEID_RETURN_IF_ERROR((*db)->Exec(kConnectionPragmas));
   SHAPEID_ASSIGN_OR_RETURN(
@@ -248,6 +265,141 @@ bool IsFsyncFailure(SqliteDb& db) {
   return code == SQLITE_IOERR_FSYNC || code == SQLITE_IOERR_DIR_FSYNC;
 }
 
+// A disk that could not be written or read (full, read-only, I/O errors), as opposed to the
+// file's content: never grounds for setting a gallery aside.
+bool IsDiskCondition(const absl::Status& status) {
+  return status.code() == absl::StatusCode::kResourceExhausted ||
+         status.code() == absl::StatusCode::kUnavailable;
+}
+
+// What start-up may set aside: damage proven by SQLite or our checks, or a newer format.
+bool IsProvenDamage(const absl::Status& status) {
+  return status.code() == absl::StatusCode::kDataLoss ||
+         status.code() == absl::StatusCode::kFailedPrecondition;
+}
+
+// SQLite's own words ("database disk image is malformed") with ours in front.
+absl::Status Damaged(const std::string& path, const absl::Status& status) {
+  if (status.code() != absl::StatusCode::kDataLoss ||
+      absl::StrContains(status.message(), "damaged") ||
+      absl::StrContains(status.message(), "not a shapeid gallery")) {
+    return status;
+  }
+  absl::string_view detail = status.message();
+  absl::ConsumePrefix(&detail, absl::StrCat(path, ": "));
+  return absl::DataLossError(absl::StrCat("gallery file ", path, " is damaged: ", detail));
+}
+
+// Verifies and reads the gallery `name` from `db`, the file at `path`: DataLoss for damage
+// (or a file that is not a shapeid gallery), FailedPrecondition for a newer format, the disk's
+// code (ResourceExhausted, Unavailable) when it cannot be read.
+absl::StatusOr<StoredGallery> ReadGallery(SqliteDb& db, const std::string& path,
+                                          const std::string& name) {
+  const auto damaged = [&](absl::string_view what) {
+    return absl::DataLossError(absl::StrCat("gallery file ", path, " is damaged: ", what));
+  };
+  // A query on our tables that SQLite cannot even compile ("no such table") means the file
+  // is not a shapeid gallery's schema: damage, as a CRC mismatch is.
+  const auto schema = [&](auto result) -> decltype(result) {
+    if (!result.ok() && result.status().code() == absl::StatusCode::kInternal &&
+        (sqlite3_extended_errcode(db.raw()) & 0xff) == SQLITE_ERROR) {
+      return damaged(absl::StrCat("not a shapeid gallery's schema: ", result.status().message()));
+    }
+    return result;
+  };
+
+  // What the file is, before trusting anything in it.
+  SHAPEID_ASSIGN_OR_RETURN(const int64_t application_id, db.QueryInt("PRAGMA application_id"));
+  if (application_id != kApplicationId) {
+    return absl::DataLossError(absl::StrCat(path,
+                                            " is not a shapeid gallery (SQLite application_id ",
+                                            application_id, ", expected ", kApplicationId, ")"));
+  }
+  SHAPEID_ASSIGN_OR_RETURN(const int64_t format, db.QueryInt("PRAGMA user_version"));
+  if (format > SqliteGalleryStore::kFormatVersion) {
+    return absl::FailedPreconditionError(
+        absl::StrCat(path, " has format version ", format,
+                     ", written by a newer shapeid; this server reads "
+                     "up to version ",
+                     SqliteGalleryStore::kFormatVersion,
+                     ". Run the newer release, or export the gallery with it"));
+  }
+  if (format < 1) return damaged(absl::StrCat("format version ", format));
+  // quick_check: every page and b-tree structure (a truncated or overwritten file), in
+  // O(file size); CRCs below catch damage inside the rows.
+  SHAPEID_ASSIGN_OR_RETURN(const std::string check, db.QueryText("PRAGMA quick_check"));
+  if (check != "ok") return damaged(absl::StrCat("SQLite integrity check: ", check));
+
+  StoredGallery g;
+  {
+    SHAPEID_ASSIGN_OR_RETURN(
+        SqliteStatement row,
+        schema(db.Prepare(absl::StrCat("SELECT ", format == 1 ? kGalleryColumnsV1 : kGalleryColumns,
+                                       " FROM gallery"))));
+    SHAPEID_ASSIGN_OR_RETURN(const bool found, row.Step());
+    if (!found) return damaged("the gallery row is missing");
+    g.name = row.ColumnText(0);
+    g.options.descriptor_spec = row.ColumnText(1);
+    g.dimension = static_cast<int>(row.ColumnInt64(2));
+    g.options.knn.k = static_cast<int>(row.ColumnInt64(3));
+    absl::StatusOr<VoteWeighting> weighting = ParseVoteWeighting(row.ColumnText(4));
+    absl::StatusOr<FeatureScaling> scaling = ParseFeatureScaling(row.ColumnText(5));
+    g.options.reject_distance = row.ColumnDouble(6);
+    g.descriptor_version = static_cast<uint32_t>(row.ColumnInt64(7));
+    g.software_version = row.ColumnText(8);
+    g.created = absl::FromUnixNanos(row.ColumnInt64(9));
+    g.updated = absl::FromUnixNanos(row.ColumnInt64(10));
+    const uint32_t crc = static_cast<uint32_t>(row.ColumnInt64(11));
+    if (!weighting.ok() || !scaling.ok()) return damaged("unreadable kNN options");
+    if (format >= 2) {
+      absl::StatusOr<AugmentOptions> augment = ParseAugmentOptions(row.ColumnText(12));
+      if (!augment.ok()) return damaged(augment.status().message());
+      g.options.augment = *augment;
+    }
+    g.options.knn.weighting = *weighting;
+    g.options.knn.scaling = *scaling;
+    if (GalleryRowCrc(g) != crc) return damaged("checksum mismatch in the gallery row");
+    if (g.name != name) {
+      return damaged(absl::StrCat("it holds gallery '", g.name, "', not '", name, "'"));
+    }
+    if (g.dimension < 1) return damaged(absl::StrCat("dimension ", g.dimension));
+  }
+  {
+    // A capacity hint, O(log n): seq is the rowid, so max() is one b-tree descent, where
+    // count(*) would read every page a second time.
+    SHAPEID_ASSIGN_OR_RETURN(const int64_t last_seq,
+                             schema(db.QueryInt("SELECT coalesce(max(seq), 0) FROM samples")));
+    g.samples.reserve(static_cast<size_t>(last_seq));
+    SHAPEID_ASSIGN_OR_RETURN(
+        SqliteStatement rows,
+        schema(db.Prepare("SELECT seq, id, label, features, crc FROM samples ORDER BY seq")));
+    const size_t bytes = static_cast<size_t>(g.dimension) * sizeof(float);
+    while (true) {
+      SHAPEID_ASSIGN_OR_RETURN(const bool more, rows.Step());
+      if (!more) break;
+      StoredSample sample;
+      sample.id = FromStoredId(rows.ColumnInt64(1));
+      sample.label = rows.ColumnText(2);
+      const absl::Span<const uint8_t> blob = rows.ColumnBlob(3);
+      const std::string at =
+          absl::StrCat("sample id ", sample.id, " (row ", rows.ColumnInt64(0), ")");
+      // One descriptor per view: a positive multiple of the dimension.
+      if (blob.empty() || blob.size() % bytes != 0) {
+        return damaged(absl::StrCat(at, " has ", blob.size(),
+                                    " bytes of features, expected a positive multiple of ", bytes));
+      }
+      FeaturesFromBytes(blob, &sample.features);
+      if (SampleCrc32(0, sample.id, sample.label, sample.features) !=
+          static_cast<uint32_t>(rows.ColumnInt64(4))) {
+        return damaged(absl::StrCat(at, ": checksum mismatch"));
+      }
+      g.samples.push_back(std::move(sample));
+    }
+  }
+
+  return g;
+}
+
 }  // namespace
 
 absl::Status SqliteGalleryStore::SaveGallery(const StoredGallery& gallery) {
@@ -269,8 +421,9 @@ absl::Status SqliteGalleryStore::SaveGallery(const StoredGallery& gallery) {
   // The whole gallery goes into a temporary file first: a crash leaves either no gallery or
   // all of it, never an empty shell with half its samples.
   absl::Status status = [&]() -> absl::Status {
-    SHAPEID_ASSIGN_OR_RETURN(std::unique_ptr<SqliteDb> db,
-                             SqliteDb::Open(tmp_path, SqliteDb::Mode::kCreate));
+    SHAPEID_ASSIGN_OR_RETURN(
+        std::unique_ptr<SqliteDb> db,
+        SqliteDb::Open(tmp_path, SqliteDb::Mode::kCreate, options_.testing_vfs));
     SHAPEID_RETURN_IF_ERROR(db->Exec(absl::StrCat(
         "PRAGMA application_id=", kApplicationId, "; PRAGMA user_version=", kFormatVersion,
         "; PRAGMA journal_mode=WAL;", kConnectionPragmas)));
@@ -307,7 +460,8 @@ absl::Status SqliteGalleryStore::SaveGallery(const StoredGallery& gallery) {
 
   auto open = std::make_shared<OpenGallery>();
   std::lock_guard<std::mutex> gallery_lock(open->mu);
-  status = PrepareWrites(final_path, &open->db, &open->insert, &open->remove, &open->touch);
+  status = PrepareWrites(final_path, options_.testing_vfs, &open->db, &open->insert, &open->remove,
+                         &open->touch);
   if (!status.ok()) {
     // Stored but not writable: undo, so that the failed call leaves no gallery behind.
     open->db.reset();
@@ -328,6 +482,7 @@ absl::Status SqliteGalleryStore::ChangeSamples(
   SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<OpenGallery> g, Find(name));
   std::lock_guard<std::mutex> lock(g->mu);
   SHAPEID_RETURN_IF_ERROR(g->broken);
+  if (g->db == nullptr) SHAPEID_RETURN_IF_ERROR(Reopen(name, what, *g));
   StoredGallery header = g->header;
   header.updated = updated;
   absl::Status status = Transaction(*g->db, [&]() -> absl::Status {
@@ -382,20 +537,25 @@ absl::Status SqliteGalleryStore::DeleteGallery(absl::string_view name) {
   const std::string path = GalleryPath(name);
   const std::string doomed = absl::StrCat(galleries_dir_, "/.", name, ".deleted");
   // Checkpoint and close first, so the -wal holds nothing the rename would orphan. If the
-  // close fails, the rename below still removes the gallery; its -wal goes with it.
-  (void)g->db->Close();
-  g->db.reset();
+  // close fails, the rename below still removes the gallery; its -wal goes with it. A
+  // gallery served read-only has no connection.
+  const bool writable = g->db != nullptr;
+  if (writable) g->CloseWrites();
   absl::Status status = RenameFile(path, doomed);
   if (status.ok()) status = SyncDirectory(galleries_dir_);  // the durable point
   if (!status.ok()) {
     // Still stored: reopen so the gallery stays writable, as the registry keeps it.
-    g->broken = PrepareWrites(path, &g->db, &g->insert, &g->remove, &g->touch);
+    if (writable) {
+      g->broken =
+          PrepareWrites(path, options_.testing_vfs, &g->db, &g->insert, &g->remove, &g->touch);
+    }
     return absl::Status(status.code(),
                         absl::StrCat("cannot delete gallery '", name, "': ", status.message()));
   }
   {
     std::lock_guard<std::mutex> store_lock(mu_);
     open_.erase(std::string(name));
+    read_only_galleries_.erase(std::string(name));
   }
   // Best effort: start-up removes whatever a crash leaves here.
   for (const std::string& leftover : {doomed, path + "-wal", path + "-shm"}) {
@@ -405,143 +565,95 @@ absl::Status SqliteGalleryStore::DeleteGallery(absl::string_view name) {
 }
 
 absl::StatusOr<StoredGallery> SqliteGalleryStore::LoadFile(const std::string& name,
-                                                           std::shared_ptr<OpenGallery>* out) {
-  absl::StatusOr<StoredGallery> loaded = ReadFile(name, out);
-  if (loaded.status().code() == absl::StatusCode::kDataLoss &&
-      !absl::StrContains(loaded.status().message(), "damaged") &&
-      !absl::StrContains(loaded.status().message(), "not a shapeid gallery")) {
-    // SQLite's own words ("database disk image is malformed") with ours in front.
-    absl::string_view detail = loaded.status().message();
-    absl::ConsumePrefix(&detail, absl::StrCat(GalleryPath(name), ": "));
-    return absl::DataLossError(
-        absl::StrCat("gallery file ", GalleryPath(name), " is damaged: ", detail));
-  }
-  return loaded;
-}
-
-absl::StatusOr<StoredGallery> SqliteGalleryStore::ReadFile(const std::string& name,
-                                                           std::shared_ptr<OpenGallery>* out) {
+                                                           std::shared_ptr<OpenGallery>* out,
+                                                           absl::Status* unwritable) {
   const std::string path = GalleryPath(name);
-  const auto damaged = [&](absl::string_view what) {
-    return absl::DataLossError(absl::StrCat("gallery file ", path, " is damaged: ", what));
-  };
   if (absl::Status s = ValidateGalleryName(name); !s.ok()) {
     return absl::DataLossError(
         absl::StrCat(path, " is not named after a valid gallery: ", s.message()));
   }
-  std::unique_ptr<SqliteDb> db;
-  if (read_only()) {
-    // An immutable open ignores the -wal, so changes there would silently vanish.
-    struct stat wal;
-    if (stat((path + "-wal").c_str(), &wal) == 0 && wal.st_size > 0) {
-      return absl::UnavailableError(absl::StrCat(
-          path,
-          "-wal holds changes not yet checkpointed into the gallery, which a read-only "
-          "data directory cannot recover; start a server on it read-write once"));
-    }
-    SHAPEID_ASSIGN_OR_RETURN(db, SqliteDb::Open(path, SqliteDb::Mode::kReadOnlyImmutable));
-  } else {
-    SHAPEID_ASSIGN_OR_RETURN(db, SqliteDb::Open(path, SqliteDb::Mode::kReadWrite));
-  }
-
-  // What the file is, before trusting anything in it.
-  SHAPEID_ASSIGN_OR_RETURN(const int64_t application_id, db->QueryInt("PRAGMA application_id"));
-  if (application_id != kApplicationId) {
-    return absl::DataLossError(absl::StrCat(path,
-                                            " is not a shapeid gallery (SQLite application_id ",
-                                            application_id, ", expected ", kApplicationId, ")"));
-  }
-  SHAPEID_ASSIGN_OR_RETURN(const int64_t format, db->QueryInt("PRAGMA user_version"));
-  if (format > kFormatVersion) {
-    return absl::FailedPreconditionError(
-        absl::StrCat(path, " has format version ", format,
-                     ", written by a newer shapeid; this server reads "
-                     "up to version ",
-                     kFormatVersion, ". Run the newer release, or export the gallery with it"));
-  }
-  if (format < 1) return damaged(absl::StrCat("format version ", format));
-  // quick_check: every page and b-tree structure (a truncated or overwritten file), in
-  // O(file size); CRCs below catch damage inside the rows.
-  SHAPEID_ASSIGN_OR_RETURN(const std::string check, db->QueryText("PRAGMA quick_check"));
-  if (check != "ok") return damaged(absl::StrCat("SQLite integrity check: ", check));
-
-  StoredGallery g;
-  {
-    SHAPEID_ASSIGN_OR_RETURN(
-        SqliteStatement row,
-        db->Prepare(absl::StrCat("SELECT ", format == 1 ? kGalleryColumnsV1 : kGalleryColumns,
-                                 " FROM gallery")));
-    SHAPEID_ASSIGN_OR_RETURN(const bool found, row.Step());
-    if (!found) return damaged("the gallery row is missing");
-    g.name = row.ColumnText(0);
-    g.options.descriptor_spec = row.ColumnText(1);
-    g.dimension = static_cast<int>(row.ColumnInt64(2));
-    g.options.knn.k = static_cast<int>(row.ColumnInt64(3));
-    absl::StatusOr<VoteWeighting> weighting = ParseVoteWeighting(row.ColumnText(4));
-    absl::StatusOr<FeatureScaling> scaling = ParseFeatureScaling(row.ColumnText(5));
-    g.options.reject_distance = row.ColumnDouble(6);
-    g.descriptor_version = static_cast<uint32_t>(row.ColumnInt64(7));
-    g.software_version = row.ColumnText(8);
-    g.created = absl::FromUnixNanos(row.ColumnInt64(9));
-    g.updated = absl::FromUnixNanos(row.ColumnInt64(10));
-    const uint32_t crc = static_cast<uint32_t>(row.ColumnInt64(11));
-    if (!weighting.ok() || !scaling.ok()) return damaged("unreadable kNN options");
-    if (format >= 2) {
-      absl::StatusOr<AugmentOptions> augment = ParseAugmentOptions(row.ColumnText(12));
-      if (!augment.ok()) return damaged(augment.status().message());
-      g.options.augment = *augment;
-    }
-    g.options.knn.weighting = *weighting;
-    g.options.knn.scaling = *scaling;
-    if (GalleryRowCrc(g) != crc) return damaged("checksum mismatch in the gallery row");
-    if (g.name != name) {
-      return damaged(absl::StrCat("it holds gallery '", g.name, "', not '", name, "'"));
-    }
-    if (g.dimension < 1) return damaged(absl::StrCat("dimension ", g.dimension));
-  }
-  {
-    // A capacity hint, O(log n): seq is the rowid, so max() is one b-tree descent, where
-    // count(*) would read every page a second time.
-    SHAPEID_ASSIGN_OR_RETURN(const int64_t last_seq,
-                             db->QueryInt("SELECT coalesce(max(seq), 0) FROM samples"));
-    g.samples.reserve(static_cast<size_t>(last_seq));
-    SHAPEID_ASSIGN_OR_RETURN(
-        SqliteStatement rows,
-        db->Prepare("SELECT seq, id, label, features, crc FROM samples ORDER BY seq"));
-    const size_t bytes = static_cast<size_t>(g.dimension) * sizeof(float);
-    while (true) {
-      SHAPEID_ASSIGN_OR_RETURN(const bool more, rows.Step());
-      if (!more) break;
-      StoredSample sample;
-      sample.id = FromStoredId(rows.ColumnInt64(1));
-      sample.label = rows.ColumnText(2);
-      const absl::Span<const uint8_t> blob = rows.ColumnBlob(3);
-      const std::string at =
-          absl::StrCat("sample id ", sample.id, " (row ", rows.ColumnInt64(0), ")");
-      // One descriptor per view: a positive multiple of the dimension.
-      if (blob.empty() || blob.size() % bytes != 0) {
-        return damaged(absl::StrCat(at, " has ", blob.size(),
-                                    " bytes of features, expected a positive multiple of ", bytes));
-      }
-      FeaturesFromBytes(blob, &sample.features);
-      if (SampleCrc32(0, sample.id, sample.label, sample.features) !=
-          static_cast<uint32_t>(rows.ColumnInt64(4))) {
-        return damaged(absl::StrCat(at, ": checksum mismatch"));
-      }
-      g.samples.push_back(std::move(sample));
-    }
-  }
-
   auto open = std::make_shared<OpenGallery>();
   std::lock_guard<std::mutex> lock(open->mu);
-  if (!read_only()) {  // a read-only store never writes, so it keeps no connection
-    open->db = std::move(db);
-    SHAPEID_RETURN_IF_ERROR(
-        PrepareWrites(path, &open->db, &open->insert, &open->remove, &open->touch));
+  absl::StatusOr<StoredGallery> loaded;
+  if (read_only()) {
+    *unwritable = absl::UnavailableError(read_only_);
+  } else {
+    absl::StatusOr<std::unique_ptr<SqliteDb>> db =
+        SqliteDb::Open(path, SqliteDb::Mode::kReadWrite, options_.testing_vfs);
+    loaded = db.ok() ? ReadGallery(**db, path, name) : db.status();
+    if (loaded.ok() && (*db)->read_only()) {
+      // unix opened it read-only by itself: read completely, but every write would fail.
+      *unwritable = absl::UnavailableError(
+          absl::StrCat(path, " can only be read (a read-only file or volume)"));
+    } else if (loaded.ok()) {
+      open->db = *std::move(db);
+      *unwritable = PrepareWrites(path, options_.testing_vfs, &open->db, &open->insert,
+                                  &open->remove, &open->touch);
+      if (!unwritable->ok()) open->CloseWrites();
+    } else if (!IsDiskCondition(loaded.status())) {
+      return Damaged(path, loaded.status());
+    } else {
+      // Read-write needs SQLite's -shm (and -wal) created and written; reading need not.
+      *unwritable = loaded.status();
+    }
   }
-  open->header = g.Header();
+  if (!loaded.ok()) {
+    loaded = ReadReadOnly(name);
+    if (!loaded.ok() && IsDiskCondition(loaded.status())) {
+      return absl::Status(
+          loaded.status().code(),
+          absl::StrCat(path,
+                       " cannot be read because of the disk, which is not damage, so "
+                       "nothing was moved: ",
+                       loaded.status().message(),
+                       read_only() ? "" : absl::StrCat("; for writing: ", unwritable->message()),
+                       ". Free space or repair the disk, then restart"));
+    }
+    if (!loaded.ok()) return Damaged(path, loaded.status());
+  }
+  open->header = loaded->Header();
   *out = std::move(open);
-  return g;
+  return loaded;
+}
+
+absl::StatusOr<StoredGallery> SqliteGalleryStore::ReadReadOnly(const std::string& name) {
+  const std::string path = GalleryPath(name);
+  // Committed transactions still in the -wal must be seen: an immutable open would ignore
+  // them, so then the -wal is read into private memory instead (no -shm needed). The
+  // directory's LOCK keeps every other shapeid process from writing meanwhile.
+  SqliteDb::Mode mode = SqliteDb::Mode::kReadOnlyImmutable;
+  struct stat wal;
+  if (stat((path + "-wal").c_str(), &wal) == 0) {
+    if (wal.st_size > 0) mode = SqliteDb::Mode::kReadOnlyPrivateWal;
+  } else if (const int err = errno; err != ENOENT) {
+    return absl::UnavailableError(absl::StrCat("cannot stat ", path, "-wal: ", std::strerror(err)));
+  }
+  std::string vfs = options_.testing_vfs;
+  if (!vfs.empty() && mode == SqliteDb::Mode::kReadOnlyPrivateWal) vfs += "-none";
+  SHAPEID_ASSIGN_OR_RETURN(std::unique_ptr<SqliteDb> db, SqliteDb::Open(path, mode, vfs));
+  return ReadGallery(*db, path, name);
+}
+
+absl::Status SqliteGalleryStore::Reopen(absl::string_view name, absl::string_view what,
+                                        OpenGallery& g) {
+  const std::string path = GalleryPath(name);
+  absl::Status status =
+      PrepareWrites(path, options_.testing_vfs, &g.db, &g.insert, &g.remove, &g.touch);
+  if (status.ok() && g.db->read_only()) {
+    status = absl::UnavailableError(
+        absl::StrCat(path, " can only be read (a read-only file or volume)"));
+  }
+  if (!status.ok()) {
+    g.CloseWrites();
+    return absl::Status(status.code(),
+                        absl::StrCat("cannot ", what, " gallery '", name,
+                                     "': it is served read-only, as its file cannot be opened "
+                                     "for writing: ",
+                                     status.message()));
+  }
+  std::lock_guard<std::mutex> lock(mu_);
+  read_only_galleries_.erase(std::string(name));
+  return absl::OkStatus();
 }
 
 absl::Status SqliteGalleryStore::SetAsideFile(const std::string& name, const absl::Status& reason) {
@@ -565,35 +677,43 @@ absl::StatusOr<std::vector<StoredGallery>> SqliteGalleryStore::LoadAll() {
   if (read_only() && !FileExists(galleries_dir_)) return std::vector<StoredGallery>{};
   SHAPEID_ASSIGN_OR_RETURN(const std::vector<std::string> entries, ListDirectory(galleries_dir_));
   // Finish what a crash interrupted: a deletion past its durable point, or a gallery that
-  // was still being written (never acknowledged). Read-only, they are only skipped.
+  // was still being written (never acknowledged). Read-only, they are only skipped. Best
+  // effort: such a file is never loaded, so a disk that refuses to remove it (full,
+  // read-only, failing) must not stop the galleries from being served; the next start tries
+  // again.
   bool cleaned = false;
   for (const std::string& entry : entries) {
     if (!read_only() && absl::StartsWith(entry, ".") &&
         (absl::StrContains(entry, ".deleted") || absl::StrContains(entry, ".tmp"))) {
-      SHAPEID_RETURN_IF_ERROR(RemoveFileIfExists(absl::StrCat(galleries_dir_, "/", entry)));
-      cleaned = true;
+      cleaned |= RemoveFileIfExists(absl::StrCat(galleries_dir_, "/", entry)).ok();
     }
   }
-  if (cleaned) SHAPEID_RETURN_IF_ERROR(SyncDirectory(galleries_dir_));
+  if (cleaned) (void)SyncDirectory(galleries_dir_);
 
   std::vector<StoredGallery> galleries;
   for (const std::string& entry : entries) {
     if (absl::StartsWith(entry, ".") || !absl::EndsWith(entry, kGallerySuffix)) continue;
     const std::string name = entry.substr(0, entry.size() - kGallerySuffix.size());
     std::shared_ptr<OpenGallery> open;
-    absl::StatusOr<StoredGallery> loaded = LoadFile(name, &open);
+    absl::Status unwritable;
+    absl::StatusOr<StoredGallery> loaded = LoadFile(name, &open, &unwritable);
     if (!loaded.ok()) {
-      if (!options_.set_aside_damaged || read_only()) {
+      if (!IsProvenDamage(loaded.status()) || !options_.set_aside_damaged || read_only()) {
         return absl::Status(loaded.status().code(), absl::StrCat("cannot load gallery '", name,
                                                                  "': ", loaded.status().message()));
       }
       open.reset();  // close before moving the file
-      SHAPEID_RETURN_IF_ERROR(SetAsideFile(name, loaded.status()));
+      if (absl::Status moved = SetAsideFile(name, loaded.status()); !moved.ok()) {
+        return absl::Status(moved.code(),
+                            absl::StrCat("cannot set gallery '", name, "' aside (",
+                                         loaded.status().message(), "): ", moved.message()));
+      }
       continue;
     }
     {
       std::lock_guard<std::mutex> lock(mu_);
       open_[name] = std::move(open);
+      if (!unwritable.ok() && !read_only()) read_only_galleries_[name] = unwritable;
     }
     galleries.push_back(*std::move(loaded));
   }

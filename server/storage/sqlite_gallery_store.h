@@ -23,12 +23,19 @@ struct SqliteGalleryStoreOptions {
   //   galleries/NAME.gallery     one SQLite database per gallery (+ -wal, -shm while open)
   //   damaged/NAME.TIME.gallery  galleries set aside by set_aside_damaged
   std::string data_dir;
-  // What start-up does with a gallery file it cannot load (damaged, truncated, not a shapeid
-  // file, a format from a newer release). false, the default: LoadAll fails with DataLoss
-  // (or FailedPrecondition for a newer format) naming the file and what is wrong, and the
-  // server refuses to start; nothing is touched. true: the file is moved into damaged/ with
-  // its -wal, the reason is reported by set_aside(), and the other galleries load.
+  // What start-up does with a gallery file whose damage is proven: SQLite finds it corrupt or
+  // not a database, its integrity check or one of our CRC-32s fails, it is not a shapeid
+  // gallery, or its format is newer than this release reads. false, the default: LoadAll
+  // fails with DataLoss (or FailedPrecondition for a newer format) naming the file and what
+  // is wrong, and the server refuses to start; nothing is touched. true: the file is moved
+  // into damaged/ with its -wal, the reason is reported by set_aside(), and the other
+  // galleries load. A file that could not be opened or read because of the disk (full,
+  // read-only, I/O errors) is not proven damaged and is never moved: see LoadAll.
   bool set_aside_damaged = false;
+  // Tests only: the registered SQLite VFS to open gallery files with, so that a test can
+  // inject disk faults (testing/fault_vfs.h); galleries read without locks (see LoadAll) go
+  // through NAME-none. Empty: SQLite's own, "unix" and "unix-none".
+  std::string testing_vfs = {};
 };
 
 // The embedded gallery store: one SQLite database per gallery, in WAL mode with
@@ -46,14 +53,16 @@ struct SqliteGalleryStoreOptions {
 // SQLite's quick_check, so bit rot is reported rather than served.
 //
 // Errors: ResourceExhausted when the disk is full; Unavailable for I/O errors and read-only
-// or vanished files; DataLoss for damage; each message names the gallery and the file. After
-// a failed fsync the gallery's writes fail until restart: the kernel may have dropped the
-// unsynced pages, so only a reload can tell what is on disk.
+// or vanished files; DataLoss only for damage (never for a disk that failed); each message
+// names the gallery and the file. After a failed fsync the gallery's writes fail until
+// restart: the kernel may have dropped the unsynced pages, so only a reload can tell what is
+// on disk.
 //
 // A data directory on a read-only file system (a volume mounted read-only, say for a
-// classify-only replica) opens read-only: galleries load and serve, and every write fails
-// Unavailable saying why. Several read-only servers may share such a directory; a writable
-// server excludes all others.
+// classify-only replica) opens read-only: galleries load and serve (changes still in a -wal
+// included), and every write fails Unavailable saying why. Several read-only servers may
+// share such a directory; a writable server excludes all others. A single gallery that cannot
+// be opened for writing is served read-only the same way: see LoadAll.
 //
 // Thread-safe. Calls for different galleries run concurrently.
 class SqliteGalleryStore final : public GalleryStore {
@@ -75,12 +84,25 @@ class SqliteGalleryStore final : public GalleryStore {
   absl::Status SaveGallery(const StoredGallery& gallery) override;
   absl::Status DeleteGallery(absl::string_view name) override;
   // `version` is not kept: versions restart at 0 when a server loads its own galleries.
+  // On a gallery served read-only (read_only_galleries()) they first reopen its file for
+  // writing, so that space freed on a full disk heals it without a restart; while that fails
+  // they fail with its code (ResourceExhausted for a full disk, Unavailable otherwise), "cannot
+  // ... gallery 'NAME': it is served read-only ...: <why>". DeleteGallery works on such a
+  // gallery: it writes nothing into the file, and it is how to free space.
   absl::Status AppendSamples(absl::string_view name, absl::Span<const StoredSample> batch,
                              absl::Time updated, uint64_t version) override;
   absl::Status RemoveSamples(absl::string_view name, absl::Span<const uint64_t> ids,
                              absl::Time updated, uint64_t version) override;
   // Verifies and reads every gallery file, sorted by name; keeps each open for later writes.
   // Call once, before any write.
+  //
+  // A disk condition is not damage. A gallery that cannot be opened for writing (a full disk,
+  // a read-only file, an I/O error) but can still be read completely, committed changes in
+  // its -wal included, loads read-only: it is listed by read_only_galleries() and its writes
+  // fail saying why (see AppendSamples). One that cannot even be read fails LoadAll with the
+  // disk's code (ResourceExhausted, Unavailable), a message saying that it is not damage and
+  // what to do, and is never set aside. Proven damage fails LoadAll with DataLoss, or is set
+  // aside (SqliteGalleryStoreOptions::set_aside_damaged).
   absl::StatusOr<std::vector<StoredGallery>> LoadAll() override;
 
   struct SetAside {
@@ -90,6 +112,15 @@ class SqliteGalleryStore final : public GalleryStore {
   };
   // What the last LoadAll moved aside (set_aside_damaged only).
   std::vector<SetAside> set_aside() const;
+
+  struct ReadOnlyGallery {
+    std::string name;     // gallery
+    absl::Status reason;  // why it cannot be written: ResourceExhausted (disk full), Unavailable
+  };
+  // The galleries served read-only because LoadAll could read but not write them, sorted by
+  // name; one leaves the list when a later write reopens it (the disk has room again). Empty
+  // when the whole data directory is read-only: read_only() covers every gallery then.
+  std::vector<ReadOnlyGallery> read_only_galleries() const;
 
   const std::string& data_dir() const { return options_.data_dir; }
   // True when the data directory's file system is read-only (see the class comment).
@@ -110,11 +141,15 @@ class SqliteGalleryStore final : public GalleryStore {
   // update time in one transaction; errors say "cannot <what> gallery 'NAME'".
   absl::Status ChangeSamples(absl::string_view name, absl::string_view what, absl::Time updated,
                              const std::function<absl::Status(OpenGallery&)>& change);
-  // Verifies and reads one gallery file (LoadFile adds "is damaged" to SQLite's reports).
-  absl::StatusOr<StoredGallery> LoadFile(const std::string& name,
-                                         std::shared_ptr<OpenGallery>* out);
-  absl::StatusOr<StoredGallery> ReadFile(const std::string& name,
-                                         std::shared_ptr<OpenGallery>* out);
+  // Verifies and reads one gallery file, for writing if it can (see LoadAll); `*unwritable`
+  // says why not.
+  absl::StatusOr<StoredGallery> LoadFile(const std::string& name, std::shared_ptr<OpenGallery>* out,
+                                         absl::Status* unwritable);
+  // Reads a gallery without writing anything, not even a -shm.
+  absl::StatusOr<StoredGallery> ReadReadOnly(const std::string& name);
+  // Opens a gallery served read-only for writing, with g.mu held; "cannot <what> gallery
+  // 'NAME': ..." if it still cannot be.
+  absl::Status Reopen(absl::string_view name, absl::string_view what, OpenGallery& g);
   absl::Status SetAsideFile(const std::string& name, const absl::Status& reason);
 
   const SqliteGalleryStoreOptions options_;
@@ -125,6 +160,7 @@ class SqliteGalleryStore final : public GalleryStore {
   mutable std::mutex mu_;
   std::map<std::string, std::shared_ptr<OpenGallery>, std::less<>> open_ ABSL_GUARDED_BY(mu_);
   std::vector<SetAside> set_aside_ ABSL_GUARDED_BY(mu_);
+  std::map<std::string, absl::Status, std::less<>> read_only_galleries_ ABSL_GUARDED_BY(mu_);
 };
 
 }  // namespace shapeid

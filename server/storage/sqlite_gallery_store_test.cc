@@ -1,8 +1,11 @@
 #include "server/storage/sqlite_gallery_store.h"
 
+#include <fcntl.h>
 #include <sys/mount.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -15,10 +18,12 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
+#include "core/gallery/gallery_registry.h"
 #include "core/gallery/gallery_store_testing.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "server/storage/file_util.h"
+#include "server/storage/testing/fault_vfs.h"
 
 namespace shapeid {
 namespace {
@@ -144,6 +149,12 @@ long Find(const std::string& path, const std::string& needle) {
   const std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   const size_t at = data.find(needle);
   return at == std::string::npos ? -1 : static_cast<long>(at);
+}
+
+// Bytes of a file; -1 if it does not exist.
+long FileSize(const std::string& path) {
+  struct stat st;
+  return stat(path.c_str(), &st) == 0 ? static_cast<long>(st.st_size) : -1;
 }
 
 // A store holding galleries "good" and "bad", closed (so everything is in the main files).
@@ -399,6 +410,365 @@ TEST_F(MountedStoreTest, ReadOnlyDiskServesAndFailsWritesAsUnavailable) {
   EXPECT_EQ(store_->RemoveSamples("g", {g.samples[0].id}, absl::Now(), 0).code(),
             absl::StatusCode::kUnavailable);
   EXPECT_EQ(store_->DeleteGallery("g").code(), absl::StatusCode::kUnavailable);
+}
+
+// Fills the file system holding `dir` to the last byte.
+void FillUp(const std::string& dir) {
+  const int fd = open((dir + "/filler").c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  ASSERT_GE(fd, 0);
+  const std::string block(4096, 'x');
+  while (write(fd, block.data(), block.size()) > 0) {
+  }
+  while (write(fd, "x", 1) > 0) {
+  }
+  close(fd);
+}
+
+// A real full disk (where the test may mount): the healthy gallery loads read-only, its
+// writes fail ResourceExhausted, and freeing space heals it without a restart.
+TEST_F(MountedStoreTest, RestartOnAFullDiskServesReadOnlyUntilSpaceIsFreed) {
+  store_ = OpenStore(dir_, /*set_aside=*/true);
+  ASSERT_TRUE(store_->LoadAll().ok());
+  StoredGallery g = MakeGallery("g", 81, 50, 1);
+  ASSERT_TRUE(store_->SaveGallery(g).ok());
+  store_.reset();
+  FillUp(dir_);
+  store_ = OpenStore(dir_, /*set_aside=*/true);
+  auto loaded = store_->LoadAll();
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  ASSERT_EQ(loaded->size(), 1u);
+  ExpectSameStoredGallery((*loaded)[0], g);
+  EXPECT_FALSE(FileExists(dir_ + "/damaged"));
+  const auto read_only = store_->read_only_galleries();
+  ASSERT_EQ(read_only.size(), 1u);
+  EXPECT_EQ(read_only[0].reason.code(), absl::StatusCode::kResourceExhausted)
+      << read_only[0].reason;
+  StoredGallery more = MakeGallery("g", 81, 2, 2);
+  for (StoredSample& s : more.samples) s.id += 1000;
+  const absl::Status append = store_->AppendSamples("g", more.samples, g.updated, 0);
+  EXPECT_EQ(append.code(), absl::StatusCode::kResourceExhausted) << append;
+
+  ASSERT_TRUE(RemoveFileIfExists(dir_ + "/filler").ok());
+  ASSERT_TRUE(store_->AppendSamples("g", more.samples, g.updated, 0).ok());
+  EXPECT_THAT(store_->read_only_galleries(), IsEmpty());
+  store_.reset();
+  store_ = OpenStore(dir_);
+  loaded = store_->LoadAll();
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  g.samples.insert(g.samples.end(), more.samples.begin(), more.samples.end());
+  ExpectSameStoredGallery((*loaded)[0], g);
+}
+
+// A real read-only volume holding changes still in a -wal (a server that lost power, then
+// the volume was mounted read-only): they are served, not lost.
+TEST_F(MountedStoreTest, ReadOnlyVolumeServesChangesStillInTheWal) {
+  const std::string live = ScratchDir("live");
+  StoredGallery g = MakeGallery("g", 8, 5, 1);
+  {
+    auto store = OpenStore(live);
+    ASSERT_TRUE(store->LoadAll().ok());
+    ASSERT_TRUE(store->SaveGallery(g).ok());
+    StoredGallery more = MakeGallery("g", 8, 2, 2);
+    for (StoredSample& s : more.samples) s.id += 1000;
+    g.updated += absl::Seconds(1);
+    ASSERT_TRUE(store->AppendSamples("g", more.samples, g.updated, 0).ok());
+    g.samples.insert(g.samples.end(), more.samples.begin(), more.samples.end());
+    ASSERT_TRUE(MakeDirectories(dir_ + "/galleries").ok());
+    ASSERT_EQ(std::system(absl::StrCat("cp ", live, "/galleries/g.gallery ", live,
+                                       "/galleries/g.gallery-wal ", dir_, "/galleries/")
+                              .c_str()),
+              0);
+  }
+  ASSERT_GT(FileSize(dir_ + "/galleries/g.gallery-wal"), 0);
+  ASSERT_EQ(mount(nullptr, dir_.c_str(), nullptr, MS_REMOUNT | MS_RDONLY, nullptr), 0)
+      << std::strerror(errno);
+  store_ = OpenStore(dir_);
+  ASSERT_TRUE(store_->read_only());
+  auto loaded = store_->LoadAll();
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  ASSERT_EQ(loaded->size(), 1u);
+  ExpectSameStoredGallery((*loaded)[0], g);
+}
+
+// ---------------------------------------------------------------------------------------
+// Disk faults at start-up are not damage. Injected through a SQLite VFS
+// (testing/fault_vfs.h), since CI runs as root (file modes do not stop it) and cannot mount.
+
+class DiskFaultTest : public ::testing::Test {
+ protected:
+  // A store on `dir` whose gallery files go through the faulty VFS.
+  std::shared_ptr<SqliteGalleryStore> OpenFaulty(const std::string& dir, bool set_aside = true) {
+    SqliteGalleryStoreOptions options;
+    options.data_dir = dir;
+    options.set_aside_damaged = set_aside;
+    options.testing_vfs = vfs_.name();
+    auto store = SqliteGalleryStore::Open(options);
+    EXPECT_TRUE(store.ok()) << store.status();
+    return store.ok() ? std::shared_ptr<SqliteGalleryStore>(*std::move(store)) : nullptr;
+  }
+
+  // A data directory holding `galleries`, written on a healthy disk and closed.
+  std::string Written(absl::string_view what, const std::vector<StoredGallery>& galleries) {
+    const std::string dir = ScratchDir(what);
+    auto store = OpenStore(dir);
+    EXPECT_TRUE(store->LoadAll().ok());
+    for (const StoredGallery& g : galleries) EXPECT_TRUE(store->SaveGallery(g).ok());
+    return dir;
+  }
+
+  // The sample nearest to `features` in gallery `name` once a registry has loaded `store`,
+  // as the server loads it.
+  static uint64_t Nearest(const std::shared_ptr<SqliteGalleryStore>& store, const std::string& name,
+                          const std::vector<float>& features) {
+    GalleryRegistry registry({}, store);
+    const absl::Status load = registry.LoadFromStore();
+    EXPECT_TRUE(load.ok()) << load;
+    auto gallery = registry.Get(name);
+    EXPECT_TRUE(gallery.ok()) << gallery.status();
+    if (!gallery.ok()) return 0;
+    auto answer = (*gallery)->Snapshot()->ClassifyFeatures(features);
+    EXPECT_TRUE(answer.ok()) << answer.status();
+    return answer.ok() && !answer->knn.neighbors.empty() ? answer->knn.neighbors[0].id : 0;
+  }
+
+  FaultVfs vfs_{"shapeid_fault"};  // declared first: outlives every store of the test
+};
+
+// MakeGallery without the extreme bit patterns of its first sample, which a gallery refuses
+// to serve.
+StoredGallery Servable(std::string name, int samples, uint32_t seed) {
+  StoredGallery g = MakeGallery(std::move(name), 81, samples, seed);
+  std::fill(g.samples[0].features.begin(), g.samples[0].features.end(), 0.5f);
+  return g;
+}
+
+TEST_F(DiskFaultTest, RestartOnAFullDiskServesHealthyGalleriesReadOnlyAndMovesNothing) {
+  const StoredGallery a = Servable("a", 20, 1);
+  const StoredGallery b = Servable("b", 5, 2);
+  // A full disk refuses new files (no free inode or directory block), or only new blocks:
+  // SQLite then creates the -shm but cannot size it.
+  for (const bool files_too : {true, false}) {
+    SCOPED_TRACE(files_too ? "no new files" : "no new blocks");
+    const std::string dir = Written(files_too ? "files" : "blocks", {a, b});
+    FaultVfs::Faults full = FaultVfs::DiskFull();
+    full.fail_create = files_too;
+    vfs_.Set(full);
+    const int before = vfs_.injected();
+    auto store = OpenFaulty(dir, /*set_aside=*/true);
+    auto loaded = store->LoadAll();
+    ASSERT_TRUE(loaded.ok()) << loaded.status();
+    EXPECT_GT(vfs_.injected(), before);
+    ASSERT_EQ(loaded->size(), 2u);
+    ExpectSameStoredGallery((*loaded)[0], a);
+    ExpectSameStoredGallery((*loaded)[1], b);
+    EXPECT_THAT(store->set_aside(), IsEmpty());
+    EXPECT_FALSE(FileExists(dir + "/damaged"));
+    const auto read_only = store->read_only_galleries();
+    ASSERT_EQ(read_only.size(), 2u);
+    EXPECT_EQ(read_only[0].name, "a");
+    EXPECT_EQ(read_only[0].reason.code(), absl::StatusCode::kResourceExhausted)
+        << read_only[0].reason;
+    EXPECT_THAT(read_only[0].reason.message(), HasSubstr("full"));
+    EXPECT_EQ(read_only[1].name, "b");
+    store.reset();
+    // And the server's path: the registry loads it and it classifies.
+    EXPECT_EQ(Nearest(OpenFaulty(dir), "a", a.samples[7].features), a.samples[7].id);
+  }
+}
+
+TEST_F(DiskFaultTest, IoErrorsOpeningAGalleryAreNotDamage) {
+  const StoredGallery a = MakeGallery("a", 8, 6, 1);
+  const StoredGallery b = MakeGallery("b", 8, 6, 2);
+  const std::string dir = Written("data", {a, b});
+  {
+    // SQLite cannot set up its shared memory for 'a': reading it needs none.
+    FaultVfs::Faults shm;
+    shm.shm_error = SQLITE_IOERR_SHMOPEN;
+    shm.error = EIO;
+    shm.path_contains = "/a.gallery";
+    vfs_.Set(shm);
+    auto store = OpenFaulty(dir, /*set_aside=*/true);
+    auto loaded = store->LoadAll();
+    ASSERT_TRUE(loaded.ok()) << loaded.status();
+    ASSERT_EQ(loaded->size(), 2u);
+    ExpectSameStoredGallery((*loaded)[0], a);
+    const auto read_only = store->read_only_galleries();
+    ASSERT_EQ(read_only.size(), 1u);
+    EXPECT_EQ(read_only[0].name, "a");
+    EXPECT_EQ(read_only[0].reason.code(), absl::StatusCode::kUnavailable) << read_only[0].reason;
+    EXPECT_THAT(read_only[0].reason.message(), HasSubstr("Input/output error"));
+    EXPECT_THAT(store->set_aside(), IsEmpty());
+  }
+  // Not even readable (a bad sector under the file): start-up fails saying it is the disk,
+  // and moves nothing, although set_aside_damaged is on.
+  FaultVfs::Faults unreadable;
+  unreadable.read_error = SQLITE_IOERR_READ;
+  unreadable.error = EIO;
+  unreadable.path_contains = "/a.gallery";
+  vfs_.Set(unreadable);
+  auto store = OpenFaulty(dir, /*set_aside=*/true);
+  auto loaded = store->LoadAll();
+  EXPECT_EQ(loaded.status().code(), absl::StatusCode::kUnavailable) << loaded.status();
+  EXPECT_THAT(loaded.status().message(),
+              AllOf(HasSubstr("cannot load gallery 'a'"), HasSubstr(dir + "/galleries/a.gallery"),
+                    HasSubstr("not damage"), HasSubstr("nothing was moved"),
+                    HasSubstr("Input/output error")));
+  EXPECT_TRUE(FileExists(dir + "/galleries/a.gallery"));
+  EXPECT_FALSE(FileExists(dir + "/damaged"));
+}
+
+TEST_F(DiskFaultTest, ProvenDamageIsStillSetAsideOnAHealthyOrAFullDisk) {
+  const StoredGallery bad = MakeGallery("bad", 16, 30, 3);
+  for (const bool full : {false, true}) {
+    SCOPED_TRACE(full ? "full disk" : "healthy disk");
+    const std::string dir =
+        Written(full ? "full" : "healthy", {MakeGallery("good", 16, 4, 4), bad});
+    // A flipped bit in a label: SQLite's structure is intact, the row's CRC-32 is not.
+    const std::string path = dir + "/galleries/bad.gallery";
+    const long at = Find(path, bad.samples[11].label);
+    ASSERT_GE(at, 0);
+    Overwrite(path, at, "C");
+    vfs_.Set(full ? FaultVfs::DiskFull() : FaultVfs::Faults{});
+    auto store = OpenFaulty(dir, /*set_aside=*/true);
+    auto loaded = store->LoadAll();
+    ASSERT_TRUE(loaded.ok()) << loaded.status();
+    ASSERT_EQ(loaded->size(), 1u);
+    EXPECT_EQ((*loaded)[0].name, "good");
+    const auto aside = store->set_aside();
+    ASSERT_EQ(aside.size(), 1u);
+    EXPECT_EQ(aside[0].name, "bad");
+    EXPECT_THAT(aside[0].reason, HasSubstr("checksum mismatch"));
+    EXPECT_TRUE(FileExists(aside[0].moved_to));
+    EXPECT_FALSE(FileExists(path));
+  }
+}
+
+TEST_F(DiskFaultTest, ACommitStillInTheWalIsServedAfterARestartOnAFullDisk) {
+  StoredGallery g = MakeGallery("g", 8, 10, 1);
+  const std::string dir = ScratchDir("live");
+  const std::string crashed = ScratchDir("crashed");
+  {
+    auto store = OpenStore(dir);
+    ASSERT_TRUE(store->LoadAll().ok());
+    ASSERT_TRUE(store->SaveGallery(g).ok());  // checkpointed into the main file
+    StoredGallery more = MakeGallery("g", 8, 3, 2);
+    for (StoredSample& s : more.samples) s.id += 1000;
+    g.updated += absl::Seconds(1);
+    ASSERT_TRUE(store->AppendSamples("g", more.samples, g.updated, 0).ok());  // in the -wal
+    g.samples.insert(g.samples.end(), more.samples.begin(), more.samples.end());
+    g.updated += absl::Seconds(1);
+    ASSERT_TRUE(store->RemoveSamples("g", {g.samples[2].id}, g.updated, 0).ok());
+    g.samples.erase(g.samples.begin() + 2);
+    // What a power cut leaves: the main file and the -wal as they are now (the -shm is
+    // rebuilt from the -wal, so it is not kept).
+    ASSERT_TRUE(MakeDirectories(crashed + "/galleries").ok());
+    for (const char* file : {"g.gallery", "g.gallery-wal"}) {
+      ASSERT_EQ(
+          std::system(
+              absl::StrCat("cp ", dir, "/galleries/", file, " ", crashed, "/galleries/").c_str()),
+          0);
+    }
+  }
+  const std::string wal = crashed + "/galleries/g.gallery-wal";
+  const long wal_size = FileSize(wal);
+  ASSERT_GT(wal_size, 0);
+  vfs_.Set(FaultVfs::DiskFull());
+  auto store = OpenFaulty(crashed, /*set_aside=*/true);
+  auto loaded = store->LoadAll();
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  ASSERT_EQ(loaded->size(), 1u);
+  ExpectSameStoredGallery((*loaded)[0], g);
+  ASSERT_EQ(store->read_only_galleries().size(), 1u);
+  // Read without touching anything: no -shm, the -wal as it was.
+  EXPECT_EQ(FileSize(crashed + "/galleries/g.gallery-shm"), -1);
+  EXPECT_EQ(FileSize(wal), wal_size);
+
+  // Space freed: the next write reopens the gallery and goes through, without a restart.
+  vfs_.Set({});
+  StoredGallery later = MakeGallery("g", 8, 1, 3);
+  later.samples[0].id = 5000;
+  g.updated += absl::Seconds(1);
+  ASSERT_TRUE(store->AppendSamples("g", later.samples, g.updated, 0).ok());
+  g.samples.push_back(later.samples[0]);
+  EXPECT_THAT(store->read_only_galleries(), IsEmpty());
+  store.reset();
+  auto reopened = OpenStore(crashed);
+  auto again = reopened->LoadAll();
+  ASSERT_TRUE(again.ok()) << again.status();
+  ExpectSameStoredGallery((*again)[0], g);
+}
+
+TEST_F(DiskFaultTest, WritesToAReadOnlyGalleryFailNamingItAndWhy) {
+  StoredGallery a = MakeGallery("a", 8, 6, 1);
+  const StoredGallery b = MakeGallery("b", 8, 6, 2);
+  const std::string dir = Written("data", {a, b});
+  StoredGallery more = MakeGallery("a", 8, 2, 5);
+  for (StoredSample& s : more.samples) s.id += 1000;
+  {
+    FaultVfs::Faults full = FaultVfs::DiskFull();
+    full.path_contains = "/a.gallery";  // as if only a's volume were full
+    vfs_.Set(full);
+    auto store = OpenFaulty(dir);
+    ASSERT_TRUE(store->LoadAll().ok());
+    const absl::Status append = store->AppendSamples("a", more.samples, absl::Now(), 0);
+    EXPECT_EQ(append.code(), absl::StatusCode::kResourceExhausted) << append;
+    EXPECT_THAT(append.message(), AllOf(HasSubstr("cannot store 2 samples in gallery 'a'"),
+                                        HasSubstr("served read-only"), HasSubstr("disk is full")));
+    const absl::Status remove = store->RemoveSamples("a", {a.samples[0].id}, absl::Now(), 0);
+    EXPECT_EQ(remove.code(), absl::StatusCode::kResourceExhausted) << remove;
+    EXPECT_THAT(remove.message(), HasSubstr("gallery 'a'"));
+    // The other gallery goes on as usual.
+    StoredGallery for_b = MakeGallery("b", 8, 1, 6);
+    for_b.samples[0].id = 7000;
+    EXPECT_TRUE(store->AppendSamples("b", for_b.samples, absl::Now(), 0).ok());
+  }
+  {
+    FaultVfs::Faults read_only = FaultVfs::ReadOnlyVolume();
+    read_only.path_contains = "/a.gallery";
+    vfs_.Set(read_only);
+    auto store = OpenFaulty(dir);
+    ASSERT_TRUE(store->LoadAll().ok());
+    ASSERT_EQ(store->read_only_galleries().size(), 1u);
+    EXPECT_EQ(store->read_only_galleries()[0].reason.code(), absl::StatusCode::kUnavailable);
+    const absl::Status append = store->AppendSamples("a", more.samples, absl::Now(), 0);
+    EXPECT_EQ(append.code(), absl::StatusCode::kUnavailable) << append;
+    EXPECT_THAT(append.message(), AllOf(HasSubstr("gallery 'a'"), HasSubstr("served read-only"),
+                                        HasSubstr("Read-only file system")));
+  }
+  // Deleting writes nothing into the file, so it works (and frees the space).
+  vfs_.Set(FaultVfs::DiskFull());
+  auto store = OpenFaulty(dir);
+  ASSERT_TRUE(store->LoadAll().ok());
+  EXPECT_TRUE(store->DeleteGallery("a").ok());
+  EXPECT_FALSE(FileExists(dir + "/galleries/a.gallery"));
+  ASSERT_EQ(store->read_only_galleries().size(), 1u);
+  EXPECT_EQ(store->read_only_galleries()[0].name, "b");
+}
+
+TEST_F(DiskFaultTest, OurOwnFileOperationsFailingAtStartUp) {
+  StoredGallery bad = MakeGallery("bad", 8, 6, 1);
+  const std::string dir = Written("data", {MakeGallery("good", 8, 6, 2), bad});
+  // Leftovers of a crash that cannot be removed (here: a directory where a file was) are
+  // skipped; the galleries are still served.
+  ASSERT_TRUE(MakeDirectories(dir + "/galleries/.old.deleted/x").ok());
+  ASSERT_TRUE(RemoveFileIfExists(dir + "/galleries/bad.gallery").ok());
+  {
+    auto store = OpenFaulty(dir);
+    auto loaded = store->LoadAll();
+    ASSERT_TRUE(loaded.ok()) << loaded.status();
+    EXPECT_EQ(loaded->size(), 1u);
+  }
+  // A damaged gallery that cannot be moved aside (damaged/ cannot be created): start-up
+  // fails saying both, and the file stays where it was.
+  std::ofstream(dir + "/galleries/bad.gallery") << "not a database";
+  std::ofstream(dir + "/damaged") << "a file where the directory should be";
+  auto store = OpenFaulty(dir, /*set_aside=*/true);
+  auto loaded = store->LoadAll();
+  EXPECT_EQ(loaded.status().code(), absl::StatusCode::kUnavailable) << loaded.status();
+  EXPECT_THAT(loaded.status().message(),
+              AllOf(HasSubstr("cannot set gallery 'bad' aside"), HasSubstr("not a database"),
+                    HasSubstr("not a directory")));
+  EXPECT_TRUE(FileExists(dir + "/galleries/bad.gallery"));
 }
 
 }  // namespace
