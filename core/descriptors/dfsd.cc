@@ -106,16 +106,16 @@ class DfsdDescriptor : public Descriptor {
  protected:
   absl::Status ComputeValidated(const PointCloud& cloud, const CloudStats& stats,
                                 absl::Span<float> out) const override {
-    ComputeFramed(Frame(cloud, stats, options_), out);
+    ComputeFramed(cloud, CloudFrame::Find(cloud, stats, options_), out);
     return absl::OkStatus();
   }
 
   absl::Status ComputeValidatedWithPoseVariants(const PointCloud& cloud, const CloudStats& stats,
                                                 absl::Span<float> out,
                                                 std::vector<float>* variants) const override {
-    const FramedCloud framed = Frame(cloud, stats, options_);
-    ComputeFramed(framed, out);
-    if (HasPoseVariants(options_.frame)) AppendPoseVariants(framed, out, variants);
+    const CloudFrame frame = CloudFrame::Find(cloud, stats, options_);
+    ComputeFramed(cloud, frame, out);
+    if (HasPoseVariants(options_.frame)) AppendPoseVariants(frame, out, variants);
     return absl::OkStatus();
   }
 
@@ -145,9 +145,9 @@ class DfsdDescriptor : public Descriptor {
   // Appends the descriptor in every pose the frame could as well have chosen: axes whose
   // extents are within kAxisOrderTolerance of each other may come in either order, and an
   // axis whose skewness is below kSkewnessTolerance may point either way.
-  void AppendPoseVariants(const FramedCloud& framed, absl::Span<const float> canonical,
+  void AppendPoseVariants(const CloudFrame& frame, absl::Span<const float> canonical,
                           std::vector<float>* variants) const {
-    const Eigen::Vector3d extent = 2.0 * framed.half_extent;
+    const Eigen::Vector3d extent = 2.0 * frame.half_extent();
     // The upright frame never moves its vertical: only x and y are ordered.
     const bool upright = options_.frame == DfsdOptions::Frame::kUpright;
     const int ordered = upright ? 2 : 3;
@@ -159,7 +159,7 @@ class DfsdDescriptor : public Descriptor {
           plausible =
               extent[pose.axis_of[i]] * (1 + kAxisOrderTolerance) >= extent[pose.axis_of[j]];
         }
-        if ((pose.flips >> i & 1) && framed.skewness[pose.axis_of[i]] >= kSkewnessTolerance) {
+        if ((pose.flips >> i & 1) && frame.skewness()[pose.axis_of[i]] >= kSkewnessTolerance) {
           plausible = false;
         }
       }
@@ -170,12 +170,14 @@ class DfsdDescriptor : public Descriptor {
     }
   }
 
-  void ComputeFramed(const FramedCloud& framed, absl::Span<float> out) const {
+  void ComputeFramed(const PointCloud& cloud, const CloudFrame& frame,
+                     absl::Span<float> out) const {
     const int g = options_.grid;
     const size_t cells = static_cast<size_t>(g) * g * g;
-    const double largest_half = framed.half_extent.maxCoeff();  // > 0: ValidateCloud
+    const Eigen::Vector3d& half_extent = frame.half_extent();
+    const double largest_half = half_extent.maxCoeff();  // > 0: ValidateCloud
 
-    const size_t n = framed.coord[0].size();
+    const size_t n = cloud.size();
     // A large cloud goes through the kernel in chunks whose three G-row tables (3 G x chunk
     // floats, 9 MiB at G = 12) stay in the last-level cache: one pass over a million points
     // would allocate 144 MB of tables and stream them from memory for every grid column
@@ -186,6 +188,8 @@ class DfsdDescriptor : public Descriptor {
     const size_t chunk = n <= kLargestSinglePass ? n : kPointsPerChunk;
     const size_t stride = (chunk + kPointLanes - 1) / kPointLanes * kPointLanes;
     std::vector<float> tables(3 * static_cast<size_t>(g) * stride, kFarSquared);
+    std::vector<double> coords(3 * chunk);
+    double* const coord[3] = {coords.data(), coords.data() + chunk, coords.data() + 2 * chunk};
     std::vector<float> normalised(chunk);
     std::vector<float> squared(cells);
     std::vector<double> field(cells);
@@ -196,12 +200,14 @@ class DfsdDescriptor : public Descriptor {
                              (options_.fields == DfsdOptions::Fields::kBoth && f == 0);
       for (size_t first = 0; first < n; first += chunk) {
         const size_t count = std::min(chunk, n - first);
+        frame.Coordinates(cloud, first, count, coord);
         for (int a = 0; a < 3; ++a) {
           // An axis of zero extent keeps the common scale: its points all sit at 0.
-          const double half = framed.half_extent[a];
+          const double half = half_extent[a];
           const double scale = 1.0 / (isotropic || half == 0 ? largest_half : half);
-          const double* coord = framed.coord[a].data() + first;
-          for (size_t p = 0; p < count; ++p) normalised[p] = static_cast<float>(coord[p] * scale);
+          for (size_t p = 0; p < count; ++p) {
+            normalised[p] = static_cast<float>(coord[a][p] * scale);
+          }
           // Row by row, so each row is one contiguous loop the compiler vectorises. A last,
           // shorter chunk leaves the previous chunk's values past `count` (this field's: a
           // field with several chunks fills every earlier one): points already counted, so
@@ -235,7 +241,7 @@ class DfsdDescriptor : public Descriptor {
       written += kept_.size();
     }
     if (options_.size_weight > 0) {
-      Eigen::Vector3d extent = 2.0 * framed.half_extent;
+      Eigen::Vector3d extent = 2.0 * half_extent;
       std::sort(extent.data(), extent.data() + 3, std::greater<double>());
       for (int a = 0; a < kSizeFeatures; ++a) {
         const double e = std::max(extent[a], extent[0] * kMinRelativeExtent);

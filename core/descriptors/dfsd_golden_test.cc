@@ -1,7 +1,7 @@
 // DFSD's output pinned bit for bit: hashes of ComputeWithPoseVariants (descriptor and pose
-// variants, or the error) over many clouds and specs, recorded from the implementation before
-// issue 25 made its working memory bounded. Galleries store descriptors, so any change here
-// needs a descriptor_version bump instead.
+// variants, or the error) over many clouds and specs, recorded from the implementation that
+// held whole clouds in memory, before the frames were computed in passes. Galleries store
+// descriptors, so any change here needs a descriptor_version bump instead.
 //
 // To record after an intended change: SHAPEID_DFSD_GOLDEN_RECORD=1 ./dfsd_golden_test prints
 // the tables below.

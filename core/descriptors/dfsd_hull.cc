@@ -1,0 +1,451 @@
+// The convex hulls of DFSD's box and upright frames: Andrew's monotone chain after the octagon
+// filter, in memory (ConvexHull) or from passes over a cloud too large to project in memory
+// (StreamedHull), which must give the very same polygon.
+#include "core/descriptors/dfsd_hull.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <utility>
+#include <vector>
+
+namespace shapeid {
+namespace dfsd_internal {
+namespace {
+
+double Turn(const Eigen::Vector2d& o, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
+}
+
+// The order of the chain: by x, then y.
+struct Ascending {
+  bool operator()(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const {
+    return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
+  }
+};
+struct Descending {
+  bool operator()(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const {
+    return Ascending()(b, a);
+  }
+};
+
+// The polygon of the extreme points in 8 directions.
+class Octagon {
+ public:
+  // Points in order: of equal extremes, the first counts.
+  void See(const Eigen::Vector2d& p) {
+    for (int k = 0; k < 8; ++k) {
+      const double v = kDirections[k][0] * p.x() + kDirections[k][1] * p.y();
+      if (v > best_[k]) {
+        best_[k] = v;
+        extreme_[k] = p;
+      }
+    }
+  }
+
+  // After the last See: each edge's start and direction, so Inside computes each turn
+  // with the very operations of Turn(start, end, p).
+  void Finish() {
+    for (int k = 0; k < 8; ++k) {
+      const Eigen::Vector2d& a = extreme_[k];
+      const Eigen::Vector2d& b = extreme_[(k + 1) % 8];
+      // A repeated extreme gives a zero edge, which says nothing: it never rules p out.
+      skip_[k] = a == b;
+      ox_[k] = a.x();
+      oy_[k] = a.y();
+      ex_[k] = b.x() - a.x();
+      ey_[k] = b.y() - a.y();
+    }
+  }
+
+  // The smallest and largest x seen.
+  double min_x() const { return extreme_[4].x(); }
+  double max_x() const { return extreme_[0].x(); }
+
+  // Strictly inside every edge: not on the hull. All eight turns, without branches (points
+  // fall inside and outside at random, which a branch predicts badly).
+  bool Inside(const Eigen::Vector2d& p) const {
+    bool inside = true;
+    for (int k = 0; k < 8; ++k) {
+      const double turn = ex_[k] * (p.y() - oy_[k]) - ey_[k] * (p.x() - ox_[k]);
+      inside &= skip_[k] | (turn > 0);
+    }
+    return inside;
+  }
+
+ private:
+  // Extremes along x, x+y, y, y-x, -x, -x-y, -y, x-y: counter-clockwise around the cloud.
+  static constexpr double kDirections[8][2] = {{1, 0},  {1, 1},   {0, 1},  {-1, 1},
+                                               {-1, 0}, {-1, -1}, {0, -1}, {1, -1}};
+  static constexpr double kLow = -std::numeric_limits<double>::infinity();
+  Eigen::Vector2d extreme_[8];
+  double best_[8] = {kLow, kLow, kLow, kLow, kLow, kLow, kLow, kLow};
+  double ox_[8], oy_[8], ex_[8], ey_[8];
+  bool skip_[8];
+};
+
+// Andrew's monotone chain fed one point at a time: the lower hull from the points in
+// ascending order, the upper hull from the same points in descending order, so that each
+// half can come from its own stream of sorted slabs. It pops exactly where the textbook
+// loops over one sorted array pop: there the upper hull's first edge starts at the lower
+// hull's last point, the largest point, which is also the first point the upper chain gets.
+//
+// Equal points (equal (x, y), possibly zeros of different signs) make the same turns in any
+// order, and after the second of a run more copies change nothing but which copy stays; so a
+// stream may cut runs to two points, and the order in which a sort leaves equal points does
+// not matter (which copy stays differs at most in the sign of a zero coordinate, which no
+// later step of a frame can see: it is only compared, added to non-zeros or squared).
+class HullChain {
+ public:
+  void AddLower(const Eigen::Vector2d& p) {
+    while (lower_.size() >= 2 && Turn(lower_[lower_.size() - 2], lower_.back(), p) <= 0) {
+      lower_.pop_back();
+    }
+    lower_.push_back(p);
+  }
+
+  void AddUpper(const Eigen::Vector2d& p) {
+    if (!has_top_) {
+      top_ = p;
+      has_top_ = true;
+    }
+    while (!upper_.empty() &&
+           Turn(upper_.size() >= 2 ? upper_[upper_.size() - 2] : top_, upper_.back(), p) <= 0) {
+      upper_.pop_back();
+    }
+    upper_.push_back(p);
+  }
+
+  // Counter-clockwise from the smallest point; the upper chain's last point (the smallest
+  // again) is dropped.
+  std::vector<Eigen::Vector2d> Hull() {
+    std::vector<Eigen::Vector2d> hull = std::move(lower_);
+    hull.insert(hull.end(), upper_.begin(), upper_.end());
+    if (hull.size() > 1) hull.pop_back();
+    lower_.clear();
+    upper_.clear();
+    return hull;
+  }
+
+ private:
+  std::vector<Eigen::Vector2d> lower_, upper_;
+  Eigen::Vector2d top_;
+  bool has_top_ = false;
+};
+
+// Chains points sorted by Ascending: all of them into the lower hull, then backwards into
+// the upper hull.
+std::vector<Eigen::Vector2d> ChainSorted(const std::vector<Eigen::Vector2d>& sorted) {
+  HullChain chain;
+  for (const Eigen::Vector2d& p : sorted) chain.AddLower(p);
+  for (size_t i = sorted.size(); i-- > 0;) chain.AddUpper(sorted[i]);
+  return chain.Hull();
+}
+
+// One pass's slab of the hull candidates in `Order`: those after the previous slab (the
+// cursor) that the caller lets through, up to a bound that keeps at most about 1.5 * `slab`
+// of them (set, and only lowered, when the buffer fills). Runs of equal points are cut to two
+// (see HullChain).
+template <typename Order>
+class SlabSelector {
+ public:
+  explicit SlabSelector(size_t slab) : slab_(slab) {}
+
+  void BeginPass() {
+    buffer_.clear();
+    has_bound_ = false;
+  }
+
+  // Whether p belongs to this pass's slab as the slab stands.
+  bool Wants(const Eigen::Vector2d& p) const {
+    return (!has_cursor_ || before_(cursor_, p)) && (!has_bound_ || !before_(bound_, p));
+  }
+
+  // p must be wanted.
+  void Offer(const Eigen::Vector2d& p) {
+    buffer_.push_back(p);
+    if (buffer_.size() >= Capacity()) Shrink();
+  }
+
+  // The slab, sorted; the next pass continues after it.
+  const std::vector<Eigen::Vector2d>& EndPass() {
+    std::sort(buffer_.begin(), buffer_.end(), before_);
+    size_t kept = 0;
+    for (const Eigen::Vector2d& p : buffer_) {
+      if (kept >= 2 && !before_(buffer_[kept - 2], p)) continue;  // a third equal point
+      buffer_[kept++] = p;
+    }
+    buffer_.resize(kept);
+    if (!buffer_.empty()) {
+      cursor_ = buffer_.back();
+      has_cursor_ = true;
+    }
+    return buffer_;
+  }
+
+  // Whether this pass's slab stopped at a bound (so more points of its range remain).
+  bool bounded() const { return has_bound_; }
+  const Eigen::Vector2d& cursor() const { return cursor_; }
+  // Points a slab takes before the bound starts to fall.
+  size_t Capacity() const { return slab_ + slab_ / 2; }
+
+  void Release() { std::vector<Eigen::Vector2d>().swap(buffer_); }
+
+ private:
+  // Keeps the first `slab` points and, if a later one equals the last of them, that one too
+  // (a run of equal points at the bound keeps two); the bound is the last point kept.
+  void Shrink() {
+    const auto nth = buffer_.begin() + static_cast<std::ptrdiff_t>(slab_ - 1);
+    std::nth_element(buffer_.begin(), nth, buffer_.end(), before_);
+    bound_ = *nth;
+    has_bound_ = true;
+    auto end = nth + 1;
+    const auto equal = std::find_if(end, buffer_.end(),
+                                    [&](const Eigen::Vector2d& p) { return !before_(bound_, p); });
+    if (equal != buffer_.end()) std::iter_swap(end++, equal);
+    buffer_.erase(end, buffer_.end());
+  }
+
+  Order before_;
+  size_t slab_;
+  std::vector<Eigen::Vector2d> buffer_;
+  Eigen::Vector2d cursor_, bound_;
+  bool has_cursor_ = false, has_bound_ = false;
+};
+
+// Candidates counted by x in kBins equal bins between the smallest and largest x, so that
+// each slab pass can take a run of bins that fits and reject the other points by their bin.
+// The bin of x never decreases as x grows, so a run of bins is a run of the sorted order.
+class XHistogram {
+ public:
+  static constexpr size_t kBins = 4096;
+
+  XHistogram(double lo, double hi)
+      : lo_(lo), scale_(hi > lo ? static_cast<double>(kBins) / (hi - lo) : 0.0), counts_(kBins) {}
+
+  size_t Bin(double x) const {
+    const double t = (x - lo_) * scale_;
+    return t >= static_cast<double>(kBins - 1) ? kBins - 1 : t > 0 ? static_cast<size_t>(t) : 0;
+  }
+  void Count(double x) { ++counts_[Bin(x)]; }
+  size_t count(size_t bin) const { return counts_[bin]; }
+
+ private:
+  double lo_, scale_;
+  std::vector<size_t> counts_;
+};
+
+}  // namespace
+
+std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d>& points) {
+  if (points.size() >= 16) {
+    Octagon octagon;
+    for (const Eigen::Vector2d& p : points) octagon.See(p);
+    octagon.Finish();
+    size_t kept = 0;
+    for (const Eigen::Vector2d& p : points) {
+      if (!octagon.Inside(p)) points[kept++] = p;  // keeps the survivors' order
+    }
+    points.resize(kept);
+  }
+  std::sort(points.begin(), points.end(), Ascending());
+  return ChainSorted(points);
+}
+
+struct StreamedHull::State {
+  State(size_t points, size_t slab) : n(points), slab_points(slab), lower(slab), upper(slab) {}
+
+  enum class Mode { kSmall, kOctagon, kInMemory, kSlabs, kDone };
+
+  // The run of bins a chain's next slab draws from: [from, to] going up for the lower chain,
+  // down for the upper one.
+  struct Run {
+    size_t from, to;
+    bool want = true;   // the chain still needs points
+    bool last = false;  // the run reaches the last bin
+  };
+
+  // The run from `run.from` that the histogram says fits a slab (at least one bin), going
+  // up or down.
+  void Plan(Run& run, int step, size_t capacity) const {
+    size_t end = run.from, total = histogram->count(end);
+    while (true) {
+      const bool edge = step > 0 ? end + 1 == XHistogram::kBins : end == 0;
+      if (edge) break;
+      const size_t next = step > 0 ? end + 1 : end - 1;
+      if (total + histogram->count(next) > capacity) break;
+      total += histogram->count(next);
+      end = next;
+    }
+    run.to = end;
+    run.last = step > 0 ? end + 1 == XHistogram::kBins : end == 0;
+  }
+
+  // After a pass: the chain is done, or its next run starts after this slab.
+  template <typename Selector>
+  void Advance(Run& run, const Selector& selector, int step) {
+    if (selector.bounded()) {
+      run.from = histogram->Bin(selector.cursor().x());  // the bound's bin has more points
+    } else if (run.last) {
+      run.want = false;
+    } else {
+      run.from = step > 0 ? run.to + 1 : run.to - 1;
+    }
+  }
+
+  size_t n;
+  size_t slab_points;
+  Mode mode = Mode::kOctagon;
+  Octagon octagon;
+  // kSmall: every point; kInMemory: the points outside the octagon, in point order.
+  std::vector<Eigen::Vector2d> candidates;
+  bool overflow = false;
+  std::unique_ptr<XHistogram> histogram;
+  SlabSelector<Ascending> lower;
+  SlabSelector<Descending> upper;
+  Run lower_run{0, 0}, upper_run{XHistogram::kBins - 1, 0};
+  HullChain chain;
+  std::vector<Eigen::Vector2d> hull;
+};
+
+StreamedHull::StreamedHull(size_t n, size_t slab_points)
+    : state_(std::make_unique<State>(n, std::max<size_t>(slab_points, 2))) {
+  // ConvexHull keeps every point of a small set (no octagon below 16 points).
+  if (n < 16) state_->mode = State::Mode::kSmall;
+}
+
+StreamedHull::~StreamedHull() = default;
+StreamedHull::StreamedHull(StreamedHull&&) noexcept = default;
+StreamedHull& StreamedHull::operator=(StreamedHull&&) noexcept = default;
+
+void StreamedHull::See(const Eigen::Vector2d* points, size_t count) {
+  State& s = *state_;
+  if (s.mode == State::Mode::kSmall) {
+    s.candidates.insert(s.candidates.end(), points, points + count);
+  } else {
+    for (size_t i = 0; i < count; ++i) s.octagon.See(points[i]);
+  }
+}
+
+bool StreamedHull::done() const {
+  return state_->mode == State::Mode::kSmall || state_->mode == State::Mode::kDone;
+}
+
+void StreamedHull::BeginPass() {
+  State& s = *state_;
+  if (s.mode == State::Mode::kOctagon) {
+    s.octagon.Finish();
+    s.mode = State::Mode::kInMemory;
+    s.candidates.reserve(std::min(s.n, 2 * s.slab_points));
+    s.histogram = std::make_unique<XHistogram>(s.octagon.min_x(), s.octagon.max_x());
+  } else if (s.mode == State::Mode::kSlabs) {
+    // Runs that hold at most a slab's capacity never reach the bound: no selection work.
+    const size_t capacity = s.lower.Capacity() - 1;
+    if (s.lower_run.want) {
+      s.Plan(s.lower_run, +1, capacity);
+      s.lower.BeginPass();
+    }
+    if (s.upper_run.want) {
+      s.Plan(s.upper_run, -1, capacity);
+      s.upper.BeginPass();
+    }
+  }
+}
+
+void StreamedHull::Offer(const Eigen::Vector2d* points, size_t count) {
+  State& s = *state_;
+  if (s.mode == State::Mode::kInMemory) {
+    for (size_t i = 0; i < count; ++i) {
+      const Eigen::Vector2d& p = points[i];
+      if (s.octagon.Inside(p)) continue;
+      s.histogram->Count(p.x());
+      if (s.overflow) continue;
+      if (s.candidates.size() == 2 * s.slab_points) {
+        s.overflow = true;
+        std::vector<Eigen::Vector2d>().swap(s.candidates);
+        continue;
+      }
+      s.candidates.push_back(p);
+    }
+  } else if (s.mode == State::Mode::kSlabs) {
+    const State::Run& lo = s.lower_run;
+    const State::Run& hi = s.upper_run;
+    for (size_t i = 0; i < count; ++i) {
+      const Eigen::Vector2d& p = points[i];
+      // The cheap tests first: most points are in neither chain's run of bins.
+      const size_t bin = s.histogram->Bin(p.x());
+      const bool lower = lo.want && bin >= lo.from && bin <= lo.to && s.lower.Wants(p);
+      const bool upper = hi.want && bin <= hi.from && bin >= hi.to && s.upper.Wants(p);
+      if (!(lower || upper) || s.octagon.Inside(p)) continue;
+      if (lower) s.lower.Offer(p);
+      if (upper) s.upper.Offer(p);
+    }
+  }
+}
+
+void StreamedHull::EndPass() {
+  State& s = *state_;
+  if (s.mode == State::Mode::kInMemory) {
+    if (!s.overflow) {
+      std::sort(s.candidates.begin(), s.candidates.end(), Ascending());
+      s.hull = ChainSorted(s.candidates);
+      s.mode = State::Mode::kDone;
+      s.histogram.reset();
+    } else {
+      s.mode = State::Mode::kSlabs;
+    }
+    std::vector<Eigen::Vector2d>().swap(s.candidates);
+  } else if (s.mode == State::Mode::kSlabs) {
+    if (s.lower_run.want) {
+      for (const Eigen::Vector2d& p : s.lower.EndPass()) s.chain.AddLower(p);
+      s.Advance(s.lower_run, s.lower, +1);
+    }
+    if (s.upper_run.want) {
+      for (const Eigen::Vector2d& p : s.upper.EndPass()) s.chain.AddUpper(p);
+      s.Advance(s.upper_run, s.upper, -1);
+    }
+    if (!s.lower_run.want && !s.upper_run.want) {
+      s.lower.Release();
+      s.upper.Release();
+      s.histogram.reset();
+      s.hull = s.chain.Hull();
+      s.mode = State::Mode::kDone;
+    }
+  }
+}
+
+std::vector<Eigen::Vector2d> StreamedHull::Hull() {
+  State& s = *state_;
+  if (s.mode == State::Mode::kSmall) return ConvexHull(s.candidates);
+  return std::move(s.hull);
+}
+
+bool MinAreaRectangle(const std::vector<Eigen::Vector2d>& hull, Eigen::Vector2d* direction,
+                      double* area) {
+  if (hull.size() < 3) return false;
+  *area = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i < hull.size(); ++i) {
+    Eigen::Vector2d e = hull[(i + 1) % hull.size()] - hull[i];
+    const double length = e.norm();
+    if (length == 0) continue;
+    e /= length;
+    double lo_u = std::numeric_limits<double>::infinity(), hi_u = -lo_u, lo_v = lo_u, hi_v = -lo_u;
+    for (const Eigen::Vector2d& q : hull) {
+      const double u = q.dot(e), v = e.x() * q.y() - e.y() * q.x();
+      lo_u = std::min(lo_u, u);
+      hi_u = std::max(hi_u, u);
+      lo_v = std::min(lo_v, v);
+      hi_v = std::max(hi_v, v);
+    }
+    const double a = (hi_u - lo_u) * (hi_v - lo_v);
+    if (a < *area) {
+      *area = a;
+      *direction = e;
+    }
+  }
+  return std::isfinite(*area);
+}
+
+}  // namespace dfsd_internal
+}  // namespace shapeid

@@ -1,0 +1,75 @@
+#ifndef SHAPEID_CORE_DESCRIPTORS_DFSD_HULL_H_
+#define SHAPEID_CORE_DESCRIPTORS_DFSD_HULL_H_
+
+// Plane geometry of DFSD's box and upright frames (docs/descriptors.md section 5.2): the
+// convex hull of a cloud's projection and the smallest rectangle around it. Internal to core;
+// exposed for dfsd_frame.cc and tests.
+
+#include <cstddef>
+#include <memory>
+#include <vector>
+
+#include "Eigen/Core"
+
+namespace shapeid {
+namespace dfsd_internal {
+
+// StreamedHull sorts up to 2 * kHullSlabPoints hull candidates in memory, more in slabs of
+// this many per pass (16 bytes a point: 8 MiB in memory, at most 12 MiB in slabs).
+inline constexpr size_t kHullSlabPoints = size_t{1} << 18;
+
+// The convex hull of 2D points, counter-clockwise from the smallest (x, y), without collinear
+// points: Andrew's monotone chain over the points sorted by (x, y), after dropping those
+// strictly inside the octagon of the extreme points in 8 directions (Akl and Toussaint 1978:
+// they cannot be on the hull; on object surfaces they are most points). Reorders and shrinks
+// `points`.
+std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d>& points);
+
+// ConvexHull of a set too large to hold (a large cloud's projection), bit for bit, from
+// passes that give every point again, in the same order each time:
+//
+//   StreamedHull hull(n);
+//   for (every chunk of points, in order) hull.See(chunk, size);     // the octagon
+//   while (!hull.done()) {
+//     hull.BeginPass();
+//     for (every chunk of points, in order) hull.Offer(chunk, size);
+//     hull.EndPass();
+//   }
+//   std::vector<Eigen::Vector2d> polygon = hull.Hull();
+//
+// The second pass collects the points outside the octagon and, where they are at most
+// 2 * slab_points, sorts them in memory: two passes in all. Where there are more (clouds of
+// millions of points; a cylinder seen end-on, a flat cloud seen edge-on), it also counts them
+// in bins of x, and each further pass sorts the next slab of up to 1.5 * slab_points from
+// below for the lower chain and from above for the upper chain. Memory: 16 bytes a point for
+// at most 3 * slab_points points, and the hull's own vertices.
+class StreamedHull {
+ public:
+  explicit StreamedHull(size_t n, size_t slab_points = kHullSlabPoints);
+  ~StreamedHull();
+  StreamedHull(StreamedHull&&) noexcept;
+  StreamedHull& operator=(StreamedHull&&) noexcept;
+
+  void See(const Eigen::Vector2d* points, size_t count);
+  bool done() const;
+  void BeginPass();
+  void Offer(const Eigen::Vector2d* points, size_t count);
+  void EndPass();
+  // Once done(); empties the object.
+  std::vector<Eigen::Vector2d> Hull();
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+// The direction (unit 2D vector) of the smallest-area rectangle around a convex polygon:
+// some side of that rectangle lies along a polygon edge (Freeman and Shapira 1975), so
+// trying every edge direction is exact. Returns false for fewer than 3 hull points.
+bool MinAreaRectangle(const std::vector<Eigen::Vector2d>& hull, Eigen::Vector2d* direction,
+                      double* area);
+
+}  // namespace dfsd_internal
+}  // namespace shapeid
+
+#endif  // SHAPEID_CORE_DESCRIPTORS_DFSD_HULL_H_
