@@ -38,9 +38,8 @@ constexpr double kMinRelativeExtent = 1e-6;
 constexpr double kAxisOrderTolerance = 0.2;
 constexpr double kSkewnessTolerance = 0.3;
 
-// Clouds of up to kLargestSinglePass points go through the distance kernel in one pass;
-// larger ones in passes of kPointsPerChunk (a multiple of kPointLanes). See ComputeFramed.
-constexpr size_t kLargestSinglePass = size_t{1} << 18;
+// The distance kernel takes at most this many points per pass (a multiple of kPointLanes).
+// See ComputeFramed.
 constexpr size_t kPointsPerChunk = size_t{1} << 16;
 
 bool HasPoseVariants(DfsdOptions::Frame frame) {
@@ -179,14 +178,12 @@ class DfsdDescriptor : public Descriptor {
 
     const size_t n = cloud.size();
     // A large cloud goes through the kernel in chunks whose three G-row tables (3 G x chunk
-    // floats, 9 MiB at G = 12) stay in the last-level cache: one pass over a million points
-    // would allocate 144 MB of tables and stream them from memory for every grid column
-    // (measured: 1.42 s -> 0.78 s per million points). Smaller clouds keep one pass: with
-    // small tables, glibc maps and faults in the frame's other big arrays afresh on every
-    // call, which cost more than the cache misses (100,000 points in 4,096-point chunks:
-    // 50 -> 70 ms; in 65,536-point chunks: 48 -> 53 ms).
-    const size_t chunk = n <= kLargestSinglePass ? n : kPointsPerChunk;
-    const size_t stride = (chunk + kPointLanes - 1) / kPointLanes * kPointLanes;
+    // floats) stay in the last-level cache and bound the memory, all of about the same size:
+    // the kernel runs over a whole stride, so a short last chunk would cost a full one
+    // (docs/performance.md, "DFSD").
+    const size_t chunks = (n + kPointsPerChunk - 1) / kPointsPerChunk;
+    const size_t chunk = ((n + chunks - 1) / chunks + kPointLanes - 1) / kPointLanes * kPointLanes;
+    const size_t stride = chunk;
     std::vector<float> tables(3 * static_cast<size_t>(g) * stride, kFarSquared);
     std::vector<double> coords(3 * chunk);
     double* const coord[3] = {coords.data(), coords.data() + chunk, coords.data() + 2 * chunk};
