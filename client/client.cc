@@ -255,6 +255,7 @@ absl::Status Client::Call(bool retry, bool corked, const Attempt& attempt,
     // CANCELLED too: this client cancels only calls it then stops (a failing export sink, an
     // import), so a CANCELLED here comes from a server that stopped before serving the call
     // (a shutdown cancels what it had not started), which another replica can serve.
+    // Never RESOURCE_EXHAUSTED, busy or not (ClientOptions::max_attempts says why).
     if (status.error_code() != grpc::StatusCode::UNAVAILABLE &&
         status.error_code() != grpc::StatusCode::CANCELLED) {
       break;

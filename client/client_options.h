@@ -55,6 +55,11 @@ struct ClientOptions {
   // took, so it returns that ALREADY_EXISTS, its message saying that an earlier attempt
   // got no answer and may have committed the samples (check the gallery before training
   // them again).
+  //
+  // RESOURCE_EXHAUSTED is returned at once, also when the server was only busy (its memory
+  // budget, a queue or the caller's backlog full): only the message tells busy from a size
+  // limit that never succeeds, and a busy server stays busy longer than this backoff. Retry
+  // those later, from the caller (docs/cli.md, "Busy servers").
   int max_attempts = 3;
 
   // Wait before the second attempt; doubled before each further one (bounded by the deadline).
