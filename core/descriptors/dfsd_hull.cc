@@ -152,7 +152,9 @@ class SlabSelector {
  public:
   explicit SlabSelector(size_t slab) : slab_(slab) {}
 
-  void BeginPass() {
+  // The buffer never holds more than Capacity() points: reserved once, no growth.
+  void BeginPass(size_t n) {
+    buffer_.reserve(std::min(n, Capacity()));
     buffer_.clear();
     has_bound_ = false;
   }
@@ -189,6 +191,9 @@ class SlabSelector {
   const Eigen::Vector2d& cursor() const { return cursor_; }
   // Points a slab takes before the bound starts to fall.
   size_t Capacity() const { return slab_ + slab_ / 2; }
+
+  // The points as offered, in order: every wanted point while !bounded().
+  std::vector<Eigen::Vector2d>& offered() { return buffer_; }
 
   void Release() { std::vector<Eigen::Vector2d>().swap(buffer_); }
 
@@ -298,9 +303,7 @@ struct StreamedHull::State {
   size_t slab_points;
   Mode mode = Mode::kOctagon;
   Octagon octagon;
-  // kSmall: every point; kInMemory: the points outside the octagon, in point order.
-  std::vector<Eigen::Vector2d> candidates;
-  bool overflow = false;
+  std::vector<Eigen::Vector2d> small;  // kSmall: every point
   std::unique_ptr<XHistogram> histogram;
   SlabSelector<Ascending> lower;
   SlabSelector<Descending> upper;
@@ -322,7 +325,7 @@ StreamedHull& StreamedHull::operator=(StreamedHull&&) noexcept = default;
 void StreamedHull::See(const Eigen::Vector2d* points, size_t count) {
   State& s = *state_;
   if (s.mode == State::Mode::kSmall) {
-    s.candidates.insert(s.candidates.end(), points, points + count);
+    s.small.insert(s.small.end(), points, points + count);
   } else {
     for (size_t i = 0; i < count; ++i) s.octagon.See(points[i]);
   }
@@ -335,20 +338,22 @@ bool StreamedHull::done() const {
 void StreamedHull::BeginPass() {
   State& s = *state_;
   if (s.mode == State::Mode::kOctagon) {
+    // The lower chain's selector takes every candidate, in point order, until it fills;
+    // then it keeps the lowest, the first slab, and the histogram plans the rest.
     s.octagon.Finish();
     s.mode = State::Mode::kInMemory;
-    s.candidates.reserve(std::min(s.n, 2 * s.slab_points));
     s.histogram = std::make_unique<XHistogram>(s.octagon.min_x(), s.octagon.max_x());
+    s.lower.BeginPass(s.n);
   } else if (s.mode == State::Mode::kSlabs) {
     // Runs that hold at most a slab's capacity never reach the bound: no selection work.
     const size_t capacity = s.lower.Capacity() - 1;
     if (s.lower_run.want) {
       s.Plan(s.lower_run, +1, capacity);
-      s.lower.BeginPass();
+      s.lower.BeginPass(s.n);
     }
     if (s.upper_run.want) {
       s.Plan(s.upper_run, -1, capacity);
-      s.upper.BeginPass();
+      s.upper.BeginPass(s.n);
     }
   }
 }
@@ -360,13 +365,7 @@ void StreamedHull::Offer(const Eigen::Vector2d* points, size_t count) {
       const Eigen::Vector2d& p = points[i];
       if (s.octagon.Inside(p)) continue;
       s.histogram->Count(p.x());
-      if (s.overflow) continue;
-      if (s.candidates.size() == 2 * s.slab_points) {
-        s.overflow = true;
-        std::vector<Eigen::Vector2d>().swap(s.candidates);
-        continue;
-      }
-      s.candidates.push_back(p);
+      if (s.lower.Wants(p)) s.lower.Offer(p);
     }
   } else if (s.mode == State::Mode::kSlabs) {
     const State::Run& lo = s.lower_run;
@@ -387,15 +386,18 @@ void StreamedHull::Offer(const Eigen::Vector2d* points, size_t count) {
 void StreamedHull::EndPass() {
   State& s = *state_;
   if (s.mode == State::Mode::kInMemory) {
-    if (!s.overflow) {
-      std::sort(s.candidates.begin(), s.candidates.end(), Ascending());
-      s.hull = ChainSorted(s.candidates);
-      s.mode = State::Mode::kDone;
+    if (!s.lower.bounded()) {  // every candidate, as ConvexHull keeps them
+      std::vector<Eigen::Vector2d>& candidates = s.lower.offered();
+      std::sort(candidates.begin(), candidates.end(), Ascending());
+      s.hull = ChainSorted(candidates);
+      s.lower.Release();
       s.histogram.reset();
+      s.mode = State::Mode::kDone;
     } else {
+      for (const Eigen::Vector2d& p : s.lower.EndPass()) s.chain.AddLower(p);
+      s.Advance(s.lower_run, s.lower, +1);
       s.mode = State::Mode::kSlabs;
     }
-    std::vector<Eigen::Vector2d>().swap(s.candidates);
   } else if (s.mode == State::Mode::kSlabs) {
     if (s.lower_run.want) {
       for (const Eigen::Vector2d& p : s.lower.EndPass()) s.chain.AddLower(p);
@@ -417,7 +419,7 @@ void StreamedHull::EndPass() {
 
 std::vector<Eigen::Vector2d> StreamedHull::Hull() {
   State& s = *state_;
-  if (s.mode == State::Mode::kSmall) return ConvexHull(s.candidates);
+  if (s.mode == State::Mode::kSmall) return ConvexHull(s.small);
   return std::move(s.hull);
 }
 

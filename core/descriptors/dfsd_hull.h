@@ -14,9 +14,9 @@
 namespace shapeid {
 namespace dfsd_internal {
 
-// StreamedHull sorts up to 2 * kHullSlabPoints hull candidates in memory, more in slabs of
-// this many per pass (16 bytes a point: 8 MiB in memory, at most 12 MiB in slabs).
-inline constexpr size_t kHullSlabPoints = size_t{1} << 18;
+// StreamedHull sorts up to 1.5 * kHullSlabPoints hull candidates in memory, more in slabs of
+// as many per pass from each end (16 bytes a point).
+inline constexpr size_t kHullSlabPoints = size_t{1} << 19;
 
 // The convex hull of 2D points, counter-clockwise from the smallest (x, y), without collinear
 // points: Andrew's monotone chain over the points sorted by (x, y), after dropping those
@@ -38,11 +38,12 @@ std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d>& points);
 //   std::vector<Eigen::Vector2d> polygon = hull.Hull();
 //
 // The second pass collects the points outside the octagon and, where they are at most
-// 2 * slab_points, sorts them in memory: two passes in all. Where there are more (clouds of
-// millions of points; a cylinder seen end-on, a flat cloud seen edge-on), it also counts them
-// in bins of x, and each further pass sorts the next slab of up to 1.5 * slab_points from
-// below for the lower chain and from above for the upper chain. Memory: 16 bytes a point for
-// at most 3 * slab_points points, and the hull's own vertices.
+// 1.5 * slab_points, sorts them in memory: two passes in all. Where there are more (clouds of
+// millions of points; a cylinder seen end-on, a flat cloud seen edge-on), it keeps the lowest
+// as the lower chain's first slab and counts all of them in bins of x; each further pass
+// sorts the next slab of up to 1.5 * slab_points from below for the lower chain and from
+// above for the upper chain. Memory: 16 bytes a point for at most 3 * slab_points points,
+// and the hull's own vertices.
 class StreamedHull {
  public:
   explicit StreamedHull(size_t n, size_t slab_points = kHullSlabPoints);
