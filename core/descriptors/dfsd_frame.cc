@@ -165,7 +165,7 @@ Eigen::Matrix3d OrderAndSign(const Eigen::Matrix3d& axes, CentredChunks& chunks,
 // descriptor). Uses + - * / sqrt and Eigen's symmetric eigensolver only, so a build gives
 // the same frame on every CPU whose L1 cache Eigen sizes alike (see ScatterSum).
 Eigen::Matrix3d BoxAxes(const PointCloud& cloud, const Eigen::Vector3d& centroid,
-                        size_t hull_slab_points, Eigen::Vector3d* skewness) {
+                        size_t hull_candidates, Eigen::Vector3d* skewness) {
   const size_t n = cloud.size();
   CentredChunks chunks(cloud, centroid);
   ScatterSum scatter(n);
@@ -182,7 +182,7 @@ Eigen::Matrix3d BoxAxes(const PointCloud& cloud, const Eigen::Vector3d& centroid
     // Holding axis h projects onto axes h + 1 and h + 2: one pass finds the three octagons
     // and the extents along the three axes.
     std::vector<StreamedHull> hulls;
-    for (int held = 0; held < 3; ++held) hulls.emplace_back(n, hull_slab_points);
+    for (int held = 0; held < 3; ++held) hulls.emplace_back(n, hull_candidates);
     double along_lo[3], along_hi[3];
     for (int held = 0; held < 3; ++held) {
       along_lo[held] = std::numeric_limits<double>::infinity();
@@ -244,11 +244,10 @@ Eigen::Matrix3d BoxAxes(const PointCloud& cloud, const Eigen::Vector3d& centroid
 // about the vertical (yaw) and to mirroring in the horizontal plane; it keeps which way is
 // up, which the box frame cannot know.
 Eigen::Matrix3d UprightAxes(const PointCloud& cloud, const Eigen::Vector3d& centroid,
-                            DfsdOptions::Up up, size_t hull_slab_points,
-                            Eigen::Vector3d* skewness) {
+                            DfsdOptions::Up up, size_t hull_candidates, Eigen::Vector3d* skewness) {
   const Eigen::Matrix3d basis = UpBasis(up);
   CentredChunks chunks(cloud, centroid);
-  StreamedHull hull(cloud.size(), hull_slab_points);
+  StreamedHull hull(cloud.size(), hull_candidates);
   std::vector<Eigen::Vector2d> projected(std::min(cloud.size(), kFramePassPoints));
   // The basis holds one signed 1 per column: these products are exact.
   const auto project = [&](const Eigen::Matrix3Xd& d) {
@@ -372,8 +371,23 @@ double EigenOrderSum::Sum() const {
   return n_ > end2_ ? sum + last_ : sum;
 }
 
+size_t FrameBytes(size_t n, DfsdOptions::Frame frame) {
+  if (frame == DfsdOptions::Frame::kAxes || frame == DfsdOptions::Frame::kPca) return 0;
+  const size_t chunk = std::min(n, kFramePassPoints);
+  // The centred chunk, a product of it (q or the extents along an axis), projections.
+  const size_t columns = 3 * sizeof(double) * chunk;
+  const size_t projections =
+      (frame == DfsdOptions::Frame::kBox ? 3 : 1) * chunk * sizeof(Eigen::Vector2d);
+  // The box frame's three hulls of a round see their octagons together, then are made one
+  // after another.
+  const size_t hulls = (frame == DfsdOptions::Frame::kBox ? 3 : 1) *
+                           (StreamedHull::IdleBytes() + sizeof(StreamedHull)) +
+                       StreamedHull::PeakBytes(n);
+  return 2 * columns + chunk * sizeof(double) + projections + hulls;
+}
+
 CloudFrame CloudFrame::Find(const PointCloud& cloud, const CloudStats& stats,
-                            const DfsdOptions& options, size_t hull_slab_points) {
+                            const DfsdOptions& options, size_t hull_candidates) {
   CloudFrame frame;
   frame.centroid_ = stats.centroid;
   Eigen::Vector3d lo = stats.min;
@@ -383,8 +397,8 @@ CloudFrame CloudFrame::Find(const PointCloud& cloud, const CloudStats& stats,
     frame.axes_ =
         options.frame == DfsdOptions::Frame::kPca ? PrincipalFrame(cloud, stats.centroid)
         : options.frame == DfsdOptions::Frame::kBox
-            ? BoxAxes(cloud, stats.centroid, hull_slab_points, &frame.skewness_)
-            : UprightAxes(cloud, stats.centroid, options.up, hull_slab_points, &frame.skewness_);
+            ? BoxAxes(cloud, stats.centroid, hull_candidates, &frame.skewness_)
+            : UprightAxes(cloud, stats.centroid, options.up, hull_candidates, &frame.skewness_);
     lo.setConstant(std::numeric_limits<double>::infinity());
     hi = -lo;
     for (size_t p = 0; p < cloud.size(); ++p) {

@@ -25,13 +25,17 @@ namespace dfsd_internal {
 // had in one matrix of all points).
 inline constexpr size_t kFramePassPoints = 8192;
 
+// The most heap CloudFrame::Find allocates for a cloud of n points (for hulls within
+// StreamedHull::PeakBytes's allowance).
+size_t FrameBytes(size_t n, DfsdOptions::Frame frame);
+
 // A cloud's frame: its axes, and the box around the points along them.
 class CloudFrame {
  public:
   // The frame `options.frame` chooses for a validated cloud (`stats` from ValidateCloud).
-  // `hull_slab_points` is for tests, which make it small to exercise the slabs.
+  // `hull_candidates` is for tests, which make it small to exercise the slabs.
   static CloudFrame Find(const PointCloud& cloud, const CloudStats& stats,
-                         const DfsdOptions& options, size_t hull_slab_points = kHullSlabPoints);
+                         const DfsdOptions& options, size_t hull_candidates = kHullCandidates);
 
   // Coordinates of points [first, first + count) in the frame, relative to the centre of the
   // box: axis a of point first + p goes to coord[a][p].

@@ -10,6 +10,8 @@
 #include <utility>
 #include <vector>
 
+#include "core/descriptors/cost_model.h"
+
 namespace shapeid {
 namespace dfsd_internal {
 namespace {
@@ -144,17 +146,17 @@ std::vector<Eigen::Vector2d> ChainSorted(const std::vector<Eigen::Vector2d>& sor
 }
 
 // One pass's slab of the hull candidates in `Order`: those after the previous slab (the
-// cursor) that the caller lets through, up to a bound that keeps at most about 1.5 * `slab`
-// of them (set, and only lowered, when the buffer fills). Runs of equal points are cut to two
-// (see HullChain).
+// cursor) that the caller lets through, up to a bound that keeps at most `capacity` of them
+// (set, and only lowered, when the buffer fills). Runs of equal points are cut to two (see
+// HullChain).
 template <typename Order>
 class SlabSelector {
  public:
-  explicit SlabSelector(size_t slab) : slab_(slab) {}
+  explicit SlabSelector(size_t capacity) : capacity_(capacity) {}
 
-  // The buffer never holds more than Capacity() points: reserved once, no growth.
+  // The buffer never holds more than capacity() points: reserved once, no growth.
   void BeginPass(size_t n) {
-    buffer_.reserve(std::min(n, Capacity()));
+    buffer_.reserve(std::min(n, capacity_));
     buffer_.clear();
     has_bound_ = false;
   }
@@ -167,7 +169,7 @@ class SlabSelector {
   // p must be wanted.
   void Offer(const Eigen::Vector2d& p) {
     buffer_.push_back(p);
-    if (buffer_.size() >= Capacity()) Shrink();
+    if (buffer_.size() == capacity_) Shrink();
   }
 
   // The slab, sorted; the next pass continues after it.
@@ -189,8 +191,7 @@ class SlabSelector {
   // Whether this pass's slab stopped at a bound (so more points of its range remain).
   bool bounded() const { return has_bound_; }
   const Eigen::Vector2d& cursor() const { return cursor_; }
-  // Points a slab takes before the bound starts to fall.
-  size_t Capacity() const { return slab_ + slab_ / 2; }
+  size_t capacity() const { return capacity_; }
 
   // The points as offered, in order: every wanted point while !bounded().
   std::vector<Eigen::Vector2d>& offered() { return buffer_; }
@@ -198,10 +199,12 @@ class SlabSelector {
   void Release() { std::vector<Eigen::Vector2d>().swap(buffer_); }
 
  private:
-  // Keeps the first `slab` points and, if a later one equals the last of them, that one too
-  // (a run of equal points at the bound keeps two); the bound is the last point kept.
+  // Keeps the first two thirds of the points (room for more before the next shrink) and, if
+  // a later one equals the last of them, that one too (a run of equal points at the bound
+  // keeps two); the bound is the last point kept.
   void Shrink() {
-    const auto nth = buffer_.begin() + static_cast<std::ptrdiff_t>(slab_ - 1);
+    const size_t keep = std::max<size_t>(capacity_ * 2 / 3, 1);
+    const auto nth = buffer_.begin() + static_cast<std::ptrdiff_t>(keep - 1);
     std::nth_element(buffer_.begin(), nth, buffer_.end(), before_);
     bound_ = *nth;
     has_bound_ = true;
@@ -213,7 +216,7 @@ class SlabSelector {
   }
 
   Order before_;
-  size_t slab_;
+  size_t capacity_;
   std::vector<Eigen::Vector2d> buffer_;
   Eigen::Vector2d cursor_, bound_;
   bool has_cursor_ = false, has_bound_ = false;
@@ -259,27 +262,26 @@ std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d>& points) {
 }
 
 struct StreamedHull::State {
-  State(size_t points, size_t slab) : n(points), slab_points(slab), lower(slab), upper(slab) {}
+  State(size_t points, size_t capacity) : n(points), lower(capacity), upper(capacity) {}
 
-  enum class Mode { kSmall, kOctagon, kInMemory, kSlabs, kDone };
+  enum class Mode { kSmall, kOctagon, kInMemory, kLowerSlabs, kUpperSlabs, kDone };
 
   // The run of bins a chain's next slab draws from: [from, to] going up for the lower chain,
   // down for the upper one.
   struct Run {
     size_t from, to;
-    bool want = true;   // the chain still needs points
     bool last = false;  // the run reaches the last bin
   };
 
-  // The run from `run.from` that the histogram says fits a slab (at least one bin), going
-  // up or down.
+  // The run from `run.from` that the histogram says fits a slab without a bound (at least one
+  // bin), going up or down.
   void Plan(Run& run, int step, size_t capacity) const {
     size_t end = run.from, total = histogram->count(end);
     while (true) {
       const bool edge = step > 0 ? end + 1 == XHistogram::kBins : end == 0;
       if (edge) break;
       const size_t next = step > 0 ? end + 1 : end - 1;
-      if (total + histogram->count(next) > capacity) break;
+      if (total + histogram->count(next) >= capacity) break;
       total += histogram->count(next);
       end = next;
     }
@@ -287,24 +289,24 @@ struct StreamedHull::State {
     run.last = step > 0 ? end + 1 == XHistogram::kBins : end == 0;
   }
 
-  // After a pass: the chain is done, or its next run starts after this slab.
+  // After a pass: whether the chain has all its points; if not, its next run.
   template <typename Selector>
-  void Advance(Run& run, const Selector& selector, int step) {
+  bool Advance(Run& run, const Selector& selector, int step) {
     if (selector.bounded()) {
       run.from = histogram->Bin(selector.cursor().x());  // the bound's bin has more points
-    } else if (run.last) {
-      run.want = false;
-    } else {
-      run.from = step > 0 ? run.to + 1 : run.to - 1;
+      return false;
     }
+    if (run.last) return true;
+    run.from = step > 0 ? run.to + 1 : run.to - 1;
+    return false;
   }
 
   size_t n;
-  size_t slab_points;
   Mode mode = Mode::kOctagon;
   Octagon octagon;
   std::vector<Eigen::Vector2d> small;  // kSmall: every point
   std::unique_ptr<XHistogram> histogram;
+  // One buffer at a time: the lower chain's slabs, then the upper chain's.
   SlabSelector<Ascending> lower;
   SlabSelector<Descending> upper;
   Run lower_run{0, 0}, upper_run{XHistogram::kBins - 1, 0};
@@ -312,8 +314,8 @@ struct StreamedHull::State {
   std::vector<Eigen::Vector2d> hull;
 };
 
-StreamedHull::StreamedHull(size_t n, size_t slab_points)
-    : state_(std::make_unique<State>(n, std::max<size_t>(slab_points, 2))) {
+StreamedHull::StreamedHull(size_t n, size_t candidates)
+    : state_(std::make_unique<State>(n, std::max<size_t>(candidates, 3))) {
   // ConvexHull keeps every point of a small set (no octagon below 16 points).
   if (n < 16) state_->mode = State::Mode::kSmall;
 }
@@ -344,17 +346,13 @@ void StreamedHull::BeginPass() {
     s.mode = State::Mode::kInMemory;
     s.histogram = std::make_unique<XHistogram>(s.octagon.min_x(), s.octagon.max_x());
     s.lower.BeginPass(s.n);
-  } else if (s.mode == State::Mode::kSlabs) {
-    // Runs that hold at most a slab's capacity never reach the bound: no selection work.
-    const size_t capacity = s.lower.Capacity() - 1;
-    if (s.lower_run.want) {
-      s.Plan(s.lower_run, +1, capacity);
-      s.lower.BeginPass(s.n);
-    }
-    if (s.upper_run.want) {
-      s.Plan(s.upper_run, -1, capacity);
-      s.upper.BeginPass(s.n);
-    }
+  } else if (s.mode == State::Mode::kLowerSlabs) {
+    // A run the histogram says fits never reaches the bound: no selection work.
+    s.Plan(s.lower_run, +1, s.lower.capacity());
+    s.lower.BeginPass(s.n);
+  } else if (s.mode == State::Mode::kUpperSlabs) {
+    s.Plan(s.upper_run, -1, s.upper.capacity());
+    s.upper.BeginPass(s.n);
   }
 }
 
@@ -367,48 +365,46 @@ void StreamedHull::Offer(const Eigen::Vector2d* points, size_t count) {
       s.histogram->Count(p.x());
       if (s.lower.Wants(p)) s.lower.Offer(p);
     }
-  } else if (s.mode == State::Mode::kSlabs) {
-    const State::Run& lo = s.lower_run;
-    const State::Run& hi = s.upper_run;
+  } else if (s.mode == State::Mode::kLowerSlabs) {
+    const State::Run& run = s.lower_run;
     for (size_t i = 0; i < count; ++i) {
       const Eigen::Vector2d& p = points[i];
-      // The cheap tests first: most points are in neither chain's run of bins.
+      // The cheap tests first: most points are outside the run of bins.
       const size_t bin = s.histogram->Bin(p.x());
-      const bool lower = lo.want && bin >= lo.from && bin <= lo.to && s.lower.Wants(p);
-      const bool upper = hi.want && bin <= hi.from && bin >= hi.to && s.upper.Wants(p);
-      if (!(lower || upper) || s.octagon.Inside(p)) continue;
-      if (lower) s.lower.Offer(p);
-      if (upper) s.upper.Offer(p);
+      if (bin < run.from || bin > run.to || !s.lower.Wants(p) || s.octagon.Inside(p)) continue;
+      s.lower.Offer(p);
+    }
+  } else if (s.mode == State::Mode::kUpperSlabs) {
+    const State::Run& run = s.upper_run;
+    for (size_t i = 0; i < count; ++i) {
+      const Eigen::Vector2d& p = points[i];
+      const size_t bin = s.histogram->Bin(p.x());
+      if (bin > run.from || bin < run.to || !s.upper.Wants(p) || s.octagon.Inside(p)) continue;
+      s.upper.Offer(p);
     }
   }
 }
 
 void StreamedHull::EndPass() {
   State& s = *state_;
-  if (s.mode == State::Mode::kInMemory) {
-    if (!s.lower.bounded()) {  // every candidate, as ConvexHull keeps them
-      std::vector<Eigen::Vector2d>& candidates = s.lower.offered();
-      std::sort(candidates.begin(), candidates.end(), Ascending());
-      s.hull = ChainSorted(candidates);
+  if (s.mode == State::Mode::kInMemory && !s.lower.bounded()) {
+    // Every candidate, in point order as ConvexHull keeps them.
+    std::vector<Eigen::Vector2d>& candidates = s.lower.offered();
+    std::sort(candidates.begin(), candidates.end(), Ascending());
+    s.hull = ChainSorted(candidates);
+    s.lower.Release();
+    s.histogram.reset();
+    s.mode = State::Mode::kDone;
+  } else if (s.mode == State::Mode::kInMemory || s.mode == State::Mode::kLowerSlabs) {
+    for (const Eigen::Vector2d& p : s.lower.EndPass()) s.chain.AddLower(p);
+    s.mode = State::Mode::kLowerSlabs;
+    if (s.Advance(s.lower_run, s.lower, +1)) {
       s.lower.Release();
-      s.histogram.reset();
-      s.mode = State::Mode::kDone;
-    } else {
-      for (const Eigen::Vector2d& p : s.lower.EndPass()) s.chain.AddLower(p);
-      s.Advance(s.lower_run, s.lower, +1);
-      s.mode = State::Mode::kSlabs;
+      s.mode = State::Mode::kUpperSlabs;
     }
-  } else if (s.mode == State::Mode::kSlabs) {
-    if (s.lower_run.want) {
-      for (const Eigen::Vector2d& p : s.lower.EndPass()) s.chain.AddLower(p);
-      s.Advance(s.lower_run, s.lower, +1);
-    }
-    if (s.upper_run.want) {
-      for (const Eigen::Vector2d& p : s.upper.EndPass()) s.chain.AddUpper(p);
-      s.Advance(s.upper_run, s.upper, -1);
-    }
-    if (!s.lower_run.want && !s.upper_run.want) {
-      s.lower.Release();
+  } else if (s.mode == State::Mode::kUpperSlabs) {
+    for (const Eigen::Vector2d& p : s.upper.EndPass()) s.chain.AddUpper(p);
+    if (s.Advance(s.upper_run, s.upper, -1)) {
       s.upper.Release();
       s.histogram.reset();
       s.hull = s.chain.Hull();
@@ -422,6 +418,18 @@ std::vector<Eigen::Vector2d> StreamedHull::Hull() {
   if (s.mode == State::Mode::kSmall) return ConvexHull(s.small);
   return std::move(s.hull);
 }
+
+size_t StreamedHull::PeakBytes(size_t n, size_t candidates) {
+  constexpr size_t kPoint = sizeof(Eigen::Vector2d);
+  const size_t vertices = std::min(n, kHullVertexAllowance);
+  // Both chains' stacks, grown by push_back, and the polygon Hull() joins them into.
+  const size_t chains = 8 * vertices * kPoint;
+  if (n < 16) return cost_model::GrownBytes(n, kPoint) + chains;
+  const size_t buffer = std::min(n, std::max<size_t>(candidates, 3)) * kPoint;
+  return XHistogram::kBins * sizeof(size_t) + buffer + chains + sizeof(State);
+}
+
+size_t StreamedHull::IdleBytes() { return sizeof(State); }
 
 bool MinAreaRectangle(const std::vector<Eigen::Vector2d>& hull, Eigen::Vector2d* direction,
                       double* area) {

@@ -14,9 +14,13 @@
 namespace shapeid {
 namespace dfsd_internal {
 
-// StreamedHull sorts up to 1.5 * kHullSlabPoints hull candidates in memory, more in slabs of
-// as many per pass from each end (16 bytes a point).
-inline constexpr size_t kHullSlabPoints = size_t{1} << 19;
+// Hull candidates StreamedHull holds at once (16 bytes each: 16 MiB).
+inline constexpr size_t kHullCandidates = size_t{1} << 20;
+
+// Vertices per chain up to which StreamedHull::PeakBytes bounds a hull's memory. The hull of a
+// cloud of floats seen from any side has far fewer (docs/descriptors.md, "Cost"); only
+// points placed on a convex curve to double precision reach it.
+inline constexpr size_t kHullVertexAllowance = size_t{1} << 15;
 
 // The convex hull of 2D points, counter-clockwise from the smallest (x, y), without collinear
 // points: Andrew's monotone chain over the points sorted by (x, y), after dropping those
@@ -37,16 +41,16 @@ std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d>& points);
 //   }
 //   std::vector<Eigen::Vector2d> polygon = hull.Hull();
 //
-// The second pass collects the points outside the octagon and, where they are at most
-// 1.5 * slab_points, sorts them in memory: two passes in all. Where there are more (clouds of
-// millions of points; a cylinder seen end-on, a flat cloud seen edge-on), it keeps the lowest
-// as the lower chain's first slab and counts all of them in bins of x; each further pass
-// sorts the next slab of up to 1.5 * slab_points from below for the lower chain and from
-// above for the upper chain. Memory: 16 bytes a point for at most 3 * slab_points points,
-// and the hull's own vertices.
+// The second pass collects the points outside the octagon (the candidates) and, where there
+// are fewer than `candidates`, sorts them in memory: two passes in all. Where there are more
+// (clouds of millions of points; a cylinder seen end-on, a flat cloud seen edge-on), it keeps
+// the lowest as the lower chain's first slab and counts all of them in bins of x; each
+// further pass sorts the next slab of at most `candidates`, upwards for the lower chain, then
+// downwards for the upper chain. Memory: 16 bytes a candidate held, and the hull's own
+// vertices.
 class StreamedHull {
  public:
-  explicit StreamedHull(size_t n, size_t slab_points = kHullSlabPoints);
+  explicit StreamedHull(size_t n, size_t candidates = kHullCandidates);
   ~StreamedHull();
   StreamedHull(StreamedHull&&) noexcept;
   StreamedHull& operator=(StreamedHull&&) noexcept;
@@ -58,6 +62,11 @@ class StreamedHull {
   void EndPass();
   // Once done(); empties the object.
   std::vector<Eigen::Vector2d> Hull();
+
+  // The most heap one StreamedHull over n points allocates, Hull() included, for hulls of at
+  // most kHullVertexAllowance vertices per chain; and what one holds before its first pass.
+  static size_t PeakBytes(size_t n, size_t candidates = kHullCandidates);
+  static size_t IdleBytes();
 
  private:
   struct State;

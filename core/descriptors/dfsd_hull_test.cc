@@ -190,12 +190,12 @@ TEST(DfsdHullTest, StreamedHullIsConvexHullInMemoryAndInSlabs) {
     const std::vector<Eigen::Vector2d> want = ConvexHull(copy);
     // In memory: the octagon pass and one more, and the very bits of ConvexHull.
     int passes = 0;
-    const std::vector<Eigen::Vector2d> in_memory = Streamed(points, kHullSlabPoints, &passes);
+    const std::vector<Eigen::Vector2d> in_memory = Streamed(points, kHullCandidates, &passes);
     ASSERT_EQ(in_memory.size(), want.size()) << name;
     EXPECT_EQ(std::memcmp(in_memory.data(), want.data(), want.size() * sizeof(Eigen::Vector2d)), 0)
         << name;
     EXPECT_LE(passes, 2) << name;
-    for (size_t slab : {2, 3, 7, 64, 501}) {
+    for (size_t slab : {3, 4, 7, 64, 501}) {
       ExpectSamePolygon(Streamed(points, slab), want,
                         name + " in slabs of " + std::to_string(slab));
     }
@@ -208,10 +208,10 @@ TEST(DfsdHullTest, SlabsTakeAboutCandidatesOverSlabPasses) {
   for (int i = 0; i < 10000; ++i) segment.emplace_back(uniform(), 0.0);  // all candidates
   int passes = 0;
   Streamed(segment, 1000, &passes);
-  // The octagon, the pass that overflows (and counts), then slabs of 1,500 points at most,
-  // taken from both ends at once.
-  EXPECT_GE(passes, 2 + 10000 / 1500);
-  EXPECT_LE(passes, 2 + 10000 / 1000 + 1);
+  // The octagon, the pass that fills up (and counts), then slabs of 1,000 points at most:
+  // about 10 up and 10 down.
+  EXPECT_GE(passes, 1 + 2 * 10000 / 1000);
+  EXPECT_LE(passes, 1 + 2 * 10000 / 666 + 2);
 }
 
 TEST(DfsdHullTest, MinAreaRectangleFindsATurnedRectangle) {
