@@ -8,11 +8,20 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/time/time.h"
 #include "absl/types/span.h"
 #include "core/descriptor_spec.h"
 #include "core/point_cloud.h"
 
 namespace shapeid {
+
+// What describing a cloud costs, estimated before doing it, so that a server can admit work
+// by cost and bound its memory.
+struct DescribeCost {
+  absl::Duration cpu;  // one core of a typical x86-64 server, ComputeWithPoseVariants
+  size_t working_bytes =
+      0;  // peak heap Compute(WithPoseVariants) allocates beyond the cloud itself
+};
 
 // A configured shape descriptor: a function from a point cloud to a fixed-length vector.
 // Instances are immutable after creation and thread-safe: Compute may run concurrently on
@@ -51,6 +60,13 @@ class Descriptor {
   absl::Status ComputeWithPoseVariants(const PointCloud& cloud, std::vector<float>* out,
                                        std::vector<float>* variants,
                                        const CloudLimits& limits = {}) const;
+
+  // What Compute or ComputeWithPoseVariants costs for a cloud of `num_points` points, from the
+  // parameters alone: cheap, no allocation, thread-safe. `working_bytes` bounds the peak heap
+  // the call allocates beyond the cloud (the output vectors included, starting empty) from
+  // above, for every cloud of that size. `cpu` is the expected time, within about 2x for
+  // ordinary clouds (docs/performance.md, "Describe cost"; degenerate clouds may take longer).
+  virtual DescribeCost EstimateCost(size_t num_points) const = 0;
 
  protected:
   Descriptor(DescriptorSpec canonical_spec, size_t dimension)

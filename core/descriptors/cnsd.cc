@@ -42,13 +42,12 @@
 #include "absl/strings/str_cat.h"
 #include "core/descriptors/cnsd_downsample.h"
 #include "core/descriptors/cnsd_kernels.h"
+#include "core/descriptors/cost_model.h"
 #include "core/status_macros.h"
 
 namespace shapeid {
 namespace cnsd_internal {
-namespace {
-
-}  // namespace
+namespace {}  // namespace
 
 std::vector<double> Thresholds(double t_start, double t_end, double t_step) {
   std::vector<double> thresholds;
@@ -158,6 +157,39 @@ class CnsdDescriptor final : public Descriptor {
         max_points_(max_points),
         downsample_(downsample),
         seed_(seed) {}
+
+  DescribeCost EstimateCost(size_t num_points) const override {
+    // CPU: downsampling is per point (the box grid's cell-size search counts cells some 22
+    // times); the network, per vertex and per pair of vertices. Constants:
+    // docs/performance.md, "Describe cost".
+    constexpr double kNsBase = 20000, kNsPerVoxelPoint = 100, kNsPerRandomPoint = 2,
+                     kNsPerVertex = 100, kNsPerPackedPair = 0.4, kNsPerScatterPair = 6;
+    const size_t s = thresholds_.size();
+    const bool downsampled = num_points > max_points_;
+    const double m = static_cast<double>(std::min(num_points, max_points_));
+    // Up to 31 thresholds each pair i < j is measured once; beyond, from both ends.
+    double ns = kNsBase + kNsPerVertex * m +
+                (s + 1 <= 32 ? kNsPerPackedPair * m * m / 2 : kNsPerScatterPair * m * m);
+    if (downsampled) {
+      ns += (downsample_ == Downsample::kVoxel ? kNsPerVoxelPoint : kNsPerRandomPoint) *
+            static_cast<double>(num_points);
+    }
+    DescribeCost cost;
+    cost.cpu = cost_model::Nanoseconds(ns);
+    // The reduced cloud and the normalised coordinates stay while the pair passes run.
+    const size_t downsampling = !downsampled ? 0
+                                : downsample_ == Downsample::kVoxel
+                                    ? cnsd_internal::VoxelDownsampleBytes(num_points, max_points_)
+                                    : cnsd_internal::RandomDownsampleBytes(num_points, max_points_);
+    const size_t vertices = std::min(num_points, max_points_);
+    const size_t network = (downsampled ? 3 * vertices * sizeof(float) : 0)  // reduced cloud
+                           + 3 * vertices * sizeof(float)                    // NormalizedXyz
+                           + cnsd_internal::PairPassBytes(vertices, s) +
+                           s * (sizeof(float) + 2 * sizeof(uint64_t));  // bounds, degrees
+    cost.working_bytes =
+        std::max(downsampling, network) + dimension() * sizeof(float) + cost_model::kHeapSlack;
+    return cost;
+  }
 
  protected:
   absl::Status ComputeValidated(const PointCloud& cloud, const CloudStats& /*stats*/,

@@ -35,6 +35,13 @@ constexpr int kVoxelSearchSteps = 20;
 
 // Occupied cells of a box grid anchored at the bounding-box minimum, in an open-addressing
 // table sized for `max_cells`, so a count can stop as soon as it is too large.
+// Slots of VoxelGrid's table for `max_cells` cells.
+size_t TableSlots(size_t max_cells) {
+  size_t capacity = 16;
+  while (capacity < 2 * (max_cells + 1)) capacity *= 2;
+  return capacity;
+}
+
 class VoxelGrid {
  public:
   VoxelGrid(const PointCloud& cloud, size_t max_cells) : cloud_(cloud), max_cells_(max_cells) {
@@ -48,8 +55,7 @@ class VoxelGrid {
         hi_[a] = std::max(hi_[a], static_cast<double>(cloud.data()[3 * i + a]));
       }
     }
-    size_t capacity = 16;
-    while (capacity < 2 * (max_cells + 1)) capacity *= 2;
+    const size_t capacity = TableSlots(max_cells);
     shift_ = 64 - __builtin_ctzll(capacity);
     keys_.resize(capacity);
     cell_of_slot_.resize(capacity);
@@ -68,15 +74,16 @@ class VoxelGrid {
     return cells;
   }
 
+  struct Cell {
+    uint64_t key;
+    double sum[3];
+    size_t count;
+  };
+
   // One point per occupied cell, the centroid of its points, in key order. `leaf` must give
   // at most max_cells cells.
   PointCloud Centroids(double leaf) {
     Clear();
-    struct Cell {
-      uint64_t key;
-      double sum[3];
-      size_t count;
-    };
     std::vector<Cell> cells;
     for (size_t i = 0; i < cloud_.size(); ++i) {
       const uint64_t key = Key(i, leaf);
@@ -181,6 +188,21 @@ PointCloud RandomDownsample(const PointCloud& cloud, size_t max_points, uint64_t
   out.Reserve(max_points);
   for (size_t k = 0; k < max_points; ++k) out.Add(cloud.point(order[k]));
   return out;
+}
+
+size_t VoxelDownsampleBytes(size_t n, size_t max_points) {
+  if (n <= max_points) return n * 3 * sizeof(float);  // a copy
+  const size_t cells = std::max<size_t>(max_points, 1);
+  const size_t table = TableSlots(cells) * (sizeof(uint64_t) + sizeof(uint32_t));
+  // Growing the cells vector holds its old and new blocks at once.
+  size_t capacity = 1;
+  while (capacity < cells) capacity *= 2;
+  return table + (capacity + capacity / 2) * sizeof(VoxelGrid::Cell) + cells * 3 * sizeof(float);
+}
+
+size_t RandomDownsampleBytes(size_t n, size_t max_points) {
+  if (n <= max_points) return n * 3 * sizeof(float);  // a copy
+  return n * sizeof(size_t) + max_points * 3 * sizeof(float);
 }
 
 }  // namespace shapeid::cnsd_internal

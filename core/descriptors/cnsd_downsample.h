@@ -25,6 +25,11 @@ PointCloud VoxelDownsample(const PointCloud& cloud, size_t max_points);
 // unchanged when it already fits.
 PointCloud RandomDownsample(const PointCloud& cloud, size_t max_points, uint64_t seed);
 
+// The most heap VoxelDownsample or RandomDownsample allocates for a cloud of n points,
+// the returned cloud included.
+size_t VoxelDownsampleBytes(size_t n, size_t max_points);
+size_t RandomDownsampleBytes(size_t n, size_t max_points);
+
 }  // namespace shapeid::cnsd_internal
 
 #endif  // SHAPEID_CORE_DESCRIPTORS_CNSD_DOWNSAMPLE_H_

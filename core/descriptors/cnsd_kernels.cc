@@ -16,6 +16,7 @@
 // The scalar kernels walk from a to b with loops instead, so they are exact for any rule;
 // rules without the promise take them at every level.
 #include "core/descriptors/cnsd_kernels.h"
+
 #include "core/simd_ops.h"
 #include "core/target_region.h"
 
@@ -419,6 +420,24 @@ void DegreeStatistics(absl::Span<const float> xyz, const BucketRule& rule, SimdL
   const BucketTables tables{s, bound.data(), rule.scale, rule.offset, s + 1, subs - 1};
   ChooseDegrees(s, rule.approximate ? level : SimdLevel::kScalar)(pairs, tables, degree_sum.data(),
                                                                   degree_max.data());
+}
+
+size_t PairPassBytes(size_t n, size_t num_thresholds) {
+  const size_t storage = (3 * PaddedLength(n) + kMaxLanes) * sizeof(float);  // CacheAligned
+  const size_t max_pass = n * sizeof(double) + 3 * n * sizeof(float) + storage;
+  const size_t buckets = num_thresholds + 1;
+  const size_t end = (n + kMaxLanes - 1) / kMaxLanes * kMaxLanes;
+  size_t kernel;
+  if (buckets <= kPackedBuckets) {
+    const size_t words = (buckets + 7) / 8;
+    const size_t packed = (11 * words * end + 4 * kMaxLanes) * sizeof(uint32_t);
+    const size_t scalar = (n + kMaxLanes) * buckets * sizeof(uint32_t);
+    kernel = std::max(packed, scalar);
+  } else {
+    kernel = (std::max<size_t>(kHistogramBudget, buckets) + 2 * kMaxLanes) * sizeof(uint32_t);
+  }
+  const size_t bound = std::max<size_t>(buckets, kPackedBuckets) * sizeof(float);
+  return std::max(max_pass, storage + bound + kernel);
 }
 
 }  // namespace shapeid::cnsd_internal

@@ -9,6 +9,7 @@
 // level and for both passes, and the bucket comparison is exact, so every level gives the
 // same bits.
 
+#include <cstddef>
 #include <cstdint>
 
 #include "absl/types/span.h"
@@ -43,6 +44,10 @@ struct BucketRule {
 // is measured once, and O(n + S) beyond, where it is measured from both ends.
 void DegreeStatistics(absl::Span<const float> xyz, const BucketRule& rule, SimdLevel level,
                       absl::Span<uint64_t> degree_sum, absl::Span<uint64_t> degree_max);
+
+// The most heap MaxSquaredDistance or DegreeStatistics allocates for n points and S
+// thresholds, whichever kernel runs.
+size_t PairPassBytes(size_t n, size_t num_thresholds);
 
 }  // namespace shapeid::cnsd_internal
 

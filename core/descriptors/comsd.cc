@@ -36,6 +36,7 @@
 #include "absl/strings/str_cat.h"
 #include "core/descriptor.h"
 #include "core/descriptor_spec.h"
+#include "core/descriptors/cost_model.h"
 #include "core/simd.h"
 #include "core/status_macros.h"
 
@@ -155,8 +156,7 @@ __attribute__((always_inline)) inline void CountKernel(const PackedGrid& grid, A
         }
       }
     }
-    const int64_t pairs = static_cast<int64_t>(i_end - i_begin) * (j_end - j_begin) *
-                          (n - dir.dz);
+    const int64_t pairs = static_cast<int64_t>(i_end - i_begin) * (j_end - j_begin) * (n - dir.dz);
     CooccurrenceCounts& c = (*out)[d];
     c.counts[1][1] = both;
     c.counts[1][0] = source - both;
@@ -178,6 +178,23 @@ class ComsdDescriptor final : public Descriptor {
   ComsdDescriptor(DescriptorSpec canonical_spec, int grid)
       : Descriptor(std::move(canonical_spec), kDimension), grid_(grid) {}
 
+  DescribeCost EstimateCost(size_t num_points) const override {
+    // CPU: voxelizing is per point; counting is 13 passes over N^2 rows of ceil(N / 64)
+    // words, after one pass of prefix sums. Constants: docs/performance.md, "Describe cost".
+    constexpr double kNsBase = 2000, kNsPerPoint = 3.5, kNsPerWord = 0.75;
+    const size_t n = static_cast<size_t>(grid_);
+    const size_t rows = n * n;
+    const size_t words = rows * static_cast<size_t>((grid_ + 63) / 64);
+    DescribeCost cost;
+    cost.cpu =
+        cost_model::Nanoseconds(kNsBase + kNsPerPoint * static_cast<double>(num_points) +
+                                kNsPerWord * (kNumDirections + 1) * static_cast<double>(words));
+    cost.working_bytes = words * sizeof(uint64_t)            // the packed grid
+                         + 3 * (rows + 1) * sizeof(int64_t)  // prefix sums
+                         + kDimension * sizeof(float) + cost_model::kHeapSlack;
+    return cost;
+  }
+
  protected:
   absl::Status ComputeValidated(const PointCloud& cloud, const CloudStats& stats,
                                 absl::Span<float> out) const override {
@@ -188,8 +205,8 @@ class ComsdDescriptor final : public Descriptor {
     const PackedGrid voxels = Voxelize(cloud, stats, grid_);
     // SHAPEID_SIMD=scalar also selects the portable count, so one switch exercises the
     // baseline path everywhere; every AVX2 CPU has POPCNT.
-    const PopcountPath path = ActiveSimdLevel() != SimdLevel::kScalar ? PopcountPath::kHardware
-                                                                      : PopcountPath::kPortable;
+    const PopcountPath path =
+        ActiveSimdLevel() != SimdLevel::kScalar ? PopcountPath::kHardware : PopcountPath::kPortable;
     ComputeFeatures(CountCooccurrences(voxels, path), out);
     return absl::OkStatus();
   }
@@ -199,8 +216,7 @@ class ComsdDescriptor final : public Descriptor {
 };
 
 absl::StatusOr<std::unique_ptr<Descriptor>> CreateComsd(const DescriptorSpec& filled) {
-  SHAPEID_ASSIGN_OR_RETURN(const int64_t grid,
-                           SpecParams(filled).Int("grid", kMinGrid, kMaxGrid));
+  SHAPEID_ASSIGN_OR_RETURN(const int64_t grid, SpecParams(filled).Int("grid", kMinGrid, kMaxGrid));
   DescriptorSpec canonical{"comsd", {{"grid", absl::StrCat(grid)}}};
   return std::unique_ptr<Descriptor>(
       std::make_unique<ComsdDescriptor>(std::move(canonical), static_cast<int>(grid)));
@@ -323,8 +339,8 @@ void ComputeFeatures(const AllCounts& counts, absl::Span<float> out) {
     // Variance 0 means every pair has the same value on both ends (all empty or all filled):
     // the correlation is 0/0 there, and the spec defines it as 0.
     const double correlation = variance > 0 ? covariance / variance : 0.0;
-    const double features[kNumFeatures] = {entropy,     energy, contrast,   homogeneity,
-                                           mu,          variance, correlation};
+    const double features[kNumFeatures] = {entropy, energy,   contrast,   homogeneity,
+                                           mu,      variance, correlation};
     for (int f = 0; f < kNumFeatures; ++f) {
       out[static_cast<size_t>(d) * kNumFeatures + f] = static_cast<float>(features[f]);
     }

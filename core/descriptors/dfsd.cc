@@ -18,6 +18,7 @@
 #include "absl/strings/str_cat.h"
 #include "core/descriptor.h"
 #include "core/descriptor_spec.h"
+#include "core/descriptors/cost_model.h"
 #include "core/descriptors/dfsd_frame.h"
 #include "core/descriptors/dfsd_kernels.h"
 #include "core/simd.h"
@@ -78,6 +79,12 @@ absl::string_view UpName(DfsdOptions::Up up) { return kUpNames[static_cast<int>(
 
 int NumFields(DfsdOptions::Fields fields) { return fields == DfsdOptions::Fields::kBoth ? 2 : 1; }
 
+// Points per pass of the distance kernel for a cloud of n (see ComputeFramed).
+size_t KernelChunk(size_t n) {
+  const size_t chunks = std::max<size_t>(1, (n + kPointsPerChunk - 1) / kPointsPerChunk);
+  return ((n + chunks - 1) / chunks + kPointLanes - 1) / kPointLanes * kPointLanes;
+}
+
 class DfsdDescriptor : public Descriptor {
  public:
   DfsdDescriptor(DescriptorSpec canonical, const DfsdOptions& options)
@@ -100,6 +107,40 @@ class DfsdDescriptor : public Descriptor {
     for (int i = 0; i < g; ++i) {
       centres_[static_cast<size_t>(i)] = static_cast<float>((2.0 * i + 1.0) / g - 1.0);
     }
+  }
+
+ public:
+  DescribeCost EstimateCost(size_t num_points) const override {
+    // CPU: the distance kernel is per point and cell of each field; the frames are per
+    // point (box: the most passes and sorts). Constants: docs/performance.md, "Describe cost".
+    constexpr double kNsBase = 20000, kNsPerPoint = 5, kNsPerPointCell = 0.1, kNsPerPointRow = 0.3;
+    constexpr double kNsPerFramedPoint[] = {0, 30, 300, 50};  // axes, pca, box, upright
+    const int g = options_.grid;
+    const size_t cells = static_cast<size_t>(g) * g * g;
+    const int fields = NumFields(options_.fields);
+    const size_t n = num_points;
+    const size_t chunk = KernelChunk(n);
+    const size_t padded = (n + chunk - 1) / std::max<size_t>(chunk, 1) * chunk;  // kernel's work
+    const double frame_ns = kNsPerFramedPoint[static_cast<int>(options_.frame)];
+    DescribeCost cost;
+    cost.cpu = cost_model::Nanoseconds(
+        kNsBase + (kNsPerPoint + frame_ns) * static_cast<double>(n) +
+        fields * (kNsPerPointCell * static_cast<double>(cells) * static_cast<double>(padded) +
+                  kNsPerPointRow * 3 * g * static_cast<double>(n)));
+    // The frame, the kernel's buffers and the pose variants come one after another.
+    const size_t t = static_cast<size_t>(std::min(options_.order, g));
+    const size_t kernel = 3 * static_cast<size_t>(g) * chunk * sizeof(float)  // tables
+                          + 3 * chunk * sizeof(double)                        // coordinates
+                          + 2 * chunk * sizeof(float)  // normalised, the kernel's x-y sums
+                          + cells * (sizeof(float) + sizeof(double))  // squared, field
+                          + (static_cast<size_t>(g) * g * t + g * t * t) * sizeof(double);
+    const size_t variants = HasPoseVariants(options_.frame)
+                                ? cost_model::GrownBytes(poses_.size() * dimension(), sizeof(float))
+                                : 0;
+    cost.working_bytes = dimension() * sizeof(float) +
+                         std::max({FrameBytes(n, options_.frame), kernel, variants}) +
+                         cost_model::kHeapSlack;
+    return cost;
   }
 
  protected:
@@ -181,8 +222,7 @@ class DfsdDescriptor : public Descriptor {
     // floats) stay in the last-level cache and bound the memory, all of about the same size:
     // the kernel runs over a whole stride, so a short last chunk would cost a full one
     // (docs/performance.md, "DFSD").
-    const size_t chunks = (n + kPointsPerChunk - 1) / kPointsPerChunk;
-    const size_t chunk = ((n + chunks - 1) / chunks + kPointLanes - 1) / kPointLanes * kPointLanes;
+    const size_t chunk = KernelChunk(n);
     const size_t stride = chunk;
     std::vector<float> tables(3 * static_cast<size_t>(g) * stride, kFarSquared);
     std::vector<double> coords(3 * chunk);

@@ -4,6 +4,7 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "core/descriptors/cost_model.h"
 #include "core/descriptors/rphsd_kernels.h"
 #include "core/status_macros.h"
 
@@ -69,7 +70,8 @@ void MeanAndStd(const std::vector<double>& values, float* mean_out, float* std_o
 Rphsd::Rphsd(DescriptorSpec spec, size_t dimension, RphsdOptions options)
     : Descriptor(std::move(spec), dimension), options_(std::move(options)) {
   idm_weights_.resize(options_.bins);
-  for (int i = 0; i < options_.bins; ++i) idm_weights_[i] = 1.0 / (1.0 + static_cast<double>(i) * i);
+  for (int i = 0; i < options_.bins; ++i)
+    idm_weights_[i] = 1.0 / (1.0 + static_cast<double>(i) * i);
   const size_t k = options_.references.points.size();
   const size_t lanes = rphsd_internal::kReferenceLanes;
   const size_t padded = (k + lanes - 1) / lanes * lanes;
@@ -90,8 +92,8 @@ absl::StatusOr<std::unique_ptr<Rphsd>> Rphsd::Create(RphsdOptions options) {
   }
   const size_t k = options.references.points.size();
   if (k == 0 || k > static_cast<size_t>(kMaxReferencePoints)) {
-    return absl::InvalidArgumentError(absl::StrCat("rphsd: ", k, " reference points; need 1 to ",
-                                                   kMaxReferencePoints));
+    return absl::InvalidArgumentError(
+        absl::StrCat("rphsd: ", k, " reference points; need 1 to ", kMaxReferencePoints));
   }
   for (const Eigen::Vector3f& q : options.references.points) {
     if (!q.allFinite() || q.cwiseAbs().maxCoeff() > kMaxReferenceCoordinate) {
@@ -107,6 +109,26 @@ absl::StatusOr<std::unique_ptr<Rphsd>> Rphsd::Create(RphsdOptions options) {
                        {"variant", reduced ? "reduced" : "complete"}}};
   const size_t dimension = reduced ? 6 : 3 * k;
   return std::unique_ptr<Rphsd>(new Rphsd(std::move(spec), dimension, std::move(options)));
+}
+
+DescribeCost Rphsd::EstimateCost(size_t num_points) const {
+  // CPU: per point, a SIMD distance to every reference and one counter increment each; per
+  // histogram bin, the three features. Constants: docs/performance.md, "Describe cost".
+  constexpr double kNsBase = 2000, kNsPerPoint = 1.0, kNsPerPointReference = 0.25, kNsPerBin = 2.0;
+  const double n = static_cast<double>(num_points);
+  const double k = static_cast<double>(options_.references.points.size());
+  const double m = static_cast<double>(options_.bins);
+  DescribeCost cost;
+  cost.cpu = cost_model::Nanoseconds(kNsBase + n * (kNsPerPoint + kNsPerPointReference * k) +
+                                     kNsPerBin * k * m);
+  const size_t refs = options_.references.points.size();
+  const size_t lanes = rphsd_internal::kReferenceLanes;
+  cost.working_bytes = refs * static_cast<size_t>(options_.bins) * sizeof(uint32_t)  // counts
+                       + 3 * refs * sizeof(double)                                   // features
+                       + 2 * (refs + lanes) * sizeof(int32_t)  // the kernel's slots, offsets
+                       + kCLnCTableSize * sizeof(double)       // built by the first call
+                       + dimension() * sizeof(float) + cost_model::kHeapSlack;
+  return cost;
 }
 
 absl::Status Rphsd::ComputeValidated(const PointCloud& cloud, const CloudStats& stats,

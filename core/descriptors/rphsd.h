@@ -34,9 +34,12 @@ class Rphsd final : public Descriptor {
 
   // For tests and benchmarks: the same descriptor computed at an explicit SIMD level
   // (must not exceed DetectedSimdLevel()). Compute() uses ActiveSimdLevel().
-  absl::Status ComputeAtLevel(const PointCloud& cloud, SimdLevel level, std::vector<float>* out) const;
+  absl::Status ComputeAtLevel(const PointCloud& cloud, SimdLevel level,
+                              std::vector<float>* out) const;
 
   const RphsdOptions& options() const { return options_; }
+
+  DescribeCost EstimateCost(size_t num_points) const override;
 
  protected:
   absl::Status ComputeValidated(const PointCloud& cloud, const CloudStats& stats,
