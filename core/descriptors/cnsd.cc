@@ -162,7 +162,7 @@ class CnsdDescriptor final : public Descriptor {
     // CPU: downsampling is per point (the box grid's cell-size search counts cells some 22
     // times); the network, per vertex and per pair of vertices. Constants:
     // docs/performance.md, "Describe cost".
-    constexpr double kNsBase = 20000, kNsPerVoxelPoint = 100, kNsPerRandomPoint = 2,
+    constexpr double kNsBase = 20000, kNsPerVoxelPoint = 100, kNsPerRandomPoint = 1,
                      kNsPerVertex = 100, kNsPerPackedPair = 0.4, kNsPerScatterPair = 6;
     const size_t s = thresholds_.size();
     const bool downsampled = num_points > max_points_;

@@ -6,7 +6,6 @@
 #include <cmath>
 #include <cstddef>
 #include <limits>
-#include <numeric>
 #include <utility>
 #include <vector>
 
@@ -35,6 +34,45 @@ constexpr int kVoxelSearchSteps = 20;
 
 // Occupied cells of a box grid anchored at the bounding-box minimum, in an open-addressing
 // table sized for `max_cells`, so a count can stop as soon as it is too large.
+// The places of a permutation of 0 .. n - 1 that differ from the identity, in an
+// open-addressing table for at most `entries` of them: a partial shuffle of max_points
+// places in memory that does not grow with n.
+class MovedPlaces {
+ public:
+  explicit MovedPlaces(size_t entries) : keys_(Slots(entries), kEmpty), values_(keys_.size()) {}
+
+  // Slots for `entries` entries: at least twice as many, a power of two.
+  static size_t Slots(size_t entries) {
+    size_t slots = 16;
+    while (slots < 2 * entries) slots *= 2;
+    return slots;
+  }
+
+  size_t Get(size_t place) const {
+    const size_t slot = Find(place);
+    return keys_[slot] == place ? values_[slot] : place;
+  }
+
+  void Set(size_t place, size_t value) {
+    const size_t slot = Find(place);
+    keys_[slot] = place;
+    values_[slot] = value;
+  }
+
+ private:
+  static constexpr size_t kEmpty = ~size_t{0};  // places are < n
+
+  size_t Find(size_t place) const {
+    const size_t mask = keys_.size() - 1;
+    size_t slot = static_cast<size_t>((place * 0x9e3779b97f4a7c15ULL) >> 20) & mask;
+    while (keys_[slot] != kEmpty && keys_[slot] != place) slot = (slot + 1) & mask;
+    return slot;
+  }
+
+  std::vector<size_t> keys_;
+  std::vector<size_t> values_;
+};
+
 // Slots of VoxelGrid's table for `max_cells` cells.
 size_t TableSlots(size_t max_cells) {
   size_t capacity = 16;
@@ -177,16 +215,20 @@ PointCloud VoxelDownsample(const PointCloud& cloud, size_t max_points) {
 PointCloud RandomDownsample(const PointCloud& cloud, size_t max_points, uint64_t seed) {
   const size_t n = cloud.size();
   if (n <= max_points) return cloud;
-  std::vector<size_t> order(n);
-  std::iota(order.begin(), order.end(), size_t{0});
+  // The partial shuffle of 0 .. n - 1: step k swaps places k and j >= k, and place k is final
+  // after it. Only the places a swap has moved are stored.
+  MovedPlaces moved(max_points);
+  std::vector<size_t> chosen(max_points);
   uint64_t state = seed;
   for (size_t k = 0; k < max_points; ++k) {
-    std::swap(order[k], order[k + Below(SplitMix64(state), n - k)]);
+    const size_t j = k + Below(SplitMix64(state), n - k);
+    chosen[k] = moved.Get(j);
+    moved.Set(j, moved.Get(k));
   }
-  std::sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(max_points));
+  std::sort(chosen.begin(), chosen.end());
   PointCloud out;
   out.Reserve(max_points);
-  for (size_t k = 0; k < max_points; ++k) out.Add(cloud.point(order[k]));
+  for (size_t k = 0; k < max_points; ++k) out.Add(cloud.point(chosen[k]));
   return out;
 }
 
@@ -201,8 +243,9 @@ size_t VoxelDownsampleBytes(size_t n, size_t max_points) {
 }
 
 size_t RandomDownsampleBytes(size_t n, size_t max_points) {
-  if (n <= max_points) return n * 3 * sizeof(float);  // a copy
-  return n * sizeof(size_t) + max_points * 3 * sizeof(float);
+  if (n <= max_points) return n * 3 * sizeof(float);           // a copy
+  return 2 * MovedPlaces::Slots(max_points) * sizeof(size_t)   // the shuffle's table
+         + max_points * (sizeof(size_t) + 3 * sizeof(float));  // chosen places, the points
 }
 
 }  // namespace shapeid::cnsd_internal

@@ -21,8 +21,8 @@ namespace shapeid::cnsd_internal {
 PointCloud VoxelDownsample(const PointCloud& cloud, size_t max_points);
 
 // Exactly `max_points` points chosen uniformly without replacement (partial Fisher-Yates
-// driven by splitmix64 seeded with `seed`), in their original order. Returns the cloud
-// unchanged when it already fits.
+// driven by splitmix64 seeded with `seed`), in their original order. Memory O(max_points),
+// whatever the cloud's size. Returns the cloud unchanged when it already fits.
 PointCloud RandomDownsample(const PointCloud& cloud, size_t max_points, uint64_t seed);
 
 // The most heap VoxelDownsample or RandomDownsample allocates for a cloud of n points,

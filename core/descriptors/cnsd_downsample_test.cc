@@ -1,5 +1,6 @@
 #include "core/descriptors/cnsd_downsample.h"
 
+#include <algorithm>
 #include <cstdint>
 #include <random>
 #include <set>
@@ -78,6 +79,46 @@ TEST(CnsdDownsampleTest, RandomDownsampleSubsetIsFixedBySeed) {
   };
   EXPECT_EQ(xs(ci::RandomDownsample(cloud, 5, 0)), (std::vector<float>{2, 5, 9, 17, 19}));
   EXPECT_EQ(xs(ci::RandomDownsample(cloud, 5, 7)), (std::vector<float>{1, 7, 11, 12, 18}));
+}
+
+// The shuffle as it was written over an array of all n places (8 bytes a point): the stored
+// places must pick the very same subset.
+std::vector<size_t> DenseShuffle(size_t n, size_t max_points, uint64_t seed) {
+  const auto split_mix = [](uint64_t& state) {
+    uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+  };
+  std::vector<size_t> order(n);
+  for (size_t i = 0; i < n; ++i) order[i] = i;
+  uint64_t state = seed;
+  for (size_t k = 0; k < max_points; ++k) {
+    __extension__ using Wide = unsigned __int128;
+    const uint64_t bits = split_mix(state);
+    const size_t j = k + static_cast<size_t>((static_cast<Wide>(bits) * (n - k)) >> 64);
+    std::swap(order[k], order[j]);
+  }
+  std::sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(max_points));
+  order.resize(max_points);
+  return order;
+}
+
+TEST(CnsdDownsampleTest, RandomDownsampleIsTheDenseShuffle) {
+  for (size_t n : {9, 20, 1000, 100000}) {
+    PointCloud cloud;
+    for (size_t i = 0; i < n; ++i) cloud.Add(static_cast<float>(i), 0, 0);
+    for (size_t max_points : {size_t{8}, n / 2, n - 1}) {
+      for (uint64_t seed : {0, 1, 12345}) {
+        const PointCloud got = ci::RandomDownsample(cloud, max_points, seed);
+        const std::vector<size_t> want = DenseShuffle(n, max_points, seed);
+        ASSERT_EQ(got.size(), want.size());
+        for (size_t k = 0; k < want.size(); ++k) {
+          ASSERT_EQ(got.point(k).x(), static_cast<float>(want[k])) << n << " " << max_points;
+        }
+      }
+    }
+  }
 }
 
 }  // namespace
