@@ -111,17 +111,26 @@ class DfsdDescriptor : public Descriptor {
 
  public:
   DescribeCost EstimateCost(size_t num_points) const override {
-    // CPU: the distance kernel is per point and cell of each field; the frames are per
-    // point (box: the most passes and sorts). Constants: docs/performance.md, "Describe cost".
-    constexpr double kNsBase = 20000, kNsPerPoint = 5, kNsPerPointCell = 0.1, kNsPerPointRow = 0.3;
-    constexpr double kNsPerFramedPoint[] = {0, 30, 300, 50};  // axes, pca, box, upright
+    // CPU: the distance kernel is per point and cell of each field; the frames are per point
+    // (box: the most passes and sorts), and more so once their hulls take slabs: ordinary
+    // shapes have about a fifth of their points outside the octagon, past 2^20 of them (some
+    // 5 million points) each slab is another pass. Constants: docs/performance.md,
+    // "Describe cost".
+    constexpr double kNsBase = 10000, kNsPerPoint = 5, kNsPerPointCell = 0.075,
+                     kNsPerPointRow = 0.3, kSlabbedPoints = 5e6;
+    // axes, pca, box, upright; the second for each kSlabbedPoints beyond the first.
+    constexpr double kNsPerFramedPoint[] = {0, 25, 220, 75};
+    constexpr double kNsPerSlabbedPoint[] = {0, 0, 225, 165};
     const int g = options_.grid;
     const size_t cells = static_cast<size_t>(g) * g * g;
     const int fields = NumFields(options_.fields);
     const size_t n = num_points;
     const size_t chunk = KernelChunk(n);
     const size_t padded = (n + chunk - 1) / std::max<size_t>(chunk, 1) * chunk;  // kernel's work
-    const double frame_ns = kNsPerFramedPoint[static_cast<int>(options_.frame)];
+    const int frame = static_cast<int>(options_.frame);
+    const double frame_ns =
+        kNsPerFramedPoint[frame] +
+        kNsPerSlabbedPoint[frame] * std::max(0.0, static_cast<double>(n) / kSlabbedPoints - 1);
     DescribeCost cost;
     cost.cpu = cost_model::Nanoseconds(
         kNsBase + (kNsPerPoint + frame_ns) * static_cast<double>(n) +

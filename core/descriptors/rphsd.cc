@@ -114,7 +114,7 @@ absl::StatusOr<std::unique_ptr<Rphsd>> Rphsd::Create(RphsdOptions options) {
 DescribeCost Rphsd::EstimateCost(size_t num_points) const {
   // CPU: per point, a SIMD distance to every reference and one counter increment each; per
   // histogram bin, the three features. Constants: docs/performance.md, "Describe cost".
-  constexpr double kNsBase = 2000, kNsPerPoint = 1.0, kNsPerPointReference = 0.25, kNsPerBin = 2.0;
+  constexpr double kNsBase = 1000, kNsPerPoint = 2.7, kNsPerPointReference = 0.74, kNsPerBin = 1.7;
   const double n = static_cast<double>(num_points);
   const double k = static_cast<double>(options_.references.points.size());
   const double m = static_cast<double>(options_.bins);
