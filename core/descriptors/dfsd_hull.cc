@@ -188,6 +188,12 @@ class SlabSelector {
     return buffer_;
   }
 
+  // The next slab starts after p (in `Order`), as if p ended the previous one.
+  void ContinueBelow(const Eigen::Vector2d& p) {
+    cursor_ = p;
+    has_cursor_ = true;
+  }
+
   // Whether this pass's slab stopped at a bound (so more points of its range remain).
   bool bounded() const { return has_bound_; }
   const Eigen::Vector2d& cursor() const { return cursor_; }
@@ -396,9 +402,17 @@ void StreamedHull::EndPass() {
     s.histogram.reset();
     s.mode = State::Mode::kDone;
   } else if (s.mode == State::Mode::kInMemory || s.mode == State::Mode::kLowerSlabs) {
-    for (const Eigen::Vector2d& p : s.lower.EndPass()) s.chain.AddLower(p);
+    const std::vector<Eigen::Vector2d>& slab = s.lower.EndPass();
+    for (const Eigen::Vector2d& p : slab) s.chain.AddLower(p);
     s.mode = State::Mode::kLowerSlabs;
     if (s.Advance(s.lower_run, s.lower, +1)) {
+      // The last slab holds the highest candidates: read backwards, it is the upper chain's
+      // first, and the upper chain's passes continue below it.
+      for (size_t i = slab.size(); i-- > 0;) s.chain.AddUpper(slab[i]);
+      if (!slab.empty()) {
+        s.upper.ContinueBelow(slab.front());
+        s.upper_run.from = s.histogram->Bin(slab.front().x());
+      }
       s.lower.Release();
       s.mode = State::Mode::kUpperSlabs;
     }

@@ -46,8 +46,8 @@ std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d>& points);
 // (clouds of millions of points; a cylinder seen end-on, a flat cloud seen edge-on), it keeps
 // the lowest as the lower chain's first slab and counts all of them in bins of x; each
 // further pass sorts the next slab of at most `candidates`, upwards for the lower chain, then
-// downwards for the upper chain. Memory: 16 bytes a candidate held, and the hull's own
-// vertices.
+// downwards for the upper chain (whose first slab is the lower chain's last). Memory: 16
+// bytes a candidate held, and the hull's own vertices.
 class StreamedHull {
  public:
   explicit StreamedHull(size_t n, size_t candidates = kHullCandidates);
