@@ -45,6 +45,7 @@
 #include "client/client.h"
 #include "core/testing/test_clouds.h"
 #include "server/storage/testing/postgres_instance.h"
+#include "server/testing/child_server.h"
 
 extern char** environ;
 
@@ -70,18 +71,6 @@ std::string ReadAll(const std::string& path) {
   std::ifstream in(path);
   return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
 }
-// User + system CPU seconds of process `pid` (/proc/PID/stat fields 14 and 15).
-double CpuSeconds(pid_t pid) {
-  const std::string text = ReadAll(absl::StrCat("/proc/", pid, "/stat"));
-  const size_t paren = text.rfind(')');
-  if (paren == std::string::npos) return 0;
-  std::istringstream fields(text.substr(paren + 2));  // from field 3
-  std::string skip;
-  for (int i = 3; i < 14; ++i) fields >> skip;
-  double utime = 0, stime = 0;
-  fields >> utime >> stime;
-  return (utime + stime) / static_cast<double>(sysconf(_SC_CLK_TCK));
-}
 double SelfCpuSeconds() {
   rusage u{};
   getrusage(RUSAGE_SELF, &u);
@@ -89,77 +78,6 @@ double SelfCpuSeconds() {
          u.ru_stime.tv_usec / 1e6;
 }
 
-// A shapeid-server child: stdout read for "listening on HOST:PORT", stderr to a file.
-// SIGKILLed if still running when destroyed.
-class Replica {
- public:
-  ~Replica() {
-    if (pid_ > 0 && !exited_) {
-      kill(pid_, SIGKILL);
-      waitpid(pid_, nullptr, 0);
-    }
-  }
-  absl::Status Start(std::vector<std::string> args, const std::string& stderr_path) {
-    stderr_path_ = stderr_path;
-    int out[2];
-    if (pipe(out) != 0) return absl::InternalError("pipe failed");
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_adddup2(&actions, out[1], STDOUT_FILENO);
-    posix_spawn_file_actions_addclose(&actions, out[0]);
-    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, stderr_path.c_str(),
-                                     O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    std::vector<char*> argv;
-    for (std::string& arg : args) argv.push_back(arg.data());
-    argv.push_back(nullptr);
-    const int spawned = posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&actions);
-    close(out[1]);
-    if (spawned != 0) {
-      close(out[0]);
-      pid_ = -1;
-      return absl::UnavailableError(absl::StrCat("cannot run ", args[0]));
-    }
-    std::string line;
-    const auto deadline = Clock::now() + std::chrono::seconds(30);
-    fcntl(out[0], F_SETFL, O_NONBLOCK);
-    while (Clock::now() < deadline && line.find('\n') == std::string::npos) {
-      char buf[256];
-      const ssize_t n = read(out[0], buf, sizeof(buf));
-      if (n > 0) line.append(buf, static_cast<size_t>(n));
-      if (n == 0) break;
-      if (n < 0) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    close(out[0]);
-    const std::string prefix = "listening on ";
-    if (line.rfind(prefix, 0) != 0 || line.find('\n') == std::string::npos) {
-      return absl::UnavailableError(absl::StrCat("no address within 30 s; stderr:\n", Stderr()));
-    }
-    address_ = line.substr(prefix.size(), line.find('\n') - prefix.size());
-    return absl::OkStatus();
-  }
-  // SIGTERM; the exit status, or -1 if still running after 10 s.
-  int Terminate() {
-    kill(pid_, SIGTERM);
-    for (auto end = Clock::now() + std::chrono::seconds(10); Clock::now() < end;) {
-      int raw = 0;
-      if (waitpid(pid_, &raw, WNOHANG) == pid_) {
-        exited_ = true;
-        return WIFEXITED(raw) ? WEXITSTATUS(raw) : 128 + WTERMSIG(raw);
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-    return -1;
-  }
-  std::string Stderr() const { return ReadAll(stderr_path_); }
-  const std::string& address() const { return address_; }
-  pid_t pid() const { return pid_; }
-
- private:
-  pid_t pid_ = -1;
-  bool exited_ = false;
-  std::string address_, stderr_path_;
-};
 
 // A client of `addresses`: round_robin over them when `balanced`, else pick_first.
 std::unique_ptr<Client> Connect(const std::vector<std::string>& addresses, bool balanced,
@@ -200,10 +118,10 @@ struct ClassifyRun {
   std::vector<double> replica_cpu;  // seconds, per replica
 };
 
-ClassifyRun RunClassify(const std::vector<Replica*>& replicas, const std::vector<Query>& queries,
+ClassifyRun RunClassify(const std::vector<ChildServer*>& replicas, const std::vector<Query>& queries,
                         int clients, double warmup_s, double seconds) {
   std::vector<std::string> addresses;
-  for (const Replica* r : replicas) addresses.push_back(r->address());
+  for (const ChildServer* r : replicas) addresses.push_back(r->address());
   std::vector<std::unique_ptr<Client>> own;
   for (int c = 0; c < clients; ++c) own.push_back(Connect(addresses, true, 1));
   const auto start = Clock::now();
@@ -246,13 +164,13 @@ ClassifyRun RunClassify(const std::vector<Replica*>& replicas, const std::vector
   });
   std::this_thread::sleep_until(measure);
   std::vector<double> cpu0;
-  for (const Replica* rep : replicas) cpu0.push_back(CpuSeconds(rep->pid()));
+  for (const ChildServer* rep : replicas) cpu0.push_back(absl::ToDoubleSeconds(rep->CpuTime()));
   const double self0 = SelfCpuSeconds();
   for (auto& t : threads) t.join();
   const double elapsed = std::chrono::duration<double>(Clock::now() - measure).count();
   const double self = SelfCpuSeconds() - self0;
   for (size_t i = 0; i < replicas.size(); ++i)
-    r.replica_cpu.push_back(CpuSeconds(replicas[i]->pid()) - cpu0[i]);
+    r.replica_cpu.push_back(absl::ToDoubleSeconds(replicas[i]->CpuTime()) - cpu0[i]);
   stop = true;
   health.join();
   std::vector<double> all;
@@ -274,11 +192,11 @@ struct TrainResult {
   bool pass = false;
 };
 
-TrainResult RunTrain(const std::vector<Replica*>& replicas, const std::string& gallery,
+TrainResult RunTrain(const std::vector<ChildServer*>& replicas, const std::string& gallery,
                      int threads_n, double seconds, double bound_ms,
                      const std::vector<Query>& clouds) {
   std::vector<std::string> addresses;
-  for (const Replica* r : replicas) addresses.push_back(r->address());
+  for (const ChildServer* r : replicas) addresses.push_back(r->address());
   TrainResult r;
   std::atomic<int64_t> acked{0}, errors{0};
   std::vector<std::vector<double>> ms(threads_n);
@@ -416,12 +334,12 @@ int Run(int argc, char** argv) {
     pg = *std::move(started);
     store = pg->conninfo();
   }
-  std::vector<std::unique_ptr<Replica>> replicas;
+  std::vector<std::unique_ptr<ChildServer>> replicas;
   std::vector<std::string> stderr_paths;
   for (int i = 0; i < max_n; ++i) {
     stderr_paths.push_back(
         absl::StrCat("/tmp/scale_out_bench_", getpid(), "_replica", i, ".stderr"));
-    replicas.push_back(std::make_unique<Replica>());
+    replicas.push_back(std::make_unique<ChildServer>());
     std::vector<std::string> command = {server, "--listen=127.0.0.1:0", "--store=" + store,
                                         absl::StrCat("--store_refresh_ms=", refresh_ms)};
     // One core per replica (taskset execs the server: the pid stays the replica's), so that
@@ -430,7 +348,9 @@ int Run(int argc, char** argv) {
       command.insert(command.begin(),
                      {"/usr/bin/taskset", "-c", std::to_string(i % std::max(1, get_nprocs()))});
     }
-    const absl::Status s = replicas.back()->Start(std::move(command), stderr_paths.back());
+    const std::string binary = command.front();
+    command.erase(command.begin());
+    const absl::Status s = replicas.back()->Start(binary, command, stderr_paths.back());
     if (!s.ok()) {
       std::fprintf(stderr, "replica %d: %s\n", i, s.ToString().c_str());
       return 1;
@@ -458,7 +378,7 @@ int Run(int argc, char** argv) {
     if (WaitForCount(*Connect({replicas[i]->address()}, false), "bench", 90, refresh_ms + 5000.0) <
         0) {
       std::fprintf(stderr, "replica %d never showed the 90 samples; stderr:\n%s\n", i,
-                   replicas[i]->Stderr().c_str());
+                   replicas[i]->StderrText().c_str());
       return 1;
     }
   }
@@ -467,7 +387,7 @@ int Run(int argc, char** argv) {
   // 1. Classify throughput.
   std::vector<std::pair<int, ClassifyRun>> classify;
   for (int n : replica_counts) {
-    std::vector<Replica*> use;
+    std::vector<ChildServer*> use;
     for (int i = 0; i < n; ++i) use.push_back(replicas[i].get());
     std::vector<ClassifyRun> each;
     for (int run = 0; run < runs; ++run) {
@@ -484,7 +404,7 @@ int Run(int argc, char** argv) {
     failed |= classify.back().second.errors > 0 || classify.back().second.wrong > 0;
   }
 
-  // 2. Replication delay: acknowledged by replica 0 until replica 1 shows it.
+  // 2. ChildServertion delay: acknowledged by replica 0 until replica 1 shows it.
   std::vector<double> delays, acks;
   int timeouts = 0;
   if (max_n >= 2 && delay_trials > 0) {
@@ -521,7 +441,7 @@ int Run(int argc, char** argv) {
     v1::CreateGalleryRequest c;
     c.set_name(name);
     failed |= !first->CreateGallery(c).ok();
-    std::vector<Replica*> use;
+    std::vector<ChildServer*> use;
     for (int i = 0; i < n; ++i) {
       use.push_back(replicas[i].get());
       failed |=
@@ -533,7 +453,7 @@ int Run(int argc, char** argv) {
   }
   const std::string load_end = ReadAll("/proc/loadavg");
   std::vector<int> exits;
-  for (auto& r : replicas) exits.push_back(r->Terminate());
+  for (auto& r : replicas) exits.push_back(r->Terminate(absl::Seconds(10)));
 
   // ------------------------------------------------------------------ report
   std::printf("## Scale-out bench\n\n");
@@ -572,7 +492,7 @@ int Run(int argc, char** argv) {
       "seconds per measured second)\n");
   if (!delays.empty() || timeouts > 0) {
     std::printf(
-        "\n### Replication delay: Train of one sample acknowledged by replica 0 (pick_first) "
+        "\n### ChildServertion delay: Train of one sample acknowledged by replica 0 (pick_first) "
         "until GetGallery on replica 1 shows it (polled without pause)\n\n");
     std::printf(
         "| trials | min ms | median ms | p99 ms | max ms | over the bound | timeouts | "
@@ -607,7 +527,7 @@ int Run(int argc, char** argv) {
   for (int e : exits) failed |= e != 0;
   if (failed || logs) {
     for (int i = 0; i < max_n; ++i)
-      std::printf("replica %d stderr:\n%s\n", i, replicas[i]->Stderr().c_str());
+      std::printf("replica %d stderr:\n%s\n", i, replicas[i]->StderrText().c_str());
   }
   for (const std::string& p : stderr_paths) unlink(p.c_str());
   std::printf("result: %s\n", failed ? "FAIL" : "OK");

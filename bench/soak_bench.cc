@@ -56,6 +56,7 @@
 #include "bench/bench_clouds.h"
 #include "client/client.h"
 #include "grpcpp/grpcpp.h"
+#include "server/testing/child_server.h"
 #include "shapeid/v1/shapeid.grpc.pb.h"
 
 extern char** environ;
@@ -72,125 +73,6 @@ double SecondsSince(Clock::time_point t0) {
 
 // ----------------------------------------------------------------------------- the server
 
-// shapeid-server as a child process: stdout read for "listening on HOST:PORT", stderr to a
-// file. SIGKILLed if still running when destroyed.
-class ServerChild {
- public:
-  ~ServerChild() {
-    if (pid_ > 0 && !exited_) {
-      kill(pid_, SIGKILL);
-      waitpid(pid_, nullptr, 0);
-    }
-  }
-
-  absl::Status Start(const std::string& binary, std::vector<std::string> flags,
-                     const std::string& stderr_path) {
-    int out[2];
-    if (pipe(out) != 0) return absl::InternalError("pipe failed");
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_adddup2(&actions, out[1], STDOUT_FILENO);
-    posix_spawn_file_actions_addclose(&actions, out[0]);
-    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, stderr_path.c_str(),
-                                     O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    flags.insert(flags.begin(), binary);
-    std::vector<char*> argv;
-    for (std::string& arg : flags) argv.push_back(arg.data());
-    argv.push_back(nullptr);
-    const int spawned = posix_spawn(&pid_, binary.c_str(), &actions, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&actions);
-    close(out[1]);
-    if (spawned != 0) {
-      close(out[0]);
-      pid_ = -1;
-      return absl::UnavailableError(absl::StrCat("cannot run ", binary, ": ", strerror(spawned)));
-    }
-    // The server prints the line once its galleries are loaded.
-    std::string line;
-    const auto deadline = Clock::now() + std::chrono::seconds(30);
-    fcntl(out[0], F_SETFL, O_NONBLOCK);
-    while (Clock::now() < deadline && line.find('\n') == std::string::npos) {
-      char buf[256];
-      const ssize_t n = read(out[0], buf, sizeof(buf));
-      if (n > 0) {
-        line.append(buf, static_cast<size_t>(n));
-      } else if (n == 0) {
-        break;
-      } else {
-        std::this_thread::sleep_for(std::chrono::milliseconds(10));
-      }
-    }
-    close(out[0]);
-    const std::string prefix = "listening on ";
-    if (line.rfind(prefix, 0) != 0 || line.find('\n') == std::string::npos) {
-      return absl::UnavailableError("the server did not report its address within 30 s");
-    }
-    address_ = line.substr(prefix.size(), line.find('\n') - prefix.size());
-    return absl::OkStatus();
-  }
-
-  // Exit status if the process has ended (128 + signal if killed), else -1.
-  int Poll() {
-    if (exited_) return status_;
-    int raw = 0;
-    if (pid_ > 0 && waitpid(pid_, &raw, WNOHANG) == pid_) {
-      exited_ = true;
-      status_ = WIFEXITED(raw) ? WEXITSTATUS(raw) : 128 + WTERMSIG(raw);
-      return status_;
-    }
-    return -1;
-  }
-
-  // SIGTERM, then the exit status, or -1 if it is still running after `timeout`.
-  int Terminate(std::chrono::seconds timeout) {
-    if (Poll() >= 0) return status_;
-    kill(pid_, SIGTERM);
-    const auto deadline = Clock::now() + timeout;
-    while (Clock::now() < deadline) {
-      if (Poll() >= 0) return status_;
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-    return -1;
-  }
-
-  // "VmRSS:" of /proc/PID/status, in KiB; 0 if unreadable.
-  int64_t ResidentKib() const {
-    std::ifstream in(absl::StrCat("/proc/", pid_, "/status"));
-    std::string key;
-    while (in >> key) {
-      if (key == "VmRSS:") {
-        int64_t kib = 0;
-        in >> kib;
-        return kib;
-      }
-      in.ignore(1 << 12, '\n');
-    }
-    return 0;
-  }
-
-  // User + system CPU seconds of the process so far (/proc/PID/stat fields 14 and 15).
-  double CpuSeconds() const {
-    std::ifstream in(absl::StrCat("/proc/", pid_, "/stat"));
-    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    const size_t paren = text.rfind(')');
-    if (paren == std::string::npos) return 0;
-    std::istringstream fields(text.substr(paren + 2));  // from field 3 (state)
-    std::string skip;
-    for (int i = 3; i < 14; ++i) fields >> skip;
-    double utime = 0, stime = 0;
-    fields >> utime >> stime;
-    return (utime + stime) / static_cast<double>(sysconf(_SC_CLK_TCK));
-  }
-
-  const std::string& address() const { return address_; }
-  pid_t pid() const { return pid_; }
-
- private:
-  pid_t pid_ = -1;
-  bool exited_ = false;
-  int status_ = -1;
-  std::string address_;
-};
 
 std::string TailOfFile(const std::string& path, size_t max_bytes) {
   std::ifstream in(path);
@@ -1202,7 +1084,7 @@ int Run(int argc, char** argv) {
   std::printf("machine: %u hardware threads, %s; load average before: %s\n",
               std::thread::hardware_concurrency(), CpuModel().c_str(), load_before.c_str());
   std::printf("clouds: %s\n", pool.source.c_str());
-  ServerChild server;
+  ChildServer server;
   if (absl::Status s = server.Start(
           server_path,
           {"--listen=127.0.0.1:0", "--data_dir=" + tmp + "/data", "--shutdown_grace_seconds=10"},
@@ -1287,8 +1169,8 @@ int Run(int argc, char** argv) {
   std::vector<int64_t> all_ns;
   int64_t kind_total[kNumKinds] = {};
   std::vector<int64_t> kind_all[kNumKinds];
-  double cpu_before = server.CpuSeconds();
-  const int64_t rss_start = server.ResidentKib();  // galleries set up, no load yet
+  double cpu_before = absl::ToDoubleSeconds(server.CpuTime());
+  const int64_t rss_start = (server.ResidentBytes() / 1024);  // galleries set up, no load yet
   int server_died = -1;
   std::printf("\n%8s %9s %8s %7s %9s %9s %9s %6s %6s\n", "t (s)", "requests", "req/s", "errors",
               "p50 ms", "p99 ms", "RSS MiB", "cores", "load");
@@ -1313,8 +1195,8 @@ int Run(int argc, char** argv) {
     w.p50_ms = QuantileMs(window_ns, 0.50);
     w.p99_ms = QuantileMs(window_ns, 0.99);
     all_ns.insert(all_ns.end(), window_ns.begin(), window_ns.end());
-    w.rss_kib = server.ResidentKib();
-    const double cpu = server.CpuSeconds();
+    w.rss_kib = (server.ResidentBytes() / 1024);
+    const double cpu = absl::ToDoubleSeconds(server.CpuTime());
     w.server_cores = (cpu - cpu_before) / (w.t1 - w.t0);
     cpu_before = cpu;
     w.load1 = LoadAverage1();
@@ -1354,7 +1236,7 @@ int Run(int argc, char** argv) {
     health_after = health_client.ok() ? (*health_client)->CheckHealth() : health_client.status();
   }
   soakers.clear();  // close the clients' channels before the server stops
-  const int exit_status = server.Terminate(std::chrono::seconds(30));
+  const int exit_status = server.Terminate(absl::Seconds(30));
 
   // ------------------------------------------------------------------ report
   int64_t rss_warm = 0, rss_end = 0, rss_peak = 0;

@@ -61,7 +61,8 @@ void CallObserver::Finish(CallRecord& record, const grpc::Status& status) const 
   const auto code = static_cast<absl::StatusCode>(status.error_code());
   if (metrics_ != nullptr) {
     metrics_->RecordCall({record.method, record.gallery, code, elapsed, record.points,
-                          record.method == "Train" && status.ok() ? record.samples : 0});
+                          record.method == "Train" && status.ok() ? record.samples : 0,
+                          record.wait_time});
   }
   const LogLevel level = LevelOf(status.error_code());
   if (logger_ == nullptr || !logger_->Enabled(level)) return;
@@ -79,18 +80,24 @@ void CallObserver::Finish(CallRecord& record, const grpc::Status& status) const 
                              {"samples", record.samples},
                              {"describe_us", absl::ToInt64Microseconds(record.describe_time)},
                              {"search_us", absl::ToInt64Microseconds(record.search_time)},
+                             {"wait_us", absl::ToInt64Microseconds(record.wait_time)},
                              {"peer", record.peer},
                              {"caller", record.caller},
                              {"request_id", record.request_id},
                              {"error", error}};
   // The error field only for a failed call.
-  logger_->Log(level, "rpc", absl::MakeConstSpan(fields, status.ok() ? 11 : 12));
+  logger_->Log(level, "rpc", absl::MakeConstSpan(fields, status.ok() ? 12 : 13));
 }
 
 void CallObserver::Described(CallRecord& record, absl::string_view kind,
                              absl::Duration elapsed) const {
   record.describe_time += elapsed;
   if (metrics_ != nullptr) metrics_->ObserveDescribe(kind, elapsed);
+}
+
+void CallObserver::Waited(CallRecord& record, absl::string_view lane, absl::Duration waited) const {
+  record.wait_time += waited;
+  if (metrics_ != nullptr) metrics_->ObserveWait(lane, waited);
 }
 
 void CallObserver::Searched(CallRecord& record, bool approximate, absl::Duration elapsed) const {

@@ -28,13 +28,15 @@ struct CallRecord {
   absl::string_view method;  // "ClassifyCloud"
   absl::Time start;
   std::string request_id;
-  std::string peer;          // "ipv4:10.0.0.7:53410"
-  std::string caller;        // the API key's name once admitted (never the key)
-  std::string gallery;       // the gallery the call names, if any
-  int64_t points = 0;        // received in its clouds
-  int64_t samples = 0;       // trained, removed, deleted, imported or exported
+  std::string peer;     // "ipv4:10.0.0.7:53410"
+  std::string caller;   // the API key's name once admitted (never the key)
+  std::string gallery;  // the gallery the call names, if any
+  int64_t points = 0;   // received in its clouds
+  int64_t samples = 0;  // trained, removed, deleted, imported or exported
   absl::Duration describe_time;
   absl::Duration search_time;
+  // Time its work waited for a worker of the scheduler (server/work_scheduler.h).
+  absl::Duration wait_time;
   bool finished = false;
 };
 
@@ -56,6 +58,8 @@ class CallObserver {
   // One cloud described (by a descriptor of kind `kind`) or searched, within `record`'s call.
   void Described(CallRecord& record, absl::string_view kind, absl::Duration elapsed) const;
   void Searched(CallRecord& record, bool approximate, absl::Duration elapsed) const;
+  // One piece of the call's work waited `waited` in the scheduler's `lane` ("cheap").
+  void Waited(CallRecord& record, absl::string_view lane, absl::Duration waited) const;
 
   ServerMetrics* metrics() const { return metrics_.get(); }
   Logger* logger() const { return logger_.get(); }

@@ -1,9 +1,11 @@
 #include "server/cloud_assembler.h"
 
+#include <algorithm>
 #include <cstring>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "core/status_macros.h"
 
 namespace shapeid {
 
@@ -16,7 +18,25 @@ absl::Status CloudAssembler::Start(uint64_t expected_points) {
   started_ = true;
   expected_points_ = expected_points;
   cloud_ = PointCloud();
-  cloud_.Reserve(expected_points);
+  memory_.Release();
+  return Reserve(expected_points);
+}
+
+absl::Status CloudAssembler::Reserve(size_t points) {
+  std::vector<float>& xyz = cloud_.mutable_xyz();
+  if (3 * points <= xyz.capacity()) return absl::OkStatus();
+  if (budget_ != nullptr) {
+    const size_t more = (3 * points - xyz.capacity()) * sizeof(float);
+    if (memory_.bytes() == 0) {
+      absl::StatusOr<MemoryBudget::Grant> grant =
+          budget_->Reserve(caller_, more, "the cloud in transit");
+      if (!grant.ok()) return grant.status();
+      memory_ = *std::move(grant);
+    } else if (absl::Status grown = memory_.Grow(more); !grown.ok()) {
+      return grown;
+    }
+  }
+  xyz.reserve(3 * points);
   return absl::OkStatus();
 }
 
@@ -40,6 +60,13 @@ absl::Status CloudAssembler::Append(absl::string_view xyz_bytes) {
   }
   std::vector<float>& xyz = cloud_.mutable_xyz();
   const size_t old_size = xyz.size();
+  if (xyz.size() + 3 * added > xyz.capacity()) {
+    // Grows geometrically, as the vector would, but with the memory held first.
+    const size_t points = cloud_.size() + added;
+    const size_t capacity = xyz.capacity() / 3;
+    SHAPEID_RETURN_IF_ERROR(
+        Reserve(std::min(max_points_, std::max({points, 2 * capacity, size_t{4096}}))));
+  }
   xyz.resize(old_size + 3 * added);
   static_assert(sizeof(float) == 4);
 #if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__

@@ -73,6 +73,32 @@ ABSL_FLAG(int32_t, max_streams_per_client, 64,
 ABSL_FLAG(int32_t, max_call_seconds, 600,
           "a stream still running after this long (its client asked for a later deadline, or "
           "none) is ended DEADLINE_EXCEEDED; 0: no limit. Env: SHAPEID_MAX_CALL_SECONDS");
+ABSL_FLAG(int64_t, memory_budget_mib, 0,
+          "memory calls may hold beyond the galleries: clouds in transit and describing's "
+          "working memory. A call past it is refused RESOURCE_EXHAUSTED (or its work waits for "
+          "memory others give back); one caller may hold --memory_caller_share of it. 0: half "
+          "of the memory the process may use (its cgroup limit, else the machine's). "
+          "Env: SHAPEID_MEMORY_BUDGET_MIB");
+ABSL_FLAG(double, memory_caller_share, 0.5,
+          "the part of --memory_budget_mib one caller (an API key, else a client host) may "
+          "hold, in (0, 1]. Env: SHAPEID_MEMORY_CALLER_SHARE");
+ABSL_FLAG(int32_t, workers, 0,
+          "threads for cheap work (describing and searching small clouds); 0: one per core, at "
+          "least 2. Env: SHAPEID_WORKERS");
+ABSL_FLAG(int32_t, heavy_workers, 0,
+          "threads for heavy work (huge clouds, huge galleries), at a lower OS priority; 0: "
+          "three quarters of the cores, at least 1, always one fewer than the cores. "
+          "Env: SHAPEID_HEAVY_WORKERS");
+ABSL_FLAG(int32_t, store_workers, 2,
+          "threads for writes to the gallery store. Env: SHAPEID_STORE_WORKERS");
+ABSL_FLAG(int32_t, heavy_work_ms, 20,
+          "work estimated to take this much CPU time or more is heavy. Env: SHAPEID_HEAVY_WORK_MS");
+ABSL_FLAG(int64_t, max_queued_work, 4096,
+          "pieces of work that may wait in one lane; more is refused RESOURCE_EXHAUSTED. "
+          "Env: SHAPEID_MAX_QUEUED_WORK");
+ABSL_FLAG(int32_t, max_caller_backlog_seconds, 120,
+          "estimated CPU time of work one caller may have waiting; more is refused "
+          "RESOURCE_EXHAUSTED. Env: SHAPEID_MAX_CALLER_BACKLOG_SECONDS");
 ABSL_FLAG(std::string, tls_cert, "",
           "PEM certificate (chain) of the server: with --tls_key, serve TLS only. "
           "Env: SHAPEID_TLS_CERT");
@@ -124,13 +150,41 @@ void OnStopSignal(int signal) {
 
 // Every flag may come from SHAPEID_<FLAG NAME IN CAPITALS>; a command-line flag wins.
 bool ApplyEnvironment() {
-  for (const char* name :
-       {"listen", "health_listen", "data_dir", "store", "store_refresh_ms", "set_aside_damaged", "max_points_per_cloud",
-        "max_message_bytes", "approximate_min_vectors", "approximate_lists", "approximate_probes",
-        "max_samples_per_gallery", "max_galleries", "max_samples_per_train",
-        "max_streams_per_client", "max_call_seconds", "tls_cert", "tls_key", "tls_client_ca",
-        "api_keys_file", "api_keys", "insecure", "shutdown_grace_seconds", "metrics_listen",
-        "metrics_max_galleries", "log_format", "log_level"}) {
+  for (const char* name : {"listen",
+                           "health_listen",
+                           "data_dir",
+                           "store",
+                           "store_refresh_ms",
+                           "set_aside_damaged",
+                           "max_points_per_cloud",
+                           "max_message_bytes",
+                           "approximate_min_vectors",
+                           "approximate_lists",
+                           "approximate_probes",
+                           "max_samples_per_gallery",
+                           "max_galleries",
+                           "max_samples_per_train",
+                           "max_streams_per_client",
+                           "max_call_seconds",
+                           "memory_budget_mib",
+                           "memory_caller_share",
+                           "workers",
+                           "heavy_workers",
+                           "store_workers",
+                           "heavy_work_ms",
+                           "max_queued_work",
+                           "max_caller_backlog_seconds",
+                           "tls_cert",
+                           "tls_key",
+                           "tls_client_ca",
+                           "api_keys_file",
+                           "api_keys",
+                           "insecure",
+                           "shutdown_grace_seconds",
+                           "metrics_listen",
+                           "metrics_max_galleries",
+                           "log_format",
+                           "log_level"}) {
     const std::string var = absl::StrCat("SHAPEID_", absl::AsciiStrToUpper(name));
     const char* value = std::getenv(var.c_str());
     if (value == nullptr) continue;
@@ -239,7 +293,8 @@ int main(int argc, char** argv) {
   options.gallery_limits.approximate.min_vectors = absl::GetFlag(FLAGS_approximate_min_vectors);
   options.gallery_limits.approximate.lists = absl::GetFlag(FLAGS_approximate_lists);
   options.gallery_limits.approximate.probes = absl::GetFlag(FLAGS_approximate_probes);
-  if (const absl::Status s = shapeid::ValidateApproximateOptions(options.gallery_limits.approximate);
+  if (const absl::Status s =
+          shapeid::ValidateApproximateOptions(options.gallery_limits.approximate);
       !s.ok()) {
     std::fprintf(stderr, "shapeid-server: --approximate_*: %s\n", std::string(s.message()).c_str());
     return 2;
@@ -259,6 +314,28 @@ int main(int argc, char** argv) {
   options.service.max_samples_per_train = absl::GetFlag(FLAGS_max_samples_per_train);
   options.service.max_streams_per_client = absl::GetFlag(FLAGS_max_streams_per_client);
   options.service.max_call = absl::Seconds(absl::GetFlag(FLAGS_max_call_seconds));
+  if (absl::GetFlag(FLAGS_memory_budget_mib) < 0 ||
+      !(absl::GetFlag(FLAGS_memory_caller_share) > 0) ||
+      absl::GetFlag(FLAGS_memory_caller_share) > 1 || absl::GetFlag(FLAGS_workers) < 0 ||
+      absl::GetFlag(FLAGS_heavy_workers) < 0 || absl::GetFlag(FLAGS_store_workers) < 1 ||
+      absl::GetFlag(FLAGS_heavy_work_ms) < 1 || absl::GetFlag(FLAGS_max_queued_work) < 1 ||
+      absl::GetFlag(FLAGS_max_caller_backlog_seconds) < 1) {
+    std::fprintf(stderr,
+                 "shapeid-server: --memory_budget_mib, --workers and --heavy_workers must be >= 0 "
+                 "(0: automatic); --memory_caller_share in (0, 1]; --store_workers, "
+                 "--heavy_work_ms, --max_queued_work and --max_caller_backlog_seconds >= 1\n");
+    return 2;
+  }
+  options.service.memory_budget_bytes = static_cast<size_t>(absl::GetFlag(FLAGS_memory_budget_mib))
+                                        << 20;
+  options.service.memory_caller_share = absl::GetFlag(FLAGS_memory_caller_share);
+  options.service.work.cheap_workers = absl::GetFlag(FLAGS_workers);
+  options.service.work.heavy_workers = absl::GetFlag(FLAGS_heavy_workers);
+  options.service.work.store_workers = absl::GetFlag(FLAGS_store_workers);
+  options.service.work.heavy_cost = absl::Milliseconds(absl::GetFlag(FLAGS_heavy_work_ms));
+  options.service.work.max_queued = absl::GetFlag(FLAGS_max_queued_work);
+  options.service.work.max_caller_backlog =
+      absl::Seconds(absl::GetFlag(FLAGS_max_caller_backlog_seconds));
   options.security.tls_cert_file = absl::GetFlag(FLAGS_tls_cert);
   options.security.tls_key_file = absl::GetFlag(FLAGS_tls_key);
   options.security.tls_client_ca_file = absl::GetFlag(FLAGS_tls_client_ca);
@@ -323,6 +400,18 @@ int main(int argc, char** argv) {
   const shapeid::Logger& log = *(*server)->logger();
   log.Info(absl::StrCat("bound ", (*server)->address(), "; loading galleries from ", where));
   log.Info(absl::StrCat("security: ", (*server)->security()));
+  {
+    const shapeid::ShapeIdService& service = (*server)->service();
+    const auto workers = [&](shapeid::WorkLane lane) {
+      return service.scheduler().stats(lane).workers;
+    };
+    log.Info(absl::StrCat("workers: ", workers(shapeid::WorkLane::kCheap), " cheap, ",
+                          workers(shapeid::WorkLane::kHeavy), " heavy (nice ",
+                          service.scheduler().options().heavy_nice, "), ",
+                          workers(shapeid::WorkLane::kStore), " store; memory budget ",
+                          service.budget().total_bytes() >> 20, " MiB (",
+                          service.budget().caller_bytes() >> 20, " MiB a caller)"));
+  }
   if (!(*server)->health_address().empty()) {
     log.Info(absl::StrCat("health checks also on ", (*server)->health_address(),
                           " (plaintext, health only)"));
@@ -355,8 +444,9 @@ int main(int argc, char** argv) {
   absl::StatusOr<shapeid::LoadReport> loaded = (*server)->LoadGalleries();
   if (!loaded.ok()) {
     log.Error(loaded.status().message());
-    if (options.store.empty() && (loaded.status().code() == absl::StatusCode::kDataLoss ||
-                                  loaded.status().code() == absl::StatusCode::kFailedPrecondition)) {
+    if (options.store.empty() &&
+        (loaded.status().code() == absl::StatusCode::kDataLoss ||
+         loaded.status().code() == absl::StatusCode::kFailedPrecondition)) {
       log.Error(absl::StrCat(
           "refusing to start rather than serve without that gallery. Restore it from an "
           "export, or start with --set_aside_damaged to move it to ",
@@ -383,6 +473,13 @@ int main(int argc, char** argv) {
     log.Warning(absl::StrCat(options.data_dir,
                              " is read-only: galleries are served, every change fails "
                              "UNAVAILABLE"));
+  }
+  for (const auto& gallery : loaded->read_only_galleries) {
+    log.Warning(absl::StrCat("gallery '", gallery.name,
+                             "' is served read-only (its file cannot be opened for writing, a "
+                             "disk condition, not damage; it is written again once the disk "
+                             "allows): ",
+                             gallery.reason.message()));
   }
   log.Info(absl::StrCat("loaded ", loaded->galleries, " galleries (", loaded->samples,
                         " samples) in ", absl::FormatDuration(loaded->elapsed)),

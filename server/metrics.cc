@@ -29,19 +29,19 @@ constexpr char kUnknownGallery[] = "_unknown";
 const prometheus::Histogram::BucketBoundaries& CallBuckets() {
   static const auto* buckets = new prometheus::Histogram::BucketBoundaries{
       0.0001, 0.00025, 0.0005, 0.00075, 0.001, 0.0025, 0.005, 0.0075, 0.01, 0.025, 0.05,
-      0.1,    0.25,    0.5,    1,       2.5,   5,      10,     30,     60,   300};
+      0.1,    0.25,    0.5,    1,       2.5,   5,      10,    30,     60,   300};
   return *buckets;
 }
 const prometheus::Histogram::BucketBoundaries& WorkBuckets() {
   static const auto* buckets = new prometheus::Histogram::BucketBoundaries{
-      0.00001, 0.000025, 0.00005, 0.0001, 0.00025, 0.0005, 0.001, 0.0025,
-      0.005,   0.01,     0.025,   0.05,   0.1,     0.25,   0.5,   1,      2.5, 10};
+      0.00001, 0.000025, 0.00005, 0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005,
+      0.01,    0.025,    0.05,    0.1,    0.25,    0.5,    1,     2.5,    10};
   return *buckets;
 }
 const prometheus::Histogram::BucketBoundaries& StoreBuckets() {
   static const auto* buckets = new prometheus::Histogram::BucketBoundaries{
-      0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025,
-      0.05,   0.1,     0.25,   0.5,   1,      2.5,   5,    10,   30};
+      0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05,
+      0.1,    0.25,    0.5,    1,     2.5,    5,     10,   30};
   return *buckets;
 }
 
@@ -106,6 +106,16 @@ ServerMetrics::ServerMetrics(MetricsOptions options)
                             .Name("shapeid_request_duration_seconds")
                             .Help("Server time from a call's arrival to its answer, by method.")
                             .Register(*registry_)),
+      request_wait_(prometheus::BuildHistogram()
+                        .Name("shapeid_request_wait_seconds")
+                        .Help("Time a call's work waited for a worker (the scheduler's "
+                              "queues), by method; calls with no work to queue are not counted.")
+                        .Register(*registry_)),
+      work_wait_(prometheus::BuildHistogram()
+                     .Name("shapeid_work_wait_seconds")
+                     .Help("Time one piece of work waited for a worker, by the scheduler's "
+                           "lane (cheap, heavy, store).")
+                     .Register(*registry_)),
       points_(prometheus::BuildCounter()
                   .Name("shapeid_points_received_total")
                   .Help("Points received in the clouds of calls, by method.")
@@ -134,8 +144,7 @@ ServerMetrics::ServerMetrics(MetricsOptions options)
                                 .Help("Writes to the gallery store that failed, by operation.")
                                 .Register(*registry_)) {}
 
-void ServerMetrics::SetSources(std::weak_ptr<const GalleryRegistry> galleries,
-                               LiveSources live) {
+void ServerMetrics::SetSources(std::weak_ptr<const GalleryRegistry> galleries, LiveSources live) {
   std::lock_guard<std::mutex> lock(mu_);
   galleries_ = std::move(galleries);
   live_ = std::move(live);
@@ -196,6 +205,10 @@ void ServerMetrics::RecordCall(const CallMetrics& call) {
       .Increment();
   Series(request_duration_cache_, request_duration_, {{"method", method}}, CallBuckets())
       .Observe(absl::ToDoubleSeconds(call.elapsed));
+  if (call.waited > absl::ZeroDuration()) {
+    Series(request_wait_cache_, request_wait_, {{"method", method}}, CallBuckets())
+        .Observe(absl::ToDoubleSeconds(call.waited));
+  }
   if (call.points > 0) {
     Series(points_cache_, points_, {{"method", method}})
         .Increment(static_cast<double>(call.points));
@@ -216,6 +229,11 @@ void ServerMetrics::ObserveSearch(bool approximate, absl::Duration elapsed) {
   Series(search_cache_, search_duration_, {{"index", approximate ? "approximate" : "exact"}},
          WorkBuckets())
       .Observe(absl::ToDoubleSeconds(elapsed));
+}
+
+void ServerMetrics::ObserveWait(absl::string_view lane, absl::Duration waited) {
+  Series(work_wait_cache_, work_wait_, {{"lane", std::string(lane)}}, CallBuckets())
+      .Observe(absl::ToDoubleSeconds(waited));
 }
 
 void ServerMetrics::ObserveStoreWrite(absl::string_view operation, absl::Duration elapsed,
@@ -240,8 +258,8 @@ void ServerMetrics::CollectLive(std::vector<MetricFamily>* out) const {
     galleries = galleries_.lock();
     live = live_;
   }
-  MetricFamily build = Family("shapeid_build_info", "Always 1; the version in a label.",
-                              MetricType::Gauge);
+  MetricFamily build =
+      Family("shapeid_build_info", "Always 1; the version in a label.", MetricType::Gauge);
   build.metric.push_back(Gauge(1, {{"version", kShapeidVersion}}));
   out->push_back(std::move(build));
 
@@ -258,6 +276,41 @@ void ServerMetrics::CollectLive(std::vector<MetricFamily>* out) const {
                                  MetricType::Gauge);
     family.metric.push_back(Gauge(live.serving() ? 1 : 0));
     out->push_back(std::move(family));
+  }
+  if (live.work) {
+    MetricFamily workers =
+        Family("shapeid_workers", "Threads of the work scheduler, by lane (cheap, heavy, store).",
+               MetricType::Gauge);
+    MetricFamily running =
+        Family("shapeid_work_running", "Pieces of work running now, by lane.", MetricType::Gauge);
+    MetricFamily queued = Family(
+        "shapeid_work_queued", "Pieces of work waiting for a worker, by lane.", MetricType::Gauge);
+    for (const WorkLaneState& lane : live.work()) {
+      workers.metric.push_back(Gauge(lane.workers, {{"lane", lane.lane}}));
+      running.metric.push_back(Gauge(lane.running, {{"lane", lane.lane}}));
+      queued.metric.push_back(Gauge(static_cast<double>(lane.queued), {{"lane", lane.lane}}));
+    }
+    out->push_back(std::move(workers));
+    out->push_back(std::move(running));
+    out->push_back(std::move(queued));
+  }
+  if (live.memory) {
+    const MemoryBudgetState memory = live.memory();
+    MetricFamily budget = Family("shapeid_memory_budget_bytes",
+                                 "The memory calls may hold beyond the galleries (clouds in "
+                                 "transit, describing): --memory_budget_mib; 0 unbounded.",
+                                 MetricType::Gauge);
+    budget.metric.push_back(Gauge(static_cast<double>(memory.budget_bytes)));
+    out->push_back(std::move(budget));
+    MetricFamily held = Family("shapeid_memory_held_bytes",
+                               "Memory of the budget that calls hold now.", MetricType::Gauge);
+    held.metric.push_back(Gauge(static_cast<double>(memory.held_bytes)));
+    out->push_back(std::move(held));
+    MetricFamily peak =
+        Family("shapeid_memory_held_peak_bytes",
+               "The most of the budget calls held at once since start.", MetricType::Gauge);
+    peak.metric.push_back(Gauge(static_cast<double>(memory.peak_bytes)));
+    out->push_back(std::move(peak));
   }
   if (galleries != nullptr) {
     // Galleries past the label limit are summed under "_other".
@@ -366,24 +419,31 @@ std::vector<MethodSummary> ServerMetrics::MethodSummaries() const {
       if (LabelValue(metric, "code") != "OK") summary->errors += calls;
     }
   }
-  for (const MetricFamily& family : request_duration_.Collect()) {
-    for (const ClientMetric& metric : family.metric) {
-      MethodSummary* summary = find(LabelValue(metric, "method"));
-      if (summary == nullptr) continue;
-      std::vector<double> bounds;
-      std::vector<uint64_t> cumulative;
-      for (const ClientMetric::Bucket& bucket : metric.histogram.bucket) {
-        bounds.push_back(bucket.upper_bound);
-        cumulative.push_back(bucket.cumulative_count);
-      }
-      if (const auto p50 = HistogramQuantile(0.5, bounds, cumulative)) {
-        summary->p50 = absl::Seconds(*p50);
-      }
-      if (const auto p99 = HistogramQuantile(0.99, bounds, cumulative)) {
-        summary->p99 = absl::Seconds(*p99);
+  // p50 and p99 of each method's series of `histograms` into `p50` / `p99` of its summary.
+  const auto quantiles = [&](prometheus::Family<prometheus::Histogram>& histograms,
+                             std::optional<absl::Duration> MethodSummary::*p50,
+                             std::optional<absl::Duration> MethodSummary::*p99) {
+    for (const MetricFamily& family : histograms.Collect()) {
+      for (const ClientMetric& metric : family.metric) {
+        MethodSummary* summary = find(LabelValue(metric, "method"));
+        if (summary == nullptr) continue;
+        std::vector<double> bounds;
+        std::vector<uint64_t> cumulative;
+        for (const ClientMetric::Bucket& bucket : metric.histogram.bucket) {
+          bounds.push_back(bucket.upper_bound);
+          cumulative.push_back(bucket.cumulative_count);
+        }
+        if (const auto q = HistogramQuantile(0.5, bounds, cumulative)) {
+          summary->*p50 = absl::Seconds(*q);
+        }
+        if (const auto q = HistogramQuantile(0.99, bounds, cumulative)) {
+          summary->*p99 = absl::Seconds(*q);
+        }
       }
     }
-  }
+  };
+  quantiles(request_duration_, &MethodSummary::p50, &MethodSummary::p99);
+  quantiles(request_wait_, &MethodSummary::wait_p50, &MethodSummary::wait_p99);
   return summaries;
 }
 

@@ -57,11 +57,28 @@ struct ReplicationState {
   absl::Duration since_last_sync;
 };
 
+// One lane of the work scheduler (server/work_scheduler.h) at scrape time.
+struct WorkLaneState {
+  std::string lane;  // "cheap", "heavy", "store"
+  int workers = 0;
+  int running = 0;
+  int64_t queued = 0;
+};
+
+// The memory budget (server/memory_budget.h) at scrape time.
+struct MemoryBudgetState {
+  uint64_t budget_bytes = 0;  // 0: unbounded
+  uint64_t held_bytes = 0;
+  uint64_t peak_bytes = 0;
+};
+
 // Read at scrape time; each may be empty. Called from the scraping thread.
 struct LiveSources {
   std::function<int64_t()> calls_in_flight;
   std::function<bool()> serving;
   std::function<std::optional<ReplicationState>()> replication;
+  std::function<std::vector<WorkLaneState>()> work;
+  std::function<MemoryBudgetState()> memory;
 };
 
 // One call, as the service saw it when it answered.
@@ -69,9 +86,10 @@ struct CallMetrics {
   absl::string_view method;   // "ClassifyCloud"
   absl::string_view gallery;  // empty when the call names none
   absl::StatusCode code = absl::StatusCode::kOk;
-  absl::Duration elapsed;     // arrival to answer
-  int64_t points = 0;         // points received in its clouds
+  absl::Duration elapsed;  // arrival to answer
+  int64_t points = 0;      // points received in its clouds
   int64_t samples_trained = 0;
+  absl::Duration waited;  // its work's time in the scheduler's queues
 };
 
 // Calls of one method since start, for GetServerStats.
@@ -80,6 +98,8 @@ struct MethodSummary {
   uint64_t calls = 0;
   uint64_t errors = 0;
   std::optional<absl::Duration> p50, p99;  // estimated from the histogram's buckets
+  // Of the time its work waited for a worker (unset: no call of the method queued work).
+  std::optional<absl::Duration> wait_p50, wait_p99;
 };
 
 // Thread-safe. Also a prometheus::Collectable: register it with an Exposer.
@@ -95,6 +115,8 @@ class ServerMetrics final : public prometheus::Collectable {
   // One cloud described by a descriptor of kind `descriptor` ("rphsd").
   void ObserveDescribe(absl::string_view descriptor, absl::Duration elapsed);
   void ObserveSearch(bool approximate, absl::Duration elapsed);
+  // One piece of work waited `waited` in the scheduler's `lane` ("cheap", "heavy", "store").
+  void ObserveWait(absl::string_view lane, absl::Duration waited);
   // One write to the gallery store: `operation` is save, append, remove or delete.
   void ObserveStoreWrite(absl::string_view operation, absl::Duration elapsed, bool ok);
 
@@ -116,13 +138,15 @@ class ServerMetrics final : public prometheus::Collectable {
   template <typename T>
   using SeriesCache = absl::flat_hash_map<std::string, T*>;
   template <typename T, typename... Args>
-  T& Series(SeriesCache<T>& cache, prometheus::Family<T>& family,
-            const prometheus::Labels& labels, Args&&... args);
+  T& Series(SeriesCache<T>& cache, prometheus::Family<T>& family, const prometheus::Labels& labels,
+            Args&&... args);
 
   const MetricsOptions options_;
   const std::shared_ptr<prometheus::Registry> registry_;
   prometheus::Family<prometheus::Counter>& requests_;
   prometheus::Family<prometheus::Histogram>& request_duration_;
+  prometheus::Family<prometheus::Histogram>& request_wait_;
+  prometheus::Family<prometheus::Histogram>& work_wait_;
   prometheus::Family<prometheus::Counter>& points_;
   prometheus::Family<prometheus::Counter>& samples_trained_;
   prometheus::Family<prometheus::Histogram>& describe_duration_;
@@ -138,6 +162,8 @@ class ServerMetrics final : public prometheus::Collectable {
   mutable absl::flat_hash_set<std::string> labelled_galleries_ ABSL_GUARDED_BY(mu_);
   SeriesCache<prometheus::Counter> requests_cache_ ABSL_GUARDED_BY(mu_);
   SeriesCache<prometheus::Histogram> request_duration_cache_ ABSL_GUARDED_BY(mu_);
+  SeriesCache<prometheus::Histogram> request_wait_cache_ ABSL_GUARDED_BY(mu_);
+  SeriesCache<prometheus::Histogram> work_wait_cache_ ABSL_GUARDED_BY(mu_);
   SeriesCache<prometheus::Counter> points_cache_ ABSL_GUARDED_BY(mu_);
   SeriesCache<prometheus::Counter> samples_trained_cache_ ABSL_GUARDED_BY(mu_);
   SeriesCache<prometheus::Histogram> describe_cache_ ABSL_GUARDED_BY(mu_);

@@ -1,6 +1,9 @@
 #include "server/proto_convert.h"
 
+#include <memory>
+
 #include "absl/strings/str_cat.h"
+#include "core/status_macros.h"
 
 namespace shapeid {
 
@@ -152,6 +155,25 @@ void ToProto(const GalleryClassification& answer, size_t num_points, v1::Classif
   ToProto(answer.describe_time, out->mutable_describe_time());
   ToProto(answer.search_time, out->mutable_search_time());
   out->set_approximate(answer.knn.approximate);
+}
+
+absl::Status ToProto(absl::Span<const DescriptorKind> kinds, v1::ListDescriptorsResponse* out) {
+  for (const DescriptorKind& kind : kinds) {
+    v1::DescriptorKind* described = out->add_descriptors();
+    described->set_kind(kind.kind);
+    described->set_summary(kind.summary);
+    for (const DescriptorParam& p : kind.params) {
+      v1::DescriptorParameter* param = described->add_parameters();
+      param->set_name(p.name);
+      param->set_default_value(p.default_value);
+      param->set_help(p.help);
+    }
+    SHAPEID_ASSIGN_OR_RETURN(const std::unique_ptr<Descriptor> defaults,
+                             CreateDescriptor(kind.kind));
+    described->set_default_spec(defaults->spec().ToString());
+    described->set_default_dimension(static_cast<uint32_t>(defaults->dimension()));
+  }
+  return absl::OkStatus();
 }
 
 }  // namespace shapeid

@@ -5,6 +5,8 @@
 
 #include "absl/status/statusor.h"
 #include "absl/time/time.h"
+#include "absl/types/span.h"
+#include "core/descriptor_registry.h"
 #include "core/gallery/gallery_options.h"
 #include "core/gallery/gallery_snapshot.h"
 #include "core/knn/knn_options.h"
@@ -25,6 +27,10 @@ absl::StatusOr<GalleryOptions> GalleryOptionsFromProto(const v1::CreateGalleryRe
 
 // The gallery as GetGallery / ListGalleries report it, versions and incompatibility included.
 void ToProto(const GallerySnapshot& snapshot, v1::Gallery* out);
+
+// The descriptors a server offers (core/descriptor_registry.h), each with its parameters, its
+// canonical default spec and dimension; the registry's error if a default cannot be built.
+absl::Status ToProto(absl::Span<const DescriptorKind> kinds, v1::ListDescriptorsResponse* out);
 
 void ToProto(const GalleryClassification& answer, size_t num_points, v1::ClassifyResponse* out);
 

@@ -1,6 +1,8 @@
 #include "server/server.h"
 
+#include <algorithm>
 #include <chrono>
+#include <memory>
 #include <string>
 #include <utility>
 
@@ -8,11 +10,60 @@
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "grpcpp/ext/proto_server_reflection_plugin.h"
+#include "grpcpp/generic/async_generic_service.h"
 #include "grpcpp/health_check_service_interface.h"
+#include "grpcpp/impl/server_builder_option.h"
+#include "grpcpp/impl/server_builder_plugin.h"
 #include "server/observed_gallery_store.h"
 #include "server/security.h"
 
 namespace shapeid {
+namespace {
+
+// Server reflection is registered as a plugin of every ServerBuilder of the process; the
+// health-only port must not answer it (it would list the service on a port without TLS or
+// keys).
+class WithoutReflection final : public grpc::ServerBuilderOption {
+ public:
+  void UpdateArguments(grpc::ChannelArguments* /*args*/) override {}
+  void UpdatePlugins(std::vector<std::unique_ptr<grpc::ServerBuilderPlugin>>* plugins) override {
+    plugins->erase(std::remove_if(plugins->begin(), plugins->end(),
+                                  [](const std::unique_ptr<grpc::ServerBuilderPlugin>& plugin) {
+                                    return absl::StrContains(plugin->name(), "reflection");
+                                  }),
+                   plugins->end());
+  }
+};
+
+// What the health-only port answers for every method but grpc.health.v1's (registered by
+// the server itself, which take precedence): a port needs at least one service to start.
+class HealthOnly final : public grpc::CallbackGenericService {
+ public:
+  grpc::ServerGenericBidiReactor* CreateReactor(
+      grpc::GenericCallbackServerContext* /*context*/) override {
+    class Refusal final : public grpc::ServerGenericBidiReactor {
+     public:
+      Refusal() {
+        Finish(grpc::Status(grpc::StatusCode::UNIMPLEMENTED,
+                            "this port (--health_listen) answers grpc.health.v1 only; call the "
+                            "server's main port"));
+      }
+      void OnDone() override { delete this; }
+    };
+    return new Refusal;
+  }
+};
+
+// The address a server bound: a TCP address with the port it got (port 0 asks for any), or
+// a Unix socket's as it was given.
+std::string BoundAddress(const std::string& listen, int port) {
+  if (absl::StartsWith(listen, "unix:") || absl::StartsWith(listen, "unix-abstract:")) {
+    return listen;
+  }
+  return absl::StrCat(listen.substr(0, listen.rfind(':')), ":", port);
+}
+
+}  // namespace
 
 absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Start(const ServerOptions& options) {
   absl::StatusOr<std::unique_ptr<ShapeIdServer>> server = Bind(options);
@@ -93,8 +144,7 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
     return absl::UnavailableError(absl::StrCat(
         "cannot listen on ", options.listen, " (address in use, or not an address of this host)"));
   }
-  const size_t colon = options.listen.rfind(':');
-  server->address_ = absl::StrCat(options.listen.substr(0, colon), ":", server->port_);
+  server->address_ = BoundAddress(options.listen, server->port_);
   if (!options.health_listen.empty()) {
     // Its own grpc::Server: a port of the main one would serve every service there too. It
     // gets the default health service, whose status SetServing keeps equal to the main one's.
@@ -102,15 +152,16 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
     int health_port = 0;
     health_builder.AddListeningPort(options.health_listen, grpc::InsecureServerCredentials(),
                                     &health_port);
+    health_builder.SetOption(std::make_unique<WithoutReflection>());
+    server->health_only_ = std::make_unique<HealthOnly>();
+    health_builder.RegisterCallbackGenericService(server->health_only_.get());
     server->health_server_ = health_builder.BuildAndStart();
     if (server->health_server_ == nullptr || health_port == 0) {
       return absl::UnavailableError(absl::StrCat("cannot listen on ", options.health_listen,
                                                  " (--health_listen): address in use, or not "
                                                  "an address of this host"));
     }
-    const size_t health_colon = options.health_listen.rfind(':');
-    server->health_address_ =
-        absl::StrCat(options.health_listen.substr(0, health_colon), ":", health_port);
+    server->health_address_ = BoundAddress(options.health_listen, health_port);
   }
   if (absl::Status s = server->StartMetrics(options.metrics); !s.ok()) return s;
   server->service_->SetDescription({server->store_description_, server->metrics_address_});
@@ -127,6 +178,18 @@ absl::Status ShapeIdServer::StartMetrics(const MetricsOptions& options) {
   LiveSources live;
   live.calls_in_flight = [service] { return service->calls_in_flight(); };
   live.serving = [service] { return service->serving(); };
+  live.work = [service] {
+    std::vector<WorkLaneState> lanes;
+    for (const WorkLane lane : {WorkLane::kCheap, WorkLane::kHeavy, WorkLane::kStore}) {
+      const WorkScheduler::LaneStats stats = service->scheduler().stats(lane);
+      lanes.push_back({WorkLaneName(lane), stats.workers, stats.running, stats.queued});
+    }
+    return lanes;
+  };
+  live.memory = [service] {
+    const MemoryBudget& budget = service->budget();
+    return MemoryBudgetState{budget.total_bytes(), budget.held_bytes(), budget.peak_bytes()};
+  };
   if (postgres != nullptr) {
     live.replication = [postgres]() -> std::optional<ReplicationState> {
       return ReplicationState{postgres->reachable(), postgres->changes_applied(),
@@ -147,8 +210,8 @@ absl::Status ShapeIdServer::StartMetrics(const MetricsOptions& options) {
   exposer_->RegisterCollectable(metrics_);
   const std::vector<int> ports = exposer_->GetListeningPorts();
   const size_t colon = options.listen.rfind(':');
-  metrics_address_ = absl::StrCat(options.listen.substr(0, colon), ":",
-                                  ports.empty() ? 0 : ports.front());
+  metrics_address_ =
+      absl::StrCat(options.listen.substr(0, colon), ":", ports.empty() ? 0 : ports.front());
   return absl::OkStatus();
 }
 
@@ -162,6 +225,7 @@ absl::StatusOr<LoadReport> ShapeIdServer::LoadGalleries() {
   if (store_ != nullptr) {
     report.read_only = store_->read_only();
     report.set_aside = store_->set_aside();
+    report.read_only_galleries = store_->read_only_galleries();
   }
   for (const std::shared_ptr<Gallery>& gallery : registry_->All()) {
     ++report.galleries;

@@ -7,6 +7,7 @@
 
 #include "absl/status/statusor.h"
 #include "absl/time/time.h"
+#include "grpcpp/generic/async_generic_service.h"
 #include "grpcpp/grpcpp.h"
 #include "prometheus/exposer.h"
 #include "server/logger.h"
@@ -34,6 +35,8 @@ struct LoadReport {
   // HOST:PORT/DB" (never a password), or empty (memory only).
   std::string store;
   std::vector<SqliteGalleryStore::SetAside> set_aside;
+  // Galleries loaded but not writable (a full disk, a read-only file, an I/O error).
+  std::vector<SqliteGalleryStore::ReadOnlyGallery> read_only_galleries;
 };
 
 // A running shapeid server: the ShapeId service over a gallery registry kept in a durable
@@ -75,6 +78,8 @@ class ShapeIdServer {
   // The server's log, for the embedding program's own lines (start-up, shutdown).
   const std::shared_ptr<Logger>& logger() const { return logger_; }
   ServerMetrics& metrics() { return *metrics_; }
+  // Its workers and memory budget, for the start-up log and tests.
+  const ShapeIdService& service() const { return *service_; }
 
   // "HOST:PORT" with the port actually bound (useful after listening on port 0).
   const std::string& address() const { return address_; }
@@ -88,7 +93,7 @@ class ShapeIdServer {
  private:
   ShapeIdServer() = default;
 
-  std::shared_ptr<SqliteGalleryStore> store_;  // null unless galleries live in data_dir
+  std::shared_ptr<SqliteGalleryStore> store_;             // null unless galleries live in data_dir
   std::shared_ptr<PostgresGalleryStore> postgres_store_;  // null unless options.store is set
   std::string store_description_;
   std::shared_ptr<GalleryRegistry> registry_;
@@ -99,7 +104,9 @@ class ShapeIdServer {
   void SetServing(bool serving);
 
   std::unique_ptr<grpc::Server> server_;
-  std::unique_ptr<grpc::Server> health_server_;  // only with options.health_listen
+  // Only with options.health_listen; health_only_ answers its other methods and outlives it.
+  std::unique_ptr<grpc::CallbackGenericService> health_only_;
+  std::unique_ptr<grpc::Server> health_server_;
   std::string health_address_;
   std::shared_ptr<Logger> logger_;
   std::shared_ptr<ServerMetrics> metrics_;

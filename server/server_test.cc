@@ -7,11 +7,11 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "grpcpp/grpcpp.h"
 #include "client/client.h"
 #include "core/gallery/gallery_registry.h"
 #include "core/testing/test_clouds.h"
 #include "gmock/gmock.h"
+#include "grpcpp/grpcpp.h"
 #include "gtest/gtest.h"
 #include "server/storage/sqlite_gallery_store.h"
 #include "server/testing/raw_call.h"
@@ -100,11 +100,10 @@ TEST(ShapeIdServerTest, NotServingUntilEveryGalleryIsLoaded) {
 int HealthOf(const ShapeIdServer& server, const std::string& service) {
   auto channel = grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials());
   // HealthCheckRequest { string service = 1; }
-  const std::string request = service.empty()
-                                  ? std::string()
-                                  : absl::StrCat(std::string(1, '\x0a'),
-                                                 std::string(1, static_cast<char>(service.size())),
-                                                 service);
+  const std::string request =
+      service.empty() ? std::string()
+                      : absl::StrCat(std::string(1, '\x0a'),
+                                     std::string(1, static_cast<char>(service.size())), service);
   std::string reply;
   const grpc::Status status =
       testing_raw::RawCall(channel, "/grpc.health.v1.Health/Check", {request}, &reply);
@@ -123,6 +122,42 @@ TEST(ShapeIdServerTest, LivenessIsServingWhileReadinessIsNot) {
   ASSERT_TRUE((*server)->LoadGalleries().ok());
   EXPECT_EQ(HealthOf(**server, ""), 1);
   EXPECT_EQ(HealthOf(**server, kLivenessHealthService), 1);
+}
+
+// The health-only port answers grpc.health.v1 and nothing else: not reflection, which would
+// list the service on a port that has neither TLS nor keys.
+TEST(ShapeIdServerTest, TheHealthPortAnswersHealthOnly) {
+  ServerOptions options;
+  options.listen = "127.0.0.1:0";
+  options.health_listen = "127.0.0.1:0";
+  auto server = ShapeIdServer::Start(options);
+  ASSERT_TRUE(server.ok()) << server.status();
+  const auto reflection = [](const std::string& address) {
+    // ServerReflectionRequest { string list_services = 7; }: "*".
+    return testing_raw::RawCall(grpc::CreateChannel(address, grpc::InsecureChannelCredentials()),
+                                "/grpc.reflection.v1alpha.ServerReflection/ServerReflectionInfo",
+                                {std::string("\x3a\x01*", 3)})
+        .error_code();
+  };
+  EXPECT_EQ(reflection((*server)->address()), grpc::StatusCode::OK);
+  EXPECT_EQ(reflection((*server)->health_address()), grpc::StatusCode::UNIMPLEMENTED);
+  std::string reply;
+  const grpc::Status health = testing_raw::RawCall(
+      grpc::CreateChannel((*server)->health_address(), grpc::InsecureChannelCredentials()),
+      "/grpc.health.v1.Health/Check", {""}, &reply);
+  EXPECT_TRUE(health.ok()) << health.error_message();
+  EXPECT_EQ(reply, std::string("\x08\x01", 2));  // SERVING
+}
+
+TEST(ShapeIdServerTest, AUnixSocketIsReportedByItsPath) {
+  const std::string socket = ScratchDir() + ".sock";
+  ServerOptions options;
+  options.listen = "unix:" + socket;
+  auto server = ShapeIdServer::Start(options);
+  ASSERT_TRUE(server.ok()) << server.status();
+  EXPECT_EQ((*server)->address(), "unix:" + socket);
+  EXPECT_TRUE(ClientFor(**server)->CheckHealth().ok());
+  unlink(socket.c_str());
 }
 
 TEST(ShapeIdServerTest, ADamagedStoreNeverServes) {

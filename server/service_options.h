@@ -6,6 +6,7 @@
 
 #include "absl/time/time.h"
 #include "core/descriptor_registry.h"
+#include "server/work_scheduler.h"
 
 namespace shapeid {
 
@@ -32,6 +33,15 @@ struct ServiceOptions {
   absl::Duration max_call = absl::Minutes(10);
   // Spec used by Describe when neither a spec nor a gallery is given.
   std::string default_descriptor_spec = kDefaultDescriptorSpec;
+  // The memory calls may hold beyond the galleries: clouds in transit and describing's
+  // working memory (server/memory_budget.h). 0: DefaultMemoryBudgetBytes(), half of what the
+  // process may use. A call that would pass it is refused RESOURCE_EXHAUSTED, or its work
+  // waits for memory that other calls will give back.
+  size_t memory_budget_bytes = 0;
+  // The part of the budget one caller (an API key, else a client host) may hold.
+  double memory_caller_share = 0.5;
+  // The workers describing, searching and store writes run on (server/work_scheduler.h).
+  WorkSchedulerOptions work;
 };
 
 }  // namespace shapeid

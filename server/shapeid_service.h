@@ -4,15 +4,15 @@
 #include <memory>
 #include <utility>
 
-#include "absl/status/statusor.h"
-#include "absl/strings/string_view.h"
 #include "core/gallery/gallery_registry.h"
-#include "core/point_cloud.h"
+#include "server/admitted_call.h"
 #include "server/api_keys.h"
 #include "server/call_gate.h"
 #include "server/call_observer.h"
+#include "server/memory_budget.h"
+#include "server/server_stats.h"
 #include "server/service_options.h"
-#include "server/stream_reactor.h"
+#include "server/work_scheduler.h"
 #include "shapeid/v1/shapeid.grpc.pb.h"
 
 namespace shapeid {
@@ -38,32 +38,27 @@ using ShapeIdRawService =
                                                     v1::ShapeId::CallbackService>>>>>>>>>>>>>>;
 
 // The gRPC edge of shapeid: each method turns its messages into calls on core/ (descriptors,
-// the gallery registry) and the result into one status through ToGrpcStatus
-// (server/grpc_status.h). All state lives in the registry; thread-safe.
+// the gallery registry) and the result into one status (server/grpc_status.h). All state
+// lives in the registry; thread-safe.
 //
-// The streaming methods do their CPU work (describing a cloud) on gRPC's callback threads
-// when the stream ends; a 100,000-point cloud costs about 2 ms there.
-//
-// Every call passes the call gate first (server/call_gate.h): with `keys` non-empty, its API
-// key must cover the method's scope (server/authorization.h); streams are counted per client
-// and ended at the ceiling of `options`. Every call, admitted or not, is reported once to the
-// observer when it is answered: a log line and the metrics (server/call_observer.h).
+// Every call is admitted the same way (server/admitted_call.h): the call gate (API key and
+// scope, server state, a stream's slot; server/call_gate.h), the memory it holds, and one
+// report to the observer when it is answered (a log line and the metrics). gRPC's threads only
+// move bytes: describing, searching and store writes run on the service's work scheduler
+// (server/work_scheduler.h), admitted by estimated cost into cheap, heavy and store lanes and
+// shared fairly between callers, so that health checks and cheap calls never wait behind a
+// heavy one (docs/reliability.md). Clouds in transit and describing's working memory come
+// from one memory budget (server/memory_budget.h).
 class ShapeIdService final : public ShapeIdRawService {
  public:
   ShapeIdService(ServiceOptions options, std::shared_ptr<GalleryRegistry> registry,
-                 std::shared_ptr<const ApiKeyStore> keys = nullptr, CallObserver observer = {})
-      : options_(std::move(options)),
-        registry_(std::move(registry)),
-        gate_(std::move(keys), options_.max_streams_per_client, options_.max_call),
-        observer_(std::move(observer)) {}
+                 std::shared_ptr<const ApiKeyStore> keys = nullptr, CallObserver observer = {});
+  // Stops the scheduler: queued work is dropped, running work finishes first. The gRPC
+  // server must be shut down before (its calls need their answers).
+  ~ShapeIdService() override;
 
   // What GetServerStats reports about the server around the service; set once, before
   // serving.
-  struct ServerDescription {
-    std::string store;            // "shapeid-data", "PostgreSQL db:5432/shapeid (shared)"
-    std::string metrics_address;  // empty: no endpoint
-    absl::Time started = absl::Now();
-  };
   void SetDescription(ServerDescription description) { description_ = std::move(description); }
 
   // Client streams: messages v1::DescribeRequest, TrainRequest, ClassifyRequest; answers
@@ -97,13 +92,9 @@ class ShapeIdService final : public ShapeIdRawService {
   grpc::ServerUnaryReactor* RemoveSamples(grpc::CallbackServerContext* context,
                                           const grpc::ByteBuffer* raw_request,
                                           grpc::ByteBuffer* raw_response) override;
-  // Streams one snapshot of the gallery (server/gallery_export.h), so training during the
-  // export does not tear it; stops at the first failed write (client gone, deadline).
+  // server/transfer_calls.h.
   grpc::ServerWriteReactor<v1::GalleryExportChunk>* ExportGallery(
       grpc::CallbackServerContext* context, const v1::ExportGalleryRequest* request) override;
-  // Assembles and checks the export as it arrives (the first error ends the call), then
-  // GalleryRegistry::Import: all-or-nothing. Messages v1::ImportGalleryRequest; answer
-  // v1::Gallery.
   grpc::ServerReadReactor<grpc::ByteBuffer>* ImportGallery(grpc::CallbackServerContext* context,
                                                            grpc::ByteBuffer* response) override;
 
@@ -111,9 +102,9 @@ class ShapeIdService final : public ShapeIdRawService {
                                             const grpc::ByteBuffer* raw_request,
                                             grpc::ByteBuffer* raw_response) override;
 
-  // Operations (docs/operations.md): v1::ServerStats from the metrics, the registry and the
-  // call gate; SetLogLevel changes the observer's logger (INVALID_ARGUMENT for an unknown
-  // level; FAILED_PRECONDITION for a service without a logger).
+  // Operations (docs/operations.md), answered on gRPC's thread in every state: v1::ServerStats
+  // (server/server_stats.h); SetLogLevel changes the observer's logger (INVALID_ARGUMENT for an
+  // unknown level; FAILED_PRECONDITION for a service without a logger).
   grpc::ServerUnaryReactor* GetServerStats(grpc::CallbackServerContext* context,
                                            const grpc::ByteBuffer* raw_request,
                                            grpc::ByteBuffer* raw_response) override;
@@ -134,16 +125,17 @@ class ShapeIdService final : public ShapeIdRawService {
   void StartDraining() { gate_.tracker().StartDraining(); }
   int64_t calls_in_flight() const { return gate_.tracker().in_flight(); }
   bool serving() const { return gate_.tracker().state() == CallTracker::State::kServing; }
+  const WorkScheduler& scheduler() const { return scheduler_; }
+  const MemoryBudget& budget() const { return *budget_; }
 
  private:
-  // The cloud of a DescribeCloud or ClassifyCloud request, checked as a stream's would be.
-  absl::StatusOr<PointCloud> CloudInOneMessage(uint64_t expected_points,
-                                               absl::string_view xyz) const;
-
   const ServiceOptions options_;
   const std::shared_ptr<GalleryRegistry> registry_;
   CallGate gate_;
   const CallObserver observer_;
+  const std::shared_ptr<MemoryBudget> budget_;
+  WorkScheduler scheduler_;
+  const ServiceRuntime runtime_;
   ServerDescription description_;
 };
 

@@ -3,95 +3,87 @@
 
 #include <mutex>
 #include <optional>
+#include <utility>
 
 #include "absl/base/thread_annotations.h"
 #include "absl/status/status.h"
+#include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "grpcpp/grpcpp.h"
 #include "grpcpp/impl/codegen/proto_utils.h"
 #include "grpcpp/support/byte_buffer.h"
-#include "server/call_gate.h"
-#include "server/call_observer.h"
-#include "server/ceiling_alarm.h"
+#include "server/admitted_call.h"
 #include "server/grpc_status.h"
 
 namespace shapeid {
 
-// The shape every client-streaming RPC of the service shares: pass the call gate, read
-// messages one by one, hand each to OnMessage, and when the client half-closes, answer with
-// OnEnd. The first error either returns ends the call at once with that status (the rest of
-// the stream is not read).
+// The shape every client-streaming RPC of the service shares: admit the call
+// (server/admitted_call.h), read messages one by one and hand each to OnMessage, and when the
+// client half-closes, run what OnEnd returns and answer. OnMessage and OnEnd run on gRPC's
+// threads and only move bytes and check headers; the work they return (describing a cloud, a
+// commit) runs on the scheduler, and the stream reads its next message only when that work is
+// done, so a client cannot run ahead of the server's workers. The first error ends the call at
+// once with that status (the rest of the stream is not read).
 //
 // The messages arrive as bytes (the service registers its streams raw) and are parsed here:
 // gRPC's own parsing reports a message that does not parse exactly as it reports the end of
 // the stream, so a Train stream with a damaged last message would commit the samples before
 // it. Here such a message is INVALID_ARGUMENT and the stream keeps nothing. A cancelled call
-// (client gone, deadline passed) ends without calling OnEnd, so a cut Train stream publishes
-// nothing. A stream still reading at the server's ceiling (CallGate::CutOff) is ended
-// DEADLINE_EXCEEDED, also without OnEnd; once OnEnd has started, the call is left to finish with
-// its answer. Deletes itself when gRPC is done with it. Every call, refused or not, is reported
-// once to the observer (a log line, the metrics) with the status it is finished with.
+// (client gone, deadline passed) ends without running OnEnd's work, so a cut Train stream
+// publishes nothing. A stream still reading at the server's ceiling (CallGate::CutOff) is
+// ended DEADLINE_EXCEEDED; one whose work runs at the ceiling is ended so when that work
+// returns, unless it was OnEnd's, which is left to finish with its answer. Deletes itself when
+// gRPC is done with it. Every call, refused or not, is reported once to the observer with the
+// status it is finished with.
 template <typename Request, typename Response>
 class StreamReactor : public grpc::ServerReadReactor<grpc::ByteBuffer> {
  public:
   // `method` is the full name ("/shapeid.v1.ShapeId/Train"); `response` is where gRPC takes
   // the serialised answer from.
-  StreamReactor(grpc::CallbackServerContext* context, CallGate* gate,
-                const CallObserver* observer, absl::string_view method,
-                grpc::ByteBuffer* response)
+  StreamReactor(grpc::CallbackServerContext* context, const ServiceRuntime& runtime,
+                absl::string_view method, grpc::ByteBuffer* response)
       : context_(context),
-        gate_(gate),
-        observer_(observer),
-        method_(method.substr(method.rfind('/') + 1)),
         raw_response_(response),
-        call_(observer->Start(*context, method)),
-        pass_(gate->Admit(*context, method, CallGate::Kind::kStream)) {}
+        call_(context, runtime, method, CallGate::Kind::kStream) {}
 
   // Call once, at the end of the derived constructor: starts reading, or refuses the call.
   void StartReading() {
-    if (!pass_.ok()) {
-      std::lock_guard<std::mutex> lock(mu_);
-      FinishLocked(ToGrpcStatus(pass_.status()));
+    std::lock_guard<std::mutex> lock(mu_);
+    if (!call_.admission().ok()) {
+      FinishLocked(ToGrpcStatus(call_.admission()));
       return;
     }
-    call_.caller = std::string(pass_->caller());
-    if (const std::optional<absl::Time> cut = gate_->CutOff(*context_)) {
-      ceiling_.Arm(*cut, [this] { Cut(); });
-    }
-    std::lock_guard<std::mutex> lock(mu_);
-    if (state_ == State::kReading) this->StartRead(&raw_request_);
+    call_.ArmCeiling(absl::ZeroDuration(), [this] { Cut(); });
+    this->StartRead(&raw_request_);
   }
 
  protected:
-  virtual absl::Status OnMessage(const Request& request) = 0;
-  // Fills response() when the stream ends well.
-  virtual absl::Status OnEnd() = 0;
+  // A message, parsed. Returns nothing to read on, or work to run first.
+  virtual absl::StatusOr<std::optional<Work>> OnMessage(const Request& request) = 0;
+  // The client half-closed: the work that fills response() (it may be Work::Inline).
+  virtual absl::StatusOr<Work> OnEnd() = 0;
   Response* response() { return &response_; }
-  // What the call reports when it ends: derived reactors fill in gallery, points, samples.
-  CallRecord& call() { return call_; }
-  const CallObserver& observer() const { return *observer_; }
+  AdmittedCall& call() { return call_; }
 
  private:
-  enum class State { kReading, kEnding, kFinished };
+  // kWorking: work of OnMessage runs on the scheduler; no read is outstanding.
+  enum class State { kReading, kWorking, kEnding, kFinished };
 
   // gRPC runs neither OnReadDone nor OnDone inside StartRead or Finish (their reactions are
   // scheduled), so calling them under mu_ cannot deadlock.
   // `report`: tell the observer now. Only the ceiling's Cut passes false: OnMessage may still
-  // be filling in call_ on another thread, so OnDone reports it instead.
+  // be filling in the record on another thread, so OnDone reports it instead.
   void FinishLocked(grpc::Status status, bool report = true) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
     state_ = State::kFinished;
-    if (pass_.ok()) pass_->ReleaseSlot();
     if (status.ok()) {
       bool own_buffer = false;
       status =
           grpc::SerializationTraits<Response>::Serialize(response_, raw_response_, &own_buffer);
     }
-    final_status_ = status;
     // Before Finish, so that a client that has its answer finds the call in the log and the
     // metrics.
-    if (report) observer_->Finish(call_, status);
-    this->Finish(status);
+    this->Finish(call_.Conclude(status, report));
   }
 
   // The message just read, parsed into request_.
@@ -101,7 +93,7 @@ class StreamReactor : public grpc::ServerReadReactor<grpc::ByteBuffer> {
     if (grpc::SerializationTraits<Request>::Deserialize(&raw_request_, &request_).ok()) {
       return absl::OkStatus();
     }
-    return absl::InvalidArgumentError(absl::StrCat(method_, ": message ", messages_,
+    return absl::InvalidArgumentError(absl::StrCat(call_.method(), ": message ", messages_,
                                                    " of the stream is not a valid ",
                                                    Request::descriptor()->full_name(),
                                                    " (damaged, or from another protocol version); "
@@ -110,62 +102,91 @@ class StreamReactor : public grpc::ServerReadReactor<grpc::ByteBuffer> {
 
   void OnReadDone(bool ok) override {
     if (!ok) {
-      {
-        std::lock_guard<std::mutex> lock(mu_);
-        if (state_ != State::kReading) return;  // cut at the ceiling
-        state_ = State::kEnding;                // from here the ceiling leaves the call alone
-      }
-      const grpc::Status status =
-          context_->IsCancelled()
-              ? grpc::Status(grpc::StatusCode::CANCELLED, "the call was cancelled")
-              : ToGrpcStatus(OnEnd());
-      std::lock_guard<std::mutex> lock(mu_);
-      FinishLocked(status);
+      End();
       return;
     }
     // The ceiling may end the call while OnMessage works; its work is then dropped.
-    absl::Status status = ParseRequest();
-    if (status.ok()) status = OnMessage(request_);
-    std::lock_guard<std::mutex> lock(mu_);
+    const absl::Status parsed = ParseRequest();
+    absl::StatusOr<std::optional<Work>> next =
+        parsed.ok() ? OnMessage(request_) : absl::StatusOr<std::optional<Work>>(parsed);
+    std::unique_lock<std::mutex> lock(mu_);
     if (state_ != State::kReading) return;
-    if (!status.ok()) {
-      FinishLocked(ToGrpcStatus(status));
+    if (!next.ok()) {
+      FinishLocked(ToGrpcStatus(next.status()));
       return;
     }
-    this->StartRead(&raw_request_);
+    if (!next->has_value()) {
+      this->StartRead(&raw_request_);
+      return;
+    }
+    state_ = State::kWorking;
+    lock.unlock();
+    call_.Run(**std::move(next), [this](absl::Status status) {
+      std::lock_guard<std::mutex> done_lock(mu_);
+      if (state_ != State::kWorking) return;
+      if (status.ok() && cut_) status = CeilingExceeded(call_.max_call());
+      if (!status.ok()) {
+        FinishLocked(ToGrpcStatus(status));
+        return;
+      }
+      state_ = State::kReading;
+      this->StartRead(&raw_request_);
+    });
+  }
+
+  // The client half-closed (or the call was cancelled): run OnEnd's work and answer.
+  void End() {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (state_ != State::kReading) return;  // cut at the ceiling
+      state_ = State::kEnding;                // from here the ceiling leaves the call alone
+    }
+    if (context_->IsCancelled()) {
+      std::lock_guard<std::mutex> lock(mu_);
+      FinishLocked(grpc::Status(grpc::StatusCode::CANCELLED, "the call was cancelled"));
+      return;
+    }
+    absl::StatusOr<Work> work = OnEnd();
+    if (!work.ok()) {
+      std::lock_guard<std::mutex> lock(mu_);
+      FinishLocked(ToGrpcStatus(work.status()));
+      return;
+    }
+    call_.Run(*std::move(work), [this](const absl::Status& status) {
+      std::lock_guard<std::mutex> lock(mu_);
+      FinishLocked(ToGrpcStatus(status));
+    });
   }
 
   // The ceiling alarm. Finishing with a read outstanding is allowed; that read then ends
-  // with ok = false.
+  // with ok = false. Work running now is left to return first.
   void Cut() {
     std::lock_guard<std::mutex> lock(mu_);
+    if (state_ == State::kWorking) cut_ = true;
     if (state_ != State::kReading) return;
-    FinishLocked(ToGrpcStatus(CeilingExceeded(gate_->max_call())), /*report=*/false);
+    FinishLocked(ToGrpcStatus(CeilingExceeded(call_.max_call())), /*report=*/false);
   }
 
   void OnDone() override {
-    ceiling_.Disarm();
+    call_.DisarmCeiling();
     // A call cut at the ceiling is reported here, after every other reaction (a no-op for
     // the others, reported when finished).
-    observer_->Finish(call_, final_status_);
-    delete this;  // releases the pass: out of the in-flight count, the stream slot free
+    call_.Report();
+    // Whoever called Finish may still hold mu_ for a moment.
+    { std::lock_guard<std::mutex> lock(mu_); }
+    delete this;
   }
 
   grpc::CallbackServerContext* const context_;
-  CallGate* const gate_;
-  const CallObserver* const observer_;
-  const absl::string_view method_;  // "Train", for messages
   grpc::ByteBuffer* const raw_response_;
-  CallRecord call_;  // before pass_: a refused call is reported too
-  absl::StatusOr<CallGate::Pass> pass_;
-  CeilingAlarm ceiling_;
+  AdmittedCall call_;
   std::mutex mu_;
   State state_ ABSL_GUARDED_BY(mu_) = State::kReading;
+  bool cut_ ABSL_GUARDED_BY(mu_) = false;
   grpc::ByteBuffer raw_request_;
   Request request_;
   int64_t messages_ = 0;
   Response response_;
-  grpc::Status final_status_;
 };
 
 }  // namespace shapeid

@@ -66,9 +66,10 @@ class Journal {
   std::function<void(const WorkStart&)> Entry(std::string name) {
     return [this, name](const WorkStart& start) {
       std::lock_guard<std::mutex> lock(mu_);
-      names_.push_back(start.status.ok()
-                           ? name
-                           : absl::StrCat(name, ":", absl::StatusCodeToString(start.status.code())));
+      names_.push_back(
+          start.status.ok()
+              ? name
+              : absl::StrCat(name, ":", absl::StatusCodeToString(start.status.code())));
       added_.notify_all();
     };
   }
@@ -94,7 +95,8 @@ TEST(WorkSchedulerTest, SendsWorkToTheLaneItsCostAndKindSay) {
   EXPECT_EQ(scheduler.LaneFor(store), WorkLane::kStore);
 
   std::promise<WorkStart> ran;
-  ASSERT_TRUE(scheduler.Submit(Order("a", kHeavy), [&](const WorkStart& s) { ran.set_value(s); }).ok());
+  ASSERT_TRUE(
+      scheduler.Submit(Order("a", kHeavy), [&](const WorkStart& s) { ran.set_value(s); }).ok());
   const WorkStart start = ran.get_future().get();
   EXPECT_TRUE(start.status.ok());
   EXPECT_EQ(start.lane, WorkLane::kHeavy);
@@ -148,8 +150,8 @@ TEST(WorkSchedulerTest, DropsWorkWhoseDeadlinePassedOrWhoseCallWasCancelled) {
   ASSERT_TRUE(scheduler.Submit(Order("d", kHeavy), journal.Entry("kept")).ok());
   cancelled = true;
   // Both are dropped while the only worker is still busy: their calls end at once.
-  EXPECT_THAT(journal.WaitFor(2), testing::UnorderedElementsAre("late:DEADLINE_EXCEEDED",
-                                                                "gone:CANCELLED"));
+  EXPECT_THAT(journal.WaitFor(2),
+              testing::UnorderedElementsAre("late:DEADLINE_EXCEEDED", "gone:CANCELLED"));
   busy.Release();
   EXPECT_THAT(journal.WaitFor(3).back(), "kept");
 }
@@ -162,10 +164,13 @@ TEST(WorkSchedulerTest, WorkWaitsForItsMemoryAndHoldsItWhileItRuns) {
   std::promise<size_t> seen;
   WorkOrder order = Order("a", kCheap);
   order.memory = 600;
-  ASSERT_TRUE(scheduler.Submit(order, [&](const WorkStart& start) {
-                         EXPECT_TRUE(start.status.ok());
-                         seen.set_value(budget->held_bytes());
-                       }).ok());
+  ASSERT_TRUE(scheduler
+                  .Submit(order,
+                          [&](const WorkStart& start) {
+                            EXPECT_TRUE(start.status.ok());
+                            seen.set_value(budget->held_bytes());
+                          })
+                  .ok());
   absl::SleepFor(absl::Milliseconds(50));
   EXPECT_EQ(scheduler.stats(WorkLane::kCheap).queued, 1);  // 700 + 600 > 1000: it waits
   held->Release();

@@ -136,10 +136,10 @@ absl::StatusOr<std::unique_ptr<GallerySnapshot>> Gallery::EmptySnapshot(
                            KnnIndex::Create(static_cast<int>(descriptor->dimension())));
   const DescriptorKind* kind = FindDescriptorKind(descriptor->spec().kind);
   const uint32_t descriptor_version = kind != nullptr ? kind->version : 0;
-  return std::unique_ptr<GallerySnapshot>(new GallerySnapshot(
-      std::move(name), std::move(canonical),
-      std::shared_ptr<const Descriptor>(std::move(descriptor)), std::move(index), created,
-      descriptor_version, kShapeidVersion));
+  return std::unique_ptr<GallerySnapshot>(
+      new GallerySnapshot(std::move(name), std::move(canonical),
+                          std::shared_ptr<const Descriptor>(std::move(descriptor)),
+                          std::move(index), created, descriptor_version, kShapeidVersion));
 }
 
 absl::StatusOr<std::unique_ptr<GallerySnapshot>> Gallery::StoredSnapshot(
@@ -150,11 +150,12 @@ absl::StatusOr<std::unique_ptr<GallerySnapshot>> Gallery::StoredSnapshot(
       CreateDescriptor(stored.options.descriptor_spec);
   std::string incompatible;
   if (!descriptor.ok()) {
-    incompatible = absl::StrCat("gallery '", stored.name, "' was made with descriptor spec '",
-                                stored.options.descriptor_spec, "' by shapeid ",
-                                stored.software_version, ", which this server (shapeid ",
-                                kShapeidVersion, ") cannot compute: ", descriptor.status().message(),
-                                ". Export it to a server that can, or retrain it");
+    incompatible =
+        absl::StrCat("gallery '", stored.name, "' was made with descriptor spec '",
+                     stored.options.descriptor_spec, "' by shapeid ", stored.software_version,
+                     ", which this server (shapeid ", kShapeidVersion,
+                     ") cannot compute: ", descriptor.status().message(),
+                     ". Export it to a server that can, or retrain it");
   } else {
     const DescriptorKind* kind = FindDescriptorKind((*descriptor)->spec().kind);
     const uint32_t ours = kind != nullptr ? kind->version : 0;
@@ -166,10 +167,10 @@ absl::StatusOr<std::unique_ptr<GallerySnapshot>> Gallery::StoredSnapshot(
           ", and the two are not comparable. Classify on a server running shapeid ",
           stored.software_version, ", or retrain the gallery");
     } else if (static_cast<int>((*descriptor)->dimension()) != stored.dimension) {
-      incompatible = absl::StrCat("gallery '", stored.name, "' stores ", stored.dimension,
-                                  " features per sample but its spec '",
-                                  stored.options.descriptor_spec, "' computes ",
-                                  (*descriptor)->dimension(), " here. Retrain the gallery");
+      incompatible =
+          absl::StrCat("gallery '", stored.name, "' stores ", stored.dimension,
+                       " features per sample but its spec '", stored.options.descriptor_spec,
+                       "' computes ", (*descriptor)->dimension(), " here. Retrain the gallery");
     }
   }
   SHAPEID_ASSIGN_OR_RETURN(KnnIndex index, KnnIndex::Create(stored.dimension));
@@ -181,9 +182,9 @@ absl::StatusOr<std::unique_ptr<GallerySnapshot>> Gallery::StoredSnapshot(
     options.descriptor_spec = (*descriptor)->spec().ToString();
     shared = *std::move(descriptor);
   }
-  auto snapshot = std::unique_ptr<GallerySnapshot>(new GallerySnapshot(
-      stored.name, std::move(options), std::move(shared), std::move(index), stored.created,
-      stored.descriptor_version, stored.software_version));
+  auto snapshot = std::unique_ptr<GallerySnapshot>(
+      new GallerySnapshot(stored.name, std::move(options), std::move(shared), std::move(index),
+                          stored.created, stored.descriptor_version, stored.software_version));
   snapshot->incompatible_ = std::move(incompatible);
   return snapshot;
 }
@@ -193,8 +194,8 @@ uint64_t NewGalleryIncarnation() {
   // Seeded with 256 bits: replicas started together must not draw the same sequence.
   static std::mt19937_64 engine = [] {
     std::random_device device;
-    std::seed_seq seed{device(), device(), device(), device(), device(), device(), device(),
-                       device()};
+    std::seed_seq seed{device(), device(), device(), device(),
+                       device(), device(), device(), device()};
     return std::mt19937_64(seed);
   }();
   std::lock_guard<std::mutex> lock(mu);
@@ -234,8 +235,8 @@ absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Restore(const StoredGallery& s
     if (sample.id >= kFirstAssignedId) next_assigned = std::max(next_assigned, sample.id + 1);
   }
   if (approximate == ApproximateBuild::kNow) {
-    if (absl::Status s = snapshot->index_.UpdateApproximate(limits.approximate,
-                                                            snapshot->options_.knn.scaling);
+    if (absl::Status s =
+            snapshot->index_.UpdateApproximate(limits.approximate, snapshot->options_.knn.scaling);
         !s.ok()) {
       return Prefixed(where, s);
     }
@@ -317,8 +318,7 @@ absl::StatusOr<T> Gallery::RetryIfStale(const std::function<absl::StatusOr<T>()>
       // with the attempts (up to 50 ms), lets this one in.
       thread_local std::mt19937 jitter(std::random_device{}());
       const int cap_ms = std::min(50, 1 << std::min(attempt, 6));
-      absl::SleepFor(absl::Milliseconds(
-          std::uniform_int_distribution<int>(0, cap_ms)(jitter)));
+      absl::SleepFor(absl::Milliseconds(std::uniform_int_distribution<int>(0, cap_ms)(jitter)));
     }
     // A shared store found this server's copy behind: apply what the others wrote, then
     // rebuild the change on top of it (outside the writer lock, which catching up needs).
@@ -370,8 +370,7 @@ absl::StatusOr<CommitResult> Gallery::CommitBatchOnce(std::vector<StoredSample>&
   next->version_ = current->version_ + 1;
   next->updated_ = std::max(absl::Now(), current->updated_);
   if (store_ != nullptr) {
-    SHAPEID_RETURN_IF_ERROR(
-        store_->AppendSamples(name_, samples, next->updated_, next->version_));
+    SHAPEID_RETURN_IF_ERROR(store_->AppendSamples(name_, samples, next->updated_, next->version_));
   }
   result.version = next->version_;
   Publish(std::move(next));
@@ -386,22 +385,34 @@ absl::Status Gallery::UpdateApproximateIndex(const std::atomic<bool>* cancel) {
     return absl::OkStatus();
   }
   std::shared_ptr<GallerySnapshot> next(new GallerySnapshot(*current));
-  SHAPEID_RETURN_IF_ERROR(next->index_.UpdateApproximate(
-      limits_.approximate, next->options_.knn.scaling, cancel));
+  SHAPEID_RETURN_IF_ERROR(
+      next->index_.UpdateApproximate(limits_.approximate, next->options_.knn.scaling, cancel));
   Publish(std::move(next));
   return absl::OkStatus();
 }
 
-absl::StatusOr<int64_t> Gallery::RemoveSamples(absl::Span<const uint64_t> ids) {
-  return RetryIfStale<int64_t>([&] { return RemoveSamplesOnce(ids); });
+absl::StatusOr<int64_t> Gallery::RemoveSamples(absl::Span<const uint64_t> ids,
+                                               absl::Span<const std::string> labels) {
+  return RetryIfStale<int64_t>([&] { return RemoveSamplesOnce(ids, labels); });
 }
 
-absl::StatusOr<int64_t> Gallery::RemoveSamplesOnce(absl::Span<const uint64_t> ids) {
+absl::StatusOr<int64_t> Gallery::RemoveSamplesOnce(absl::Span<const uint64_t> ids,
+                                                   absl::Span<const std::string> labels) {
   std::lock_guard<std::mutex> lock(writer_mu_);
   if (deleted_) return DeletedError();
   const std::shared_ptr<const GallerySnapshot> current = Snapshot();
   std::vector<uint64_t> unique;
   absl::flat_hash_set<uint64_t> seen;
+  for (const std::string& label : labels) {
+    const std::vector<uint64_t> labelled = current->IdsWithLabel(label);
+    if (labelled.empty()) {
+      return absl::NotFoundError(absl::StrCat("gallery '", name_, "' has no samples labelled '",
+                                              absl::CHexEscape(label), "'; nothing was removed"));
+    }
+    for (uint64_t id : labelled) {
+      if (seen.insert(id).second) unique.push_back(id);
+    }
+  }
   for (uint64_t id : ids) {
     if (!seen.insert(id).second) continue;
     if (!current->Contains(id)) {
@@ -411,22 +422,6 @@ absl::StatusOr<int64_t> Gallery::RemoveSamplesOnce(absl::Span<const uint64_t> id
     unique.push_back(id);
   }
   return RemoveLocked(*current, std::move(unique));
-}
-
-absl::StatusOr<int64_t> Gallery::RemoveLabel(absl::string_view label) {
-  return RetryIfStale<int64_t>([&] { return RemoveLabelOnce(label); });
-}
-
-absl::StatusOr<int64_t> Gallery::RemoveLabelOnce(absl::string_view label) {
-  std::lock_guard<std::mutex> lock(writer_mu_);
-  if (deleted_) return DeletedError();
-  const std::shared_ptr<const GallerySnapshot> current = Snapshot();
-  std::vector<uint64_t> ids = current->IdsWithLabel(label);
-  if (ids.empty()) {
-    return absl::NotFoundError(absl::StrCat("gallery '", name_, "' has no samples labelled '",
-                                            absl::CHexEscape(label), "'"));
-  }
-  return RemoveLocked(*current, std::move(ids));
 }
 
 absl::StatusOr<int64_t> Gallery::RemoveLocked(const GallerySnapshot& current,

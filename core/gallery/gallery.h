@@ -149,8 +149,8 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
   // later UpdateApproximateIndex, so that a server can load and serve (exactly) at once.
   enum class ApproximateBuild { kNow, kLater };
   static absl::StatusOr<std::shared_ptr<Gallery>> Restore(
-      const StoredGallery& stored, const GalleryLimits& limits,
-      std::shared_ptr<GalleryStore> store, ApproximateBuild approximate = ApproximateBuild::kNow);
+      const StoredGallery& stored, const GalleryLimits& limits, std::shared_ptr<GalleryStore> store,
+      ApproximateBuild approximate = ApproximateBuild::kNow);
 
   Gallery(const Gallery&) = delete;
   Gallery& operator=(const Gallery&) = delete;
@@ -166,12 +166,12 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
   // NewBatch, AddSample for each, Commit.
   absl::StatusOr<CommitResult> Train(absl::Span<const LabelledCloud> samples);
 
-  // Removes the samples with these ids (duplicates ignored) and returns how many were
-  // removed. NotFound naming the first absent id, with nothing removed. O(num_samples *
-  // dimension): remove in batches.
-  absl::StatusOr<int64_t> RemoveSamples(absl::Span<const uint64_t> ids);
-  // Removes every sample labelled `label`. NotFound if there is none.
-  absl::StatusOr<int64_t> RemoveLabel(absl::string_view label);
+  // Removes the samples with these ids and those labelled with one of `labels` (their
+  // union; duplicates ignored), resolved against the gallery as it is when the removal runs,
+  // and returns how many were removed. All or nothing: NotFound naming the first label with
+  // no sample or the first absent id. O(num_samples * dimension): remove in batches.
+  absl::StatusOr<int64_t> RemoveSamples(absl::Span<const uint64_t> ids,
+                                        absl::Span<const std::string> labels = {});
 
   // Brings the approximate index in step with limits().approximate when it is not (a gallery
   // restored with ApproximateBuild::kLater): publishes a snapshot with the same samples and
@@ -217,8 +217,8 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
 
   absl::StatusOr<CommitResult> CommitBatch(std::vector<StoredSample>& samples);
   absl::StatusOr<CommitResult> CommitBatchOnce(std::vector<StoredSample>& samples);
-  absl::StatusOr<int64_t> RemoveSamplesOnce(absl::Span<const uint64_t> ids);
-  absl::StatusOr<int64_t> RemoveLabelOnce(absl::string_view label);
+  absl::StatusOr<int64_t> RemoveSamplesOnce(absl::Span<const uint64_t> ids,
+                                            absl::Span<const std::string> labels);
   // The frame of ApplyStoredAppend / ApplyStoredRemove: under the writer lock, skip a change
   // held already, refuse a gap, else `change` a copy of the snapshot and publish it.
   absl::Status ApplyStored(absl::Time updated, uint64_t version,

@@ -141,7 +141,7 @@ TEST(GalleryRegistryTest, DeletedGalleryNeverWritesToItsSuccessor) {
   const auto late = in_flight.Commit();
   EXPECT_EQ(late.status().code(), absl::StatusCode::kNotFound);
   EXPECT_THAT(late.status().message(), HasSubstr("was deleted"));
-  EXPECT_EQ((*old)->RemoveLabel("box").status().code(), absl::StatusCode::kNotFound);
+  EXPECT_EQ((*old)->RemoveSamples({}, {"box"}).status().code(), absl::StatusCode::kNotFound);
   EXPECT_EQ((*fresh)->Snapshot()->num_samples(), 0);
   EXPECT_EQ(store->NumSamples("g"), 0);
   // Readers holding the old gallery still read it.
@@ -439,7 +439,7 @@ TEST(GalleryRegistryTest, AWriteOnAStaleReplicaCatchesUpAndRetriesWithFreshIds) 
 
   // A removal on A, which has not seen B's spheres: it catches up and finds them. Then both
   // copies agree.
-  auto removed = (*on_a)->RemoveLabel("sphere");
+  auto removed = (*on_a)->RemoveSamples({}, {"sphere"});
   ASSERT_TRUE(removed.ok()) << removed.status();
   EXPECT_EQ(*removed, 2);
   ASSERT_TRUE(store_b->CatchUp("g").ok());

@@ -345,13 +345,13 @@ TEST(GalleryTest, RemoveByIdAndByLabel) {
   EXPECT_THAT(missing.status().message(), HasSubstr("999"));
   EXPECT_EQ(g->Snapshot(), before);  // nothing removed, not even id 2
 
-  auto by_label = g->RemoveLabel("line");
+  auto by_label = g->RemoveSamples({}, {"line"});
   ASSERT_TRUE(by_label.ok());
   EXPECT_EQ(*by_label, 3);
   EXPECT_THAT(g->Snapshot()->LabelCounts(), ElementsAre(Pair("box", 2), Pair("sphere", 2)));
   EXPECT_FALSE(g->Snapshot()->Contains(7));
   EXPECT_EQ(store->NumSamples("shapes"), 4);
-  EXPECT_EQ(g->RemoveLabel("line").status().code(), absl::StatusCode::kNotFound);
+  EXPECT_EQ(g->RemoveSamples({}, {"line"}).status().code(), absl::StatusCode::kNotFound);
   EXPECT_EQ(g->Snapshot()->Classify(Line(9))->knn.neighbors[0].label != "line", true);
 
   auto none = g->RemoveSamples({});

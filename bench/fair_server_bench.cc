@@ -1,0 +1,292 @@
+// A shared server that one client cannot freeze (issue 25), at full size: one caller
+// ("abuser") streams heavy Describe calls (by default two at once, 10,000,000 points each,
+// the default dfsd) while another caller ("lab") classifies 1,024-point clouds with
+// ClassifyCloud and a probe checks grpc.health.v1 on the main port and on --health_listen,
+// each with the 3 s deadline of a Kubernetes probe. The lab's and the probes' latencies idle
+// and under the abuse, every failure by caller, the server's resident memory before and at
+// its peak against its memory budget.
+//
+//   fair_server_bench                        the build's shapeid-server, ~1 min
+//   fair_server_bench --server OLD/shapeid-server --no_budget_flags
+//                                            an older build (before issue 25) in the same way
+//   fair_server_bench --points 2000000 --seconds 5   smaller
+//
+// The server is a child process with its own data directory; the load generator shares the
+// machine, as in the issue's trial. Figures and their reading: docs/reliability.md.
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "CLI/CLI.hpp"
+#include "absl/strings/match.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/time/clock.h"
+#include "absl/time/time.h"
+#include "bench/bench_clouds.h"
+#include "client/client.h"
+#include "core/testing/test_clouds.h"
+#include "server/api_keys.h"
+#include "server/testing/child_server.h"
+
+namespace shapeid {
+namespace {
+
+constexpr char kAbuserKey[] = "abuser-key-0123456789abcdefghijklmnopqrstuv";
+constexpr char kLabKey[] = "lab-key-0123456789abcdefghijklmnopqrstuvwxyz";
+
+// A TCP port free on the loopback now (the kernel's pick), for --health_listen.
+int FreePort() {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t size = sizeof address;
+  int port = 0;
+  if (bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) == 0 &&
+      getsockname(fd, reinterpret_cast<sockaddr*>(&address), &size) == 0) {
+    port = ntohs(address.sin_port);
+  }
+  close(fd);
+  return port;
+}
+
+double Percentile(std::vector<double> v, double q) {  // nearest rank; 0 when empty
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1,
+                    static_cast<size_t>(q * static_cast<double>(v.size() - 1) + 0.5))];
+}
+
+std::unique_ptr<Client> Connect(const std::string& target, const std::string& key,
+                                absl::Duration deadline) {
+  ClientOptions options;
+  options.target = target;
+  options.api_key = key;
+  options.deadline = deadline;
+  options.max_attempts = 1;
+  absl::StatusOr<std::unique_ptr<Client>> client = Client::Connect(options);
+  if (!client.ok()) {
+    std::fprintf(stderr, "fair_server_bench: %s\n", client.status().ToString().c_str());
+    std::exit(1);
+  }
+  return *std::move(client);
+}
+
+// Latencies (ms) and failures of one kind of call during one phase.
+struct Series {
+  std::mutex mu;
+  std::vector<double> ms;
+  std::map<std::string, int> failures;  // status code -> count
+
+  void Add(absl::Time start, const absl::Status& status) {
+    const double elapsed = absl::ToDoubleMilliseconds(absl::Now() - start);
+    std::lock_guard<std::mutex> lock(mu);
+    if (status.ok()) {
+      ms.push_back(elapsed);
+    } else {
+      ++failures[std::string(absl::StatusCodeToString(status.code()))];
+    }
+  }
+  int FailureCount() {
+    std::lock_guard<std::mutex> lock(mu);
+    int count = 0;
+    for (const auto& [code, n] : failures) count += n;
+    return count;
+  }
+  std::string Failures() {
+    std::lock_guard<std::mutex> lock(mu);
+    std::string text;
+    for (const auto& [code, count] : failures) absl::StrAppend(&text, code, " x", count, " ");
+    return text.empty() ? "none" : text;
+  }
+};
+
+struct Phase {
+  Series classify, health_main, health_port, heavy;
+};
+
+// The lab classifies and the probe checks both ports until `stop`.
+void Observe(Client& lab, Client& main_probe, Client& port_probe, const PointCloud& query,
+             const std::atomic<bool>& stop, Phase& phase) {
+  std::thread prober([&] {
+    while (!stop.load()) {
+      absl::Time start = absl::Now();
+      phase.health_main.Add(start, main_probe.CheckHealth());
+      start = absl::Now();
+      phase.health_port.Add(start, port_probe.CheckHealth());
+      absl::SleepFor(absl::Milliseconds(20));
+    }
+  });
+  while (!stop.load()) {
+    const absl::Time start = absl::Now();
+    phase.classify.Add(start, lab.Classify("lab", query).status());
+  }
+  prober.join();
+}
+
+void PrintRow(const char* what, Series& idle, Series& abuse) {
+  std::printf(
+      "%-28s %9.2f %9.2f %10.2f %10.2f %8.1fx  %s\n", what, Percentile(idle.ms, 0.5),
+      Percentile(idle.ms, 0.99), Percentile(abuse.ms, 0.5), Percentile(abuse.ms, 0.99),
+      Percentile(idle.ms, 0.99) > 0 ? Percentile(abuse.ms, 0.99) / Percentile(idle.ms, 0.99) : 0.0,
+      abuse.Failures().c_str());
+}
+
+int Main(int argc, char** argv) {
+  CLI::App app("fair_server_bench: a heavy caller against a classifying one and health probes");
+  std::string server_path = SHAPEID_SERVER_PATH;
+  size_t points = 10'000'000;
+  int heavy = 2;
+  double seconds = 20;
+  double idle_seconds = 5;
+  bool no_budget_flags = false;
+  std::vector<std::string> extra;
+  app.add_option("--server", server_path, "the shapeid-server binary to measure");
+  app.add_option("--points", points, "points per heavy Describe");
+  app.add_option("--heavy", heavy, "heavy Describe streams the abuser keeps open at once");
+  app.add_option("--seconds", seconds, "the abuse phase lasts at least this long");
+  app.add_option("--idle_seconds", idle_seconds, "the idle phase");
+  app.add_flag("--no_budget_flags", no_budget_flags,
+               "a server without --memory_budget_mib (older than issue 25)");
+  app.add_option("--flag", extra, "an extra server flag (repeatable)");
+  CLI11_PARSE(app, argc, argv);
+
+  const std::string dir = absl::StrCat(std::filesystem::temp_directory_path().string(),
+                                       "/fair_server_bench_", getpid());
+  std::filesystem::create_directories(dir);
+  const std::string health_address = absl::StrCat("127.0.0.1:", FreePort());
+  std::vector<std::string> flags = {"--listen=127.0.0.1:0", "--health_listen=" + health_address,
+                                    "--data_dir=" + dir + "/data", "--log_level=warning",
+                                    absl::StrCat("--api_keys=abuser write ", Sha256Hex(kAbuserKey),
+                                                 ";lab write ", Sha256Hex(kLabKey))};
+  flags.insert(flags.end(), extra.begin(), extra.end());
+  ChildServer server;
+  if (absl::Status s = server.Start(server_path, flags, dir + "/server.stderr"); !s.ok()) {
+    std::fprintf(stderr, "fair_server_bench: %s\n", s.ToString().c_str());
+    return 1;
+  }
+  std::printf("server: %s (pid %d), health port %s; %u hardware threads\n", server_path.c_str(),
+              static_cast<int>(server.pid()), health_address.c_str(),
+              std::thread::hardware_concurrency());
+
+  std::unique_ptr<Client> lab = Connect(server.address(), kLabKey, absl::Seconds(30));
+  std::unique_ptr<Client> main_probe = Connect(server.address(), "", absl::Seconds(3));
+  std::unique_ptr<Client> port_probe = Connect(health_address, "", absl::Seconds(3));
+  v1::CreateGalleryRequest create;
+  create.set_name("lab");
+  if (absl::StatusOr<v1::Gallery> made = lab->CreateGallery(create); !made.ok()) {
+    std::fprintf(stderr, "CreateGallery: %s\n", made.status().ToString().c_str());
+    return 1;
+  }
+  std::vector<PointCloud> clouds;
+  for (uint32_t i = 0; i < 40; ++i) clouds.push_back(testing_clouds::ShapeCloud(i % 4, i, 1024));
+  std::vector<TrainSample> samples;
+  for (uint32_t i = 0; i < 40; ++i) samples.push_back({absl::StrCat("kind", i % 4), 0, &clouds[i]});
+  if (absl::StatusOr<v1::TrainResponse> trained = lab->Train("lab", samples); !trained.ok()) {
+    std::fprintf(stderr, "Train: %s\n", trained.status().ToString().c_str());
+    return 1;
+  }
+  const PointCloud query = testing_clouds::ShapeCloud(2, 1000, 1024);
+
+  Phase idle, abuse;
+  {
+    std::atomic<bool> stop{false};
+    std::thread observer([&] { Observe(*lab, *main_probe, *port_probe, query, stop, idle); });
+    absl::SleepFor(absl::Seconds(idle_seconds));
+    stop = true;
+    observer.join();
+  }
+  const int64_t rss_before = server.ResidentBytes();
+
+  const PointCloud huge = bench::SurfaceCloud(points, 7);
+  std::atomic<bool> stop{false};
+  std::atomic<int> described{0};
+  std::atomic<int64_t> rss_seen{0};
+  std::vector<std::thread> abusers;
+  const absl::Time abuse_start = absl::Now();
+  for (int i = 0; i < heavy; ++i) {
+    abusers.emplace_back([&] {
+      std::unique_ptr<Client> abuser = Connect(server.address(), kAbuserKey, absl::Minutes(10));
+      do {
+        const absl::Time start = absl::Now();
+        abuse.heavy.Add(start, abuser->Describe(huge).status());
+        described.fetch_add(1);
+      } while (!stop.load());
+    });
+  }
+  std::thread sampler([&] {
+    while (!stop.load()) {
+      rss_seen = std::max<int64_t>(rss_seen.load(), server.ResidentBytes());
+      absl::SleepFor(absl::Milliseconds(50));
+    }
+  });
+  std::thread observer([&] { Observe(*lab, *main_probe, *port_probe, query, stop, abuse); });
+  // At least `seconds`, and until every abuser stream has finished one describe.
+  while (absl::Now() - abuse_start < absl::Seconds(seconds) || described.load() < heavy) {
+    absl::SleepFor(absl::Milliseconds(100));
+  }
+  stop = true;
+  observer.join();
+  for (std::thread& thread : abusers) thread.join();
+  sampler.join();
+  const double abuse_seconds = absl::ToDoubleSeconds(absl::Now() - abuse_start);
+
+  uint64_t budget = 0, held_peak = 0;
+  if (absl::StatusOr<v1::ServerStats> stats = lab->GetServerStats(); stats.ok()) {
+    budget = stats->memory_budget_bytes();
+    held_peak = stats->memory_held_peak_bytes();
+  }
+  const int64_t rss_peak = std::max<int64_t>(server.PeakResidentBytes(), rss_seen.load());
+
+  std::printf(
+      "\nabuse: %d stream(s) of %zu-point Describe (default spec) for %.1f s; %zu "
+      "describes done, failures: %s\n",
+      heavy, points, abuse_seconds, abuse.heavy.ms.size(), abuse.heavy.Failures().c_str());
+  std::printf("\n%-28s %9s %9s %10s %10s %9s  %s\n", "ms", "idle p50", "idle p99", "abuse p50",
+              "abuse p99", "p99 ratio", "failures under abuse");
+  PrintRow("lab ClassifyCloud (1,024)", idle.classify, abuse.classify);
+  PrintRow("health, main port", idle.health_main, abuse.health_main);
+  PrintRow("health, --health_listen", idle.health_port, abuse.health_port);
+  std::printf("\ncalls: lab %zu idle, %zu under abuse; probes %zu / %zu under abuse\n",
+              idle.classify.ms.size(), abuse.classify.ms.size(), abuse.health_main.ms.size(),
+              abuse.health_port.ms.size());
+  std::printf(
+      "server memory: resident %.0f MiB before the abuse, peak %.0f MiB (+%.0f MiB); "
+      "budget %s, most held at once %.0f MiB\n",
+      rss_before / 1048576.0, rss_peak / 1048576.0, (rss_peak - rss_before) / 1048576.0,
+      no_budget_flags || budget == 0 ? "none" : absl::StrCat(budget >> 20, " MiB").c_str(),
+      held_peak / 1048576.0);
+  std::printf(
+      "{\"bench\":\"fair_server\",\"points\":%zu,\"heavy\":%d,\"classify_idle_p99_ms\":%.3f,"
+      "\"classify_abuse_p50_ms\":%.3f,\"classify_abuse_p99_ms\":%.3f,\"classify_failures\":%d,"
+      "\"health_main_abuse_p99_ms\":%.3f,\"health_port_abuse_p99_ms\":%.3f,"
+      "\"health_failures\":%d,\"rss_before_mib\":%.0f,\"rss_peak_mib\":%.0f,"
+      "\"budget_mib\":%llu}\n",
+      points, heavy, Percentile(idle.classify.ms, 0.99), Percentile(abuse.classify.ms, 0.5),
+      Percentile(abuse.classify.ms, 0.99), abuse.classify.FailureCount(),
+      Percentile(abuse.health_main.ms, 0.99), Percentile(abuse.health_port.ms, 0.99),
+      abuse.health_main.FailureCount() + abuse.health_port.FailureCount(), rss_before / 1048576.0,
+      rss_peak / 1048576.0, static_cast<unsigned long long>(budget >> 20));
+  server.Terminate(absl::Seconds(30));
+  std::filesystem::remove_all(dir);
+  return 0;
+}
+
+}  // namespace
+}  // namespace shapeid
+
+int main(int argc, char** argv) { return shapeid::Main(argc, argv); }

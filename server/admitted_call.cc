@@ -1,0 +1,127 @@
+#include "server/admitted_call.h"
+
+#include <algorithm>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+#include "server/grpc_status.h"
+#include "server/stream_limiter.h"
+
+namespace shapeid {
+
+Work Work::Inline(Step run) {
+  Work work;
+  work.pieces_.push_back(
+      Piece{/*inline_=*/true, /*store=*/false, absl::ZeroDuration(), 0, std::move(run)});
+  return work;
+}
+
+Work Work::Compute(absl::Duration cost, size_t memory, Step run) {
+  Work work;
+  work.pieces_.push_back(Piece{false, false, cost, memory, std::move(run)});
+  return work;
+}
+
+Work Work::Store(absl::Duration cost, Step run) {
+  Work work;
+  work.pieces_.push_back(Piece{false, /*store=*/true, cost, 0, std::move(run)});
+  return work;
+}
+
+Work Work::Then(Work next) && {
+  for (Piece& piece : next.pieces_) pieces_.push_back(std::move(piece));
+  return std::move(*this);
+}
+
+struct AdmittedCall::Chain {
+  std::vector<Work::Piece> pieces;
+  size_t next = 0;
+  std::function<void(absl::Status)> done;
+};
+
+AdmittedCall::AdmittedCall(grpc::CallbackServerContext* context, const ServiceRuntime& runtime,
+                           absl::string_view full_method, CallGate::Kind kind)
+    : context_(context),
+      runtime_(runtime),
+      record_(runtime.observer->Start(*context, full_method)) {
+  absl::StatusOr<CallGate::Pass> pass = runtime_.gate->Admit(*context, full_method, kind);
+  if (!pass.ok()) {
+    admission_ = pass.status();
+    return;
+  }
+  pass_.emplace(*std::move(pass));
+  record_.caller = std::string(pass_->caller());
+  caller_ =
+      record_.caller.empty() ? ClientOfPeer(context->peer()) : absl::StrCat("key:", record_.caller);
+  // Unary calls have no ceiling: their size is bounded by the message limit instead.
+  if (kind == CallGate::Kind::kStream) {
+    if (const std::optional<absl::Time> cut = runtime_.gate->CutOff(*context)) cut_off_ = *cut;
+  }
+  deadline_ = cut_off_;
+  const gpr_timespec raw = context->raw_deadline();
+  if (gpr_time_cmp(raw, gpr_inf_future(raw.clock_type)) != 0) {
+    deadline_ = std::min(deadline_, absl::FromChrono(context->deadline()));
+  }
+}
+
+void AdmittedCall::ArmCeiling(absl::Duration slack, std::function<void()> expire) {
+  if (cut_off_ == absl::InfiniteFuture()) return;
+  ceiling_.Arm(cut_off_ + slack, std::move(expire));
+}
+
+absl::Status AdmittedCall::HoldMemory(size_t bytes, absl::string_view what) {
+  if (runtime_.budget == nullptr || bytes == 0) return absl::OkStatus();
+  if (memory_.bytes() > 0) return memory_.Grow(bytes, what);
+  absl::StatusOr<MemoryBudget::Grant> grant = runtime_.budget->Reserve(caller_, bytes, what);
+  if (!grant.ok()) return grant.status();
+  memory_ = *std::move(grant);
+  return absl::OkStatus();
+}
+
+void AdmittedCall::Run(Work work, std::function<void(absl::Status)> done) {
+  auto chain = std::make_shared<Chain>();
+  chain->pieces = std::move(work.pieces_);
+  chain->done = std::move(done);
+  RunNext(chain);
+}
+
+void AdmittedCall::RunNext(const std::shared_ptr<Chain>& chain) {
+  while (chain->next < chain->pieces.size()) {
+    Work::Piece& piece = chain->pieces[chain->next++];
+    if (piece.inline_) {
+      if (absl::Status status = piece.run(); !status.ok()) return chain->done(std::move(status));
+      continue;
+    }
+    WorkOrder order;
+    order.caller = caller_;
+    order.cost = piece.cost;
+    order.memory = piece.memory;
+    order.store = piece.store;
+    order.deadline = deadline_;
+    grpc::CallbackServerContext* context = context_;
+    order.cancelled = [context] { return context->IsCancelled(); };
+    const absl::Status submitted =
+        runtime_.scheduler->Submit(std::move(order), [this, chain](const WorkStart& start) {
+          runtime_.observer->Waited(record_, WorkLaneName(start.lane), start.waited);
+          if (!start.status.ok()) return chain->done(start.status);
+          if (absl::Status status = chain->pieces[chain->next - 1].run(); !status.ok()) {
+            return chain->done(std::move(status));
+          }
+          RunNext(chain);
+        });
+    if (!submitted.ok()) chain->done(submitted);
+    return;
+  }
+  chain->done(absl::OkStatus());
+}
+
+grpc::Status AdmittedCall::Conclude(const grpc::Status& status, bool report) {
+  final_status_ = status;
+  if (pass_.has_value()) pass_->ReleaseSlot();
+  memory_.Release();
+  if (report) runtime_.observer->Finish(record_, status);
+  return status;
+}
+
+}  // namespace shapeid

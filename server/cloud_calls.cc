@@ -1,0 +1,416 @@
+#include "server/cloud_calls.h"
+
+#include <algorithm>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+#include "absl/time/time.h"
+#include "core/descriptor_registry.h"
+#include "core/gallery/gallery.h"
+#include "core/gallery/gallery_registry.h"
+#include "core/status_macros.h"
+#include "server/cloud_assembler.h"
+#include "server/proto_convert.h"
+#include "server/service_options.h"
+#include "server/stream_reactor.h"
+#include "server/work_costs.h"
+
+namespace shapeid {
+namespace {
+
+#define SHAPEID_METHOD(name) "/shapeid.v1.ShapeId/" #name
+
+// Bytes of a PointChunk's xyz as points, for the call's report (a partial point counts
+// nothing; the assembler refuses it).
+int64_t PointsIn(const std::string& xyz) { return static_cast<int64_t>(xyz.size() / 12); }
+
+absl::Status RequireGalleryName(absl::string_view rpc, const std::string& name) {
+  if (name.empty()) {
+    return absl::InvalidArgumentError(absl::StrCat(rpc, ": the gallery name is empty"));
+  }
+  return absl::OkStatus();
+}
+
+// The cloud of a DescribeCloud or ClassifyCloud request: the streams' assembler with a single
+// chunk, so the same checks and the same messages. Its memory is the call's (RunUnary holds
+// the request's).
+absl::StatusOr<PointCloud> CloudInOneMessage(const ServiceRuntime& runtime,
+                                             uint64_t expected_points, absl::string_view xyz) {
+  CloudAssembler assembler(runtime.options->max_points_per_cloud);
+  SHAPEID_RETURN_IF_ERROR(assembler.Start(expected_points));
+  SHAPEID_RETURN_IF_ERROR(assembler.Append(xyz));
+  return assembler.Finish();
+}
+
+// The descriptor a DescribeHeader asks for, shared by the stream and the one-message call:
+// its spec, else the named gallery's, else the server's default.
+absl::StatusOr<std::shared_ptr<const Descriptor>> DescriptorToUse(const v1::DescribeHeader& header,
+                                                                  const ServiceRuntime& runtime) {
+  if (header.descriptor_spec().empty() && !header.gallery().empty()) {
+    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
+                             runtime.registry->Get(header.gallery()));
+    return gallery->Snapshot()->shared_descriptor();
+  }
+  const std::string& spec = header.descriptor_spec().empty()
+                                ? runtime.options->default_descriptor_spec
+                                : header.descriptor_spec();
+  SHAPEID_ASSIGN_OR_RETURN(std::unique_ptr<Descriptor> descriptor, CreateDescriptor(spec));
+  return std::shared_ptr<const Descriptor>(std::move(descriptor));
+}
+
+Work DescribeWork(std::shared_ptr<const Descriptor> descriptor, size_t points,
+                  std::function<absl::StatusOr<PointCloud>()> cloud, AdmittedCall& call,
+                  v1::DescribeResponse* response) {
+  const WorkEstimate cost = EstimateDescribe(*descriptor, points);
+  return Work::Compute(cost.cpu, cost.memory, [descriptor, cloud, &call, response] {
+    SHAPEID_ASSIGN_OR_RETURN(const PointCloud received, cloud());
+    const absl::Time start = absl::Now();
+    std::vector<float> values;
+    SHAPEID_RETURN_IF_ERROR(descriptor->Compute(received, &values));
+    const absl::Duration elapsed = absl::Now() - start;
+    call.observer().Described(call.record(), descriptor->spec().kind, elapsed);
+    ToProto(elapsed, response->mutable_describe_time());
+    response->set_descriptor_spec(descriptor->spec().ToString());
+    response->mutable_values()->Assign(values.begin(), values.end());
+    response->set_num_points(received.size());
+    return absl::OkStatus();
+  });
+}
+
+// Classify's checks on its header, shared by the stream and the one-message call: the
+// gallery exists and has samples (failing before the points are read, not after).
+absl::StatusOr<std::shared_ptr<Gallery>> GalleryToClassify(const GalleryRegistry& registry,
+                                                           const v1::ClassifyHeader& header) {
+  SHAPEID_RETURN_IF_ERROR(RequireGalleryName("Classify", header.gallery()));
+  SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<Gallery> gallery, registry.Get(header.gallery()));
+  if (gallery->Snapshot()->empty()) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "gallery '", gallery->name(), "' has no samples; train it before classifying"));
+  }
+  return gallery;
+}
+
+// Describes and classifies the cloud `cloud` gives against the snapshot the gallery has when
+// the work starts.
+Work ClassifyWork(std::shared_ptr<Gallery> gallery, const v1::ClassifyHeader& header, size_t points,
+                  std::function<absl::StatusOr<PointCloud>()> cloud, AdmittedCall& call,
+                  v1::ClassifyResponse* response) {
+  const WorkEstimate cost = EstimateClassify(*gallery->Snapshot(), points);
+  const int k = static_cast<int>(std::min<uint32_t>(header.k(), 1 << 20));
+  const SearchMode mode = header.exact() ? SearchMode::kExact : SearchMode::kDefault;
+  return Work::Compute(cost.cpu, cost.memory, [gallery, k, mode, cloud, &call, response] {
+    SHAPEID_ASSIGN_OR_RETURN(const PointCloud received, cloud());
+    const std::shared_ptr<const GallerySnapshot> snapshot = gallery->Snapshot();
+    SHAPEID_ASSIGN_OR_RETURN(
+        const GalleryClassification answer,
+        snapshot->Classify(received, gallery->limits().cloud_limits(), k, mode));
+    call.observer().Described(call.record(), snapshot->shared_descriptor()->spec().kind,
+                              answer.describe_time);
+    call.observer().Searched(call.record(), answer.knn.approximate, answer.search_time);
+    ToProto(answer, received.size(), response);
+    return absl::OkStatus();
+  });
+}
+
+class DescribeReactor final : public StreamReactor<v1::DescribeRequest, v1::DescribeResponse> {
+ public:
+  DescribeReactor(grpc::CallbackServerContext* context, const ServiceRuntime& runtime,
+                  grpc::ByteBuffer* response)
+      : StreamReactor(context, runtime, SHAPEID_METHOD(Describe), response),
+        runtime_(runtime),
+        assembler_(runtime.options->max_points_per_cloud, runtime.budget, call().caller()) {
+    StartReading();
+  }
+
+ private:
+  absl::StatusOr<std::optional<Work>> OnMessage(const v1::DescribeRequest& request) override {
+    switch (request.kind_case()) {
+      case v1::DescribeRequest::kHeader:
+        SHAPEID_RETURN_IF_ERROR(OnHeader(request.header()));
+        return std::nullopt;
+      case v1::DescribeRequest::kPoints:
+        if (descriptor_ == nullptr) {
+          return absl::InvalidArgumentError(
+              "Describe: the first message must be a DescribeHeader; points came first");
+        }
+        call().record().points += PointsIn(request.points().xyz());
+        SHAPEID_RETURN_IF_ERROR(assembler_.Append(request.points().xyz()));
+        return std::nullopt;
+      case v1::DescribeRequest::KIND_NOT_SET:
+        break;
+    }
+    return absl::InvalidArgumentError("Describe: a message with neither header nor points");
+  }
+
+  absl::Status OnHeader(const v1::DescribeHeader& header) {
+    if (descriptor_ != nullptr) {
+      return absl::InvalidArgumentError("Describe: a second DescribeHeader in one stream");
+    }
+    if (header.descriptor_spec().empty()) call().record().gallery = header.gallery();
+    SHAPEID_ASSIGN_OR_RETURN(descriptor_, DescriptorToUse(header, runtime_));
+    return assembler_.Start(header.expected_points());
+  }
+
+  absl::StatusOr<Work> OnEnd() override {
+    if (descriptor_ == nullptr) {
+      return absl::InvalidArgumentError("Describe: the stream ended without a DescribeHeader");
+    }
+    return DescribeWork(
+        descriptor_, assembler_.points(), [this] { return assembler_.Finish(); }, call(),
+        response());
+  }
+
+  const ServiceRuntime runtime_;
+  CloudAssembler assembler_;
+  std::shared_ptr<const Descriptor> descriptor_;
+};
+
+// One Train stream: TrainHeader, then samples (SampleHeader + PointChunks). Each sample is
+// described on the scheduler as soon as its points are complete (the next SampleHeader, or
+// the end); the batch commits only when the stream ends OK, so an error or a cut stream (the
+// reactor dies without its end) publishes nothing.
+class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainResponse> {
+ public:
+  TrainReactor(grpc::CallbackServerContext* context, const ServiceRuntime& runtime,
+               grpc::ByteBuffer* response)
+      : StreamReactor(context, runtime, SHAPEID_METHOD(Train), response),
+        runtime_(runtime),
+        assembler_(runtime.options->max_points_per_cloud, runtime.budget, call().caller()) {
+    StartReading();
+  }
+
+ private:
+  absl::StatusOr<std::optional<Work>> OnMessage(const v1::TrainRequest& request) override {
+    switch (request.kind_case()) {
+      case v1::TrainRequest::kHeader:
+        SHAPEID_RETURN_IF_ERROR(OnHeader(request.header()));
+        return std::nullopt;
+      case v1::TrainRequest::kSample: {
+        if (batch_ == nullptr) {
+          return absl::InvalidArgumentError("Train: the first message must be a TrainHeader");
+        }
+        const int64_t max_samples = runtime_.options->max_samples_per_train;
+        if (max_samples > 0 && sample_headers_ >= max_samples) {
+          return absl::ResourceExhaustedError(absl::StrCat(
+              "Train: the stream carries more than ", max_samples,
+              " samples, the limit per stream (max_samples_per_train); send them in several "
+              "streams"));
+        }
+        ++sample_headers_;
+        if (!assembler_.started()) {  // the first sample: nothing to describe yet
+          sample_ = request.sample();
+          SHAPEID_RETURN_IF_ERROR(assembler_.Start(sample_.expected_points()));
+          return std::nullopt;
+        }
+        return DescribeSample().Then(Work::Inline([this, sample = request.sample()] {
+          sample_ = sample;
+          return assembler_.Start(sample.expected_points());
+        }));
+      }
+      case v1::TrainRequest::kPoints:
+        if (batch_ == nullptr) {
+          return absl::InvalidArgumentError("Train: the first message must be a TrainHeader");
+        }
+        if (!assembler_.started()) {
+          return absl::InvalidArgumentError(
+              absl::StrCat("Train: points after sample ", samples_, " without a SampleHeader"));
+        }
+        call().record().points += PointsIn(request.points().xyz());
+        SHAPEID_RETURN_IF_ERROR(assembler_.Append(request.points().xyz()));
+        return std::nullopt;
+      case v1::TrainRequest::KIND_NOT_SET:
+        break;
+    }
+    return absl::InvalidArgumentError("Train: a message with no header, sample or points");
+  }
+
+  absl::Status OnHeader(const v1::TrainHeader& header) {
+    if (batch_ != nullptr) return absl::InvalidArgumentError("Train: a second TrainHeader");
+    call().record().gallery = header.gallery();
+    SHAPEID_RETURN_IF_ERROR(RequireGalleryName("Train", header.gallery()));
+    SHAPEID_ASSIGN_OR_RETURN(gallery_, runtime_.registry->Get(header.gallery()));
+    const std::shared_ptr<const GallerySnapshot> snapshot = gallery_->Snapshot();
+    batch_ = std::make_unique<TrainBatch>(gallery_->NewBatch());
+    augment_ = snapshot->options().augment;
+    if (header.has_augmentation()) {
+      SHAPEID_ASSIGN_OR_RETURN(augment_, FromProto(header.augmentation()));
+      SHAPEID_RETURN_IF_ERROR(batch_->SetAugment(augment_));
+    }
+    return absl::OkStatus();
+  }
+
+  // Describes the sample whose points have all arrived into the batch.
+  Work DescribeSample() {
+    const std::shared_ptr<const Descriptor>& descriptor = gallery_->Snapshot()->shared_descriptor();
+    // An incompatible gallery has no descriptor; AddSample refuses it with the reason.
+    const WorkEstimate cost = descriptor != nullptr
+                                  ? EstimateTrainSample(*descriptor, augment_, assembler_.points())
+                                  : WorkEstimate{};
+    return Work::Compute(cost.cpu, cost.memory, [this, descriptor] {
+      auto cloud = assembler_.Finish();
+      if (!cloud.ok()) {
+        return absl::Status(cloud.status().code(),
+                            absl::StrCat("sample ", samples_, ": ", cloud.status().message()));
+      }
+      const absl::Time start = absl::Now();
+      SHAPEID_RETURN_IF_ERROR(batch_->AddSample(sample_.sample_id(), sample_.label(), *cloud));
+      const absl::Duration elapsed = absl::Now() - start;
+      if (descriptor != nullptr) {
+        call().observer().Described(call().record(), descriptor->spec().kind, elapsed);
+      }
+      describe_time_ += elapsed;
+      ++samples_;
+      call().record().samples = samples_;
+      return absl::OkStatus();
+    });
+  }
+
+  absl::StatusOr<Work> OnEnd() override {
+    if (batch_ == nullptr) {
+      return absl::InvalidArgumentError("Train: the stream ended without a TrainHeader");
+    }
+    Work work =
+        assembler_.started() ? DescribeSample() : Work::Inline([] { return absl::OkStatus(); });
+    return std::move(work)
+        .Then(Work::Inline([this] {
+          return samples_ == 0 ? absl::InvalidArgumentError("Train: the stream carried no sample")
+                               : absl::OkStatus();
+        }))
+        .Then(Work::Store(
+            EstimateCommit(*gallery_->Snapshot(), sample_headers_ * (1 + augment_.views)), [this] {
+              SHAPEID_ASSIGN_OR_RETURN(const CommitResult committed, batch_->Commit());
+              response()->mutable_sample_ids()->Assign(committed.ids.begin(), committed.ids.end());
+              response()->set_gallery_version(committed.version);
+              response()->set_gallery_sample_count(
+                  static_cast<uint64_t>(gallery_->Snapshot()->num_samples()));
+              ToProto(describe_time_, response()->mutable_describe_time());
+              return absl::OkStatus();
+            }));
+  }
+
+  const ServiceRuntime runtime_;
+  CloudAssembler assembler_;
+  std::shared_ptr<Gallery> gallery_;
+  std::unique_ptr<TrainBatch> batch_;
+  AugmentOptions augment_;
+  v1::SampleHeader sample_;
+  int64_t sample_headers_ = 0;
+  int64_t samples_ = 0;
+  absl::Duration describe_time_;
+};
+
+class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest, v1::ClassifyResponse> {
+ public:
+  ClassifyReactor(grpc::CallbackServerContext* context, const ServiceRuntime& runtime,
+                  grpc::ByteBuffer* response)
+      : StreamReactor(context, runtime, SHAPEID_METHOD(Classify), response),
+        runtime_(runtime),
+        assembler_(runtime.options->max_points_per_cloud, runtime.budget, call().caller()) {
+    StartReading();
+  }
+
+ private:
+  absl::StatusOr<std::optional<Work>> OnMessage(const v1::ClassifyRequest& request) override {
+    switch (request.kind_case()) {
+      case v1::ClassifyRequest::kHeader: {
+        if (gallery_ != nullptr) {
+          return absl::InvalidArgumentError("Classify: a second ClassifyHeader");
+        }
+        call().record().gallery = request.header().gallery();
+        SHAPEID_ASSIGN_OR_RETURN(gallery_, GalleryToClassify(*runtime_.registry, request.header()));
+        header_ = request.header();
+        SHAPEID_RETURN_IF_ERROR(assembler_.Start(request.header().expected_points()));
+        return std::nullopt;
+      }
+      case v1::ClassifyRequest::kPoints:
+        if (gallery_ == nullptr) {
+          return absl::InvalidArgumentError(
+              "Classify: the first message must be a ClassifyHeader; points came first");
+        }
+        call().record().points += PointsIn(request.points().xyz());
+        SHAPEID_RETURN_IF_ERROR(assembler_.Append(request.points().xyz()));
+        return std::nullopt;
+      case v1::ClassifyRequest::KIND_NOT_SET:
+        break;
+    }
+    return absl::InvalidArgumentError("Classify: a message with neither header nor points");
+  }
+
+  absl::StatusOr<Work> OnEnd() override {
+    if (gallery_ == nullptr) {
+      return absl::InvalidArgumentError("Classify: the stream ended without a ClassifyHeader");
+    }
+    return ClassifyWork(
+        gallery_, header_, assembler_.points(), [this] { return assembler_.Finish(); }, call(),
+        response());
+  }
+
+  const ServiceRuntime runtime_;
+  CloudAssembler assembler_;
+  std::shared_ptr<Gallery> gallery_;
+  v1::ClassifyHeader header_;
+};
+
+}  // namespace
+
+grpc::ServerReadReactor<grpc::ByteBuffer>* StartDescribe(grpc::CallbackServerContext* context,
+                                                         const ServiceRuntime& runtime,
+                                                         grpc::ByteBuffer* response) {
+  return new DescribeReactor(context, runtime, response);
+}
+
+grpc::ServerReadReactor<grpc::ByteBuffer>* StartTrain(grpc::CallbackServerContext* context,
+                                                      const ServiceRuntime& runtime,
+                                                      grpc::ByteBuffer* response) {
+  return new TrainReactor(context, runtime, response);
+}
+
+grpc::ServerReadReactor<grpc::ByteBuffer>* StartClassify(grpc::CallbackServerContext* context,
+                                                         const ServiceRuntime& runtime,
+                                                         grpc::ByteBuffer* response) {
+  return new ClassifyReactor(context, runtime, response);
+}
+
+absl::StatusOr<Work> DescribeCloud(const ServiceRuntime& runtime,
+                                   const v1::DescribeCloudRequest& request,
+                                   v1::DescribeResponse* response, AdmittedCall& call) {
+  if (request.header().descriptor_spec().empty()) {
+    call.record().gallery = request.header().gallery();
+  }
+  call.record().points = PointsIn(request.points().xyz());
+  SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<const Descriptor> descriptor,
+                           DescriptorToUse(request.header(), runtime));
+  return DescribeWork(
+      descriptor, request.points().xyz().size() / 12,
+      [&runtime, &request] {
+        return CloudInOneMessage(runtime, request.header().expected_points(),
+                                 request.points().xyz());
+      },
+      call, response);
+}
+
+absl::StatusOr<Work> ClassifyCloud(const ServiceRuntime& runtime,
+                                   const v1::ClassifyCloudRequest& request,
+                                   v1::ClassifyResponse* response, AdmittedCall& call) {
+  call.record().gallery = request.header().gallery();
+  call.record().points = PointsIn(request.points().xyz());
+  if (!request.has_header()) {
+    return absl::InvalidArgumentError("ClassifyCloud: the request has no header");
+  }
+  SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
+                           GalleryToClassify(*runtime.registry, request.header()));
+  return ClassifyWork(
+      gallery, request.header(), request.points().xyz().size() / 12,
+      [&runtime, &request] {
+        return CloudInOneMessage(runtime, request.header().expected_points(),
+                                 request.points().xyz());
+      },
+      call, response);
+}
+
+}  // namespace shapeid

@@ -1,0 +1,39 @@
+#ifndef SHAPEID_SERVER_CLOUD_CALLS_H_
+#define SHAPEID_SERVER_CLOUD_CALLS_H_
+
+// The calls that bring clouds: Describe, Train and Classify (client streams) and
+// DescribeCloud and ClassifyCloud (one message). Each checks its header on gRPC's thread and
+// hands describing, searching and committing to the scheduler with their estimated costs
+// (server/work_costs.h).
+
+#include "absl/status/statusor.h"
+#include "grpcpp/grpcpp.h"
+#include "server/admitted_call.h"
+#include "shapeid/v1/shapeid.pb.h"
+
+namespace shapeid {
+
+// Streams: messages v1::DescribeRequest, TrainRequest, ClassifyRequest (as bytes); answers
+// v1::DescribeResponse, TrainResponse, ClassifyResponse.
+grpc::ServerReadReactor<grpc::ByteBuffer>* StartDescribe(grpc::CallbackServerContext* context,
+                                                         const ServiceRuntime& runtime,
+                                                         grpc::ByteBuffer* response);
+grpc::ServerReadReactor<grpc::ByteBuffer>* StartTrain(grpc::CallbackServerContext* context,
+                                                      const ServiceRuntime& runtime,
+                                                      grpc::ByteBuffer* response);
+grpc::ServerReadReactor<grpc::ByteBuffer>* StartClassify(grpc::CallbackServerContext* context,
+                                                         const ServiceRuntime& runtime,
+                                                         grpc::ByteBuffer* response);
+
+// The one-message calls' handlers (server/unary_call.h): the same checks and answers as the
+// streams'.
+absl::StatusOr<Work> DescribeCloud(const ServiceRuntime& runtime,
+                                   const v1::DescribeCloudRequest& request,
+                                   v1::DescribeResponse* response, AdmittedCall& call);
+absl::StatusOr<Work> ClassifyCloud(const ServiceRuntime& runtime,
+                                   const v1::ClassifyCloudRequest& request,
+                                   v1::ClassifyResponse* response, AdmittedCall& call);
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_SERVER_CLOUD_CALLS_H_

@@ -1,0 +1,63 @@
+#include "server/work_costs.h"
+
+#include <algorithm>
+
+namespace shapeid {
+namespace {
+
+// Exact search reads every stored float once per query vector (bench/knn_bench: 100,000 x
+// 81 floats in ~0.6 ms, 0.075 ns a float, on the 2-core VM); rounded up.
+constexpr double kSearchSecondsPerFloat = 0.1e-9;
+// A query is searched with itself and its pose variants (dfsd's box frame: up to 8, most
+// often 2); an estimate, not a bound.
+constexpr double kQueryVectors = 3;
+// A commit copies the gallery's index and recomputes its statistics (gallery_test's
+// DISABLED_CommitCost: one sample into 100,000 x 81 in 15-45 ms, 2-5 ns a float).
+constexpr double kCommitSecondsPerFloat = 4e-9;
+// The sensor simulator's cost per input point for one synthetic view
+// (core/views/scan_simulator_bench), rounded up.
+constexpr double kViewSecondsPerPoint = 100e-9;
+
+}  // namespace
+
+WorkEstimate EstimateDescribe(const Descriptor& descriptor, size_t points) {
+  const DescribeCost cost = descriptor.EstimateCost(points);
+  return WorkEstimate{cost.cpu, cost.working_bytes};
+}
+
+WorkEstimate EstimateTrainSample(const Descriptor& descriptor, const AugmentOptions& augment,
+                                 size_t points) {
+  WorkEstimate estimate = EstimateDescribe(descriptor, points);
+  if (!augment.enabled()) return estimate;
+  const size_t view_points = std::min(points, augment.sensor.max_points);
+  const DescribeCost view = descriptor.EstimateCost(view_points);
+  estimate.cpu += augment.views *
+                  (view.cpu + absl::Seconds(kViewSecondsPerPoint * static_cast<double>(points)));
+  // Views are made and described one after another; each view holds its own points.
+  estimate.memory = std::max(estimate.memory, view.working_bytes + view_points * 12 + points * 12);
+  return estimate;
+}
+
+WorkEstimate EstimateClassify(const GallerySnapshot& snapshot, size_t points) {
+  WorkEstimate estimate;
+  if (const std::shared_ptr<const Descriptor>& descriptor = snapshot.shared_descriptor()) {
+    estimate = EstimateDescribe(*descriptor, points);
+  }
+  const double floats =
+      static_cast<double>(snapshot.index().num_rows()) * snapshot.dimension() * kQueryVectors;
+  estimate.cpu += absl::Seconds(kSearchSecondsPerFloat * floats);
+  return estimate;
+}
+
+absl::Duration EstimateCommit(const GallerySnapshot& snapshot, int64_t vectors) {
+  const double floats =
+      static_cast<double>(snapshot.index().num_rows() + std::max<int64_t>(vectors, 0)) *
+      snapshot.dimension();
+  return absl::Seconds(kCommitSecondsPerFloat * floats);
+}
+
+absl::Duration EstimateBuild(int64_t vectors, int dimension) {
+  return absl::Seconds(kCommitSecondsPerFloat * static_cast<double>(vectors) * dimension);
+}
+
+}  // namespace shapeid

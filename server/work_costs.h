@@ -1,0 +1,40 @@
+#ifndef SHAPEID_SERVER_WORK_COSTS_H_
+#define SHAPEID_SERVER_WORK_COSTS_H_
+
+// What the service's work costs, estimated before it runs, so that the scheduler
+// (server/work_scheduler.h) can put it in its lane and share the workers fairly, and keep
+// working memory within the budget. From the descriptors' own estimates
+// (Descriptor::EstimateCost) and the size of galleries; docs/reliability.md has the figures
+// they come from.
+
+#include <cstddef>
+#include <cstdint>
+
+#include "absl/time/time.h"
+#include "core/descriptor.h"
+#include "core/gallery/gallery_snapshot.h"
+#include "core/views/augment.h"
+
+namespace shapeid {
+
+struct WorkEstimate {
+  absl::Duration cpu;
+  size_t memory = 0;  // working memory beyond the cloud, which the call holds already
+};
+
+// Describing a cloud of `points` points.
+WorkEstimate EstimateDescribe(const Descriptor& descriptor, size_t points);
+// Describing a training cloud and, with `augment` on, making and describing its views.
+WorkEstimate EstimateTrainSample(const Descriptor& descriptor, const AugmentOptions& augment,
+                                 size_t points);
+// Describing a query and searching `snapshot` with it and its pose variants.
+WorkEstimate EstimateClassify(const GallerySnapshot& snapshot, size_t points);
+// Publishing `vectors` more (or fewer) descriptors into `snapshot`'s gallery: the commit copies
+// the gallery's index, then the store writes the change.
+absl::Duration EstimateCommit(const GallerySnapshot& snapshot, int64_t vectors);
+// Building and storing a gallery of `vectors` descriptors of `dimension` floats (an import).
+absl::Duration EstimateBuild(int64_t vectors, int dimension);
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_SERVER_WORK_COSTS_H_
