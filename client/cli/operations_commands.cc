@@ -30,24 +30,54 @@ std::string LatencyJson(bool set, const google::protobuf::Duration& d) {
   return set ? JsonNumber(DurationSeconds(d)) : "null";
 }
 
+std::string CsvLatency(bool set, const google::protobuf::Duration& d) {
+  return set ? CsvSeconds(d) : "";
+}
+
+// A server from before the work scheduler sends no lanes, and then no waits or call memory
+// either: its output stays as it was, rather than showing its zeros as "no budget".
+bool HasWork(const v1::ServerStats& stats) { return stats.work_size() > 0; }
+
 Table MethodTable(const v1::ServerStats& stats, bool csv) {
+  const bool waits = HasWork(stats);
   Table table;
   if (csv) {
     table.header = {"method", "calls", "errors", "latency_p50_seconds", "latency_p99_seconds"};
+    if (waits) table.header.insert(table.header.end(), {"wait_p50_seconds", "wait_p99_seconds"});
   } else {
     table.header = {"METHOD", "CALLS", "ERRORS", "P50", "P99"};
-    table.right_aligned = {false, true, true, true, true};
+    if (waits) table.header.insert(table.header.end(), {"WAIT P50", "WAIT P99"});
+    table.right_aligned.assign(table.header.size(), true);
+    table.right_aligned[0] = false;
   }
   for (const v1::MethodStats& m : stats.methods()) {
+    std::vector<std::string>& row = table.rows.emplace_back();
     if (csv) {
-      table.rows.push_back({m.method(), absl::StrCat(m.calls()), absl::StrCat(m.errors()),
-                            m.has_latency_p50() ? CsvSeconds(m.latency_p50()) : "",
-                            m.has_latency_p99() ? CsvSeconds(m.latency_p99()) : ""});
+      row = {m.method(), absl::StrCat(m.calls()), absl::StrCat(m.errors()),
+             CsvLatency(m.has_latency_p50(), m.latency_p50()),
+             CsvLatency(m.has_latency_p99(), m.latency_p99())};
+      if (waits) {
+        row.push_back(CsvLatency(m.has_wait_p50(), m.wait_p50()));
+        row.push_back(CsvLatency(m.has_wait_p99(), m.wait_p99()));
+      }
     } else {
-      table.rows.push_back({m.method(), GroupDigits(m.calls()), GroupDigits(m.errors()),
-                            Latency(m.has_latency_p50(), m.latency_p50()),
-                            Latency(m.has_latency_p99(), m.latency_p99())});
+      row = {m.method(), GroupDigits(m.calls()), GroupDigits(m.errors()),
+             Latency(m.has_latency_p50(), m.latency_p50()),
+             Latency(m.has_latency_p99(), m.latency_p99())};
+      if (waits) {
+        row.push_back(Latency(m.has_wait_p50(), m.wait_p50()));
+        row.push_back(Latency(m.has_wait_p99(), m.wait_p99()));
+      }
     }
+  }
+  return table;
+}
+
+Table WorkTable(const v1::ServerStats& stats) {
+  Table table{{"WORK", "WORKERS", "RUNNING", "QUEUED"}, {}, {false, true, true, true}};
+  for (const v1::WorkLaneStats& lane : stats.work()) {
+    table.rows.push_back({lane.lane(), GroupDigits(lane.workers()), GroupDigits(lane.running()),
+                          GroupDigits(lane.queued())});
   }
   return table;
 }
@@ -88,6 +118,14 @@ std::string FormatBytes(uint64_t bytes) {
   return absl::StrFormat("%.1f GiB", b / (1 << 30));
 }
 
+std::string FormatMib(uint64_t bytes) {
+  const double mib = static_cast<double>(bytes) / (1 << 20);
+  if (bytes == 0) return "0 MiB";
+  if (mib < 0.1) return "<0.1 MiB";
+  if (mib < 10) return absl::StrFormat("%.1f MiB", mib);
+  return absl::StrCat(GroupDigits(static_cast<uint64_t>(mib + 0.5)), " MiB");
+}
+
 std::string StatsText(const v1::ServerStats& stats, const std::string& target) {
   std::string text = absl::StrCat(
       "server ", target, "  shapeid ", OrDash(stats.version()), "  ", OrDash(stats.state()),
@@ -96,12 +134,20 @@ std::string StatsText(const v1::ServerStats& stats, const std::string& target) {
       FormatBytes(stats.resident_memory_bytes()), "  log level ", OrDash(stats.log_level()),
       "  metrics ", stats.metrics_address().empty() ? "off" : stats.metrics_address(), "\n",
       "galleries ", GroupDigits(stats.galleries_size()), "  samples ", GroupDigits(stats.samples()),
-      "  points received ", GroupDigits(stats.points_received()), "\n\n");
+      "  points received ", GroupDigits(stats.points_received()), "\n");
+  if (HasWork(stats)) {
+    absl::StrAppend(
+        &text, "call memory held ", FormatMib(stats.memory_held_bytes()), "  peak ",
+        FormatMib(stats.memory_held_peak_bytes()), "  budget ",
+        stats.memory_budget_bytes() == 0 ? "none" : FormatMib(stats.memory_budget_bytes()), "\n");
+  }
+  absl::StrAppend(&text, "\n");
   if (stats.methods_size() == 0) {
     absl::StrAppend(&text, "no calls yet\n");
   } else {
     absl::StrAppend(&text, RenderTable(MethodTable(stats, /*csv=*/false)));
   }
+  if (HasWork(stats)) absl::StrAppend(&text, "\n", RenderTable(WorkTable(stats)));
   if (stats.galleries_size() == 0) return text;
   // Largest first, as the server sends them; sorted again so that any server's top 10 shows.
   std::vector<v1::GalleryStats> galleries(stats.galleries().begin(), stats.galleries().end());
@@ -133,8 +179,27 @@ std::string StatsJson(const v1::ServerStats& stats, const std::string& target) {
     absl::StrAppend(&methods, methods.empty() ? "" : ",", "{\"method\":", JsonString(m.method()),
                     ",\"calls\":", m.calls(), ",\"errors\":", m.errors(),
                     ",\"latency_p50_seconds\":", LatencyJson(m.has_latency_p50(), m.latency_p50()),
-                    ",\"latency_p99_seconds\":", LatencyJson(m.has_latency_p99(), m.latency_p99()),
-                    "}");
+                    ",\"latency_p99_seconds\":", LatencyJson(m.has_latency_p99(), m.latency_p99()));
+    if (HasWork(stats)) {
+      absl::StrAppend(&methods,
+                      ",\"wait_p50_seconds\":", LatencyJson(m.has_wait_p50(), m.wait_p50()),
+                      ",\"wait_p99_seconds\":", LatencyJson(m.has_wait_p99(), m.wait_p99()));
+    }
+    absl::StrAppend(&methods, "}");
+  }
+  // Keys of the work scheduler only from a server that has one (HasWork).
+  std::string work;
+  if (HasWork(stats)) {
+    std::string lanes;
+    for (const v1::WorkLaneStats& lane : stats.work()) {
+      absl::StrAppend(&lanes, lanes.empty() ? "" : ",", "{\"lane\":", JsonString(lane.lane()),
+                      ",\"workers\":", lane.workers(), ",\"running\":", lane.running(),
+                      ",\"queued\":", lane.queued(), "}");
+    }
+    work = absl::StrCat(",\"memory_budget_bytes\":", stats.memory_budget_bytes(),
+                        ",\"memory_held_bytes\":", stats.memory_held_bytes(),
+                        ",\"memory_held_peak_bytes\":", stats.memory_held_peak_bytes(),
+                        ",\"work\":[", lanes, "]");
   }
   std::string galleries;
   for (const v1::GalleryStats& g : stats.galleries()) {
@@ -150,7 +215,7 @@ std::string StatsJson(const v1::ServerStats& stats, const std::string& target) {
       ",\"log_level\":", JsonString(stats.log_level()),
       ",\"metrics_address\":", JsonString(stats.metrics_address()),
       ",\"gallery_count\":", stats.galleries_size(), ",\"samples\":", stats.samples(),
-      ",\"points_received\":", stats.points_received(), ",\"methods\":[", methods, "]",
+      ",\"points_received\":", stats.points_received(), work, ",\"methods\":[", methods, "]",
       ",\"galleries\":[", galleries, "]}\n");
 }
 

@@ -11,9 +11,12 @@
 
 namespace shapeid {
 
-// The server's live summary (GetServerStats). Table: three summary lines, the calls and
-// latency of each method called so far, and the 10 largest galleries. json: one object with
-// every field (all galleries). csv: the method table. Exit codes as ExitCodeForStatus.
+// The server's live summary (GetServerStats). Table: the summary lines (call memory in MiB
+// among them), the calls, latency and queue wait of each method called so far, the work
+// lanes' workers, running and queued work, and the 10 largest galleries. json: one object
+// with every field (all galleries; bytes and seconds). csv: the method table. A server
+// without the work scheduler (no lanes in its answer) gets no wait, lane or call-memory
+// figures in any format. Exit codes as ExitCodeForStatus.
 int RunStats(const CliContext& context);
 
 // Sets the server's log level to `level` (debug, info, warning or error; anything else is a
@@ -30,6 +33,8 @@ std::string GroupDigits(uint64_t value);
 std::string FormatUptime(int64_t seconds);
 // "512 B", "3.2 KiB", "412 MiB", "1.5 GiB".
 std::string FormatBytes(uint64_t bytes);
+// "0 MiB", "<0.1 MiB", "3.5 MiB", "2,048 MiB": memory compared with --memory_budget_mib.
+std::string FormatMib(uint64_t bytes);
 
 }  // namespace shapeid
 

@@ -66,6 +66,31 @@ v1::ServerStats BusyServer() {
   return stats;
 }
 
+// The busy server with the work scheduler: waits for ClassifyCloud (Train queued nothing),
+// three lanes, heavy work queued, call memory near its budget.
+v1::ServerStats SharedServer() {
+  v1::ServerStats stats = BusyServer();
+  v1::MethodStats* classify = stats.mutable_methods(0);
+  classify->mutable_wait_p50()->set_nanos(15000);
+  classify->mutable_wait_p99()->set_nanos(31000000);
+  const struct {
+    const char* lane;
+    uint32_t workers, running;
+    uint64_t queued;
+  } lanes[] = {{"cheap", 2, 2, 0}, {"heavy", 1, 1, 1234}, {"store", 2, 0, 0}};
+  for (const auto& lane : lanes) {
+    v1::WorkLaneStats* work = stats.add_work();
+    work->set_lane(lane.lane);
+    work->set_workers(lane.workers);
+    work->set_running(lane.running);
+    work->set_queued(lane.queued);
+  }
+  stats.set_memory_budget_bytes(uint64_t{2048} << 20);
+  stats.set_memory_held_bytes(uint64_t{1900} << 20);
+  stats.set_memory_held_peak_bytes(uint64_t{2047} << 20);
+  return stats;
+}
+
 class OperationsCommandsTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -213,6 +238,118 @@ TEST_F(OperationsCommandsTest, AFailedCallNamesItsRequestIdAndExitsAsOthers) {
   context.client.request_id = "not allowed";
   EXPECT_EQ(RunStats(context), kExitUsage);
   EXPECT_THAT(err_.contents(), HasSubstr("A-Z a-z 0-9 . _ : / + = -"));
+}
+
+// The same commands against a server with the work scheduler (SharedServer): target_ is its.
+class SchedulerStatsTest : public OperationsCommandsTest {
+ protected:
+  void SetUp() override {
+    OperationsCommandsTest::SetUp();
+    shared_server_ = client_testing::StartFakeServer(&shared_, &target_);
+    ASSERT_NE(shared_server_, nullptr);
+  }
+  void TearDown() override {
+    shared_server_->Shutdown();
+    OperationsCommandsTest::TearDown();
+  }
+
+  FakeOperationsService shared_{SharedServer()};
+  std::unique_ptr<grpc::Server> shared_server_;
+};
+
+TEST_F(SchedulerStatsTest, StatsTableShowsCallMemoryWaitsAndLanes) {
+  ASSERT_EQ(RunStats(Context()), kExitOk) << err_.contents();
+  const std::vector<std::string> lines = absl::StrSplit(out_.contents(), '\n');
+  ASSERT_EQ(lines.size(), 27u) << out_.contents();
+  EXPECT_EQ(lines[2], "galleries 12  samples 47,200  points received 1,234,567,890");
+  EXPECT_EQ(lines[3], "call memory held 1,900 MiB  peak 2,047 MiB  budget 2,048 MiB");
+  EXPECT_EQ(lines[4], "");
+  // The waits beside the latency; "-" for a method whose calls queued nothing.
+  EXPECT_EQ(lines[5], "METHOD             CALLS  ERRORS     P50     P99  WAIT P50  WAIT P99");
+  EXPECT_EQ(lines[6], "ClassifyCloud  1,204,331      12  710 µs  2.4 ms     15 µs     31 ms");
+  EXPECT_EQ(lines[7], "Train                  0       0       -       -         -         -");
+  EXPECT_EQ(lines[8], "");
+  EXPECT_EQ(lines[9], "WORK   WORKERS  RUNNING  QUEUED");
+  EXPECT_EQ(lines[10], "cheap        2        2       0");
+  EXPECT_EQ(lines[11], "heavy        1        1   1,234");
+  EXPECT_EQ(lines[12], "store        2        0       0");
+  EXPECT_EQ(lines[13], "");
+  EXPECT_EQ(lines[14], "GALLERY  SAMPLES  VERSION");
+  EXPECT_EQ(err_.contents(), "");
+}
+
+TEST_F(SchedulerStatsTest, StatsJsonCarriesWaitsLanesAndMemoryInBytes) {
+  ASSERT_EQ(RunStats(Context(OutputFormat::kJson)), kExitOk) << err_.contents();
+  EXPECT_EQ(PythonOnJsonLines(out_.contents(),
+                              "[(r[\"memory_budget_bytes\"], r[\"memory_held_bytes\"], "
+                              "r[\"memory_held_peak_bytes\"], r[\"work\"]) for r in rows]"),
+            "[(2147483648, 1992294400, 2146435072, "
+            "[{'lane': 'cheap', 'workers': 2, 'running': 2, 'queued': 0}, "
+            "{'lane': 'heavy', 'workers': 1, 'running': 1, 'queued': 1234}, "
+            "{'lane': 'store', 'workers': 2, 'running': 0, 'queued': 0}])]");
+  EXPECT_EQ(PythonOnJsonLines(out_.contents(),
+                              "[[(m[\"method\"], m[\"latency_p99_seconds\"], "
+                              "m[\"wait_p50_seconds\"], m[\"wait_p99_seconds\"]) "
+                              "for m in r[\"methods\"]] for r in rows]"),
+            "[[('ClassifyCloud', 0.0024, 1.5e-05, 0.031), ('Train', None, None, None)]]");
+}
+
+TEST_F(SchedulerStatsTest, StatsCsvAddsTheWaitColumns) {
+  ASSERT_EQ(RunStats(Context(OutputFormat::kCsv)), kExitOk) << err_.contents();
+  EXPECT_EQ(out_.contents(),
+            "method,calls,errors,latency_p50_seconds,latency_p99_seconds,wait_p50_seconds,"
+            "wait_p99_seconds\r\n"
+            "ClassifyCloud,1204331,12,0.00071,0.0024,1.5e-05,0.031\r\n"
+            "Train,0,0,,,,\r\n");
+}
+
+TEST_F(SchedulerStatsTest, AnIdleServerWithoutABudgetShowsItsLanes) {
+  v1::ServerStats stats;
+  for (const char* name : {"cheap", "heavy", "store"}) {
+    v1::WorkLaneStats* lane = stats.add_work();
+    lane->set_lane(name);
+    lane->set_workers(1);
+  }
+  FakeOperationsService idle(stats);
+  std::string target;
+  std::unique_ptr<grpc::Server> server = client_testing::StartFakeServer(&idle, &target);
+  CliContext context = Context();
+  context.client.target = target;
+  ASSERT_EQ(RunStats(context), kExitOk) << err_.contents();
+  EXPECT_THAT(
+      out_.contents(),
+      AllOf(HasSubstr("\ncall memory held 0 MiB  peak 0 MiB  budget none\n\nno calls yet\n"
+                      "\nWORK   WORKERS  RUNNING  QUEUED\ncheap        1        0       0\n"),
+            Not(HasSubstr("GALLERY"))));
+  Captured json;
+  context.out = json.get();
+  context.format = OutputFormat::kJson;
+  ASSERT_EQ(RunStats(context), kExitOk) << err_.contents();
+  EXPECT_EQ(PythonOnJsonLines(json.contents(),
+                              "[(r[\"memory_budget_bytes\"], len(r[\"work\"]), r[\"methods\"]) "
+                              "for r in rows]"),
+            "[(0, 3, [])]");
+  server->Shutdown();
+}
+
+// BusyServer, from before the scheduler, keeps its output (the tests above); none of the new
+// JSON keys either, rather than zeros that would read as "no budget".
+TEST_F(OperationsCommandsTest, AServerWithoutTheSchedulerGetsNoWaitLaneOrMemoryFigures) {
+  ASSERT_EQ(RunStats(Context(OutputFormat::kJson)), kExitOk) << err_.contents();
+  EXPECT_EQ(
+      PythonOnJsonLines(out_.contents(),
+                        "[sorted(k for k in r if \"work\" in k or k.startswith(\"memory_\")) + "
+                        "sorted(k for m in r[\"methods\"] for k in m if \"wait\" in k) "
+                        "for r in rows]"),
+      "[[]]");
+}
+
+TEST(OperationsFormatTest, MemoryInMib) {
+  EXPECT_EQ(FormatMib(0), "0 MiB");
+  EXPECT_EQ(FormatMib(4096), "<0.1 MiB");
+  EXPECT_EQ(FormatMib(uint64_t{7} << 19), "3.5 MiB");
+  EXPECT_EQ(FormatMib(uint64_t{2048} << 20), "2,048 MiB");
+  EXPECT_EQ(FormatMib((uint64_t{100} << 20) - 1), "100 MiB");
 }
 
 TEST(OperationsFormatTest, NumbersForPeople) {
