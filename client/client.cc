@@ -118,8 +118,8 @@ absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const ClientOptions& 
   // target, whose name may have several records): a client of one server keeps reaching it
   // while it loads or drains, and so reads the server's own reason ("loading its
   // galleries") rather than gRPC's "backend unhealthy".
-  const bool replicas = absl::StrContains(options.target, ',') ||
-                        absl::StartsWith(options.target, "dns:");
+  const bool replicas =
+      absl::StrContains(options.target, ',') || absl::StartsWith(options.target, "dns:");
   if (options.load_balancing == "round_robin" && replicas) {
     args.SetServiceConfigJSON(
         R"({"loadBalancingConfig":[{"round_robin":{}}],"healthCheckConfig":{"serviceName":""}})");
