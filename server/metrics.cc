@@ -38,6 +38,15 @@ const prometheus::Histogram::BucketBoundaries& WorkBuckets() {
       0.01,    0.025,    0.05,    0.1,    0.25,    0.5,    1,     2.5,    10};
   return *buckets;
 }
+// A wait for a worker: microseconds when idle, seconds behind heavy work, minutes at worst
+// (a caller's backlog is bounded by --max_caller_backlog_seconds).
+const prometheus::Histogram::BucketBoundaries& WaitBuckets() {
+  static const auto* buckets = new prometheus::Histogram::BucketBoundaries{
+      0.00001, 0.000025, 0.00005, 0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01,
+      0.025,   0.05,     0.1,     0.25,   0.5,     1,      2.5,   5,      10,    30,
+      60,      120,      300};
+  return *buckets;
+}
 const prometheus::Histogram::BucketBoundaries& StoreBuckets() {
   static const auto* buckets = new prometheus::Histogram::BucketBoundaries{
       0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05,
@@ -206,7 +215,7 @@ void ServerMetrics::RecordCall(const CallMetrics& call) {
   Series(request_duration_cache_, request_duration_, {{"method", method}}, CallBuckets())
       .Observe(absl::ToDoubleSeconds(call.elapsed));
   if (call.waited > absl::ZeroDuration()) {
-    Series(request_wait_cache_, request_wait_, {{"method", method}}, CallBuckets())
+    Series(request_wait_cache_, request_wait_, {{"method", method}}, WaitBuckets())
         .Observe(absl::ToDoubleSeconds(call.waited));
   }
   if (call.points > 0) {
@@ -232,7 +241,7 @@ void ServerMetrics::ObserveSearch(bool approximate, absl::Duration elapsed) {
 }
 
 void ServerMetrics::ObserveWait(absl::string_view lane, absl::Duration waited) {
-  Series(work_wait_cache_, work_wait_, {{"lane", std::string(lane)}}, CallBuckets())
+  Series(work_wait_cache_, work_wait_, {{"lane", std::string(lane)}}, WaitBuckets())
       .Observe(absl::ToDoubleSeconds(waited));
 }
 
