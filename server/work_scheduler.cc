@@ -108,10 +108,10 @@ absl::Status WorkScheduler::Submit(WorkOrder order, std::function<void(const Wor
   Job job{std::move(order), std::move(work), absl::Now()};
   lane.queue.emplace(Tag{start, next_seq_++}, std::move(job));
   lane.ready.notify_one();
-  if (lane.running >= lane.workers) {
-    // It will wait: wake the idle workers of the other lanes too, so that they sweep it
-    // (its deadline, its call's cancellation) while this lane's workers are all busy.
-    for (Lane& other : lanes_) other.ready.notify_one();
+  if (lane.running >= lane.workers && sleepers_ > 0) {
+    // It will wait while this lane's workers are all busy: wake the workers that sleep
+    // without a timeout, so that they sweep it (its deadline, its call's cancellation).
+    for (Lane& other : lanes_) other.ready.notify_all();
   }
   return absl::OkStatus();
 }
@@ -224,15 +224,20 @@ void WorkScheduler::Work(WorkLane which) {
       lock.unlock();
       for (Taken& drop : dropped) drop.job.work(drop.start);
       dropped.clear();  // destroys what the dropped work captured, outside the lock
+      bool freed = false;
       if (have) {
         taken.job.work(taken.start);
+        freed = taken.grant.bytes() > 0;
         taken = Taken();  // gives back its memory
       }
       lock.lock();
       if (have) {
         --lane.running;
-        // Memory came back: work of another lane may be able to start now.
-        for (Lane& other : lanes_) other.ready.notify_one();
+        // Memory came back: work waiting in another lane may be able to start now. (This
+        // worker itself takes its own lane's next work.)
+        for (Lane& other : lanes_) {
+          if (freed && &other != &lane && !other.queue.empty()) other.ready.notify_one();
+        }
       }
       continue;
     }
@@ -244,7 +249,9 @@ void WorkScheduler::Work(WorkLane which) {
     if (queued) {
       lane.ready.wait_for(lock, absl::ToChronoMilliseconds(kSweepInterval));
     } else {
+      ++sleepers_;
       lane.ready.wait(lock);
+      --sleepers_;
     }
   }
 }

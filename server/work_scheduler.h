@@ -163,6 +163,7 @@ class WorkScheduler {
   std::map<std::string, absl::Duration, std::less<>> backlog_ ABSL_GUARDED_BY(mu_);
   uint64_t next_seq_ ABSL_GUARDED_BY(mu_) = 0;
   bool stopping_ ABSL_GUARDED_BY(mu_) = false;
+  int sleepers_ ABSL_GUARDED_BY(mu_) = 0;  // workers waiting without a timeout
   absl::Time last_sweep_ ABSL_GUARDED_BY(mu_) = absl::InfinitePast();
   std::vector<std::thread> threads_;
 };
