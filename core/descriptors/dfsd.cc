@@ -233,7 +233,8 @@ class DfsdDescriptor : public Descriptor {
     // (docs/performance.md, "DFSD").
     const size_t chunk = KernelChunk(n);
     const size_t stride = chunk;
-    std::vector<float> tables(3 * static_cast<size_t>(g) * stride, kFarSquared);
+    const AlignedFloats tables = MakeAlignedFloats(3 * static_cast<size_t>(g) * stride);
+    std::fill(tables.get(), tables.get() + 3 * static_cast<size_t>(g) * stride, kFarSquared);
     std::vector<double> coords(3 * chunk);
     double* const coord[3] = {coords.data(), coords.data() + chunk, coords.data() + 2 * chunk};
     std::vector<float> normalised(chunk);
@@ -259,7 +260,7 @@ class DfsdDescriptor : public Descriptor {
           // field with several chunks fills every earlier one): points already counted, so
           // they cannot change a minimum.
           for (int i = 0; i < g; ++i) {
-            float* row = tables.data() + (static_cast<size_t>(a) * g + i) * stride;
+            float* row = tables.get() + (static_cast<size_t>(a) * g + i) * stride;
             const float centre = centres_[static_cast<size_t>(i)];
             for (size_t p = 0; p < count; ++p) {
               const float d = centre - normalised[p];
@@ -268,7 +269,7 @@ class DfsdDescriptor : public Descriptor {
           }
         }
         FieldInput input;
-        input.dx2 = tables.data();
+        input.dx2 = tables.get();
         input.dy2 = input.dx2 + static_cast<size_t>(g) * stride;
         input.dz2 = input.dy2 + static_cast<size_t>(g) * stride;
         input.stride = stride;

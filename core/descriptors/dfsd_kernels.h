@@ -6,6 +6,8 @@
 // levels.
 
 #include <cstddef>
+#include <memory>
+#include <new>
 
 #include "core/simd.h"
 
@@ -16,6 +18,21 @@ namespace shapeid::dfsd_internal {
 // (coordinates are normalised to [-1, 1]), so padding never wins a minimum.
 inline constexpr size_t kPointLanes = 16;
 inline constexpr float kFarSquared = 1e30f;
+
+// Float buffers for the tables and the kernel's own row, starting on a cache line: with the
+// stride a multiple of kPointLanes (64 bytes), every row then starts on one, and no vector
+// load straddles two lines. malloc's 16-byte alignment leaves three chances in four that
+// every AVX-512 load does, and the kernel then runs 5-15 % slower (docs/performance.md,
+// "DFSD"). The kernel takes any alignment and gives the same minima.
+inline constexpr std::align_val_t kRowAlignment{64};
+struct AlignedFloatsFree {
+  void operator()(float* p) const { ::operator delete(p, kRowAlignment); }
+};
+using AlignedFloats = std::unique_ptr<float[], AlignedFloatsFree>;
+// n floats, uninitialised.
+inline AlignedFloats MakeAlignedFloats(size_t n) {
+  return AlignedFloats(static_cast<float*>(::operator new(n * sizeof(float), kRowAlignment)));
+}
 
 // The grid is separable: |c - p|^2 = (c_x - p_x)^2 + (c_y - p_y)^2 + (c_z - p_z)^2, and the
 // cell centres take only G values per axis. So the caller tabulates, per axis a and centre
