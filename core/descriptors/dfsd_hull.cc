@@ -307,6 +307,13 @@ struct StreamedHull::State {
     return false;
   }
 
+  // The in-memory pass needs no histogram while every candidate fits: it starts when the
+  // buffer fills, from the candidates held (all of them so far), and counts every later one.
+  void StartHistogram() {
+    histogram = std::make_unique<XHistogram>(octagon.min_x(), octagon.max_x());
+    for (const Eigen::Vector2d& p : lower.offered()) histogram->Count(p.x());
+  }
+
   size_t n;
   Mode mode = Mode::kOctagon;
   Octagon octagon;
@@ -350,7 +357,6 @@ void StreamedHull::BeginPass() {
     // then it keeps the lowest, the first slab, and the histogram plans the rest.
     s.octagon.Finish();
     s.mode = State::Mode::kInMemory;
-    s.histogram = std::make_unique<XHistogram>(s.octagon.min_x(), s.octagon.max_x());
     s.lower.BeginPass(s.n);
   } else if (s.mode == State::Mode::kLowerSlabs) {
     // A run the histogram says fits never reaches the bound: no selection work.
@@ -368,6 +374,13 @@ void StreamedHull::Offer(const Eigen::Vector2d* points, size_t count) {
     for (size_t i = 0; i < count; ++i) {
       const Eigen::Vector2d& p = points[i];
       if (s.octagon.Inside(p)) continue;
+      if (!s.histogram) {
+        if (s.lower.offered().size() + 1 < s.lower.capacity()) {
+          s.lower.Offer(p);  // wanted: no slab bound yet
+          continue;
+        }
+        s.StartHistogram();  // p fills the buffer
+      }
       s.histogram->Count(p.x());
       if (s.lower.Wants(p)) s.lower.Offer(p);
     }
