@@ -243,9 +243,23 @@ step "Building $image from deploy/Dockerfile (buildah bud --layers)"
 old_id=$(podman image inspect --format '{{.Id}}' "$image" 2>/dev/null || true)
 build_args=()
 [ -n "${SHAPEID_BUILD_JOBS:-}" ] && build_args+=(--build-arg "BUILD_JOBS=$SHAPEID_BUILD_JOBS")
-timeout 1800 buildah bud --isolation chroot --network host --layers --force-rm --pull=never \
-  --format docker "${build_args[@]}" -f deploy/Dockerfile -t "$image" . >"$work/build.log" 2>&1 ||
-  { tail -n 40 "$work/build.log" >&2; fail "buildah bud (last lines above)"; }
+# buildah re-executes itself from a sealed in-memory copy for each RUN step; on a busy host the
+# kernel can refuse the seal (EBUSY, "sealing memfd copy"), a transient fault of the host, not of
+# the Dockerfile. Such a build is retried (its finished layers come from the cache); anything else
+# fails at once.
+for attempt in 1 2 3; do
+  if timeout 1800 buildah bud --isolation chroot --network host --layers --force-rm --pull=never \
+    --format docker "${build_args[@]}" -f deploy/Dockerfile -t "$image" . >"$work/build.log" 2>&1; then
+    break
+  fi
+  if [ "$attempt" -lt 3 ] && grep -q 'sealing memfd copy' "$work/build.log"; then
+    echo "  buildah could not seal its re-exec copy (EBUSY, a busy host); retrying ($attempt of 2)"
+    sleep 5
+    continue
+  fi
+  tail -n 40 "$work/build.log" >&2
+  fail "buildah bud (last lines above)"
+done
 cached=$(grep -c -- '--> Using cache' "$work/build.log" || true)
 steps=$(grep -cE 'STEP [0-9]+/[0-9]+: ' "$work/build.log" || true)
 pass "image built ($cached of $steps steps from the layer cache)"
