@@ -83,8 +83,9 @@ ABSL_FLAG(double, memory_caller_share, 0.5,
           "the part of --memory_budget_mib one caller (an API key, else a client host) may "
           "hold, in (0, 1]. Env: SHAPEID_MEMORY_CALLER_SHARE");
 ABSL_FLAG(int32_t, workers, 0,
-          "threads for cheap work (describing and searching small clouds); 0: one per core, at "
-          "least 2. Env: SHAPEID_WORKERS");
+          "threads for cheap work (describing and searching small clouds); 0: one per core the "
+          "process may use (its CPUs, capped by its cgroup's CPU quota), at least 2. "
+          "Env: SHAPEID_WORKERS");
 ABSL_FLAG(int32_t, heavy_workers, 0,
           "threads for heavy work (huge clouds, huge galleries), at a lower OS priority; 0: "
           "three quarters of the cores, at least 1, always one fewer than the cores. "

@@ -1,16 +1,12 @@
 #include "server/memory_budget.h"
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <cstdint>
-#include <fstream>
 #include <string>
 #include <utility>
 
-#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
-#include "absl/strings/strip.h"
+#include "server/machine_limits.h"
 
 namespace shapeid {
 namespace {
@@ -21,32 +17,9 @@ std::string Mib(size_t bytes) {
   return absl::StrCat(static_cast<int64_t>(static_cast<double>(bytes) / kMiB + 0.5), " MiB");
 }
 
-// The limit in a cgroup file ("max" or a number of bytes), 0 when there is none.
-size_t CgroupLimit(const char* path) {
-  std::ifstream file(path);
-  std::string text;
-  if (!file || !std::getline(file, text)) return 0;
-  uint64_t bytes = 0;
-  if (!absl::SimpleAtoi(absl::StripAsciiWhitespace(text), &bytes)) return 0;  // "max"
-  // cgroup v1 reports "no limit" as a huge page-aligned number.
-  if (bytes >= (uint64_t{1} << 60)) return 0;
-  return static_cast<size_t>(bytes);
-}
-
 }  // namespace
 
-size_t DefaultMemoryBudgetBytes() {
-  const long pages = sysconf(_SC_PHYS_PAGES);
-  const long page_size = sysconf(_SC_PAGESIZE);
-  size_t limit = pages > 0 && page_size > 0 ? static_cast<size_t>(pages) * page_size : 0;
-  for (const char* path : {"/sys/fs/cgroup/memory.max",                       // cgroup v2
-                           "/sys/fs/cgroup/memory/memory.limit_in_bytes"}) {  // cgroup v1
-    const size_t cgroup = CgroupLimit(path);
-    if (cgroup > 0) limit = limit == 0 ? cgroup : std::min(limit, cgroup);
-  }
-  if (limit == 0) limit = size_t{4} << 30;  // unknown: assume a small machine
-  return limit / 2;
-}
+size_t DefaultMemoryBudgetBytes() { return MemoryLimitBytes() / 2; }
 
 MemoryBudget::MemoryBudget(MemoryBudgetOptions options)
     : total_(options.total_bytes),

@@ -9,6 +9,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
+#include "server/machine_limits.h"
 
 namespace shapeid {
 namespace {
@@ -20,7 +21,7 @@ constexpr absl::Duration kSweepInterval = absl::Milliseconds(20);
 // waits for the budget (a big piece waits for memory; small ones need not wait behind it).
 constexpr size_t kSmallMemory = size_t{1} << 20;
 
-int Cores() { return std::max(1, static_cast<int>(std::thread::hardware_concurrency())); }
+int Cores() { return UsableCores(); }
 
 int CheapWorkers(const WorkSchedulerOptions& options) {
   return options.cheap_workers > 0 ? options.cheap_workers : std::max(2, Cores());
