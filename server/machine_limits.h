@@ -2,6 +2,7 @@
 #define SHAPEID_SERVER_MACHINE_LIMITS_H_
 
 #include <cstddef>
+
 #include "absl/strings/string_view.h"
 
 namespace shapeid {
