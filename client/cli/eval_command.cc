@@ -8,6 +8,7 @@
 #include "absl/strings/str_cat.h"
 #include "client/cli/eval_backend.h"
 #include "client/cli/eval_local.h"
+#include "client/cli/eval_report.h"
 #include "client/cli/eval_server.h"
 
 namespace shapeid {

@@ -2,14 +2,13 @@
 #define SHAPEID_CLIENT_CLI_EVAL_METRICS_H_
 
 // Scoring of a labelled evaluation (`shapeid eval`): the confusion matrix, overall and
-// per-class accuracy, timing, and its renderings (table, JSON, CSV, a self-contained HTML page).
-// Pure functions over plain structs: the eval command fills an EvalRun, these render it.
+// per-class accuracy, timing, and its text renderings (table, JSON, CSV; the HTML page is in
+// eval_report.h). Pure functions over plain structs: the eval command fills an EvalRun, these
+// render it.
 
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include "absl/strings/string_view.h"
 
 namespace shapeid {
 
@@ -85,14 +84,6 @@ std::string FormatEvalJson(const EvalRun& run, const EvalMetrics& metrics, bool 
 // "__overall__" with the totals (its recall and precision are the micro averages, both equal to
 // the accuracy). Fields are quoted as RFC 4180 says; lines end in '\n'.
 std::string FormatEvalCsv(const EvalMetrics& metrics);
-// A self-contained HTML page (inline CSS, no scripts or external resources): headline
-// figures, per-class table, the confusion matrix as a coloured grid (truth rows only; cell
-// shade = share of the row), the list of errors (file, truth, predicted; first 500), failed
-// files (first 500), the run's parameters. Every string from the run is escaped.
-std::string RenderEvalHtml(const EvalRun& run, const EvalMetrics& metrics);
-
-// `text` escaped for HTML text and attribute values (& < > " ').
-std::string HtmlEscape(absl::string_view text);
 
 }  // namespace shapeid
 

@@ -11,52 +11,21 @@
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
+#include "client/cli/eval_testing.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 
 namespace shapeid {
 namespace {
 
+using ::shapeid::eval_testing::Add;
+using ::shapeid::eval_testing::CountOf;
+using ::shapeid::eval_testing::ThreeClassRun;
 using ::testing::ElementsAre;
 using ::testing::EndsWith;
 using ::testing::HasSubstr;
 using ::testing::Not;
 using ::testing::StartsWith;
-
-void Add(EvalRun& run, const std::string& truth, const std::string& predicted, int fold = 0) {
-  EvalPrediction p;
-  p.file = absl::StrCat(truth, "/", run.predictions.size(), ".pcd");
-  p.truth = truth;
-  p.predicted = predicted;
-  p.confidence = 0.75;
-  p.seconds = 0.05;
-  p.fold = fold;
-  run.predictions.push_back(p);
-}
-
-// bench 3/4 (one taken for a chair), chair 2/3 (one for a table), table 2/3 (one for a bench).
-// Added out of order so that the sorting is exercised.
-EvalRun ThreeClassRun() {
-  EvalRun run;
-  run.mode = "holdout";
-  run.dataset = "data/furniture";
-  run.descriptor_spec = "rphsd:bins=8";
-  run.k = 3;
-  run.train_samples = 90;
-  run.train_seconds = 2.5;
-  run.test_seconds = 0.5;
-  Add(run, "table", "table");
-  Add(run, "chair", "chair");
-  Add(run, "bench", "bench");
-  Add(run, "bench", "chair");
-  Add(run, "table", "bench");
-  Add(run, "chair", "table");
-  Add(run, "bench", "bench");
-  Add(run, "table", "table");
-  Add(run, "chair", "chair");
-  Add(run, "bench", "bench");
-  return run;
-}
 
 // A Python 3 to check the JSON with a real parser: Debian's when present (a version-manager
 // shim on the PATH can take a second to start), else whatever python3 the PATH has.
@@ -83,15 +52,6 @@ bool PythonCheck(const std::string& json, const std::string& script) {
   std::remove(path);
   std::remove(py_path.c_str());
   return status == 0;
-}
-
-size_t CountOf(absl::string_view text, absl::string_view needle) {
-  size_t count = 0;
-  for (size_t at = text.find(needle); at != absl::string_view::npos;
-       at = text.find(needle, at + 1)) {
-    ++count;
-  }
-  return count;
 }
 
 // The line of `text` that starts with `prefix`, or "".
@@ -219,9 +179,6 @@ TEST(EvalMetricsTest, EmptyRunIsAllZerosAndRenders) {
   EXPECT_THAT(json, Not(HasSubstr("null")));
   EXPECT_THAT(json, HasSubstr("\"labels\":[],\"confusion\":[],\"failed_files\":[\"bad.pcd\"]"));
   EXPECT_EQ(FormatEvalCsv(m), "label,tests,correct,recall,precision\n__overall__,0,0,0,0\n");
-  const std::string html = RenderEvalHtml(run, m);
-  EXPECT_THAT(html, HasSubstr("No predictions."));
-  EXPECT_EQ(CountOf(html, "class=\"cm-cell\""), 0u);
   if (HavePython()) {
     EXPECT_TRUE(PythonCheck(json, "assert d['tests'] == 0 and d['predictions'] == []"));
   }
@@ -338,63 +295,6 @@ TEST(EvalMetricsTest, CsvQuotesLikeRfc4180) {
             "\"say \"\"hi\"\"\",1,0,0,0\n"
             "\"two\nlines\",1,1,1,1\n"
             "__overall__,4,3,0.75,0.75\n");
-}
-
-TEST(EvalMetricsTest, HtmlEscapesEverything) {
-  EXPECT_EQ(HtmlEscape("<script>alert(1)</script>"), "&lt;script&gt;alert(1)&lt;/script&gt;");
-  EXPECT_EQ(HtmlEscape("a&b\"c'"), "a&amp;b&quot;c&#39;");
-  EXPECT_EQ(HtmlEscape("caf\xC3\xA9"), "caf\xC3\xA9");
-
-  EvalRun run = ThreeClassRun();
-  run.dataset = "<script>";
-  run.descriptor_spec = "a&b\"c'";
-  Add(run, "<script>", "a&b\"c'");
-  Add(run, "<script>", "<script>");
-  run.predictions.back().file = "<img src=x onerror=alert(1)>.pcd";
-  run.failed_files = {"</td><script>.pcd"};
-  const std::string html = RenderEvalHtml(run, ComputeEvalMetrics(run));
-  EXPECT_THAT(html, StartsWith("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n"
-                               "<meta charset=\"utf-8\">"));
-  EXPECT_THAT(html, EndsWith("</html>\n"));
-  EXPECT_THAT(html, Not(HasSubstr("<script")));
-  EXPECT_THAT(html, Not(HasSubstr("<img")));
-  EXPECT_THAT(html, Not(HasSubstr("a&b")));
-  EXPECT_THAT(html, Not(HasSubstr("http")));  // nothing to fetch
-  EXPECT_THAT(html, HasSubstr("&lt;script&gt;"));
-  EXPECT_THAT(html, HasSubstr("a&amp;b&quot;c&#39;"));
-  EXPECT_THAT(html, HasSubstr("&lt;/td&gt;&lt;script&gt;.pcd"));
-}
-
-TEST(EvalMetricsTest, HtmlHasOneGridCellPerMatrixEntry) {
-  const EvalRun run = ThreeClassRun();
-  const EvalMetrics m = ComputeEvalMetrics(run);
-  const std::string html = RenderEvalHtml(run, m);
-  EXPECT_EQ(CountOf(html, "class=\"cm-cell\""), 9u);
-  // Diagonal green, confusions red; shade grows with the share of the row.
-  EXPECT_THAT(html,
-              HasSubstr("<td class=\"cm-cell\" style=\"background:rgba(22,163,74,0.780);"
-                        "color:#fff\" title=\"bench \xE2\x86\x92 bench: 3 of 4 (75.00 %)\">3"));
-  EXPECT_THAT(html, HasSubstr("<td class=\"cm-cell\" style=\"background:rgba(220,38,38,0.340)\" "
-                              "title=\"bench \xE2\x86\x92 chair: 1 of 4 (25.00 %)\">1"));
-  EXPECT_THAT(html, HasSubstr("<h2>Misclassified files (3)</h2>"));
-  EXPECT_THAT(html, HasSubstr("<td class=\"path\">bench/3.pcd</td><td>bench</td><td>chair</td>"));
-
-  // With rejections: rows stay the truth classes, every label gets a column.
-  EvalRun with_unknown = run;
-  Add(with_unknown, "chair", "unknown");
-  const EvalMetrics mu = ComputeEvalMetrics(with_unknown);
-  const std::string page = RenderEvalHtml(with_unknown, mu);
-  EXPECT_EQ(CountOf(page, "class=\"cm-cell\""), mu.classes.size() * mu.labels.size());
-  EXPECT_EQ(CountOf(page, "<th class=\"col extra\""), 1u);
-  EXPECT_THAT(page, HasSubstr("rgba(217,119,6,"));  // the rejection colour
-}
-
-TEST(EvalMetricsTest, HtmlCapsTheErrorList) {
-  EvalRun run;
-  for (int i = 0; i < 620; ++i) Add(run, "a", "b");
-  const std::string html = RenderEvalHtml(run, ComputeEvalMetrics(run));
-  EXPECT_EQ(CountOf(html, "<td class=\"path\">"), 500u);
-  EXPECT_THAT(html, HasSubstr("Showing the first 500 of 620"));
 }
 
 }  // namespace
