@@ -37,6 +37,7 @@
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
 #include "bench/bench_clouds.h"
+#include "bench/percentile.h"
 #include "client/client.h"
 #include "core/testing/test_clouds.h"
 #include "server/api_keys.h"
@@ -44,6 +45,8 @@
 
 namespace shapeid {
 namespace {
+
+using bench::Percentile;
 
 constexpr char kAbuserKey[] = "abuser-key-0123456789abcdefghijklmnopqrstuv";
 constexpr char kLabKey[] = "lab-key-0123456789abcdefghijklmnopqrstuvwxyz";
@@ -62,13 +65,6 @@ int FreePort() {
   }
   close(fd);
   return port;
-}
-
-double Percentile(std::vector<double> v, double q) {  // nearest rank; 0 when empty
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1,
-                    static_cast<size_t>(q * static_cast<double>(v.size() - 1) + 0.5))];
 }
 
 std::unique_ptr<Client> Connect(const std::string& target, const std::string& key,

@@ -33,7 +33,6 @@
 #include <fstream>
 #include <memory>
 #include <random>
-#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -42,6 +41,8 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
+#include "bench/host_info.h"
+#include "bench/percentile.h"
 #include "client/client.h"
 #include "core/testing/test_clouds.h"
 #include "server/storage/testing/postgres_instance.h"
@@ -52,6 +53,9 @@ extern char** environ;
 namespace shapeid {
 namespace {
 
+using bench::CpuModel;
+using bench::Percentile;
+
 using Clock = std::chrono::steady_clock;
 using testing_clouds::ShapeCloud;
 constexpr auto& kShapes = testing_clouds::kShapeNames;
@@ -61,11 +65,6 @@ double MsSince(Clock::time_point t0) {
 }
 Clock::time_point After(Clock::time_point t, double seconds) {
   return t + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
-}
-double Percentile(std::vector<double> v, double q) {  // nearest rank; 0 when empty
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1) + 0.5))];
 }
 std::string ReadAll(const std::string& path) {
   std::ifstream in(path);
@@ -267,14 +266,6 @@ ClassifyRun Median(const std::vector<ClassifyRun>& runs) {
     m.health_failures += r.health_failures, m.health_checks += r.health_checks;
   }
   return m;
-}
-
-std::string CpuModel() {
-  std::istringstream in(ReadAll("/proc/cpuinfo"));
-  for (std::string line; std::getline(in, line);) {
-    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
-  }
-  return "unknown";
 }
 
 int Run(int argc, char** argv) {
