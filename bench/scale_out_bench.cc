@@ -395,7 +395,7 @@ int Run(int argc, char** argv) {
     failed |= classify.back().second.errors > 0 || classify.back().second.wrong > 0;
   }
 
-  // 2. ChildServertion delay: acknowledged by replica 0 until replica 1 shows it.
+  // 2. Replication delay: acknowledged by replica 0 until replica 1 shows it.
   std::vector<double> delays, acks;
   int timeouts = 0;
   if (max_n >= 2 && delay_trials > 0) {
@@ -483,7 +483,7 @@ int Run(int argc, char** argv) {
       "seconds per measured second)\n");
   if (!delays.empty() || timeouts > 0) {
     std::printf(
-        "\n### ChildServertion delay: Train of one sample acknowledged by replica 0 (pick_first) "
+        "\n### Replication delay: Train of one sample acknowledged by replica 0 (pick_first) "
         "until GetGallery on replica 1 shows it (polled without pause)\n\n");
     std::printf(
         "| trials | min ms | median ms | p99 ms | max ms | over the bound | timeouts | "
