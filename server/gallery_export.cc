@@ -22,23 +22,11 @@
 namespace shapeid {
 namespace {
 
-v1::GalleryExportHeader HeaderFor(const std::string& name, const GalleryOptions& options,
-                                  absl::Time created, absl::Time updated,
-                                  uint32_t descriptor_version, const std::string& software_version,
-                                  int dimension, int64_t num_samples) {
+v1::GalleryExportHeader HeaderFor(const GalleryMetadata& meta, int64_t num_samples) {
   v1::GalleryExportHeader header;
   header.set_format_version(kGalleryExportFormatVersion);
-  header.set_name(name);
-  header.set_descriptor_spec(options.descriptor_spec);
-  header.set_dimension(static_cast<uint32_t>(dimension));
-  *header.mutable_knn() = ToProto(options.knn);
-  header.set_reject_distance(options.reject_distance);
-  ToProto(created, header.mutable_create_time());
-  ToProto(updated, header.mutable_update_time());
-  header.set_descriptor_version(descriptor_version);
-  header.set_software_version(software_version);
+  ToProto(meta, &header);
   header.set_sample_count(static_cast<uint64_t>(num_samples));
-  if (options.augment.enabled()) *header.mutable_augmentation() = ToProto(options.augment);
   return header;
 }
 
@@ -66,10 +54,7 @@ uint32_t ExportCrc(uint32_t crc, uint64_t id, absl::string_view label,
 
 GalleryExporter::GalleryExporter(std::shared_ptr<const GallerySnapshot> snapshot,
                                  size_t chunk_bytes)
-    : header_(HeaderFor(snapshot->name(), snapshot->options(), snapshot->created(),
-                        snapshot->updated(), snapshot->descriptor_version(),
-                        snapshot->software_version(), snapshot->dimension(),
-                        snapshot->num_samples())),
+    : header_(HeaderFor(snapshot->metadata(), snapshot->num_samples())),
       append_([index = &snapshot->index()](int64_t slot, v1::ExportedSamples* out) {
         AppendTo(out, index->IdAt(slot), index->LabelAt(slot));
         const int features = index->ViewsAt(slot) * index->dimension();
@@ -85,9 +70,7 @@ GalleryExporter::GalleryExporter(StoredGallery gallery, size_t chunk_bytes)
     : GalleryExporter(std::make_shared<const StoredGallery>(std::move(gallery)), chunk_bytes) {}
 
 GalleryExporter::GalleryExporter(std::shared_ptr<const StoredGallery> gallery, size_t chunk_bytes)
-    : header_(HeaderFor(gallery->name, gallery->options, gallery->created, gallery->updated,
-                        gallery->descriptor_version, gallery->software_version, gallery->dimension,
-                        static_cast<int64_t>(gallery->samples.size()))),
+    : header_(HeaderFor(*gallery, static_cast<int64_t>(gallery->samples.size()))),
       append_([samples = &gallery->samples](int64_t slot, v1::ExportedSamples* out) {
         const StoredSample& sample = (*samples)[static_cast<size_t>(slot)];
         AppendTo(out, sample.id, sample.label);
@@ -199,26 +182,11 @@ absl::Status GalleryImportAssembler::AddHeader(const v1::GalleryExportHeader& he
         absl::StrCat("the export holds ", header.sample_count(),
                      " samples, more than max_samples_per_gallery = ", max_samples_));
   }
-  absl::StatusOr<KnnOptions> knn = FromProto(header.knn());
-  if (!knn.ok())
-    return absl::InvalidArgumentError(absl::StrCat("header: ", knn.status().message()));
-
-  gallery_.name = header.name();
-  gallery_.options.descriptor_spec = header.descriptor_spec();
-  gallery_.options.knn = *knn;
-  gallery_.options.reject_distance = header.reject_distance();
-  if (header.has_augmentation()) {
-    absl::StatusOr<AugmentOptions> augment = FromProto(header.augmentation());
-    if (!augment.ok()) {
-      return absl::InvalidArgumentError(absl::StrCat("header: ", augment.status().message()));
-    }
-    gallery_.options.augment = *augment;
+  absl::StatusOr<GalleryMetadata> meta = MetadataFromProto(header);
+  if (!meta.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat("header: ", meta.status().message()));
   }
-  gallery_.created = FromProto(header.create_time());
-  gallery_.updated = FromProto(header.update_time());
-  gallery_.descriptor_version = header.descriptor_version();
-  gallery_.software_version = header.software_version();
-  gallery_.dimension = static_cast<int>(header.dimension());
+  static_cast<GalleryMetadata&>(gallery_) = *std::move(meta);
   announced_ = header.sample_count();
   // Not all of it up front: a 100-byte header must not pin megabytes before any sample came.
   gallery_.samples.reserve(static_cast<size_t>(std::min<uint64_t>(announced_, 1 << 16)));

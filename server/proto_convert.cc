@@ -112,25 +112,61 @@ absl::Time FromProto(const google::protobuf::Timestamp& t) {
   return absl::FromUnixSeconds(t.seconds()) + absl::Nanoseconds(t.nanos());
 }
 
+namespace {
+
+// The fields v1::Gallery and v1::GalleryExportHeader share, under the same names.
+template <typename Message>
+void CommonMetadataToProto(const GalleryMetadata& meta, Message* out) {
+  out->set_name(meta.name);
+  out->set_descriptor_spec(meta.options.descriptor_spec);
+  out->set_dimension(static_cast<uint32_t>(meta.dimension));
+  *out->mutable_knn() = ToProto(meta.options.knn);
+  out->set_reject_distance(meta.options.reject_distance);
+  ToProto(meta.created, out->mutable_create_time());
+  ToProto(meta.updated, out->mutable_update_time());
+  out->set_descriptor_version(meta.descriptor_version);
+  out->set_software_version(meta.software_version);
+}
+
+}  // namespace
+
+void ToProto(const GalleryMetadata& meta, v1::Gallery* out) {
+  CommonMetadataToProto(meta, out);
+  out->set_version(meta.version);
+  *out->mutable_augmentation() = ToProto(meta.options.augment);
+}
+
+void ToProto(const GalleryMetadata& meta, v1::GalleryExportHeader* out) {
+  CommonMetadataToProto(meta, out);
+  if (meta.options.augment.enabled()) *out->mutable_augmentation() = ToProto(meta.options.augment);
+}
+
+absl::StatusOr<GalleryMetadata> MetadataFromProto(const v1::GalleryExportHeader& header) {
+  GalleryMetadata meta;
+  meta.name = header.name();
+  meta.options.descriptor_spec = header.descriptor_spec();
+  SHAPEID_ASSIGN_OR_RETURN(meta.options.knn, FromProto(header.knn()));
+  meta.options.reject_distance = header.reject_distance();
+  if (header.has_augmentation()) {
+    SHAPEID_ASSIGN_OR_RETURN(meta.options.augment, FromProto(header.augmentation()));
+  }
+  meta.created = FromProto(header.create_time());
+  meta.updated = FromProto(header.update_time());
+  meta.descriptor_version = header.descriptor_version();
+  meta.software_version = header.software_version();
+  meta.dimension = static_cast<int>(header.dimension());
+  return meta;
+}
+
 void ToProto(const GallerySnapshot& snapshot, v1::Gallery* out) {
-  out->set_name(snapshot.name());
-  out->set_descriptor_spec(snapshot.options().descriptor_spec);
-  out->set_dimension(static_cast<uint32_t>(snapshot.dimension()));
-  *out->mutable_knn() = ToProto(snapshot.options().knn);
-  out->set_reject_distance(snapshot.options().reject_distance);
+  ToProto(snapshot.metadata(), out);
   out->set_sample_count(static_cast<uint64_t>(snapshot.num_samples()));
   for (const auto& [label, count] : snapshot.LabelCounts()) {  // std::map: sorted by label
     v1::LabelCount* entry = out->add_label_counts();
     entry->set_label(label);
     entry->set_count(static_cast<uint64_t>(count));
   }
-  ToProto(snapshot.created(), out->mutable_create_time());
-  ToProto(snapshot.updated(), out->mutable_update_time());
-  out->set_version(snapshot.version());
-  out->set_descriptor_version(snapshot.descriptor_version());
-  out->set_software_version(snapshot.software_version());
   out->set_incompatible(snapshot.incompatible());
-  *out->mutable_augmentation() = ToProto(snapshot.options().augment);
   out->set_vector_count(static_cast<uint64_t>(snapshot.index().num_rows()));
   out->set_approximate_lists(static_cast<uint32_t>(snapshot.index().approximate_lists()));
 }

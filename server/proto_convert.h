@@ -7,6 +7,7 @@
 #include "absl/time/time.h"
 #include "absl/types/span.h"
 #include "core/descriptor_registry.h"
+#include "core/gallery/gallery_metadata.h"
 #include "core/gallery/gallery_options.h"
 #include "core/gallery/gallery_snapshot.h"
 #include "core/knn/knn_options.h"
@@ -25,7 +26,17 @@ v1::ViewAugmentation ToProto(const AugmentOptions& augment);
 
 absl::StatusOr<GalleryOptions> GalleryOptionsFromProto(const v1::CreateGalleryRequest& request);
 
-// The gallery as GetGallery / ListGalleries report it, versions and incompatibility included.
+// A gallery's metadata as v1::Gallery reports it (augmentation always set, defaults filled).
+void ToProto(const GalleryMetadata& meta, v1::Gallery* out);
+// The same in an export header, but the version and incarnation (an import makes a new
+// gallery) and the augmentation only when on (so such exports keep their bytes). The format
+// version and sample count are the exporter's.
+void ToProto(const GalleryMetadata& meta, v1::GalleryExportHeader* out);
+// The inverse for an export header: FromProto's errors for its knn options and augmentation.
+absl::StatusOr<GalleryMetadata> MetadataFromProto(const v1::GalleryExportHeader& header);
+
+// The gallery as GetGallery / ListGalleries report it: its metadata, counts and
+// incompatibility.
 void ToProto(const GallerySnapshot& snapshot, v1::Gallery* out);
 
 // The descriptors a server offers (core/descriptor_registry.h), each with its parameters, its

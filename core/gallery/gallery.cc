@@ -135,11 +135,15 @@ absl::StatusOr<std::unique_ptr<GallerySnapshot>> Gallery::EmptySnapshot(
   SHAPEID_ASSIGN_OR_RETURN(KnnIndex index,
                            KnnIndex::Create(static_cast<int>(descriptor->dimension())));
   const DescriptorKind* kind = FindDescriptorKind(descriptor->spec().kind);
-  const uint32_t descriptor_version = kind != nullptr ? kind->version : 0;
-  return std::unique_ptr<GallerySnapshot>(
-      new GallerySnapshot(std::move(name), std::move(canonical),
-                          std::shared_ptr<const Descriptor>(std::move(descriptor)),
-                          std::move(index), created, descriptor_version, kShapeidVersion));
+  GalleryMetadata meta;
+  meta.name = std::move(name);
+  meta.options = std::move(canonical);
+  meta.created = created;
+  meta.updated = created;
+  meta.descriptor_version = kind != nullptr ? kind->version : 0;
+  meta.software_version = kShapeidVersion;
+  return std::unique_ptr<GallerySnapshot>(new GallerySnapshot(
+      std::move(meta), std::shared_ptr<const Descriptor>(std::move(descriptor)), std::move(index)));
 }
 
 absl::StatusOr<std::unique_ptr<GallerySnapshot>> Gallery::StoredSnapshot(
@@ -174,17 +178,16 @@ absl::StatusOr<std::unique_ptr<GallerySnapshot>> Gallery::StoredSnapshot(
     }
   }
   SHAPEID_ASSIGN_OR_RETURN(KnnIndex index, KnnIndex::Create(stored.dimension));
-  GalleryOptions options = stored.options;
+  GalleryMetadata meta = stored;
   std::shared_ptr<const Descriptor> shared;
   if (incompatible.empty()) {
     // Same kind version: the stored spec and today's canonical spelling (which may list a
     // parameter added since, at a default that reproduces the old output) are one descriptor.
-    options.descriptor_spec = (*descriptor)->spec().ToString();
+    meta.options.descriptor_spec = (*descriptor)->spec().ToString();
     shared = *std::move(descriptor);
   }
   auto snapshot = std::unique_ptr<GallerySnapshot>(
-      new GallerySnapshot(stored.name, std::move(options), std::move(shared), std::move(index),
-                          stored.created, stored.descriptor_version, stored.software_version));
+      new GallerySnapshot(std::move(meta), std::move(shared), std::move(index)));
   snapshot->incompatible_ = std::move(incompatible);
   return snapshot;
 }
@@ -210,7 +213,7 @@ absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Create(std::string name,
                                                          absl::Time created) {
   SHAPEID_ASSIGN_OR_RETURN(std::unique_ptr<GallerySnapshot> snapshot,
                            EmptySnapshot(name, options, created));
-  snapshot->incarnation_ = NewGalleryIncarnation();
+  snapshot->meta_.incarnation = NewGalleryIncarnation();
   return std::shared_ptr<Gallery>(
       new Gallery(std::move(name), limits, std::move(store), std::move(snapshot)));
 }
@@ -236,14 +239,11 @@ absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Restore(const StoredGallery& s
   }
   if (approximate == ApproximateBuild::kNow) {
     if (absl::Status s =
-            snapshot->index_.UpdateApproximate(limits.approximate, snapshot->options_.knn.scaling);
+            snapshot->index_.UpdateApproximate(limits.approximate, snapshot->options().knn.scaling);
         !s.ok()) {
       return Prefixed(where, s);
     }
   }
-  snapshot->updated_ = stored.updated;
-  snapshot->version_ = stored.version;
-  snapshot->incarnation_ = stored.incarnation;
   snapshot->next_assigned_id_ = next_assigned;
   return std::shared_ptr<Gallery>(
       new Gallery(stored.name, limits, std::move(store), std::move(snapshot)));
@@ -326,69 +326,122 @@ absl::StatusOr<T> Gallery::RetryIfStale(const std::function<absl::StatusOr<T>()>
   }
 }
 
-absl::StatusOr<CommitResult> Gallery::CommitBatchOnce(std::vector<StoredSample>& samples) {
+Gallery::Origin Gallery::Origin::Local(Persist persist) {
+  Origin origin(Kind::kLocal);
+  origin.persist_ = std::move(persist);
+  return origin;
+}
+
+Gallery::Origin Gallery::Origin::Stored(uint64_t version, absl::Time updated) {
+  Origin origin(Kind::kStored);
+  origin.version_ = version;
+  origin.updated_ = updated;
+  return origin;
+}
+
+Gallery::Origin Gallery::Origin::Derived(const std::atomic<bool>* cancel) {
+  Origin origin(Kind::kDerived);
+  origin.cancel_ = cancel;
+  return origin;
+}
+
+absl::StatusOr<std::shared_ptr<const GallerySnapshot>> Gallery::Mutate(const Origin& origin,
+                                                                       const Check& check,
+                                                                       const Change& change) {
   std::lock_guard<std::mutex> lock(writer_mu_);
-  if (deleted_) return DeletedError();
-  const std::shared_ptr<const GallerySnapshot> current = Snapshot();
-  // Never mix descriptors of another version into a gallery.
-  SHAPEID_RETURN_IF_ERROR(current->CheckCompatible());
-  CommitResult result;
-  if (samples.empty()) {
-    result.version = current->version();
-    return result;
+  std::shared_ptr<const GallerySnapshot> current = Snapshot();
+  if (deleted_) {
+    if (origin.kind_ == Origin::Kind::kDerived) return current;
+    return DeletedError();
   }
-  const int64_t total = current->num_samples() + static_cast<int64_t>(samples.size());
-  if (total > limits_.max_samples_per_gallery) {
-    return absl::ResourceExhaustedError(absl::StrCat(
-        "gallery '", name_, "' holds ", current->num_samples(), " samples; adding ", samples.size(),
-        " would exceed max_samples_per_gallery = ", limits_.max_samples_per_gallery));
-  }
-  // Client ids: checked again here, since other batches may have committed since AddSample.
-  for (size_t i = 0; i < samples.size(); ++i) {
-    const uint64_t id = samples[i].id;
-    if (id != 0 && current->Contains(id)) {
-      return absl::AlreadyExistsError(
-          absl::StrCat("sample ", i, ": sample id ", id, " is already in gallery '", name_, "'"));
+  const uint64_t version = current->version();
+  if (origin.kind_ == Origin::Kind::kStored) {
+    if (origin.version_ <= version) return current;  // held already
+    if (origin.version_ > version + 1) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "gallery '", name_, "' is at version ", version, "; a stored change to version ",
+          origin.version_, " cannot apply (changes missed)"));
     }
   }
-
-  // Copying the index is the O(n d) cost of a commit; readers keep using `current`.
+  if (check != nullptr) {
+    SHAPEID_ASSIGN_OR_RETURN(const bool needed, check(*current));
+    if (!needed) return current;
+  }
+  // The copy is the O(n d) cost of a change; readers keep using `current` meanwhile.
   std::shared_ptr<GallerySnapshot> next(new GallerySnapshot(*current));
-  // Assigned ids live above every client id (kFirstAssignedId), so they cannot collide.
-  uint64_t counter = next->next_assigned_id_;
-  for (StoredSample& sample : samples) {
-    if (sample.id == 0) sample.id = counter++;
-    // Cannot fail for validated descriptors and labels; if it does, nothing is published.
-    SHAPEID_RETURN_IF_ERROR(next->index_.Add(sample.id, sample.label, sample.features));
-    result.ids.push_back(sample.id);
+  if (change != nullptr) SHAPEID_RETURN_IF_ERROR(change(*next));
+  // Seconds when the index has to be built; readers meanwhile use `current`.
+  SHAPEID_RETURN_IF_ERROR(next->index_.UpdateApproximate(
+      limits_.approximate, next->options().knn.scaling, origin.cancel_));
+  GalleryMetadata& meta = next->meta_;
+  switch (origin.kind_) {
+    case Origin::Kind::kLocal:
+      meta.version = version + 1;
+      meta.updated = std::max(absl::Now(), current->updated());
+      if (store_ != nullptr) {
+        SHAPEID_RETURN_IF_ERROR(origin.persist_(*store_, meta.updated, meta.version));
+      }
+      break;
+    case Origin::Kind::kStored:
+      meta.version = origin.version_;
+      meta.updated = origin.updated_;
+      break;
+    case Origin::Kind::kDerived:
+      break;
   }
-  // Keeps the approximate index in step (seconds when it has to be built; readers meanwhile
-  // use `current`).
-  SHAPEID_RETURN_IF_ERROR(
-      next->index_.UpdateApproximate(limits_.approximate, next->options_.knn.scaling));
-  next->next_assigned_id_ = counter;
-  next->version_ = current->version_ + 1;
-  next->updated_ = std::max(absl::Now(), current->updated_);
-  if (store_ != nullptr) {
-    SHAPEID_RETURN_IF_ERROR(store_->AppendSamples(name_, samples, next->updated_, next->version_));
-  }
-  result.version = next->version_;
-  Publish(std::move(next));
+  current = std::move(next);
+  Publish(current);
+  return current;
+}
+
+absl::StatusOr<CommitResult> Gallery::CommitBatchOnce(std::vector<StoredSample>& samples) {
+  const Check check = [&](const GallerySnapshot& current) -> absl::StatusOr<bool> {
+    // Never mix descriptors of another version into a gallery.
+    SHAPEID_RETURN_IF_ERROR(current.CheckCompatible());
+    if (samples.empty()) return false;
+    const int64_t total = current.num_samples() + static_cast<int64_t>(samples.size());
+    if (total > limits_.max_samples_per_gallery) {
+      return absl::ResourceExhaustedError(absl::StrCat(
+          "gallery '", name_, "' holds ", current.num_samples(), " samples; adding ",
+          samples.size(),
+          " would exceed max_samples_per_gallery = ", limits_.max_samples_per_gallery));
+    }
+    // Client ids: checked again here, since other batches may have committed since AddSample.
+    for (size_t i = 0; i < samples.size(); ++i) {
+      const uint64_t id = samples[i].id;
+      if (id != 0 && current.Contains(id)) {
+        return absl::AlreadyExistsError(
+            absl::StrCat("sample ", i, ": sample id ", id, " is already in gallery '", name_, "'"));
+      }
+    }
+    return true;
+  };
+  const Change add = [&](GallerySnapshot& next) -> absl::Status {
+    for (StoredSample& sample : samples) {
+      // Assigned ids live above every client id (kFirstAssignedId), so they cannot collide.
+      if (sample.id == 0) sample.id = next.next_assigned_id_++;
+      // Cannot fail for validated descriptors and labels; if it does, nothing is published.
+      SHAPEID_RETURN_IF_ERROR(next.index_.Add(sample.id, sample.label, sample.features));
+    }
+    return absl::OkStatus();
+  };
+  const Origin origin =
+      Origin::Local([&](GalleryStore& store, absl::Time updated, uint64_t version) {
+        return store.AppendSamples(name_, samples, updated, version);
+      });
+  SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<const GallerySnapshot> after,
+                           Mutate(origin, check, add));
+  CommitResult result;
+  result.version = after->version();
+  for (const StoredSample& sample : samples) result.ids.push_back(sample.id);
   return result;
 }
 
 absl::Status Gallery::UpdateApproximateIndex(const std::atomic<bool>* cancel) {
-  std::lock_guard<std::mutex> lock(writer_mu_);
-  if (deleted_) return absl::OkStatus();
-  const std::shared_ptr<const GallerySnapshot> current = Snapshot();
-  if (current->index_.ApproximateInStep(limits_.approximate, current->options_.knn.scaling)) {
-    return absl::OkStatus();
-  }
-  std::shared_ptr<GallerySnapshot> next(new GallerySnapshot(*current));
-  SHAPEID_RETURN_IF_ERROR(
-      next->index_.UpdateApproximate(limits_.approximate, next->options_.knn.scaling, cancel));
-  Publish(std::move(next));
-  return absl::OkStatus();
+  const Check out_of_step = [&](const GallerySnapshot& current) -> absl::StatusOr<bool> {
+    return !current.index_.ApproximateInStep(limits_.approximate, current.options().knn.scaling);
+  };
+  return Mutate(Origin::Derived(cancel), out_of_step, nullptr).status();
 }
 
 absl::StatusOr<int64_t> Gallery::RemoveSamples(absl::Span<const uint64_t> ids,
@@ -398,51 +451,42 @@ absl::StatusOr<int64_t> Gallery::RemoveSamples(absl::Span<const uint64_t> ids,
 
 absl::StatusOr<int64_t> Gallery::RemoveSamplesOnce(absl::Span<const uint64_t> ids,
                                                    absl::Span<const std::string> labels) {
-  std::lock_guard<std::mutex> lock(writer_mu_);
-  if (deleted_) return DeletedError();
-  const std::shared_ptr<const GallerySnapshot> current = Snapshot();
+  // Resolved against the snapshot the removal is made on.
   std::vector<uint64_t> unique;
-  absl::flat_hash_set<uint64_t> seen;
-  for (const std::string& label : labels) {
-    const std::vector<uint64_t> labelled = current->IdsWithLabel(label);
-    if (labelled.empty()) {
-      return absl::NotFoundError(absl::StrCat("gallery '", name_, "' has no samples labelled '",
-                                              absl::CHexEscape(label), "'; nothing was removed"));
+  const Check resolve = [&](const GallerySnapshot& current) -> absl::StatusOr<bool> {
+    absl::flat_hash_set<uint64_t> seen;
+    for (const std::string& label : labels) {
+      const std::vector<uint64_t> labelled = current.IdsWithLabel(label);
+      if (labelled.empty()) {
+        return absl::NotFoundError(absl::StrCat("gallery '", name_, "' has no samples labelled '",
+                                                absl::CHexEscape(label), "'; nothing was removed"));
+      }
+      for (uint64_t id : labelled) {
+        if (seen.insert(id).second) unique.push_back(id);
+      }
     }
-    for (uint64_t id : labelled) {
-      if (seen.insert(id).second) unique.push_back(id);
+    for (uint64_t id : ids) {
+      if (!seen.insert(id).second) continue;
+      if (!current.Contains(id)) {
+        return absl::NotFoundError(absl::StrCat("sample id ", id, " is not in gallery '", name_,
+                                                "'; nothing was removed"));
+      }
+      unique.push_back(id);
     }
-  }
-  for (uint64_t id : ids) {
-    if (!seen.insert(id).second) continue;
-    if (!current->Contains(id)) {
-      return absl::NotFoundError(
-          absl::StrCat("sample id ", id, " is not in gallery '", name_, "'; nothing was removed"));
-    }
-    unique.push_back(id);
-  }
-  return RemoveLocked(*current, std::move(unique));
-}
-
-absl::StatusOr<int64_t> Gallery::RemoveLocked(const GallerySnapshot& current,
-                                              std::vector<uint64_t> ids) {
-  if (ids.empty()) return 0;
-  std::shared_ptr<GallerySnapshot> next(new GallerySnapshot(current));
-  SHAPEID_RETURN_IF_ERROR(next->index_.Remove(ids));
-  SHAPEID_RETURN_IF_ERROR(
-      next->index_.UpdateApproximate(limits_.approximate, next->options_.knn.scaling));
-  next->version_ = current.version_ + 1;
-  next->updated_ = std::max(absl::Now(), current.updated_);
-  if (store_ != nullptr) {
-    SHAPEID_RETURN_IF_ERROR(store_->RemoveSamples(name_, ids, next->updated_, next->version_));
-  }
-  Publish(std::move(next));
-  return static_cast<int64_t>(ids.size());
+    return !unique.empty();
+  };
+  const Change remove = [&](GallerySnapshot& next) { return next.index_.Remove(unique); };
+  const Origin origin =
+      Origin::Local([&](GalleryStore& store, absl::Time updated, uint64_t version) {
+        return store.RemoveSamples(name_, unique, updated, version);
+      });
+  SHAPEID_RETURN_IF_ERROR(Mutate(origin, resolve, remove).status());
+  return static_cast<int64_t>(unique.size());
 }
 
 absl::Status Gallery::ApplyStoredAppend(absl::Span<const StoredSample> samples, absl::Time updated,
                                         uint64_t version) {
-  return ApplyStored(updated, version, [&](GallerySnapshot& next) -> absl::Status {
+  const Change add = [&](GallerySnapshot& next) -> absl::Status {
     for (const StoredSample& sample : samples) {
       SHAPEID_RETURN_IF_ERROR(next.index_.Add(sample.id, sample.label, sample.features));
       if (sample.id >= kFirstAssignedId) {
@@ -450,34 +494,14 @@ absl::Status Gallery::ApplyStoredAppend(absl::Span<const StoredSample> samples, 
       }
     }
     return absl::OkStatus();
-  });
+  };
+  return Mutate(Origin::Stored(version, updated), nullptr, add).status();
 }
 
 absl::Status Gallery::ApplyStoredRemove(absl::Span<const uint64_t> ids, absl::Time updated,
                                         uint64_t version) {
-  return ApplyStored(updated, version,
-                     [&](GallerySnapshot& next) { return next.index_.Remove(ids); });
-}
-
-absl::Status Gallery::ApplyStored(absl::Time updated, uint64_t version,
-                                  const std::function<absl::Status(GallerySnapshot&)>& change) {
-  std::lock_guard<std::mutex> lock(writer_mu_);
-  if (deleted_) return DeletedError();
-  const std::shared_ptr<const GallerySnapshot> current = Snapshot();
-  if (version <= current->version_) return absl::OkStatus();  // held already
-  if (version > current->version_ + 1) {
-    return absl::FailedPreconditionError(
-        absl::StrCat("gallery '", name_, "' is at version ", current->version_,
-                     "; a stored change to version ", version, " cannot apply (changes missed)"));
-  }
-  std::shared_ptr<GallerySnapshot> next(new GallerySnapshot(*current));
-  SHAPEID_RETURN_IF_ERROR(change(*next));
-  SHAPEID_RETURN_IF_ERROR(
-      next->index_.UpdateApproximate(limits_.approximate, next->options_.knn.scaling));
-  next->version_ = version;
-  next->updated_ = updated;
-  Publish(std::move(next));
-  return absl::OkStatus();
+  const Change remove = [&](GallerySnapshot& next) { return next.index_.Remove(ids); };
+  return Mutate(Origin::Stored(version, updated), nullptr, remove).status();
 }
 
 absl::Status Gallery::AdoptStored(const Gallery& stored) {

@@ -215,16 +215,52 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
   template <typename T>
   absl::StatusOr<T> RetryIfStale(const std::function<absl::StatusOr<T>()>& write);
 
+  // Where a change comes from, which fixes its version, its time and whether it is stored.
+  // Made only by these three, so a local change always has its store write.
+  class Origin {
+   public:
+    using Persist =
+        std::function<absl::Status(GalleryStore&, absl::Time updated, uint64_t version)>;
+    // Made here: version + 1, updated now (never before the last change), written to the
+    // store by `persist` (with that time and version) before it is published.
+    static Origin Local(Persist persist);
+    // Another server's change, already stored, to `version` at `updated`: skipped if this
+    // gallery holds it, FailedPrecondition if changes are missing before it.
+    static Origin Stored(uint64_t version, absl::Time updated);
+    // Derived state only (the approximate index): same version and time, nothing stored,
+    // nothing to do once deleted. `cancel` (may be null) cancels the index build.
+    static Origin Derived(const std::atomic<bool>* cancel);
+
+   private:
+    friend class Gallery;
+    enum class Kind { kLocal, kStored, kDerived };
+    explicit Origin(Kind kind) : kind_(kind) {}
+
+    Kind kind_;
+    Persist persist_;                            // kLocal
+    uint64_t version_ = 0;                       // kStored
+    absl::Time updated_;                         // kStored
+    const std::atomic<bool>* cancel_ = nullptr;  // kDerived
+  };
+  // Reads the current snapshot under the writer lock: an error, or false when there is
+  // nothing to change (nothing is then copied, stored or published).
+  using Check = std::function<absl::StatusOr<bool>(const GallerySnapshot& current)>;
+  // Edits the copy that becomes the next snapshot.
+  using Change = std::function<absl::Status(GallerySnapshot& next)>;
+
+  // The one way a gallery changes. Under the writer lock (NotFound once deleted): `check`,
+  // then `change` on a copy of the current snapshot, the approximate index brought in step,
+  // version and time set and the store written as `origin` says, then the copy published.
+  // Returns the snapshot published, or the current one when there was nothing to do; an
+  // error at any step publishes nothing. `check` and `change` may be null.
+  absl::StatusOr<std::shared_ptr<const GallerySnapshot>> Mutate(const Origin& origin,
+                                                                const Check& check,
+                                                                const Change& change);
+
   absl::StatusOr<CommitResult> CommitBatch(std::vector<StoredSample>& samples);
   absl::StatusOr<CommitResult> CommitBatchOnce(std::vector<StoredSample>& samples);
   absl::StatusOr<int64_t> RemoveSamplesOnce(absl::Span<const uint64_t> ids,
                                             absl::Span<const std::string> labels);
-  // The frame of ApplyStoredAppend / ApplyStoredRemove: under the writer lock, skip a change
-  // held already, refuse a gap, else `change` a copy of the snapshot and publish it.
-  absl::Status ApplyStored(absl::Time updated, uint64_t version,
-                           const std::function<absl::Status(GallerySnapshot&)>& change);
-  absl::StatusOr<int64_t> RemoveLocked(const GallerySnapshot& current, std::vector<uint64_t> ids)
-      ABSL_EXCLUSIVE_LOCKS_REQUIRED(writer_mu_);
   void Publish(std::shared_ptr<const GallerySnapshot> next);
   // Runs `forget` (the store's delete) under the writer lock and, if it succeeds, makes every
   // later write fail NotFound.

@@ -16,15 +16,7 @@ std::map<std::string, int64_t> GallerySnapshot::LabelCounts() const {
 
 StoredGallery GallerySnapshot::ToStored() const {
   StoredGallery stored;
-  stored.name = name_;
-  stored.options = options_;
-  stored.created = created_;
-  stored.updated = updated_;
-  stored.version = version_;
-  stored.incarnation = incarnation_;
-  stored.descriptor_version = descriptor_version_;
-  stored.software_version = software_version_;
-  stored.dimension = index_.dimension();
+  static_cast<GalleryMetadata&>(stored) = meta_;
   stored.samples.resize(static_cast<size_t>(index_.size()));
   for (int64_t slot = 0; slot < index_.size(); ++slot) {
     StoredSample& sample = stored.samples[static_cast<size_t>(slot)];
@@ -52,7 +44,7 @@ absl::StatusOr<std::vector<float>> GallerySnapshot::Describe(const PointCloud& c
 absl::StatusOr<std::vector<float>> GallerySnapshot::DescribeForTraining(
     const PointCloud& cloud, const CloudLimits& limits) const {
   SHAPEID_RETURN_IF_ERROR(CheckCompatible());
-  return shapeid::DescribeForTraining(*descriptor_, cloud, options_.augment, limits);
+  return shapeid::DescribeForTraining(*descriptor_, cloud, meta_.options.augment, limits);
 }
 
 absl::StatusOr<GalleryClassification> GallerySnapshot::Classify(const PointCloud& cloud,
@@ -61,7 +53,7 @@ absl::StatusOr<GalleryClassification> GallerySnapshot::Classify(const PointCloud
   SHAPEID_RETURN_IF_ERROR(CheckCompatible());
   if (empty()) {
     return absl::FailedPreconditionError(
-        absl::StrCat("gallery '", name_, "' has no samples; train it before classifying"));
+        absl::StrCat("gallery '", meta_.name, "' has no samples; train it before classifying"));
   }
   const absl::Time start = absl::Now();
   // The query with its pose variants (core/descriptor.h): a sample's distance is the least
@@ -82,7 +74,7 @@ absl::StatusOr<GalleryClassification> GallerySnapshot::ClassifyFeatures(
   SHAPEID_RETURN_IF_ERROR(CheckCompatible());
   if (empty()) {
     return absl::FailedPreconditionError(
-        absl::StrCat("gallery '", name_, "' has no samples; train it before classifying"));
+        absl::StrCat("gallery '", meta_.name, "' has no samples; train it before classifying"));
   }
   const absl::Time start = absl::Now();
   SHAPEID_ASSIGN_OR_RETURN(KnnResult knn, index_.Classify(features, KnnFor(k), mode));
@@ -92,7 +84,7 @@ absl::StatusOr<GalleryClassification> GallerySnapshot::ClassifyFeatures(
 }
 
 KnnOptions GallerySnapshot::KnnFor(int k) const {
-  KnnOptions knn = options_.knn;
+  KnnOptions knn = meta_.options.knn;
   if (k > 0) knn.k = k;
   return knn;
 }
@@ -100,8 +92,8 @@ KnnOptions GallerySnapshot::KnnFor(int k) const {
 GalleryClassification GallerySnapshot::Answer(KnnResult knn) const {
   GalleryClassification answer;
   // A non-empty index always returns at least one neighbour.
-  answer.unknown = options_.reject_distance > 0 && !knn.neighbors.empty() &&
-                   knn.neighbors.front().distance > options_.reject_distance;
+  answer.unknown = meta_.options.reject_distance > 0 && !knn.neighbors.empty() &&
+                   knn.neighbors.front().distance > meta_.options.reject_distance;
   answer.label = answer.unknown ? std::string(kUnknownLabel) : knn.label;
   answer.confidence = answer.unknown ? 0.0 : knn.confidence;
   answer.knn = std::move(knn);

@@ -13,6 +13,7 @@
 #include "absl/time/time.h"
 #include "absl/types/span.h"
 #include "core/descriptor.h"
+#include "core/gallery/gallery_metadata.h"
 #include "core/gallery/gallery_options.h"
 #include "core/gallery/gallery_store.h"
 #include "core/knn/knn_index.h"
@@ -40,13 +41,15 @@ struct GalleryClassification {
 // reader that holds one sees the same samples for as long as it holds it.
 class GallerySnapshot {
  public:
-  const std::string& name() const { return name_; }
+  // Name, options, times, versions: everything but the samples.
+  const GalleryMetadata& metadata() const { return meta_; }
+  const std::string& name() const { return meta_.name; }
   // Canonical: descriptor_spec as the registry spells it, every parameter present.
-  const GalleryOptions& options() const { return options_; }
+  const GalleryOptions& options() const { return meta_.options; }
   // Null when incompatible() (the spec could not be built here).
   const std::shared_ptr<const Descriptor>& shared_descriptor() const { return descriptor_; }
   // Features per sample.
-  int dimension() const { return index_.dimension(); }
+  int dimension() const { return meta_.dimension; }
 
   // Empty, or why this server cannot compute descriptors comparable to the stored ones (an
   // unknown descriptor kind, or another DescriptorKind::version). An incompatible gallery
@@ -54,8 +57,8 @@ class GallerySnapshot {
   // and training refuse it with FailedPrecondition and this text.
   const std::string& incompatible() const { return incompatible_; }
   // DescriptorKind::version and kShapeidVersion of whatever made the gallery.
-  uint32_t descriptor_version() const { return descriptor_version_; }
-  const std::string& software_version() const { return software_version_; }
+  uint32_t descriptor_version() const { return meta_.descriptor_version; }
+  const std::string& software_version() const { return meta_.software_version; }
 
   // Everything a store or an export needs to rebuild this snapshot bit for bit: options,
   // times, versions and every sample in training order. O(num_samples * dimension).
@@ -72,15 +75,11 @@ class GallerySnapshot {
   // Samples per label, labels sorted (byte order).
   std::map<std::string, int64_t> LabelCounts() const;
 
-  absl::Time created() const { return created_; }
-  // StoredGallery::incarnation.
-  uint64_t incarnation() const { return incarnation_; }
-  // Time of the last published change; created() for a new gallery.
-  absl::Time updated() const { return updated_; }
-  // Published changes since the gallery was created (or loaded from its store): 0 for a
-  // new gallery, +1 per committed batch or removal. Lets a client or cache tell snapshots
-  // apart.
-  uint64_t version() const { return version_; }
+  // GalleryMetadata's fields.
+  absl::Time created() const { return meta_.created; }
+  uint64_t incarnation() const { return meta_.incarnation; }
+  absl::Time updated() const { return meta_.updated; }
+  uint64_t version() const { return meta_.version; }
   // The id the next id-0 sample will get (see kFirstAssignedId in gallery.h).
   uint64_t next_assigned_id() const { return next_assigned_id_; }
 
@@ -114,17 +113,12 @@ class GallerySnapshot {
  private:
   friend class Gallery;
 
-  GallerySnapshot(std::string name, GalleryOptions options,
-                  std::shared_ptr<const Descriptor> descriptor, KnnIndex index, absl::Time created,
-                  uint32_t descriptor_version, std::string software_version)
-      : name_(std::move(name)),
-        options_(std::move(options)),
-        descriptor_(std::move(descriptor)),
-        index_(std::move(index)),
-        created_(created),
-        updated_(created),
-        descriptor_version_(descriptor_version),
-        software_version_(std::move(software_version)) {}
+  // An empty snapshot; meta.dimension is the index's.
+  GallerySnapshot(GalleryMetadata meta, std::shared_ptr<const Descriptor> descriptor,
+                  KnnIndex index)
+      : meta_(std::move(meta)), descriptor_(std::move(descriptor)), index_(std::move(index)) {
+    meta_.dimension = index_.dimension();
+  }
   // Writers build the next snapshot from a copy of the current one; nobody else copies.
   GallerySnapshot(const GallerySnapshot&) = default;
   GallerySnapshot& operator=(const GallerySnapshot&) = delete;
@@ -136,17 +130,10 @@ class GallerySnapshot {
   // FailedPrecondition when incompatible(), else OK.
   absl::Status CheckCompatible() const;
 
-  std::string name_;
-  GalleryOptions options_;
+  GalleryMetadata meta_;
   std::shared_ptr<const Descriptor> descriptor_;
   KnnIndex index_;
-  absl::Time created_;
-  absl::Time updated_;
-  uint64_t version_ = 0;
-  uint64_t incarnation_ = 0;
   uint64_t next_assigned_id_ = uint64_t{1} << 63;  // kFirstAssignedId
-  uint32_t descriptor_version_ = 0;
-  std::string software_version_;
   std::string incompatible_;
 };
 

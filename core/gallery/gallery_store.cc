@@ -16,20 +16,6 @@ absl::Status NotStored(absl::string_view name) {
 
 }  // namespace
 
-StoredGallery StoredGallery::Header() const {
-  StoredGallery header;
-  header.name = name;
-  header.options = options;
-  header.created = created;
-  header.updated = updated;
-  header.descriptor_version = descriptor_version;
-  header.software_version = software_version;
-  header.dimension = dimension;
-  header.version = version;
-  header.incarnation = incarnation;
-  return header;
-}
-
 absl::Status InMemoryGalleryStore::SaveGallery(const StoredGallery& gallery) {
   std::lock_guard<std::mutex> lock(mu_);
   if (!failure_.ok()) return failure_;

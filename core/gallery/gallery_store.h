@@ -13,6 +13,7 @@
 #include "absl/strings/string_view.h"
 #include "absl/time/time.h"
 #include "absl/types/span.h"
+#include "core/gallery/gallery_metadata.h"
 #include "core/gallery/gallery_options.h"
 
 namespace shapeid {
@@ -28,34 +29,10 @@ struct StoredSample {
   std::vector<float> features;
 };
 
-struct StoredGallery {
-  std::string name;
-  GalleryOptions options;  // canonical
-  absl::Time created;
-  absl::Time updated;
-  // What made the descriptors: DescriptorKind::version of the spec's kind, and the shapeid
-  // version (kShapeidVersion). A server whose descriptor version differs cannot add to the
-  // gallery or classify against it (see GallerySnapshot::incompatible()).
-  uint32_t descriptor_version = 0;
-  std::string software_version;
-  // Features per sample. Stored so that a gallery whose spec this server cannot build still
-  // loads (and can be exported or deleted).
-  int dimension = 0;
-  // The gallery's version (GallerySnapshot::version) as stored: 0 for a new gallery, +1 per
-  // committed change. A private store may leave it 0 (versions then restart at each load); a
-  // store shared by several servers keeps it, so that every server reports the same version
-  // and a write from a server whose copy is behind is detected (see GalleryStore).
-  uint64_t version = 0;
-  // Drawn at random when the gallery is created or imported (never 0 then): tells a gallery
-  // from an earlier one of the same name. A shared store uses it so that a server never
-  // applies one incarnation's change to another; 0 from a store that does not keep it.
-  uint64_t incarnation = 0;
+// A gallery as a store or an export holds it: its metadata and every sample. Extends the
+// metadata rather than holding it, so that readers say `stored.name`.
+struct StoredGallery : GalleryMetadata {
   std::vector<StoredSample> samples;  // in training order (the kNN tie-break order)
-
-  // Every field but `samples`, which is left empty: what a store keeps about an open gallery.
-  // (Copying the whole gallery and clearing `samples` would copy every sample once and keep
-  // the vector's capacity, 64 bytes per sample, for good.) A new field belongs here too.
-  StoredGallery Header() const;
 };
 
 // Where galleries persist. The registry and the galleries call it BEFORE they publish a

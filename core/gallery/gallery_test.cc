@@ -422,20 +422,37 @@ TEST(GalleryTest, ApproximateIndexCanBeBuiltAfterRestore) {
   EXPECT_TRUE((*now)->Snapshot()->index().approximate());
 }
 
-TEST(GalleryTest, StoredHeaderCopiesEverythingButTheSamples) {
-  auto g = MakeGallery();
+void ExpectSameMetadata(const GalleryMetadata& a, const GalleryMetadata& b) {
+  EXPECT_EQ(a.name, b.name);
+  EXPECT_EQ(a.options.descriptor_spec, b.options.descriptor_spec);
+  EXPECT_EQ(a.options.knn.k, b.options.knn.k);
+  EXPECT_EQ(a.options.reject_distance, b.options.reject_distance);
+  EXPECT_EQ(a.options.augment.views, b.options.augment.views);
+  EXPECT_EQ(a.created, b.created);
+  EXPECT_EQ(a.updated, b.updated);
+  EXPECT_EQ(a.descriptor_version, b.descriptor_version);
+  EXPECT_EQ(a.software_version, b.software_version);
+  EXPECT_EQ(a.dimension, b.dimension);
+  EXPECT_EQ(a.version, b.version);
+  EXPECT_EQ(a.incarnation, b.incarnation);
+}
+
+// One metadata value: the stored form carries the snapshot's, and a restore takes it back.
+TEST(GalleryTest, StoredFormAndRestoreKeepTheMetadata) {
+  GalleryOptions options;
+  options.knn.k = 3;
+  options.reject_distance = 0.25;
+  auto g = MakeGallery(options);
   ASSERT_TRUE(g->Train(ThreeShapes()).ok());
-  const StoredGallery stored = g->Snapshot()->ToStored();
-  const StoredGallery header = stored.Header();
-  EXPECT_TRUE(header.samples.empty());
-  EXPECT_EQ(header.samples.capacity(), 0u);
-  EXPECT_EQ(header.name, stored.name);
-  EXPECT_EQ(header.options.descriptor_spec, stored.options.descriptor_spec);
-  EXPECT_EQ(header.created, stored.created);
-  EXPECT_EQ(header.updated, stored.updated);
-  EXPECT_EQ(header.descriptor_version, stored.descriptor_version);
-  EXPECT_EQ(header.software_version, stored.software_version);
-  EXPECT_EQ(header.dimension, stored.dimension);
+  const std::shared_ptr<const GallerySnapshot> snapshot = g->Snapshot();
+  EXPECT_EQ(snapshot->metadata().version, 1u);
+  EXPECT_NE(snapshot->metadata().incarnation, 0u);
+  EXPECT_EQ(snapshot->metadata().dimension, snapshot->index().dimension());
+  const StoredGallery stored = snapshot->ToStored();
+  ExpectSameMetadata(stored, snapshot->metadata());
+  auto restored = Gallery::Restore(stored, {}, nullptr);
+  ASSERT_TRUE(restored.ok()) << restored.status();
+  ExpectSameMetadata((*restored)->Snapshot()->metadata(), snapshot->metadata());
 }
 
 TEST(GalleryTest, SnapshotsAreImmutable) {

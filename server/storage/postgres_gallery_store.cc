@@ -92,6 +92,54 @@ double BitsDouble(int64_t bits) {
   return value;
 }
 
+// The shapeid_galleries row of a gallery, in kGalleryColumns' order.
+PgParams GalleryRow(const GalleryMetadata& g) {
+  PgParams row;
+  row.Text(g.name)
+      .Int(static_cast<int64_t>(g.incarnation))
+      .Text(g.options.descriptor_spec)
+      .Int(g.dimension)
+      .Int(g.options.knn.k)
+      .Text(std::string(VoteWeightingName(g.options.knn.weighting)))
+      .Text(std::string(FeatureScalingName(g.options.knn.scaling)))
+      .Int(DoubleBits(g.options.reject_distance))
+      .Text(AugmentOptionsToString(g.options.augment))
+      .Int(g.descriptor_version)
+      .Text(g.software_version)
+      .Int(absl::ToUnixNanos(g.created))
+      .Int(absl::ToUnixNanos(g.updated))
+      .Int(static_cast<int64_t>(g.version));
+  return row;
+}
+
+// The inverse of GalleryRow for row `r` of a SELECT of kGalleryColumns; `damaged` makes the
+// error for a value that cannot be read.
+absl::StatusOr<GalleryMetadata> FromGalleryRow(
+    const PgResult& row, int r, const std::function<absl::Status(absl::string_view)>& damaged) {
+  GalleryMetadata g;
+  g.name = std::string(row.Value(r, 0));
+  g.incarnation = static_cast<uint64_t>(row.Int(r, 1));
+  g.options.descriptor_spec = std::string(row.Value(r, 2));
+  g.dimension = static_cast<int>(row.Int(r, 3));
+  g.options.knn.k = static_cast<int>(row.Int(r, 4));
+  absl::StatusOr<VoteWeighting> weighting = ParseVoteWeighting(row.Value(r, 5));
+  absl::StatusOr<FeatureScaling> scaling = ParseFeatureScaling(row.Value(r, 6));
+  if (!weighting.ok() || !scaling.ok()) return damaged("unreadable kNN options");
+  g.options.knn.weighting = *weighting;
+  g.options.knn.scaling = *scaling;
+  g.options.reject_distance = BitsDouble(row.Int(r, 7));
+  absl::StatusOr<AugmentOptions> augment = ParseAugmentOptions(row.Value(r, 8));
+  if (!augment.ok()) return damaged(augment.status().message());
+  g.options.augment = *augment;
+  g.descriptor_version = static_cast<uint32_t>(row.Int(r, 9));
+  g.software_version = std::string(row.Value(r, 10));
+  g.created = absl::FromUnixNanos(row.Int(r, 11));
+  g.updated = absl::FromUnixNanos(row.Int(r, 12));
+  g.version = static_cast<uint64_t>(row.Int(r, 13));
+  if (g.dimension < 1) return damaged(absl::StrCat("dimension ", g.dimension));
+  return g;
+}
+
 absl::Span<const uint8_t> Bytes(absl::string_view s) {
   return absl::Span<const uint8_t>(reinterpret_cast<const uint8_t*>(s.data()), s.size());
 }
@@ -283,25 +331,11 @@ absl::Status PostgresGalleryStore::SaveGallery(const StoredGallery& g) {
     return absl::InternalError(absl::StrCat(what, ": it has no incarnation"));
   }
   const absl::Status status = WithConnection(what, [&](PgConnection& c) -> absl::Status {
-    const absl::Status inserted = c.Exec(
-        what,
-        absl::StrCat("INSERT INTO shapeid_galleries (", kGalleryColumns,
-                     ") VALUES ($1,$2,$3,$4,$5,$6,$7,$8,$9,$10,$11,$12,$13,$14)"),
-        PgParams()
-            .Text(g.name)
-            .Int(incarnation)
-            .Text(g.options.descriptor_spec)
-            .Int(g.dimension)
-            .Int(g.options.knn.k)
-            .Text(std::string(VoteWeightingName(g.options.knn.weighting)))
-            .Text(std::string(FeatureScalingName(g.options.knn.scaling)))
-            .Int(DoubleBits(g.options.reject_distance))
-            .Text(AugmentOptionsToString(g.options.augment))
-            .Int(g.descriptor_version)
-            .Text(g.software_version)
-            .Int(absl::ToUnixNanos(g.created))
-            .Int(absl::ToUnixNanos(g.updated))
-            .Int(static_cast<int64_t>(g.version)));
+    const absl::Status inserted =
+        c.Exec(what,
+               absl::StrCat("INSERT INTO shapeid_galleries (", kGalleryColumns,
+                            ") VALUES ($1,$2,$3,$4,$5,$6,$7,$8,$9,$10,$11,$12,$13,$14)"),
+               GalleryRow(g));
     if (absl::IsAlreadyExists(inserted)) {
       return absl::AlreadyExistsError(absl::StrCat(
           "gallery '", g.name, "' already exists (created through another replica)"));
@@ -430,26 +464,7 @@ absl::StatusOr<StoredGallery> PostgresGalleryStore::ReadGallery(PgConnection& c,
     return absl::DataLossError(absl::StrCat("gallery '", name, "' in PostgreSQL is damaged: ", why));
   };
   StoredGallery g;
-  g.name = std::string(row.Value(0, 0));
-  g.incarnation = static_cast<uint64_t>(row.Int(0, 1));
-  g.options.descriptor_spec = std::string(row.Value(0, 2));
-  g.dimension = static_cast<int>(row.Int(0, 3));
-  g.options.knn.k = static_cast<int>(row.Int(0, 4));
-  absl::StatusOr<VoteWeighting> weighting = ParseVoteWeighting(row.Value(0, 5));
-  absl::StatusOr<FeatureScaling> scaling = ParseFeatureScaling(row.Value(0, 6));
-  if (!weighting.ok() || !scaling.ok()) return damaged("unreadable kNN options");
-  g.options.knn.weighting = *weighting;
-  g.options.knn.scaling = *scaling;
-  g.options.reject_distance = BitsDouble(row.Int(0, 7));
-  absl::StatusOr<AugmentOptions> augment = ParseAugmentOptions(row.Value(0, 8));
-  if (!augment.ok()) return damaged(augment.status().message());
-  g.options.augment = *augment;
-  g.descriptor_version = static_cast<uint32_t>(row.Int(0, 9));
-  g.software_version = std::string(row.Value(0, 10));
-  g.created = absl::FromUnixNanos(row.Int(0, 11));
-  g.updated = absl::FromUnixNanos(row.Int(0, 12));
-  g.version = static_cast<uint64_t>(row.Int(0, 13));
-  if (g.dimension < 1) return damaged(absl::StrCat("dimension ", g.dimension));
+  SHAPEID_ASSIGN_OR_RETURN(static_cast<GalleryMetadata&>(g), FromGalleryRow(row, 0, damaged));
 
   SHAPEID_ASSIGN_OR_RETURN(
       PgResult samples,

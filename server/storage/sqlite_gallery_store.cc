@@ -70,7 +70,7 @@ constexpr absl::string_view kGalleryColumns =
     "name, descriptor_spec, dimension, knn_k, knn_weighting, knn_scaling, reject_distance, "
     "descriptor_version, software_version, created_unix_ns, updated_unix_ns, crc, augment";
 
-uint32_t GalleryRowCrc(const StoredGallery& g) {
+uint32_t GalleryRowCrc(const GalleryMetadata& g) {
   uint64_t reject_bits;
   std::memcpy(&reject_bits, &g.options.reject_distance, sizeof(reject_bits));
   const std::string text = absl::StrCat(
@@ -88,7 +88,7 @@ uint32_t GalleryRowCrc(const StoredGallery& g) {
 int64_t AsStoredId(uint64_t id) { return static_cast<int64_t>(id); }
 uint64_t FromStoredId(int64_t id) { return static_cast<uint64_t>(id); }
 
-void BindGalleryRow(SqliteStatement& s, const StoredGallery& g) {
+void BindGalleryRow(SqliteStatement& s, const GalleryMetadata& g) {
   s.BindText(1, g.name);
   s.BindText(2, g.options.descriptor_spec);
   s.BindInt64(3, g.dimension);
@@ -126,7 +126,7 @@ struct SqliteGalleryStore::OpenGallery {
   SqliteStatement insert ABSL_GUARDED_BY(mu);
   SqliteStatement remove ABSL_GUARDED_BY(mu);
   SqliteStatement touch ABSL_GUARDED_BY(mu);
-  StoredGallery header ABSL_GUARDED_BY(mu);
+  GalleryMetadata header ABSL_GUARDED_BY(mu);
   // Set after a failed fsync; every later write fails with it.
   absl::Status broken ABSL_GUARDED_BY(mu);
 
@@ -469,7 +469,7 @@ absl::Status SqliteGalleryStore::SaveGallery(const StoredGallery& gallery) {
     (void)SyncDirectory(galleries_dir_);
     return absl::Status(status.code(), absl::StrCat(where, ": ", status.message()));
   }
-  open->header = gallery.Header();
+  open->header = gallery;
   std::lock_guard<std::mutex> lock(mu_);
   open_[gallery.name] = std::move(open);
   return absl::OkStatus();
@@ -483,7 +483,7 @@ absl::Status SqliteGalleryStore::ChangeSamples(
   std::lock_guard<std::mutex> lock(g->mu);
   SHAPEID_RETURN_IF_ERROR(g->broken);
   if (g->db == nullptr) SHAPEID_RETURN_IF_ERROR(Reopen(name, what, *g));
-  StoredGallery header = g->header;
+  GalleryMetadata header = g->header;
   header.updated = updated;
   absl::Status status = Transaction(*g->db, [&]() -> absl::Status {
     SHAPEID_RETURN_IF_ERROR(change(*g));
@@ -611,7 +611,7 @@ absl::StatusOr<StoredGallery> SqliteGalleryStore::LoadFile(const std::string& na
     }
     if (!loaded.ok()) return Damaged(path, loaded.status());
   }
-  open->header = loaded->Header();
+  open->header = *loaded;
   *out = std::move(open);
   return loaded;
 }
