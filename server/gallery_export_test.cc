@@ -4,10 +4,14 @@
 
 #include "server/gallery_export.h"
 
+#include <unistd.h>
 #include <zlib.h>
 
 #include <cmath>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <limits>
 #include <string>
 #include <vector>
@@ -19,7 +23,10 @@
 #include "core/gallery/gallery_store_testing.h"
 #include "core/knn/knn_index.h"
 #include "gmock/gmock.h"
+#include "google/protobuf/io/zero_copy_stream_impl_lite.h"
+#include "google/protobuf/util/delimited_message_util.h"
 #include "gtest/gtest.h"
+#include "server/storage/sqlite_gallery_store.h"
 
 namespace shapeid {
 namespace {
@@ -133,6 +140,65 @@ TEST(GalleryExportTest, ASnapshotExportsLikeItsStoredForm) {
   for (size_t i = 0; i < a.size(); ++i) {
     EXPECT_EQ(a[i].SerializeAsString(), b[i].SerializeAsString()) << "chunk " << i;
   }
+}
+
+// The chunks of a gallery file (client/gallery_file.h): "SHAPEIDG", then length-delimited
+// chunks.
+std::vector<v1::GalleryExportChunk> ReadExportFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(bytes.substr(0, 8), "SHAPEIDG") << path;
+  google::protobuf::io::ArrayInputStream stream(bytes.data() + 8,
+                                                static_cast<int>(bytes.size()) - 8);
+  std::vector<v1::GalleryExportChunk> chunks;
+  for (;;) {
+    v1::GalleryExportChunk chunk;
+    bool clean_eof = false;
+    if (!google::protobuf::util::ParseDelimitedFromZeroCopyStream(&chunk, &stream, &clean_eof)) {
+      EXPECT_TRUE(clean_eof) << path;
+      return chunks;
+    }
+    chunks.push_back(std::move(chunk));
+  }
+}
+
+// Two galleries an earlier shapeid stored and exported (server/testdata/README.md): each
+// export imports as the stored gallery, and today's exports of it, from the stored form and
+// from a restored snapshot, are the earlier export's bytes.
+TEST(GalleryExportTest, WhatAnEarlierReleaseStoredExportsAsItExportedThen) {
+  const std::string testdata = absl::StrCat(SHAPEID_SOURCE_DIR, "/server/testdata/");
+  const std::string dir = absl::StrCat(::testing::TempDir(), "/gallery_export_test_", getpid());
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir + "/galleries");
+  for (const char* name : {"old-plain.gallery", "old-augmented.gallery"}) {
+    std::filesystem::copy_file(testdata + name, absl::StrCat(dir, "/galleries/", name));
+  }
+  auto store = SqliteGalleryStore::Open({dir, false});
+  ASSERT_TRUE(store.ok()) << store.status();
+  auto loaded = (*store)->LoadAll();
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  ASSERT_EQ(loaded->size(), 2u);
+  EXPECT_TRUE((*loaded)[0].options.augment.enabled());  // old-augmented
+  for (const StoredGallery& stored : *loaded) {
+    SCOPED_TRACE(stored.name);
+    const std::vector<v1::GalleryExportChunk> old =
+        ReadExportFile(absl::StrCat(testdata, stored.name, ".shapeid"));
+    ASSERT_EQ(old.size(), 3u);  // header, samples, trailer
+    auto imported = Assemble(old);
+    ASSERT_TRUE(imported.ok()) << imported.status();
+    ExpectSameStoredGallery(*imported, stored);
+    auto restored = Gallery::Restore(stored, {}, nullptr);
+    ASSERT_TRUE(restored.ok()) << restored.status();
+    GalleryExporter from_stored(stored);
+    GalleryExporter from_snapshot((*restored)->Snapshot());
+    for (const auto& chunks : {Export(from_stored), Export(from_snapshot)}) {
+      ASSERT_EQ(chunks.size(), old.size());
+      for (size_t i = 0; i < old.size(); ++i) {
+        EXPECT_EQ(chunks[i].SerializeAsString(), old[i].SerializeAsString()) << "chunk " << i;
+      }
+    }
+  }
+  std::filesystem::remove_all(dir);
 }
 
 // OddGallery with view augmentation: sample i has 1 + i % 4 views.

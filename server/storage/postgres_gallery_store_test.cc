@@ -125,6 +125,59 @@ TEST_F(PostgresGalleryStoreTest, EveryWriteSurvivesBitForBit) {
   EXPECT_EQ((*loaded)[0].incarnation, a.incarnation);
 }
 
+// Rows as an earlier release wrote them (literal SQL; the sample's CRC-32 computed outside
+// shapeid) load with every field, and take changes.
+TEST_F(PostgresGalleryStoreTest, RowsAnEarlierReleaseWroteLoadAndTakeChanges) {
+  auto store = Open();  // creates the tables
+  ASSERT_NE(store, nullptr);
+  auto c = PgConnection::Connect(conninfo_);
+  ASSERT_TRUE(c.ok()) << c.status();
+  ASSERT_TRUE((*c)->ExecScript("write old rows", R"sql(
+INSERT INTO shapeid_galleries (name, incarnation, descriptor_spec, dimension, k, weighting,
+  scaling, reject_distance_bits, augment, descriptor_version, software_version, created_unix_ns,
+  updated_unix_ns, version)
+VALUES ('old', 12345, 'rphsd:refs=cross7,bins=10,variant=reduced', 2, 3, 'distance', 'zscore',
+  4604930618986332160, 'views=2,noise=0.01,points=300-500,pose=fixed,seed=1', 1, '0.1.0',
+  1795814593221890089, 1795814601502715857, 7);
+INSERT INTO shapeid_samples (incarnation, id, label, features, crc)
+VALUES (12345, 5, 'box'::bytea, '\x0000803f00000040'::bytea, 3434098435);
+)sql")
+                  .ok());
+  auto loaded = store->LoadAll();
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  ASSERT_EQ(loaded->size(), 1u);
+  StoredGallery g = (*loaded)[0];
+  EXPECT_EQ(g.name, "old");
+  EXPECT_EQ(g.incarnation, 12345u);
+  EXPECT_EQ(g.options.descriptor_spec, "rphsd:refs=cross7,bins=10,variant=reduced");
+  EXPECT_EQ(g.dimension, 2);
+  EXPECT_EQ(g.options.knn.k, 3);
+  EXPECT_EQ(g.options.knn.weighting, VoteWeighting::kDistance);
+  EXPECT_EQ(g.options.knn.scaling, FeatureScaling::kZScore);
+  EXPECT_EQ(g.options.reject_distance, 0.75);
+  EXPECT_EQ(g.options.augment.views, 2);
+  EXPECT_EQ(g.descriptor_version, 1u);
+  EXPECT_EQ(g.software_version, "0.1.0");
+  EXPECT_EQ(absl::ToUnixNanos(g.created), 1795814593221890089);
+  EXPECT_EQ(absl::ToUnixNanos(g.updated), 1795814601502715857);
+  EXPECT_EQ(g.version, 7u);
+  ASSERT_EQ(g.samples.size(), 1u);
+  EXPECT_EQ(g.samples[0].id, 5u);
+  EXPECT_EQ(g.samples[0].label, "box");
+  EXPECT_EQ(g.samples[0].features, std::vector<float>({1.0f, 2.0f}));
+
+  StoredSample more{6, "rod", {3.0f, 4.0f}};
+  g.updated += absl::Seconds(1);
+  g.version = 8;
+  ASSERT_TRUE(store->AppendSamples("old", {more}, g.updated, 8).ok());
+  g.samples.push_back(more);
+  auto reloaded = Open()->LoadAll();
+  ASSERT_TRUE(reloaded.ok()) << reloaded.status();
+  ASSERT_EQ(reloaded->size(), 1u);
+  ExpectSameStoredGallery((*reloaded)[0], g);
+  EXPECT_EQ((*reloaded)[0].version, 8u);
+}
+
 TEST_F(PostgresGalleryStoreTest, ANameTakenThroughAnotherReplicaIsAlreadyExists) {
   auto one = Open();
   auto two = Open();

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <random>
@@ -20,6 +21,7 @@
 #include "absl/time/clock.h"
 #include "core/gallery/gallery_registry.h"
 #include "core/gallery/gallery_store_testing.h"
+#include "core/views/augment.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "server/storage/file_util.h"
@@ -296,6 +298,86 @@ TEST(SqliteGalleryStoreTest, FormatOneGalleriesLoadAndKeepAcceptingSamples) {
   auto loaded = store->LoadAll();
   ASSERT_TRUE(loaded.ok()) << loaded.status();
   ExpectSameStoredGallery((*loaded)[0], g);
+}
+
+// Gallery files an earlier shapeid wrote (server/testdata/README.md) load with every field
+// as written, and take changes, whose gallery-row checksum covers the metadata.
+TEST(SqliteGalleryStoreTest, FilesAnEarlierReleaseWroteLoadAndTakeChanges) {
+  const std::string dir = ScratchDir("data");
+  std::filesystem::create_directories(dir + "/galleries");
+  for (const char* name : {"old-plain.gallery", "old-augmented.gallery"}) {
+    std::filesystem::copy_file(absl::StrCat(SHAPEID_SOURCE_DIR, "/server/testdata/", name),
+                               absl::StrCat(dir, "/galleries/", name));
+  }
+  StoredGallery plain, augmented;
+  {
+    auto store = OpenStore(dir);
+    auto loaded = store->LoadAll();
+    ASSERT_TRUE(loaded.ok()) << loaded.status();
+    ASSERT_EQ(loaded->size(), 2u);
+    augmented = (*loaded)[0];  // sorted by name
+    plain = (*loaded)[1];
+    for (const StoredGallery* g : {&plain, &augmented}) {
+      EXPECT_EQ(g->options.descriptor_spec, "rphsd:refs=cross7,bins=10,variant=reduced");
+      EXPECT_EQ(g->dimension, 6);
+      EXPECT_EQ(g->descriptor_version, 1u);
+      EXPECT_EQ(g->software_version, "0.1.0");
+      EXPECT_EQ(g->version, 0u);  // not kept by this store
+      EXPECT_EQ(g->incarnation, 0u);
+    }
+    EXPECT_EQ(plain.name, "old-plain");
+    EXPECT_EQ(plain.options.knn.k, 1);
+    EXPECT_EQ(plain.options.knn.weighting, VoteWeighting::kUniform);
+    EXPECT_EQ(plain.options.knn.scaling, FeatureScaling::kNone);
+    EXPECT_EQ(plain.options.reject_distance, 0.0);
+    EXPECT_FALSE(plain.options.augment.enabled());
+    EXPECT_EQ(absl::ToUnixNanos(plain.created), 1795814593051200696);
+    EXPECT_EQ(absl::ToUnixNanos(plain.updated), 1795814595303907810);
+    std::vector<uint64_t> ids;
+    std::vector<std::string> labels;
+    for (const StoredSample& sample : plain.samples) {
+      ids.push_back(sample.id);
+      labels.push_back(sample.label);
+      EXPECT_EQ(sample.features.size(), 6u);
+    }
+    EXPECT_THAT(ids, ElementsAre(628998521628552669u, 3294616212707828169u, 2572415798631930683u,
+                                 425726189010600143u, 1957968127058381579u, 2813021720837754697u));
+    EXPECT_THAT(labels, ElementsAre("box", "box", "sphere", "sphere", "rod", "rod"));
+
+    EXPECT_EQ(augmented.name, "old-augmented");
+    EXPECT_EQ(augmented.options.knn.k, 3);
+    EXPECT_EQ(augmented.options.knn.weighting, VoteWeighting::kDistance);
+    EXPECT_EQ(augmented.options.knn.scaling, FeatureScaling::kZScore);
+    EXPECT_EQ(augmented.options.reject_distance, 0.75);
+    EXPECT_EQ(AugmentOptionsToString(augmented.options.augment),
+              "views=2,noise=0.01,points=300-500,pose=fixed,seed=1");
+    EXPECT_EQ(absl::ToUnixNanos(augmented.created), 1795814593221890089);
+    EXPECT_EQ(absl::ToUnixNanos(augmented.updated), 1795814601502715857);
+    ids.clear();
+    for (const StoredSample& sample : augmented.samples) {
+      ids.push_back(sample.id);
+      EXPECT_EQ(sample.features.size(), 18u);  // 3 views
+    }
+    EXPECT_THAT(ids, ElementsAre(2738972862237451795u, 386655976738752047u, 74914986951301631u,
+                                 3672237284517391487u));
+
+    StoredSample extra = plain.samples[0];
+    extra.id = 7;
+    plain.updated += absl::Seconds(1);
+    ASSERT_TRUE(store->AppendSamples("old-plain", {extra}, plain.updated, 1).ok());
+    plain.samples.push_back(extra);
+    augmented.updated += absl::Seconds(2);
+    ASSERT_TRUE(
+        store->RemoveSamples("old-augmented", {augmented.samples[1].id}, augmented.updated, 1)
+            .ok());
+    augmented.samples.erase(augmented.samples.begin() + 1);
+  }
+  auto store = OpenStore(dir);
+  auto loaded = store->LoadAll();
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  ASSERT_EQ(loaded->size(), 2u);
+  ExpectSameStoredGallery((*loaded)[0], augmented);
+  ExpectSameStoredGallery((*loaded)[1], plain);
 }
 
 TEST(SqliteGalleryStoreTest, SetAsideMovesTheDamagedGalleryAndLoadsTheRest) {
