@@ -100,7 +100,6 @@ FuzzServer::FuzzServer() {
   limits.max_galleries = 4;
   registry_ = std::make_shared<GalleryRegistry>(limits);
   ServiceOptions options;
-  options.max_points_per_cloud = limits.max_points_per_cloud;
   options.max_samples_per_train = 8;
   service_ = std::make_unique<ShapeIdService>(options, registry_);
   grpc::ServerBuilder builder;

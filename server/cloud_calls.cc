@@ -41,7 +41,7 @@ absl::Status RequireGalleryName(absl::string_view rpc, const std::string& name) 
 // the request's).
 absl::StatusOr<PointCloud> CloudInOneMessage(const ServiceRuntime& runtime,
                                              uint64_t expected_points, absl::string_view xyz) {
-  CloudAssembler assembler(runtime.options->max_points_per_cloud);
+  CloudAssembler assembler(runtime.registry->limits().max_points_per_cloud);
   SHAPEID_RETURN_IF_ERROR(assembler.Start(expected_points));
   SHAPEID_RETURN_IF_ERROR(assembler.Append(xyz));
   return assembler.Finish();
@@ -123,7 +123,8 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest, v1::Desc
                   grpc::ByteBuffer* response)
       : StreamReactor(context, runtime, SHAPEID_METHOD(Describe), response),
         runtime_(runtime),
-        assembler_(runtime.options->max_points_per_cloud, runtime.budget, call().caller()) {
+        assembler_(runtime.registry->limits().max_points_per_cloud, runtime.budget,
+                   call().caller()) {
     StartReading();
   }
 
@@ -180,7 +181,8 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainRespo
                grpc::ByteBuffer* response)
       : StreamReactor(context, runtime, SHAPEID_METHOD(Train), response),
         runtime_(runtime),
-        assembler_(runtime.options->max_points_per_cloud, runtime.budget, call().caller()) {
+        assembler_(runtime.registry->limits().max_points_per_cloud, runtime.budget,
+                   call().caller()) {
     StartReading();
   }
 
@@ -310,7 +312,8 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest, v1::Clas
                   grpc::ByteBuffer* response)
       : StreamReactor(context, runtime, SHAPEID_METHOD(Classify), response),
         runtime_(runtime),
-        assembler_(runtime.options->max_points_per_cloud, runtime.budget, call().caller()) {
+        assembler_(runtime.registry->limits().max_points_per_cloud, runtime.budget,
+                   call().caller()) {
     StartReading();
   }
 

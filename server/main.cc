@@ -17,6 +17,7 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/time/time.h"
+#include "core/gallery/gallery_options.h"
 #include "server/api_keys.h"
 #include "server/security.h"
 #include "server/server.h"
@@ -28,7 +29,8 @@ ABSL_FLAG(std::string, health_listen, "",
           "HOST:PORT of a second, plaintext port serving only grpc.health.v1 (no key, no TLS), "
           "for probes that cannot do TLS (Kubernetes' gRPC probes). Empty: none. "
           "Env: SHAPEID_HEALTH_LISTEN");
-ABSL_FLAG(int64_t, max_points_per_cloud, 10'000'000,
+ABSL_FLAG(int64_t, max_points_per_cloud,
+          static_cast<int64_t>(shapeid::GalleryLimits{}.max_points_per_cloud),
           "largest cloud, in points, any call accepts. Env: SHAPEID_MAX_POINTS_PER_CLOUD");
 ABSL_FLAG(int32_t, max_message_bytes, 16 << 20,
           "largest single gRPC message (clouds stream in chunks, so this bounds a chunk). "
@@ -280,7 +282,7 @@ int main(int argc, char** argv) {
                  "--max_message_bytes >= 1024\n");
     return 2;
   }
-  options.service.max_points_per_cloud =
+  options.gallery_limits.max_points_per_cloud =
       static_cast<size_t>(absl::GetFlag(FLAGS_max_points_per_cloud));
   options.max_message_bytes = absl::GetFlag(FLAGS_max_message_bytes);
   options.data_dir = absl::GetFlag(FLAGS_data_dir);

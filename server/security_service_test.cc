@@ -344,7 +344,7 @@ class LimitsTest : public ::testing::Test {
  protected:
   void SetUp() override {
     ServerOptions options;
-    options.service.max_points_per_cloud = 1000;
+    options.gallery_limits.max_points_per_cloud = 1000;
     options.max_message_bytes = 8 << 10;
     options.service.max_samples_per_train = 3;
     options.gallery_limits.max_samples_per_gallery = 5;

@@ -124,9 +124,7 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
   if (store != nullptr) {
     store = std::make_shared<ObservedGalleryStore>(std::move(store), server->metrics_);
   }
-  GalleryLimits limits = options.gallery_limits;
-  limits.max_points_per_cloud = options.service.max_points_per_cloud;
-  server->registry_ = std::make_shared<GalleryRegistry>(limits, store);
+  server->registry_ = std::make_shared<GalleryRegistry>(options.gallery_limits, store);
   server->service_ = std::make_unique<ShapeIdService>(
       options.service, server->registry_, *keys, CallObserver(server->metrics_, server->logger_));
   server->security_ = DescribeSecurity(options.security, **keys);

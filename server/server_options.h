@@ -48,7 +48,7 @@ struct ServerOptions {
   // TLS, API keys, and whether a server open to the network may start (docs/security.md).
   SecurityOptions security;
   ServiceOptions service;
-  // Samples per gallery and number of galleries; points per cloud comes from `service`.
+  // Points per cloud (every RPC's), samples per gallery and number of galleries.
   GalleryLimits gallery_limits;
   // The log (a line per call at info) and the Prometheus endpoint (docs/operations.md).
   LoggerOptions log;

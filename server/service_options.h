@@ -12,11 +12,8 @@ namespace shapeid {
 
 // What the ShapeId service accepts. Defaults suit a shared lab server; main.cc maps flags
 // (and SHAPEID_* environment variables) onto these.
+// The largest cloud any RPC accepts is the registry's GalleryLimits::max_points_per_cloud.
 struct ServiceOptions {
-  // Largest cloud, in points, any RPC accepts. 10 million points is 120 MB on the wire and a
-  // few seconds of describing: enough for a dense scan, small enough that one client cannot
-  // exhaust the server's memory.
-  size_t max_points_per_cloud = 10'000'000;
   // Samples one Train stream may carry. A stream holds its described samples until it ends
   // (10,000 x 240 floats is 9.6 MB, times 1 + views with augmentation), and commits them in
   // one transaction; larger batches belong in several streams. 0: no limit.

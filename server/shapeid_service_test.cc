@@ -42,7 +42,7 @@ class ShapeIdServiceTest : public ::testing::Test {
   void SetUp() override {
     ServerOptions options;
     options.listen = "127.0.0.1:0";
-    options.service.max_points_per_cloud = 50000;
+    options.gallery_limits.max_points_per_cloud = 50000;
     auto server = ShapeIdServer::Start(options);
     ASSERT_TRUE(server.ok()) << server.status();
     server_ = std::move(server).value();

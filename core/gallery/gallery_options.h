@@ -59,8 +59,11 @@ struct GalleryOptions {
 // numbers in the message. The defaults admit the largest scans of the issue (2,000,000
 // points) with headroom and cap memory at a few gigabytes for the default descriptor.
 struct GalleryLimits {
-  // Points per cloud, for training and classification (16 Mi points = 192 MiB of xyz).
-  size_t max_points_per_cloud = size_t{1} << 24;
+  // Points per cloud, in every call that takes one (training, classifying, describing): the
+  // server's one bound, --max_points_per_cloud. 10 million points is 120 MB of xyz and a few
+  // seconds of describing: enough for a dense scan, small enough that one client cannot
+  // exhaust the server's memory.
+  size_t max_points_per_cloud = 10'000'000;
   // Samples per gallery. 1,000,000 x 81 floats = 324 MB; note that every commit copies the
   // gallery's index (see Gallery::TrainBatch::Commit), so very large galleries train slowly.
   int64_t max_samples_per_gallery = 1'000'000;
