@@ -4,26 +4,25 @@
 #include <algorithm>
 #include <atomic>
 #include <cstdint>
-#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
 
-#include "absl/container/flat_hash_map.h"
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
 #include "absl/types/span.h"
+#include "core/knn/knn_feature_storage.h"
+#include "core/knn/knn_ivf.h"
+#include "core/knn/knn_kd_tree.h"
 #include "core/knn/knn_kernels.h"
 #include "core/knn/knn_options.h"
+#include "core/knn/knn_sample_table.h"
+#include "core/knn/knn_statistics.h"
+#include "core/knn/knn_vote.h"
 #include "core/simd.h"
 
 namespace shapeid {
-
-namespace knn_internal {
-class InvertedLists;
-class TreeCache;
-}  // namespace knn_internal
 
 // Whether a search may use the index's inverted lists (KnnIndex::UpdateApproximate).
 enum class SearchMode {
@@ -31,42 +30,6 @@ enum class SearchMode {
   kDefault,
   // Always exact, e.g. to measure the lists' recall or for a caller that must not miss.
   kExact,
-};
-
-// One of the nearest samples: the closest (view, query vector) pair decides its distance.
-struct Neighbor {
-  uint64_t id = 0;
-  std::string label;
-  // Euclidean distance in the scaled feature space, always finite. Computed in float (the
-  // kernels' sum of squares, see knn_kernels.h), reported as double.
-  double distance = 0.0;
-  // Which of the sample's views and which of the query vectors are that close; among equal
-  // distances, the first view, then the first query.
-  int view = 0;
-  int query = 0;
-};
-
-struct ClassVote {
-  std::string label;
-  double weight = 0.0;
-};
-
-struct KnnResult {
-  // The winning class: the most vote weight; among equal weights, the class of the nearest
-  // neighbour.
-  std::string label;
-  // The winner's share of the total vote weight, in (0, 1].
-  double confidence = 0.0;
-  // min(k, size()) distinct samples, nearest first; equal distances in the order the
-  // samples were added.
-  std::vector<Neighbor> neighbors;
-  // One entry per class present among the neighbours, most weight first, ties in the order
-  // of each class's nearest neighbour (so votes[0].label == label). Under distance weighting
-  // with a zero-distance neighbour, the classes without one appear with weight 0.
-  std::vector<ClassVote> votes;
-  // True when the search read the index's inverted lists: the neighbours are exact
-  // distances, but a nearer sample in a cell that was not probed may be missing.
-  bool approximate = false;
 };
 
 // An exact k-nearest-neighbour classifier over a gallery of labelled samples.
@@ -78,12 +41,19 @@ struct KnnResult {
 // pairs, and the k nearest are k distinct samples, so an object with many views takes one
 // place among the neighbours and casts one vote, however many of its views are close.
 //
+// The index is Faiss's split of one: the feature storage (knn_feature_storage.h), the id
+// map and labels (knn_sample_table.h), running statistics (knn_statistics.h), the search
+// engines behind one dispatch (brute force in knn_kernels.h, kd-tree in knn_kd_tree.h,
+// inverted lists in knn_ivf.h) and the vote (knn_vote.h, a free function). Storage and id map
+// live in fixed-size blocks that copies share: copying an index costs O(blocks) pointer
+// copies, and Add to a copy copies only the blocks it writes (the last one), so a gallery
+// that commits by copying its snapshot and adding to the copy pays O(block), not O(gallery).
+//
 // Feature vectors are kept raw (unscaled). Feature scaling only multiplies each dimension's
 // difference by a factor w_d (the z-score offset cancels in a difference), so a query
 // computes sqrt(sum_d ((q_d - x_d) * w_d)^2) directly on raw features. That keeps Add
-// O(features added) (only running statistics change, never the stored gallery), lets
-// every query pick its scaling, and costs one multiply per feature in a loop that is bound
-// by memory bandwidth anyway. A scaled copy would make every Add rescale the whole gallery.
+// O(features added) (only running statistics change, never the stored gallery) and lets
+// every query pick its scaling.
 //
 // Search is brute force over a SIMD-friendly blocked layout (knn_kernels.h), picked at run
 // time for the CPU (core/simd.h), with exact early abandonment of blocks that cannot beat
@@ -116,37 +86,41 @@ class KnnIndex {
   // 1 <= dimension <= kMaxDimension.
   static absl::StatusOr<KnnIndex> Create(int dimension);
 
-  KnnIndex(const KnnIndex& other);
-  KnnIndex& operator=(const KnnIndex& other);
-  KnnIndex(KnnIndex&& other) noexcept;
-  KnnIndex& operator=(KnnIndex&& other) noexcept;
-  ~KnnIndex();
+  // A copy shares every block of the original (O(size() / block) pointer copies); a change
+  // to either copies the blocks it writes.
+  KnnIndex(const KnnIndex& other) = default;
+  KnnIndex& operator=(const KnnIndex& other) = default;
+  KnnIndex(KnnIndex&& other) noexcept = default;
+  KnnIndex& operator=(KnnIndex&& other) noexcept = default;
+  ~KnnIndex() = default;
 
   // Features per view.
-  int dimension() const { return dim_; }
+  int dimension() const { return storage_.dim(); }
   // Samples (distinct ids), not views.
-  int64_t size() const { return static_cast<int64_t>(ids_.size()); }
-  bool empty() const { return ids_.empty(); }
+  int64_t size() const { return samples_.size(); }
+  bool empty() const { return samples_.size() == 0; }
   // Stored feature vectors: the views of all samples.
-  int64_t num_rows() const { return num_rows_; }
-  bool Contains(uint64_t id) const { return sample_of_id_.contains(id); }
+  int64_t num_rows() const { return storage_.rows(); }
+  bool Contains(uint64_t id) const { return samples_.Contains(id); }
   // Distinct labels currently in the index.
-  int num_labels() const { return static_cast<int>(labels_.size()); }
+  int num_labels() const { return samples_.num_labels(); }
   // Samples per distinct label, labels in order of first appearance. O(num_labels()).
-  std::vector<std::pair<std::string, int64_t>> LabelCounts() const;
+  std::vector<std::pair<std::string, int64_t>> LabelCounts() const {
+    return samples_.LabelCounts();
+  }
   // The ids of the samples labelled `label`, in insertion order; empty if there are none.
   // O(size()): for removals by label, which cost O(size() * dimension()) anyway.
-  std::vector<uint64_t> IdsWithLabel(absl::string_view label) const;
+  std::vector<uint64_t> IdsWithLabel(absl::string_view label) const {
+    return samples_.IdsWithLabel(label);
+  }
 
   // Samples are numbered 0 .. size() - 1 in insertion order. IdAt, LabelAt and
   // CopyFeatures are what a store or an export needs: Add-ing every sample in order, with
   // CopyFeatures' output as its features, rebuilds this index bit for bit.
-  uint64_t IdAt(int64_t sample) const { return ids_[static_cast<std::size_t>(sample)]; }
-  const std::string& LabelAt(int64_t sample) const {
-    return labels_[static_cast<std::size_t>(label_of_sample_[static_cast<std::size_t>(sample)])];
-  }
+  uint64_t IdAt(int64_t sample) const { return samples_.IdAt(sample); }
+  const std::string& LabelAt(int64_t sample) const { return samples_.LabelAt(sample); }
   int ViewsAt(int64_t sample) const {
-    return static_cast<int>(FirstRow(sample + 1) - FirstRow(sample));
+    return static_cast<int>(samples_.FirstRow(sample + 1) - samples_.FirstRow(sample));
   }
   // Writes the sample's ViewsAt(sample) * dimension() features, view after view, to `out`,
   // which must hold that many.
@@ -160,14 +134,17 @@ class KnnIndex {
   // infinite or beyond +-kMaxFeatureMagnitude (the message names the sample, the feature and
   // the bound), or the label is empty; AlreadyExists if the id is present. Every way into a
   // gallery (training, imports, stores' loads, replication) passes here.
-  // O(features.size()) amortised.
+  // O(features.size()) plus, on a copy, one block of features and of each per-sample table
+  // copied (at most 2 MiB of features and a few tens of KiB of ids and labels).
   absl::Status Add(uint64_t id, absl::string_view label, absl::Span<const float> features);
 
   // Removes the samples with these ids, every view of each. NotFound (and nothing
   // removed) if any id is absent; duplicates in `ids` are ignored. The remaining samples
   // keep their relative order (which is the tie-break order) and statistics are recomputed
   // exactly, as if the remaining samples had been added in order.
-  // O(num_rows() * dimension()) per call, so batch removals.
+  // O(num_rows() * dimension()) per call, so batch removals: the statistics are recomputed
+  // over every row, the blocks from the first removed row on are rewritten (those before it
+  // stay shared), and the id map is rebuilt.
   absl::Status Remove(absl::Span<const uint64_t> ids);
   absl::Status Remove(uint64_t id) { return Remove(absl::MakeConstSpan(&id, 1)); }
 
@@ -212,7 +189,7 @@ class KnnIndex {
   bool ApproximateInStep(const ApproximateOptions& options,
                          FeatureScaling scaling = FeatureScaling::kNone) const;
   // True when searches read inverted lists.
-  bool approximate() const { return lists_ != nullptr; }
+  bool approximate() const { return approximate_.lists() != nullptr; }
   // Cells of the lists and vectors filed in them (0 and 0 without lists): for tests,
   // benchmarks and a server's gallery listing.
   int approximate_lists() const;
@@ -240,20 +217,16 @@ class KnnIndex {
   // Empty index: all ones.
   std::vector<float> ScaleFactors(FeatureScaling scaling) const;
 
+  // For tests: the feature blocks, to see what two copies share.
+  const knn_internal::FeatureStorage& StorageForTesting() const { return storage_; }
+
  private:
   explicit KnnIndex(int dimension);
 
   absl::Status ValidateQuery(absl::Span<const float> queries, int k) const;
-  // What UpdateApproximate has to do (valid options).
-  enum class ApproximateStep { kNothing, kDrop, kBuild, kExtend };
-  ApproximateStep PlanApproximate(const ApproximateOptions& options, FeatureScaling scaling) const;
-  // Rows in whole blocks: what inverted lists hold, so the exact tail starts on a block
-  // boundary.
-  int64_t WholeBlockRows() const {
-    return num_rows() / knn_internal::kBlockLanes * knn_internal::kBlockLanes;
-  }
-  // The nearest distinct samples' best (squared distance, row, query), best first. Queries
-  // already validated. Sets *approximate (if not null) when the lists were read.
+  // The engine dispatch: the nearest distinct samples' best (squared distance, row, query),
+  // best first. Queries already validated. Sets *approximate (if not null) when the lists
+  // were read.
   std::vector<knn_internal::Candidate> FindNearest(absl::Span<const float> queries, int k,
                                                    FeatureScaling scaling, SimdLevel level,
                                                    Engine engine, bool early_abandon,
@@ -264,61 +237,17 @@ class KnnIndex {
                                                    Engine engine, bool early_abandon,
                                                    SearchMode mode = SearchMode::kDefault) const;
   std::vector<Neighbor> ToNeighbors(const std::vector<knn_internal::Candidate>& nearest) const;
-  // nullptr for kNone.
-  const float* ScaleData(FeatureScaling scaling) const;
-  knn_internal::BlockedView View() const {
-    return knn_internal::BlockedView{storage_.data(), num_rows(), dim_};
-  }
-  // Sample s holds rows [FirstRow(s), FirstRow(s + 1)).
-  int64_t FirstRow(int64_t sample) const {
-    return first_row_.empty() ? sample : first_row_[static_cast<std::size_t>(sample)];
-  }
-  int64_t SampleOfRow(int64_t row) const {
-    return sample_of_row_.empty() ? row : sample_of_row_[static_cast<std::size_t>(row)];
-  }
-  float Feature(int64_t row, int j) const {
-    return storage_[knn_internal::FeatureOffset(row, dim_, j)];
-  }
-  // Folds `row` (the (row + 1)-th observation) into the running statistics.
-  void Accumulate(int64_t row);
-  void RecomputeStatistics();
-  void UpdateScaleFactors();
 
-  int dim_;
-  knn_internal::AlignedFloats storage_;  // rows in the blocked layout, see knn_kernels.h
-  // Per sample, in insertion order.
-  std::vector<uint64_t> ids_;
-  std::vector<int32_t> label_of_sample_;  // index into labels_
-  int64_t num_rows_ = 0;
-  // Sample s holds rows [first_row_[s], first_row_[s + 1]) (size() + 1 entries), and
-  // sample_of_row_ is the inverse, per row (TopK's groups). Both are empty while every
-  // sample has one view, the usual gallery, where row and sample numbers coincide: that
-  // saves 16 bytes per sample, 5 % of an 81-float one (FirstRow, SampleOfRow).
-  std::vector<int64_t> first_row_;
-  std::vector<int64_t> sample_of_row_;
-  std::vector<std::string> labels_;     // distinct labels, in order of first appearance
-  std::vector<int64_t> label_counts_;   // samples per entry of labels_
-  absl::flat_hash_map<std::string, int32_t> label_index_;
-  absl::flat_hash_map<uint64_t, int64_t> sample_of_id_;
-
-  // Running statistics per dimension over rows, updated by Add in row order (Welford,
-  // double), and the float factors queries use.
-  std::vector<double> mean_;
-  std::vector<double> m2_;
-  std::vector<float> max_abs_;
-  std::vector<float> zscore_scale_;
-  std::vector<float> maxabs_scale_;
-
-  // kd-trees built lazily by const queries; dropped by every mutation.
-  std::unique_ptr<knn_internal::TreeCache> trees_;
-
-  // The approximate index (UpdateApproximate); null when searches are exact. Immutable,
-  // shared by copies. Built with lists_options_.lists and lists_scaling_ over
-  // lists_trained_rows_ rows.
-  std::shared_ptr<const knn_internal::InvertedLists> lists_;
-  ApproximateOptions lists_options_;
-  FeatureScaling lists_scaling_ = FeatureScaling::kNone;
-  int64_t lists_trained_rows_ = 0;
+  // Rows in the blocked layout, see knn_kernels.h.
+  knn_internal::FeatureStorage storage_;
+  // Ids, labels and the rows of each sample.
+  knn_internal::SampleTable samples_;
+  // Over every row in order, as Add saw them.
+  knn_internal::RunningStatistics statistics_;
+  // kd-trees built lazily by const queries; dropped by every mutation, shared by copies.
+  knn_internal::TreeCache trees_;
+  // Inverted lists (UpdateApproximate); shared by copies.
+  knn_internal::ApproximateIndex approximate_;
 };
 
 }  // namespace shapeid

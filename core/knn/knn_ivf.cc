@@ -1,18 +1,16 @@
 #include "core/knn/knn_ivf.h"
 
 #include <algorithm>
+#include <cmath>
 #include <thread>
 #include <utility>
+
+#include "core/knn/knn_kd_tree.h"
 
 namespace shapeid {
 namespace knn_internal {
 
 namespace {
-
-// Writes row `row` of `view` to out[0 .. dim).
-void CopyRow(const BlockedView& view, int64_t row, float* out) {
-  for (int j = 0; j < view.dim; ++j) out[j] = view.data[FeatureOffset(row, view.dim, j)];
-}
 
 // Row-major vectors into blocked storage (zero-padded to whole blocks).
 AlignedFloats ToBlocked(const std::vector<float>& rows, int64_t count, int dim) {
@@ -69,7 +67,7 @@ void InvertedLists::Assign(SimdLevel level, const float* vectors, int64_t count,
   });
 }
 
-void InvertedLists::Fill(const BlockedView& gallery, int64_t rows,
+void InvertedLists::Fill(const FeatureStorage& gallery, int64_t rows,
                          absl::Span<const int32_t> cell_of_row) {
   const std::size_t lists = static_cast<std::size_t>(num_centroids_);
   indexed_rows_ = rows;
@@ -91,21 +89,21 @@ void InvertedLists::Fill(const BlockedView& gallery, int64_t rows,
         next[static_cast<std::size_t>(cell_of_row_[static_cast<std::size_t>(row)])]++;
     row_ids_[static_cast<std::size_t>(dst)] = row;
     for (int j = 0; j < dim_; ++j) {
-      data_[FeatureOffset(dst, dim_, j)] = gallery.data[FeatureOffset(row, dim_, j)];
+      data_[FeatureOffset(dst, dim_, j)] = gallery.At(row, j);
     }
   }
 }
 
 std::shared_ptr<const InvertedLists> InvertedLists::Build(SimdLevel level,
-                                                          const BlockedView& gallery, int64_t rows,
-                                                          const float* scale, int lists,
-                                                          int threads,
+                                                          const FeatureStorage& gallery,
+                                                          int64_t rows, const float* scale,
+                                                          int lists, int threads,
                                                           const std::atomic<bool>* cancel) {
   auto cancelled = [cancel] {
     return cancel != nullptr && cancel->load(std::memory_order_relaxed);
   };
   std::shared_ptr<InvertedLists> ivf(new InvertedLists());
-  const int d = gallery.dim;
+  const int d = gallery.dim();
   const std::size_t dim = static_cast<std::size_t>(d);
   const int64_t k = std::clamp<int64_t>(std::min<int64_t>(lists, rows / kMinRowsPerList), 1, rows);
   ivf->dim_ = d;
@@ -116,7 +114,7 @@ std::shared_ptr<const InvertedLists> InvertedLists::Build(SimdLevel level,
   const int64_t m = std::min(rows, k * kTrainRowsPerList);
   std::vector<float> train(static_cast<std::size_t>(m) * dim);
   for (int64_t i = 0; i < m; ++i)
-    CopyRow(gallery, i * rows / m, &train[static_cast<std::size_t>(i) * dim]);
+    gallery.CopyRow(i * rows / m, &train[static_cast<std::size_t>(i) * dim]);
 
   // Lloyd's k-means from k training rows spread evenly; cells that empty are re-seeded by
   // splitting the largest one (as Faiss does), so every list keeps a centroid.
@@ -173,7 +171,7 @@ std::shared_ptr<const InvertedLists> InvertedLists::Build(SimdLevel level,
     if (cancelled()) return nullptr;
     const int64_t count = std::min(kChunk, rows - begin);
     for (int64_t i = 0; i < count; ++i)
-      CopyRow(gallery, begin + i, &chunk[static_cast<std::size_t>(i) * dim]);
+      gallery.CopyRow(begin + i, &chunk[static_cast<std::size_t>(i) * dim]);
     ivf->Assign(level, chunk.data(), count, scale, threads,
                 &cell_of_row[static_cast<std::size_t>(begin)]);
   }
@@ -182,15 +180,16 @@ std::shared_ptr<const InvertedLists> InvertedLists::Build(SimdLevel level,
 }
 
 std::shared_ptr<const InvertedLists> InvertedLists::Extend(SimdLevel level,
-                                                           const BlockedView& gallery, int64_t rows,
-                                                           const float* scale, int threads) const {
+                                                           const FeatureStorage& gallery,
+                                                           int64_t rows, const float* scale,
+                                                           int threads) const {
   std::shared_ptr<InvertedLists> ivf = WithSameCells();
   std::vector<int32_t> cell_of_row = cell_of_row_;
   cell_of_row.resize(static_cast<std::size_t>(rows));
   const int64_t added = rows - indexed_rows_;
   std::vector<float> vectors(static_cast<std::size_t>(added) * static_cast<std::size_t>(dim_));
   for (int64_t i = 0; i < added; ++i) {
-    CopyRow(gallery, indexed_rows_ + i, &vectors[static_cast<std::size_t>(i * dim_)]);
+    gallery.CopyRow(indexed_rows_ + i, &vectors[static_cast<std::size_t>(i * dim_)]);
   }
   ivf->Assign(level, vectors.data(), added, scale, threads,
               &cell_of_row[static_cast<std::size_t>(indexed_rows_)]);
@@ -199,7 +198,7 @@ std::shared_ptr<const InvertedLists> InvertedLists::Extend(SimdLevel level,
 }
 
 std::shared_ptr<const InvertedLists> InvertedLists::Renumber(
-    const BlockedView& gallery, absl::Span<const int64_t> new_row_of_old) const {
+    const FeatureStorage& gallery, absl::Span<const int64_t> new_row_of_old) const {
   int64_t kept = 0;
   for (int64_t row = 0; row < indexed_rows_; ++row)
     kept += new_row_of_old[static_cast<std::size_t>(row)] >= 0;
@@ -249,6 +248,69 @@ void InvertedLists::Search(SimdLevel level, const float* queries, int num_querie
     ScanBlocks(level, List(list), group.data(), static_cast<int>(group_ids.size()), scale, abandon,
                top, group_ids.data());
   }
+}
+
+ApproximateIndex::Step ApproximateIndex::Plan(const ApproximateOptions& options,
+                                              FeatureScaling scaling,
+                                              const FeatureStorage& gallery) const {
+  // Lists hold whole blocks, so the exact tail starts on a block boundary.
+  const int64_t whole_blocks = gallery.rows() / kBlockLanes * kBlockLanes;
+  if (options.min_vectors == 0 || gallery.rows() < options.min_vectors ||
+      gallery.dim() <= kKdTreeMaxDimension || whole_blocks == 0) {
+    return lists_ != nullptr ? Step::kDrop : Step::kNothing;
+  }
+  if (lists_ == nullptr || options.lists != options_.lists || scaling != scaling_ ||
+      whole_blocks >= 4 * trained_rows_) {
+    return Step::kBuild;
+  }
+  if (whole_blocks - lists_->indexed_rows() > lists_->indexed_rows() / 16) return Step::kExtend;
+  return Step::kNothing;
+}
+
+bool ApproximateIndex::InStep(const ApproximateOptions& options, FeatureScaling scaling,
+                              const FeatureStorage& gallery) const {
+  // Probes only change how the lists are read.
+  return Plan(options, scaling, gallery) == Step::kNothing &&
+         (lists_ == nullptr || options.probes == options_.probes);
+}
+
+absl::Status ApproximateIndex::Update(const ApproximateOptions& options, FeatureScaling scaling,
+                                      const FeatureStorage& gallery, const float* scale,
+                                      const std::atomic<bool>* cancel) {
+  const int64_t whole_blocks = gallery.rows() / kBlockLanes * kBlockLanes;
+  const int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  switch (Plan(options, scaling, gallery)) {
+    case Step::kNothing:
+      break;
+    case Step::kDrop:
+      lists_.reset();
+      break;
+    case Step::kBuild: {
+      const int lists = options.lists > 0
+                            ? options.lists
+                            : static_cast<int>(std::clamp<double>(
+                                  std::round(ApproximateOptions::kDefaultListsPerSqrt *
+                                             std::sqrt(static_cast<double>(gallery.rows()))),
+                                  1.0, ApproximateOptions::kMaxLists));
+      auto built = InvertedLists::Build(ActiveSimdLevel(), gallery, whole_blocks, scale, lists,
+                                        threads, cancel);
+      if (built == nullptr) return absl::CancelledError("approximate index build cancelled");
+      lists_ = std::move(built);
+      trained_rows_ = whole_blocks;
+      scaling_ = scaling;
+      break;
+    }
+    case Step::kExtend:
+      lists_ = lists_->Extend(ActiveSimdLevel(), gallery, whole_blocks, scale, threads);
+      break;
+  }
+  options_ = options;
+  return absl::OkStatus();
+}
+
+void ApproximateIndex::Renumber(const FeatureStorage& gallery,
+                                absl::Span<const int64_t> new_row_of_old) {
+  if (lists_ != nullptr) lists_ = lists_->Renumber(gallery, new_row_of_old);
 }
 
 }  // namespace knn_internal

@@ -2,16 +2,20 @@
 #define SHAPEID_CORE_KNN_KNN_IVF_H_
 
 // Internal to core/knn: the approximate index of large galleries, inverted lists over
-// k-means cells ("IVF-Flat", the scheme of Faiss's IndexIVFFlat). KnnIndex owns it; see
-// ApproximateOptions (knn_options.h) for when it is used.
+// k-means cells ("IVF-Flat", the scheme of Faiss's IndexIVFFlat), and ApproximateIndex, its
+// lifecycle over a growing gallery. KnnIndex owns one; see ApproximateOptions (knn_options.h)
+// for when it is used.
 
 #include <atomic>
 #include <cstdint>
 #include <memory>
 #include <vector>
 
+#include "absl/status/status.h"
 #include "absl/types/span.h"
+#include "core/knn/knn_feature_storage.h"
 #include "core/knn/knn_kernels.h"
+#include "core/knn/knn_options.h"
 #include "core/simd.h"
 
 namespace shapeid {
@@ -38,7 +42,7 @@ class InvertedLists {
   // (kTrainRowsPerList * kIterations + rows) * lists * dim multiply-adds, less what early
   // abandonment saves. nullptr if `cancel` (may be null) turns true meanwhile: it is read
   // between iterations and chunks of rows, so a build stops within a fraction of a second.
-  static std::shared_ptr<const InvertedLists> Build(SimdLevel level, const BlockedView& gallery,
+  static std::shared_ptr<const InvertedLists> Build(SimdLevel level, const FeatureStorage& gallery,
                                                     int64_t rows, const float* scale, int lists,
                                                     int threads,
                                                     const std::atomic<bool>* cancel = nullptr);
@@ -46,7 +50,7 @@ class InvertedLists {
   // The same cells with rows [indexed_rows(), rows) of `gallery` added to their nearest
   // cell's list (rows a multiple of kBlockLanes, >= indexed_rows()). Cost: the new rows
   // times lists * dim, plus a copy of the lists.
-  std::shared_ptr<const InvertedLists> Extend(SimdLevel level, const BlockedView& gallery,
+  std::shared_ptr<const InvertedLists> Extend(SimdLevel level, const FeatureStorage& gallery,
                                               int64_t rows, const float* scale, int threads) const;
 
   // The same cells after the gallery dropped rows and closed up, keeping order (`gallery`
@@ -54,7 +58,7 @@ class InvertedLists {
   // or -1 if it was removed. Rows that end up at or past the last whole block of the kept
   // indexed rows leave the lists (and become tail). nullptr if no block of indexed rows is
   // left. Cost: a copy of the lists; no clustering.
-  std::shared_ptr<const InvertedLists> Renumber(const BlockedView& gallery,
+  std::shared_ptr<const InvertedLists> Renumber(const FeatureStorage& gallery,
                                                 absl::Span<const int64_t> new_row_of_old) const;
 
   // Gallery rows [0, indexed_rows()) are in the lists; a multiple of kBlockLanes.
@@ -85,7 +89,7 @@ class InvertedLists {
   void Assign(SimdLevel level, const float* vectors, int64_t count, const float* scale, int threads,
               int32_t* cell) const;
   // Fills the lists from the cells of gallery rows [0, rows).
-  void Fill(const BlockedView& gallery, int64_t rows, absl::Span<const int32_t> cell_of_row);
+  void Fill(const FeatureStorage& gallery, int64_t rows, absl::Span<const int32_t> cell_of_row);
   BlockedView Centroids() const { return BlockedView{centroids_.data(), num_centroids_, dim_}; }
   BlockedView List(int list) const;
 
@@ -98,6 +102,43 @@ class InvertedLists {
   std::vector<int64_t> list_start_;  // first stored row of each list; a multiple of 32
   std::vector<int64_t> list_size_;
   std::vector<int32_t> cell_of_row_;  // per indexed gallery row: Extend and Renumber
+};
+
+// When a gallery's inverted lists are built, extended, renumbered or dropped, and the lists
+// themselves (immutable, shared by copies: copying this is O(1)). Update is O(1) for a gallery
+// in step; the steps that cost O(gallery) are an Extend (a copy of the lists, once the rows
+// not yet filed pass 1/16 of those filed) and a Build (when the rows have grown 4x).
+class ApproximateIndex {
+ public:
+  // True when Update(options, scaling, ...) would change nothing (or the options are
+  // invalid): see KnnIndex::UpdateApproximate for the rules.
+  bool InStep(const ApproximateOptions& options, FeatureScaling scaling,
+              const FeatureStorage& gallery) const;
+  // Brings the lists in step with `gallery` (valid options; `scale` the factors of
+  // `scaling`). Cancelled, with nothing changed, if `cancel` turned true during a build.
+  absl::Status Update(const ApproximateOptions& options, FeatureScaling scaling,
+                      const FeatureStorage& gallery, const float* scale,
+                      const std::atomic<bool>* cancel);
+  // After the gallery dropped rows (InvertedLists::Renumber).
+  void Renumber(const FeatureStorage& gallery, absl::Span<const int64_t> new_row_of_old);
+
+  // Null when searches are exact.
+  const InvertedLists* lists() const { return lists_.get(); }
+  // Cells a query vector reads.
+  int probes() const {
+    return options_.probes > 0 ? options_.probes : ApproximateOptions::kDefaultProbes;
+  }
+
+ private:
+  enum class Step { kNothing, kDrop, kBuild, kExtend };
+  Step Plan(const ApproximateOptions& options, FeatureScaling scaling,
+            const FeatureStorage& gallery) const;
+
+  // Built with options_.lists and scaling_ over trained_rows_ rows.
+  std::shared_ptr<const InvertedLists> lists_;
+  ApproximateOptions options_;
+  FeatureScaling scaling_ = FeatureScaling::kNone;
+  int64_t trained_rows_ = 0;
 };
 
 }  // namespace knn_internal

@@ -123,17 +123,15 @@ class NanoflannKdTree final : public KdTree {
 
 }  // namespace
 
-std::unique_ptr<const KdTree> KdTree::Build(const BlockedView& view, std::vector<float> scale) {
-  if (view.size <= 0 || view.size > std::numeric_limits<uint32_t>::max()) return nullptr;
+std::unique_ptr<const KdTree> KdTree::Build(const FeatureStorage& storage,
+                                            std::vector<float> scale) {
+  if (storage.rows() <= 0 || storage.rows() > std::numeric_limits<uint32_t>::max()) return nullptr;
   try {
-    const std::size_t n = static_cast<std::size_t>(view.size);
-    std::vector<float> rows(n * static_cast<std::size_t>(view.dim));
-    for (std::size_t i = 0; i < n; ++i) {
-      for (int j = 0; j < view.dim; ++j) {
-        rows[i * view.dim + j] = view.data[FeatureOffset(static_cast<int64_t>(i), view.dim, j)];
-      }
-    }
-    return std::make_unique<NanoflannKdTree>(std::move(rows), n, view.dim, std::move(scale));
+    const std::size_t n = static_cast<std::size_t>(storage.rows());
+    const std::size_t dim = static_cast<std::size_t>(storage.dim());
+    std::vector<float> rows(n * dim);
+    for (std::size_t i = 0; i < n; ++i) storage.CopyRow(static_cast<int64_t>(i), &rows[i * dim]);
+    return std::make_unique<NanoflannKdTree>(std::move(rows), n, storage.dim(), std::move(scale));
   } catch (const std::exception&) {
     return nullptr;
   }
@@ -156,7 +154,7 @@ TreeCache& TreeCache::operator=(const TreeCache& other) {
   return *this;
 }
 
-std::shared_ptr<const KdTree> TreeCache::Get(FeatureScaling scaling, const BlockedView& view,
+std::shared_ptr<const KdTree> TreeCache::Get(FeatureScaling scaling, const FeatureStorage& rows,
                                              const float* scale, bool force) const {
   const std::size_t i = static_cast<std::size_t>(scaling);
   {
@@ -171,9 +169,9 @@ std::shared_ptr<const KdTree> TreeCache::Get(FeatureScaling scaling, const Block
   if (!slot.attempted) {
     // Built under the lock: concurrent queries wait for one build instead of each building
     // their own.
-    std::vector<float> factors(static_cast<std::size_t>(view.dim), 1.0f);
-    if (scale != nullptr) factors.assign(scale, scale + view.dim);
-    slot.tree = KdTree::Build(view, std::move(factors));
+    std::vector<float> factors(static_cast<std::size_t>(rows.dim()), 1.0f);
+    if (scale != nullptr) factors.assign(scale, scale + rows.dim());
+    slot.tree = KdTree::Build(rows, std::move(factors));
     slot.attempted = true;
   }
   return slot.tree;

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "absl/base/thread_annotations.h"
+#include "core/knn/knn_feature_storage.h"
 #include "core/knn/knn_kernels.h"
 #include "core/knn/knn_options.h"
 
@@ -41,10 +42,10 @@ inline constexpr int64_t kKdTreeBuildAfterQueries = 512;
 
 class KdTree {
  public:
-  // A tree over a row-major copy of `view` whose metric multiplies the difference in
-  // dimension j by scale[j] (`scale` has view.dim entries; all ones for unscaled). nullptr
+  // A tree over a row-major copy of `rows` whose metric multiplies the difference in
+  // dimension j by scale[j] (`scale` has rows.dim() entries; all ones for unscaled). nullptr
   // if nanoflann failed (the caller falls back to brute force).
-  static std::unique_ptr<const KdTree> Build(const BlockedView& view, std::vector<float> scale);
+  static std::unique_ptr<const KdTree> Build(const FeatureStorage& rows, std::vector<float> scale);
 
   virtual ~KdTree() = default;
 
@@ -66,13 +67,18 @@ class TreeCache {
   TreeCache() = default;
   TreeCache(const TreeCache& other);
   TreeCache& operator=(const TreeCache& other);
+  // A move copies (three pointers): the mutex cannot move.
+  TreeCache(TreeCache&& other) noexcept : TreeCache(static_cast<const TreeCache&>(other)) {}
+  TreeCache& operator=(TreeCache&& other) noexcept {
+    return *this = static_cast<const TreeCache&>(other);
+  }
 
-  // The tree for `scaling` over `view`, whose metric uses the view.dim factors at `scale`
+  // The tree for `scaling` over `rows`, whose metric uses the rows.dim() factors at `scale`
   // (nullptr: all ones). If it is not built yet: with `force` it is built now; otherwise
   // this call is counted and the tree is built by the kKdTreeBuildAfterQueries-th call
   // since the last Clear, nullptr until then (use brute force). nullptr also if the build
   // failed; the failure is remembered until Clear, so it is not retried per query.
-  std::shared_ptr<const KdTree> Get(FeatureScaling scaling, const BlockedView& view,
+  std::shared_ptr<const KdTree> Get(FeatureScaling scaling, const FeatureStorage& rows,
                                     const float* scale, bool force) const;
   void Clear();
 

@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/knn/knn_shared_chunks.h"
 #include "core/simd.h"
 
 namespace shapeid {
@@ -34,10 +35,9 @@ inline std::size_t FeatureOffset(int64_t row, int dim, int j) {
          static_cast<std::size_t>(j) * kBlockLanes + static_cast<std::size_t>(row % kBlockLanes);
 }
 
-// Galleries of 2 MiB and more are aligned to 2 MiB and marked for transparent huge pages.
-// Every commit copies the gallery into fresh memory (core/gallery), and on a VM each 4 KiB
-// page's first touch is a costly fault: a 100k x 81 gallery (32 MB) took 8,000 faults per
-// commit, most of a 50 ms commit; with huge pages it takes 16. Scans also miss the TLB less.
+// Arrays of 2 MiB and more (the approximate index's lists) are aligned to 2 MiB and marked
+// for transparent huge pages: on a VM each 4 KiB page's first touch is a costly fault, and
+// scans miss the TLB less.
 inline constexpr std::size_t kHugePageBytes = std::size_t{2} << 20;
 
 // Asks the kernel for huge pages over [p, p + bytes); a hint, so failure is harmless.
@@ -80,9 +80,7 @@ inline bool Before(const Candidate& a, const Candidate& b) {
 }
 // Before as a function object: the heap algorithms inline it, which they do not always
 // do through a function pointer.
-inline constexpr auto kBefore = [](const Candidate& a, const Candidate& b) {
-  return Before(a, b);
-};
+inline constexpr auto kBefore = [](const Candidate& a, const Candidate& b) { return Before(a, b); };
 
 // The best k candidates seen so far, at most one per group (sample): a max-heap on
 // Before, so the current k-th is at the front. A group's entry is its best candidate, so
@@ -92,11 +90,12 @@ inline constexpr auto kBefore = [](const Candidate& a, const Candidate& b) {
 // smallest best candidate, each with that candidate.
 class TopK {
  public:
-  // group_of_row[row] is the group of each row; nullptr when every row is a group of its
+  // (*group_of_row)[row] is the group of each row; nullptr when every row is a group of its
   // own (one view per sample). Then `rows_repeat` says whether a row may be offered more
   // than once (several query vectors): if not, the per-offer search for the row's group is
   // skipped.
-  explicit TopK(int k, const int64_t* group_of_row = nullptr, bool rows_repeat = false)
+  explicit TopK(int k, const SharedChunks<int64_t>* group_of_row = nullptr,
+                bool rows_repeat = false)
       : k_(static_cast<std::size_t>(k)),
         group_of_row_(group_of_row),
         grouped_(group_of_row != nullptr || rows_repeat) {
@@ -124,11 +123,11 @@ class TopK {
   void SiftDown(std::size_t i);
 
   int64_t GroupOf(int64_t row) const {
-    return group_of_row_ != nullptr ? group_of_row_[row] : row;
+    return group_of_row_ != nullptr ? (*group_of_row_)[row] : row;
   }
 
   std::size_t k_;
-  const int64_t* group_of_row_;
+  const SharedChunks<int64_t>* group_of_row_;
   bool grouped_;
   std::vector<Candidate> heap_;
 };
