@@ -104,12 +104,15 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
     }
     PostgresGalleryStoreOptions postgres_options;
     postgres_options.conninfo = options.store;
-    postgres_options.refresh = options.store_refresh;
-    postgres_options.logger = server->logger_;
     absl::StatusOr<std::unique_ptr<PostgresGalleryStore>> postgres =
         PostgresGalleryStore::Open(std::move(postgres_options));
     if (!postgres.ok()) return postgres.status();
     server->postgres_store_ = *std::move(postgres);
+    ReplicationFollowerOptions follower_options;
+    follower_options.refresh = options.store_refresh;
+    follower_options.logger = server->logger_;
+    server->follower_ = std::make_shared<ReplicationFollower>(server->postgres_store_,
+                                                              std::move(follower_options));
     server->store_description_ =
         absl::StrCat("PostgreSQL ", DescribeConninfo(options.store), " (shared)");
     store = server->postgres_store_;
@@ -124,7 +127,18 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
   if (store != nullptr) {
     store = std::make_shared<ObservedGalleryStore>(std::move(store), server->metrics_);
   }
-  server->registry_ = std::make_shared<GalleryRegistry>(options.gallery_limits, store);
+  CatchUpFunction catch_up;
+  if (server->follower_ != nullptr) {
+    // Weak: a gallery held by a stream may outlive the server; it then has nothing to catch
+    // up with.
+    catch_up = [follower = std::weak_ptr<ReplicationFollower>(server->follower_)](
+                   absl::string_view name) {
+      const std::shared_ptr<ReplicationFollower> held = follower.lock();
+      return held != nullptr ? held->CatchUp(name) : absl::OkStatus();
+    };
+  }
+  server->registry_ =
+      std::make_shared<GalleryRegistry>(options.gallery_limits, store, std::move(catch_up));
   server->service_ = std::make_unique<ShapeIdService>(
       options.service, server->registry_, *keys, CallObserver(server->metrics_, server->logger_));
   server->security_ = DescribeSecurity(options.security, **keys);
@@ -172,7 +186,7 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
 
 absl::Status ShapeIdServer::StartMetrics(const MetricsOptions& options) {
   ShapeIdService* service = service_.get();
-  PostgresGalleryStore* postgres = postgres_store_.get();
+  ReplicationFollower* follower = follower_.get();
   LiveSources live;
   live.calls_in_flight = [service] { return service->calls_in_flight(); };
   live.serving = [service] { return service->serving(); };
@@ -188,10 +202,10 @@ absl::Status ShapeIdServer::StartMetrics(const MetricsOptions& options) {
     const MemoryBudget& budget = service->budget();
     return MemoryBudgetState{budget.total_bytes(), budget.held_bytes(), budget.peak_bytes()};
   };
-  if (postgres != nullptr) {
-    live.replication = [postgres]() -> std::optional<ReplicationState> {
-      return ReplicationState{postgres->reachable(), postgres->changes_applied(),
-                              absl::Now() - postgres->last_sync()};
+  if (follower != nullptr) {
+    live.replication = [follower]() -> std::optional<ReplicationState> {
+      return ReplicationState{follower->reachable(), follower->changes_applied(),
+                              absl::Now() - follower->last_sync()};
     };
   }
   metrics_->SetSources(registry_, std::move(live));
@@ -233,10 +247,10 @@ absl::StatusOr<LoadReport> ShapeIdServer::LoadGalleries() {
   if (shut_down_) return report;
   service_->StartServing();
   SetServing(true);
-  if (postgres_store_ != nullptr) {
+  if (follower_ != nullptr) {
     // From here on other replicas' changes are applied as they come; losing PostgreSQL for
     // longer than the refresh bound takes this replica out of service until it is back.
-    postgres_store_->StartFollowing(registry_.get(), [this](bool reachable) {
+    follower_->Start(registry_.get(), [this](bool reachable) {
       service_->SetStoreReachable(reachable);
       SetServing(reachable);
     });
@@ -247,7 +261,7 @@ absl::StatusOr<LoadReport> ShapeIdServer::LoadGalleries() {
 void ShapeIdServer::Shutdown(absl::Duration grace) {
   if (shut_down_ || server_ == nullptr) return;
   // First, so that it cannot turn the service back to serving while it drains.
-  if (postgres_store_ != nullptr) postgres_store_->StopFollowing();
+  if (follower_ != nullptr) follower_->Stop();
   shut_down_ = true;
   SetServing(false);
   // Drain ourselves, then shut gRPC down at once: Server::Shutdown(deadline) alone would also
@@ -284,7 +298,7 @@ void ShapeIdServer::SetServing(bool serving) {
 ShapeIdServer::~ShapeIdServer() {
   // The follower calls into the registry and the service: stop it before either goes (also
   // when Bind failed half-way and Shutdown has nothing to do).
-  if (postgres_store_ != nullptr) postgres_store_->StopFollowing();
+  if (follower_ != nullptr) follower_->Stop();
   Shutdown(absl::ZeroDuration());
   // The metrics may outlive this server (the store holds them); their sources may not.
   if (metrics_ != nullptr) metrics_->SetSources({}, {});

@@ -14,6 +14,7 @@
 #include "server/metrics.h"
 #include "server/server_options.h"
 #include "server/shapeid_service.h"
+#include "server/replication/replication_follower.h"
 #include "server/storage/postgres_gallery_store.h"
 #include "server/storage/sqlite_gallery_store.h"
 
@@ -95,6 +96,9 @@ class ShapeIdServer {
 
   std::shared_ptr<SqliteGalleryStore> store_;             // null unless galleries live in data_dir
   std::shared_ptr<PostgresGalleryStore> postgres_store_;  // null unless options.store is set
+  // Applies the other replicas' changes; with postgres_store_. Shared with the galleries'
+  // catch-up function, which holds it weakly.
+  std::shared_ptr<ReplicationFollower> follower_;
   std::string store_description_;
   std::shared_ptr<GalleryRegistry> registry_;
   std::unique_ptr<ShapeIdService> service_;

@@ -118,10 +118,11 @@ absl::StatusOr<CommitResult> TrainBatch::Commit() {
 // Gallery
 
 Gallery::Gallery(std::string name, GalleryLimits limits, std::shared_ptr<GalleryStore> store,
-                 std::shared_ptr<const GallerySnapshot> initial)
+                 CatchUpFunction catch_up, std::shared_ptr<const GallerySnapshot> initial)
     : name_(std::move(name)),
       limits_(limits),
       store_(std::move(store)),
+      catch_up_(std::move(catch_up)),
       snapshot_(std::move(initial)) {}
 
 absl::StatusOr<std::unique_ptr<GallerySnapshot>> Gallery::EmptySnapshot(
@@ -210,18 +211,21 @@ absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Create(std::string name,
                                                          const GalleryOptions& options,
                                                          const GalleryLimits& limits,
                                                          std::shared_ptr<GalleryStore> store,
-                                                         absl::Time created) {
+                                                         absl::Time created,
+                                                         CatchUpFunction catch_up) {
   SHAPEID_ASSIGN_OR_RETURN(std::unique_ptr<GallerySnapshot> snapshot,
                            EmptySnapshot(name, options, created));
   snapshot->meta_.incarnation = NewGalleryIncarnation();
   return std::shared_ptr<Gallery>(
-      new Gallery(std::move(name), limits, std::move(store), std::move(snapshot)));
+      new Gallery(std::move(name), limits, std::move(store), std::move(catch_up),
+                  std::move(snapshot)));
 }
 
 absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Restore(const StoredGallery& stored,
                                                           const GalleryLimits& limits,
                                                           std::shared_ptr<GalleryStore> store,
-                                                          ApproximateBuild approximate) {
+                                                          ApproximateBuild approximate,
+                                                          CatchUpFunction catch_up) {
   const std::string where = absl::StrCat("restoring gallery '", stored.name, "': ");
   absl::StatusOr<std::unique_ptr<GallerySnapshot>> empty = StoredSnapshot(stored);
   if (!empty.ok()) return Prefixed(where, empty.status());
@@ -246,7 +250,8 @@ absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Restore(const StoredGallery& s
   }
   snapshot->next_assigned_id_ = next_assigned;
   return std::shared_ptr<Gallery>(
-      new Gallery(stored.name, limits, std::move(store), std::move(snapshot)));
+      new Gallery(stored.name, limits, std::move(store), std::move(catch_up),
+                  std::move(snapshot)));
 }
 
 std::shared_ptr<const GallerySnapshot> Gallery::Snapshot() const {
@@ -304,7 +309,7 @@ absl::StatusOr<T> Gallery::RetryIfStale(const std::function<absl::StatusOr<T>()>
   bool caught_up_for_not_found = false;
   for (int attempt = 1;; ++attempt) {
     absl::StatusOr<T> result = write();
-    if (store_ == nullptr || !store_->shared() || attempt == kStaleAttempts) return result;
+    if (catch_up_ == nullptr || attempt == kStaleAttempts) return result;
     // NotFound (an id or label to remove) may only mean that another server's change has not
     // reached this one yet: catch up and look once more, so a client that trained through
     // one replica can remove through another at once.
@@ -322,7 +327,7 @@ absl::StatusOr<T> Gallery::RetryIfStale(const std::function<absl::StatusOr<T>()>
     }
     // A shared store found this server's copy behind: apply what the others wrote, then
     // rebuild the change on top of it (outside the writer lock, which catching up needs).
-    SHAPEID_RETURN_IF_ERROR(store_->CatchUp(name_));
+    SHAPEID_RETURN_IF_ERROR(catch_up_(name_));
   }
 }
 

@@ -133,12 +133,14 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
   // A new, empty gallery. Validates the name (ValidateGalleryName), the options
   // (ValidateGalleryOptions) and the descriptor spec (the registry's InvalidArgument,
   // unchanged), and canonicalises the spec. `store` may be null (nothing persisted). Does
-  // not call the store: the registry saves the gallery before publishing it.
+  // not call the store: the registry saves the gallery before publishing it. `catch_up`
+  // (null for a private store) is what a write refused as stale calls before it retries.
   static absl::StatusOr<std::shared_ptr<Gallery>> Create(std::string name,
                                                          const GalleryOptions& options,
                                                          const GalleryLimits& limits,
                                                          std::shared_ptr<GalleryStore> store,
-                                                         absl::Time created = absl::Now());
+                                                         absl::Time created = absl::Now(),
+                                                         CatchUpFunction catch_up = nullptr);
   // A gallery rebuilt from what a store saved (or an export held), without writing to the
   // store; the samples keep their order, so answers are bit for bit those before. Assigned
   // ids continue above the largest stored assigned id. A gallery this server cannot compute
@@ -150,7 +152,7 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
   enum class ApproximateBuild { kNow, kLater };
   static absl::StatusOr<std::shared_ptr<Gallery>> Restore(
       const StoredGallery& stored, const GalleryLimits& limits, std::shared_ptr<GalleryStore> store,
-      ApproximateBuild approximate = ApproximateBuild::kNow);
+      ApproximateBuild approximate = ApproximateBuild::kNow, CatchUpFunction catch_up = nullptr);
 
   Gallery(const Gallery&) = delete;
   Gallery& operator=(const Gallery&) = delete;
@@ -199,7 +201,7 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
   friend class GalleryRegistry;
 
   Gallery(std::string name, GalleryLimits limits, std::shared_ptr<GalleryStore> store,
-          std::shared_ptr<const GallerySnapshot> initial);
+          CatchUpFunction catch_up, std::shared_ptr<const GallerySnapshot> initial);
 
   static absl::StatusOr<std::unique_ptr<GallerySnapshot>> EmptySnapshot(
       std::string name, const GalleryOptions& options, absl::Time created);
@@ -209,8 +211,8 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
       const StoredGallery& stored);
 
   // Writes retry when a shared store answers Aborted (it found this server's copy behind):
-  // CatchUp, then the write again, up to kStaleAttempts in all. NotFound is retried once
-  // after a CatchUp too (see RetryIfStale).
+  // catch_up_, then the write again, up to kStaleAttempts in all. NotFound is retried once
+  // after a catch-up too (see RetryIfStale).
   static constexpr int kStaleAttempts = 20;
   template <typename T>
   absl::StatusOr<T> RetryIfStale(const std::function<absl::StatusOr<T>()>& write);
@@ -270,6 +272,7 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
   const std::string name_;
   const GalleryLimits limits_;
   const std::shared_ptr<GalleryStore> store_;  // may be null
+  const CatchUpFunction catch_up_;             // null: the store is never behind
 
   // std::mutex rather than absl::Mutex: Debian's Abseil is not built with TSan
   // instrumentation, so absl::Mutex makes ThreadSanitizer report false races.

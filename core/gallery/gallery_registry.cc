@@ -18,9 +18,11 @@ absl::Status NoSuchGallery(absl::string_view name) {
 
 }  // namespace
 
-GalleryRegistry::GalleryRegistry(GalleryLimits limits, std::shared_ptr<GalleryStore> store)
+GalleryRegistry::GalleryRegistry(GalleryLimits limits, std::shared_ptr<GalleryStore> store,
+                                 CatchUpFunction catch_up)
     : limits_(limits),
-      store_(store != nullptr ? std::move(store) : std::make_shared<NullGalleryStore>()) {}
+      store_(store != nullptr ? std::move(store) : std::make_shared<NullGalleryStore>()),
+      catch_up_(std::move(catch_up)) {}
 
 GalleryRegistry::~GalleryRegistry() {
   stop_ = true;
@@ -37,7 +39,7 @@ absl::Status GalleryRegistry::LoadFromStore() {
   for (const StoredGallery& g : stored) {
     SHAPEID_ASSIGN_OR_RETURN(
         std::shared_ptr<Gallery> gallery,
-        Gallery::Restore(g, limits_, store_, Gallery::ApproximateBuild::kLater));
+        Gallery::Restore(g, limits_, store_, Gallery::ApproximateBuild::kLater, catch_up_));
     loaded.push_back(std::move(gallery));
   }
   std::lock_guard<std::mutex> lock(mu_);
@@ -71,7 +73,8 @@ absl::StatusOr<std::shared_ptr<Gallery>> GalleryRegistry::Create(absl::string_vi
                                                                  const GalleryOptions& options) {
   // Validation and descriptor construction need no lock.
   SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<Gallery> gallery,
-                           Gallery::Create(std::string(name), options, limits_, store_));
+                           Gallery::Create(std::string(name), options, limits_, store_,
+                                           absl::Now(), catch_up_));
   return Add(gallery, gallery->Snapshot()->ToStored(), "create", "");
 }
 
@@ -84,7 +87,8 @@ absl::StatusOr<std::shared_ptr<Gallery>> GalleryRegistry::Import(StoredGallery s
   }
   // Validation and the index build need no lock.
   SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<Gallery> gallery,
-                           Gallery::Restore(stored, limits_, store_));
+                           Gallery::Restore(stored, limits_, store_, Gallery::ApproximateBuild::kNow,
+                                            catch_up_));
   const std::shared_ptr<const GallerySnapshot> snapshot = gallery->Snapshot();
   if (!snapshot->incompatible().empty()) {
     return absl::FailedPreconditionError(
@@ -159,7 +163,8 @@ absl::Status GalleryRegistry::Delete(absl::string_view name) {
 
 absl::Status GalleryRegistry::ApplyStoredGallery(const StoredGallery& stored) {
   SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<Gallery> gallery,
-                           Gallery::Restore(stored, limits_, store_));
+                           Gallery::Restore(stored, limits_, store_, Gallery::ApproximateBuild::kNow,
+                                            catch_up_));
   std::shared_ptr<Gallery> same;     // the same incarnation, held: takes the stored state
   std::shared_ptr<Gallery> replaced;  // another incarnation: retired
   {

@@ -29,8 +29,11 @@ namespace shapeid {
 // gallery of the same name is created meanwhile.
 class GalleryRegistry {
  public:
-  // `store` null means NullGalleryStore (nothing persisted).
-  explicit GalleryRegistry(GalleryLimits limits = {}, std::shared_ptr<GalleryStore> store = {});
+  // `store` null means NullGalleryStore (nothing persisted). `catch_up` is given to every
+  // gallery: what a write the store refused as stale calls before it retries (null for a
+  // store that is never behind; see GalleryStore).
+  explicit GalleryRegistry(GalleryLimits limits = {}, std::shared_ptr<GalleryStore> store = {},
+                           CatchUpFunction catch_up = nullptr);
   // Stops the background build of approximate indexes (LoadFromStore) and waits for it:
   // within a fraction of a second.
   ~GalleryRegistry();
@@ -95,6 +98,7 @@ class GalleryRegistry {
  private:
   const GalleryLimits limits_;
   const std::shared_ptr<GalleryStore> store_;
+  const CatchUpFunction catch_up_;
 
   // Publishes a validated new gallery: reserves the name, saves it to the store without the
   // lock, then publishes. `verb` and `exists_hint` shape the error messages.

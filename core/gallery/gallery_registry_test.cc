@@ -333,7 +333,7 @@ TEST(GalleryRegistryTest, ASlowStoreWriteBlocksNeitherLookupsNorOtherNames) {
 
 // Two servers over one shared store, as PostgreSQL makes them (server/storage): the store
 // keeps a log of changes, answers Aborted when a write is built on a stale copy, and CatchUp
-// applies the log through the replication entry points.
+// (each registry's catch-up function) applies the log through the replication entry points.
 class SharedLog {
  public:
   struct Change {
@@ -370,8 +370,7 @@ class ReplicaStore final : public GalleryStore {
   absl::StatusOr<std::vector<StoredGallery>> LoadAll() override {
     return std::vector<StoredGallery>{};
   }
-  bool shared() const override { return true; }
-  absl::Status CatchUp(absl::string_view) override {
+  absl::Status CatchUp(absl::string_view) {
     ++catch_ups;
     std::vector<SharedLog::Change> pending;
     {
@@ -413,8 +412,8 @@ TEST(GalleryRegistryTest, AWriteOnAStaleReplicaCatchesUpAndRetriesWithFreshIds) 
   SharedLog shared;
   auto store_a = std::make_shared<ReplicaStore>(&shared);
   auto store_b = std::make_shared<ReplicaStore>(&shared);
-  GalleryRegistry a({}, store_a);
-  GalleryRegistry b({}, store_b);
+  GalleryRegistry a({}, store_a, [&](absl::string_view name) { return store_a->CatchUp(name); });
+  GalleryRegistry b({}, store_b, [&](absl::string_view name) { return store_b->CatchUp(name); });
   store_a->Attach(&a);
   store_b->Attach(&b);
 

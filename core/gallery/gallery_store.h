@@ -2,6 +2,7 @@
 #define SHAPEID_CORE_GALLERY_GALLERY_STORE_H_
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <mutex>
 #include <string>
@@ -46,8 +47,9 @@ struct StoredGallery : GalleryMetadata {
 //
 // A store shared by several servers (PostgreSQL) may also answer Aborted: the gallery was
 // changed through another server since this server's copy, so the write was built on stale
-// state and nothing was written. The gallery then calls CatchUp, which brings its copy up to
-// date, and rebuilds and retries the write (a few times) before the error reaches a client.
+// state and nothing was written. The gallery then calls its CatchUpFunction, which brings its
+// copy up to date, and rebuilds and retries the write (a few times) before the error reaches
+// a client.
 class GalleryStore {
  public:
   virtual ~GalleryStore() = default;
@@ -66,16 +68,13 @@ class GalleryStore {
   // Everything saved, for GalleryRegistry::LoadFromStore at start-up.
   virtual absl::StatusOr<std::vector<StoredGallery>> LoadAll() = 0;
 
-  // True for a store shared by several servers, whose copies may be behind it.
-  virtual bool shared() const { return false; }
-
-  // After an Aborted write of gallery `name`: returns once this server's galleries hold every
-  // change the store held when it was called. A private store is never behind.
-  virtual absl::Status CatchUp(absl::string_view name) {
-    (void)name;
-    return absl::OkStatus();
-  }
 };
+
+// Brings this server's copy of gallery `name` up to date with a store shared by several
+// servers (after it answered Aborted): returns once this server's galleries hold every change
+// the store held when it was called. Set by the server to its replication follower's; null
+// for a private store, which is never behind.
+using CatchUpFunction = std::function<absl::Status(absl::string_view name)>;
 
 // Persists nothing: the server's store until persistence lands (a later issue).
 class NullGalleryStore final : public GalleryStore {

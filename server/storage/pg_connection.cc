@@ -2,6 +2,7 @@
 
 #include <libpq-fe.h>
 
+#include <cstdlib>
 #include <cstring>
 #include <utility>
 
@@ -190,6 +191,42 @@ absl::StatusOr<std::vector<std::string>> PgConnection::TakeNotifications() {
     PQfreemem(notify);
   }
   return channels;
+}
+
+absl::StatusOr<std::unique_ptr<PgConnection>> ConnectBounded(const std::string& conninfo) {
+  std::vector<std::pair<std::string, std::string>> defaults = {
+      {"connect_timeout", "3"},     {"keepalives", "1"},       {"keepalives_idle", "5"},
+      {"keepalives_interval", "2"}, {"keepalives_count", "2"}, {"tcp_user_timeout", "5000"}};
+  // A keyword here would hide PGAPPNAME (libpq reads the environment only for what is unset).
+  if (std::getenv("PGAPPNAME") == nullptr) defaults.push_back({"application_name", "shapeid-server"});
+  return PgConnection::Connect(conninfo, defaults);
+}
+
+absl::StatusOr<std::unique_ptr<PgConnection>> PgConnectionPool::Lease() {
+  std::unique_lock<std::mutex> lock(mu_);
+  cv_.wait(lock, [&]() ABSL_NO_THREAD_SAFETY_ANALYSIS { return !idle_.empty() || leased_ < size_; });
+  ++leased_;
+  if (!idle_.empty()) {
+    std::unique_ptr<PgConnection> connection = std::move(idle_.back());
+    idle_.pop_back();
+    if (connection->ok()) return connection;
+  }
+  lock.unlock();
+  absl::StatusOr<std::unique_ptr<PgConnection>> fresh = ConnectBounded(conninfo_);
+  if (!fresh.ok()) Return(nullptr);
+  return fresh;
+}
+
+void PgConnectionPool::Return(std::unique_ptr<PgConnection> connection) {
+  std::lock_guard<std::mutex> lock(mu_);
+  --leased_;
+  if (connection != nullptr && connection->ok()) idle_.push_back(std::move(connection));
+  cv_.notify_one();
+}
+
+void PgConnectionPool::DropIdle() {
+  std::lock_guard<std::mutex> lock(mu_);
+  idle_.clear();
 }
 
 }  // namespace shapeid

@@ -5,12 +5,15 @@
 // parameters, results, and libpq's errors as absl::Status. Only what the PostgreSQL gallery
 // store needs; not thread-safe (one connection per thread at a time, as libpq requires).
 
+#include <condition_variable>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "absl/base/thread_annotations.h"
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
@@ -101,6 +104,35 @@ class PgConnection {
  private:
   explicit PgConnection(pg_conn* conn) : conn_(conn) {}
   pg_conn* conn_;
+};
+
+// PgConnection::Connect with shapeid's bounds on how long a dead or silent server can hold a
+// call (connect_timeout, keepalives, tcp_user_timeout) and application_name shapeid-server
+// unless PGAPPNAME is set; `conninfo`'s own settings win.
+absl::StatusOr<std::unique_ptr<PgConnection>> ConnectBounded(const std::string& conninfo);
+
+// At most `size` connections (ConnectBounded) leased to calls on any threads; Lease waits
+// while all are out. A broken connection is dropped and replaced on the next lease.
+// Thread-safe.
+class PgConnectionPool {
+ public:
+  PgConnectionPool(std::string conninfo, int size) : conninfo_(std::move(conninfo)), size_(size) {}
+
+  // A connection, idle or new; Unavailable if a new one cannot connect. Give it back with
+  // Return (null if it was lost).
+  absl::StatusOr<std::unique_ptr<PgConnection>> Lease();
+  void Return(std::unique_ptr<PgConnection> connection);
+  // Forgets idle connections: after PostgreSQL restarted they are all dead, though libpq
+  // cannot tell until each is used.
+  void DropIdle();
+
+ private:
+  const std::string conninfo_;
+  const int size_;
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::vector<std::unique_ptr<PgConnection>> idle_ ABSL_GUARDED_BY(mu_);
+  int leased_ ABSL_GUARDED_BY(mu_) = 0;
 };
 
 // "HOST:PORT/DATABASE" of a connection string, for logs: never the user or the password.

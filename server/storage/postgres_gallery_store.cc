@@ -188,86 +188,13 @@ absl::Status LogChange(PgConnection& connection, absl::string_view what, absl::s
   return connection.Exec(what, absl::StrCat("NOTIFY ", kChannel));
 }
 
-// libpq options that bound how long a dead or silent server can hold a call: connecting, and
-// noticing a peer that vanished without closing the connection. The caller's own settings (in
-// `conninfo`, processed after these) win.
-std::vector<std::pair<std::string, std::string>> ConnectionDefaults() {
-  std::vector<std::pair<std::string, std::string>> defaults = {
-      {"connect_timeout", "3"},     {"keepalives", "1"},       {"keepalives_idle", "5"},
-      {"keepalives_interval", "2"}, {"keepalives_count", "2"}, {"tcp_user_timeout", "5000"}};
-  // A keyword here would hide PGAPPNAME (libpq reads the environment only for what is unset).
-  if (std::getenv("PGAPPNAME") == nullptr) defaults.push_back({"application_name", "shapeid-server"});
-  return defaults;
-}
-
 }  // namespace
-
-// One row of the change log.
-struct PostgresGalleryStore::Change {
-  int64_t seq = 0;
-  std::string gallery;
-  int64_t incarnation = 0;
-  uint64_t version = 0;
-  std::string kind;  // create, append, remove, delete
-  std::vector<int64_t> ids;
-  absl::Time updated;
-};
-
-// Connections for calls; a broken one is dropped and replaced on the next lease.
-class PostgresGalleryStore::Pool {
- public:
-  Pool(std::string conninfo, int size) : conninfo_(std::move(conninfo)), size_(size) {}
-
-  // Forgets idle connections: after PostgreSQL restarted they are all dead, though libpq
-  // cannot tell until each is used.
-  void DropIdle() {
-    std::lock_guard<std::mutex> lock(mu_);
-    idle_.clear();
-  }
-
-  absl::StatusOr<std::unique_ptr<PgConnection>> Lease() {
-    std::unique_lock<std::mutex> lock(mu_);
-    cv_.wait(lock, [&] { return !idle_.empty() || leased_ < size_; });
-    ++leased_;
-    if (!idle_.empty()) {
-      std::unique_ptr<PgConnection> connection = std::move(idle_.back());
-      idle_.pop_back();
-      if (connection->ok()) return connection;
-    }
-    lock.unlock();
-    absl::StatusOr<std::unique_ptr<PgConnection>> fresh = Connect(conninfo_);
-    if (!fresh.ok()) Return(nullptr);
-    return fresh;
-  }
-
-  void Return(std::unique_ptr<PgConnection> connection) {
-    std::lock_guard<std::mutex> lock(mu_);
-    --leased_;
-    if (connection != nullptr && connection->ok()) idle_.push_back(std::move(connection));
-    cv_.notify_one();
-  }
-
-  static absl::StatusOr<std::unique_ptr<PgConnection>> Connect(const std::string& conninfo) {
-    return PgConnection::Connect(conninfo, ConnectionDefaults());
-  }
-
- private:
-  const std::string conninfo_;
-  const int size_;
-  std::mutex mu_;
-  std::condition_variable cv_;
-  std::vector<std::unique_ptr<PgConnection>> idle_;
-  int leased_ = 0;
-};
 
 absl::StatusOr<std::unique_ptr<PostgresGalleryStore>> PostgresGalleryStore::Open(
     PostgresGalleryStoreOptions options) {
   // Two at least: a catch-up holds one while it waits for a gallery whose writer needs another.
   if (options.pool_size < 2) return absl::InvalidArgumentError("pool_size must be at least 2");
-  if (options.refresh <= absl::ZeroDuration()) {
-    return absl::InvalidArgumentError("refresh must be positive");
-  }
-  auto pool = std::make_unique<Pool>(options.conninfo, options.pool_size);
+  auto pool = std::make_unique<PgConnectionPool>(options.conninfo, options.pool_size);
   std::unique_ptr<PostgresGalleryStore> store(
       new PostgresGalleryStore(std::move(options), std::move(pool)));
   const absl::Status created =
@@ -282,21 +209,8 @@ absl::StatusOr<std::unique_ptr<PostgresGalleryStore>> PostgresGalleryStore::Open
 }
 
 PostgresGalleryStore::PostgresGalleryStore(PostgresGalleryStoreOptions options,
-                                           std::unique_ptr<Pool> pool)
-    : options_(std::move(options)),
-      pool_(std::move(pool)),
-      logger_(options_.logger != nullptr ? options_.logger : std::make_shared<const Logger>()) {}
-
-PostgresGalleryStore::~PostgresGalleryStore() { StopFollowing(); }
-
-void PostgresGalleryStore::StopFollowing() {
-  {
-    std::lock_guard<std::mutex> lock(stop_mu_);
-    stop_ = true;
-  }
-  stop_cv_.notify_all();
-  if (follower_.joinable()) follower_.join();
-}
+                                           std::unique_ptr<PgConnectionPool> pool)
+    : options_(std::move(options)), pool_(std::move(pool)) {}
 
 // Runs `work` in one transaction on a pooled connection: BEGIN, work, COMMIT (work's
 // statements), ROLLBACK on error. A connection found broken at BEGIN (PostgreSQL restarted
@@ -450,9 +364,8 @@ absl::Status PostgresGalleryStore::RemoveSamples(absl::string_view name,
 }
 
 // Callers read in one snapshot (kSnapshot): the row and its samples are two statements.
-absl::StatusOr<StoredGallery> PostgresGalleryStore::ReadGallery(PgConnection& c,
-                                                                absl::string_view name,
-                                                                bool* found) {
+absl::StatusOr<StoredGallery> PostgresSnapshot::ReadGallery(absl::string_view name, bool* found) {
+  PgConnection& c = c_;
   const std::string what = absl::StrCat("cannot read gallery '", name, "'");
   SHAPEID_ASSIGN_OR_RETURN(
       PgResult row,
@@ -507,7 +420,8 @@ absl::StatusOr<std::vector<StoredGallery>> PostgresGalleryStore::LoadAll() {
                                 "SELECT name FROM shapeid_galleries ORDER BY name"));
     for (int r = 0; r < names.rows(); ++r) {
       bool found = false;
-      SHAPEID_ASSIGN_OR_RETURN(StoredGallery g, ReadGallery(c, names.Value(r, 0), &found));
+      SHAPEID_ASSIGN_OR_RETURN(StoredGallery g,
+                               PostgresSnapshot(c).ReadGallery(names.Value(r, 0), &found));
       if (found) all.push_back(std::move(g));
     }
     return absl::OkStatus();
@@ -518,269 +432,143 @@ absl::StatusOr<std::vector<StoredGallery>> PostgresGalleryStore::LoadAll() {
     incarnations_.clear();
     for (const StoredGallery& g : all) incarnations_[g.name] = static_cast<int64_t>(g.incarnation);
   }
-  std::lock_guard<std::mutex> lock(apply_mu_);
-  applied_seq_ = seq;
+  loaded_position_.store(seq);
   return all;
 }
 
-absl::Status PostgresGalleryStore::CatchUp(absl::string_view /*name*/) { return Sync(); }
-
-absl::Status PostgresGalleryStore::Sync() {
-  std::lock_guard<std::mutex> lock(apply_mu_);
-  if (registry_ == nullptr) return absl::OkStatus();  // not following: nothing to apply to
+absl::Status PostgresGalleryStore::ReadSnapshot(
+    const std::function<absl::Status(PostgresSnapshot&)>& read) {
   return WithConnection(
-      "cannot read the change log", [&](PgConnection& c) { return ApplyPending(c); }, kSnapshot);
+      "cannot read the change log",
+      [&](PgConnection& c) {
+        PostgresSnapshot snapshot(c);
+        return read(snapshot);
+      },
+      kSnapshot);
 }
 
-absl::Status PostgresGalleryStore::ApplyPending(PgConnection& c) {
-  const std::string what = "cannot read the change log";
-  for (;;) {
-    SHAPEID_ASSIGN_OR_RETURN(PgResult floor,
-                             c.Query(what, "SELECT seq FROM shapeid_log_floor"));
-    // Rows after ours were pruned (this replica was away longer than kLogRetention): what
-    // they said is lost, so every gallery is read again (in this snapshot), and the log is
-    // followed from the floor.
-    if (floor.rows() == 1 && floor.Int(0, 0) > applied_seq_) {
-      SHAPEID_ASSIGN_OR_RETURN(
-          PgResult names, c.Query(what, "SELECT name FROM shapeid_galleries"));
-      std::map<std::string, bool> stored;
-      for (int r = 0; r < names.rows(); ++r) stored[std::string(names.Value(r, 0))] = true;
-      for (const std::string& held : registry_->List()) {
-        if (stored.count(held) == 0) {
-          auto gallery = registry_->Get(held);
-          if (gallery.ok()) registry_->ApplyStoredDelete(held, (*gallery)->Snapshot()->incarnation());
-        }
-      }
-      for (const auto& [name, unused] : stored) SHAPEID_RETURN_IF_ERROR(Reload(c, name));
-      applied_seq_ = floor.Int(0, 0);
-    }
-    SHAPEID_ASSIGN_OR_RETURN(
-        PgResult rows,
-        c.Query(what,
-                "SELECT seq, gallery, incarnation, version, kind, ids, updated_unix_ns "
-                "FROM shapeid_changes WHERE seq > $1 ORDER BY seq LIMIT 1000",
-                PgParams().Int(applied_seq_)));
-    if (rows.rows() == 0) return absl::OkStatus();
-    for (int r = 0; r < rows.rows(); ++r) {
-      Change change;
-      change.seq = rows.Int(r, 0);
-      change.gallery = std::string(rows.Value(r, 1));
-      change.incarnation = rows.Int(r, 2);
-      change.version = static_cast<uint64_t>(rows.Int(r, 3));
-      change.kind = std::string(rows.Value(r, 4));
-      // BIGINT[] in text form: "{1,2,3}".
-      absl::string_view ids = rows.Value(r, 5);
-      ids.remove_prefix(1);
-      ids.remove_suffix(1);
-      for (absl::string_view id : absl::StrSplit(ids, ',', absl::SkipEmpty())) {
-        int64_t value = 0;
-        if (!absl::SimpleAtoi(id, &value)) {
-          return absl::DataLossError(absl::StrCat("change ", change.seq, " has a bad id list"));
-        }
-        change.ids.push_back(value);
-      }
-      change.updated = absl::FromUnixNanos(rows.Int(r, 6));
-      const absl::Status applied = ApplyOne(c, change);
-      // Unavailable (PostgreSQL went away) or a failed statement (which aborts the snapshot's
-      // transaction, so every later read would fail too): this change is applied on the next
-      // attempt. Anything else (a gallery damaged in the store, one this server cannot
-      // restore) must not stop the log for every other gallery: said, and passed.
-      if (absl::IsUnavailable(applied) || c.InFailedTransaction()) return applied;
-      if (!applied.ok()) {
-        logger_->Error(
-            "a change cannot be applied; this replica's copy may differ from the store until "
-            "it restarts",
-            {{"gallery", change.gallery}, {"seq", change.seq}, {"error", applied.ToString()}});
-      }
-      applied_seq_ = change.seq;
-    }
-  }
+absl::StatusOr<std::unique_ptr<PostgresListener>> PostgresGalleryStore::Listen() {
+  SHAPEID_ASSIGN_OR_RETURN(std::unique_ptr<PgConnection> connection,
+                           ConnectBounded(options_.conninfo));
+  SHAPEID_RETURN_IF_ERROR(connection->Exec("cannot listen", absl::StrCat("LISTEN ", kChannel)));
+  return std::make_unique<PostgresListener>(std::move(connection));
 }
 
-absl::Status PostgresGalleryStore::ApplyOne(PgConnection& c, const Change& change) {
-  absl::StatusOr<std::shared_ptr<Gallery>> held = registry_->Get(change.gallery);
-  const bool same = held.ok() && (*held)->Snapshot()->incarnation() ==
-                                     static_cast<uint64_t>(change.incarnation);
-  if (change.kind == "delete") {
-    if (same) {
-      registry_->ApplyStoredDelete(change.gallery, static_cast<uint64_t>(change.incarnation));
-      std::lock_guard<std::mutex> lock(incarnations_mu_);
-      auto it = incarnations_.find(change.gallery);
-      if (it != incarnations_.end() && it->second == change.incarnation) incarnations_.erase(it);
-      changes_applied_.fetch_add(1);
-    }
-    return absl::OkStatus();
-  }
-  if (change.kind == "create") {
-    if (same) return absl::OkStatus();  // made here, or already reloaded
-    return Reload(c, change.gallery);
-  }
-  // append / remove: of the gallery this replica holds, else a later change explains it (a
-  // delete, a create) or an earlier reload already holds it.
-  if (!same) return absl::OkStatus();
-  const std::shared_ptr<Gallery>& gallery = *held;
-  if (change.version <= gallery->Snapshot()->version()) return absl::OkStatus();  // our own
-  absl::Status applied;
-  if (change.kind == "append") {
-    SHAPEID_ASSIGN_OR_RETURN(
-        PgResult rows,
-        c.Query("cannot read samples",
-                "SELECT id, label, features, crc FROM shapeid_samples WHERE incarnation = $1 AND "
-                "id = ANY($2::bigint[]) ORDER BY position",
-                PgParams().Int(change.incarnation).IntArray(change.ids), /*binary=*/true));
-    // Fewer rows: some were removed by a later change; the whole gallery is read instead.
-    if (rows.rows() != static_cast<int>(change.ids.size())) return Reload(c, change.gallery);
-    std::vector<StoredSample> samples(static_cast<size_t>(rows.rows()));
-    for (int r = 0; r < rows.rows(); ++r) {
-      StoredSample& s = samples[static_cast<size_t>(r)];
-      s.id = FromPgId(rows.BinaryInt(r, 0));
-      s.label = std::string(rows.Value(r, 1));
-      FeaturesFromBytes(Bytes(rows.Value(r, 2)), &s.features);
-      if (SampleCrc32(0, s.id, s.label, s.features) != static_cast<uint32_t>(rows.BinaryInt(r, 3))) {
-        return absl::DataLossError(absl::StrCat("gallery '", change.gallery,
-                                                "' in PostgreSQL is damaged: checksum mismatch "
-                                                "in sample id ",
-                                                s.id));
-      }
-    }
-    applied = gallery->ApplyStoredAppend(samples, change.updated, change.version);
-  } else if (change.kind == "remove") {
-    std::vector<uint64_t> ids;
-    for (int64_t id : change.ids) ids.push_back(FromPgId(id));
-    applied = gallery->ApplyStoredRemove(ids, change.updated, change.version);
-  } else {
-    return absl::DataLossError(absl::StrCat("change ", change.seq, " has unknown kind '",
-                                            change.kind, "'"));
-  }
-  if (applied.ok()) {
-    changes_applied_.fetch_add(1);
-    return applied;
-  }
-  // Missed changes (a gap in the versions), or a copy that no longer matches the log (a
-  // duplicate or absent id): the store is the truth, so read the gallery whole. Never leave
-  // the change unapplied: the log would stop here and the replica with it.
-  logger_->Warning("a change did not apply; reloading the gallery",
-                   {{"gallery", change.gallery}, {"seq", change.seq},
-                    {"error", applied.ToString()}});
-  return Reload(c, change.gallery);
-}
-
-absl::Status PostgresGalleryStore::Reload(PgConnection& c, const std::string& name) {
-  bool found = false;
-  SHAPEID_ASSIGN_OR_RETURN(StoredGallery g, ReadGallery(c, name, &found));
-  if (!found) return absl::OkStatus();  // deleted since; its delete change follows
-  const int64_t incarnation = static_cast<int64_t>(g.incarnation);
-  SHAPEID_RETURN_IF_ERROR(registry_->ApplyStoredGallery(g));
-  // After publishing (see the class comment in the header): until now, a write through the
-  // copy this replaces fails the incarnation check.
+void PostgresGalleryStore::HeldIncarnation(absl::string_view name, int64_t incarnation) {
   std::lock_guard<std::mutex> lock(incarnations_mu_);
-  incarnations_[name] = incarnation;
-  changes_applied_.fetch_add(1);
-  return absl::OkStatus();
+  incarnations_[std::string(name)] = incarnation;
 }
 
-void PostgresGalleryStore::StartFollowing(GalleryRegistry* registry,
-                                          std::function<void(bool)> reachable) {
-  {
-    std::lock_guard<std::mutex> lock(apply_mu_);
-    registry_ = registry;
+void PostgresGalleryStore::DroppedIncarnation(absl::string_view name, int64_t incarnation) {
+  std::lock_guard<std::mutex> lock(incarnations_mu_);
+  auto it = incarnations_.find(name);
+  if (it != incarnations_.end() && it->second == incarnation) incarnations_.erase(it);
+}
+
+absl::StatusOr<int64_t> PostgresSnapshot::LogFloor() {
+  SHAPEID_ASSIGN_OR_RETURN(PgResult floor,
+                           c_.Query("cannot read the change log", "SELECT seq FROM shapeid_log_floor"));
+  return floor.rows() == 1 ? floor.Int(0, 0) : 0;
+}
+
+absl::StatusOr<std::vector<std::string>> PostgresSnapshot::GalleryNames() {
+  SHAPEID_ASSIGN_OR_RETURN(
+      PgResult names, c_.Query("cannot read the change log", "SELECT name FROM shapeid_galleries"));
+  std::vector<std::string> all;
+  for (int r = 0; r < names.rows(); ++r) all.emplace_back(names.Value(r, 0));
+  return all;
+}
+
+absl::StatusOr<std::vector<LoggedChange>> PostgresSnapshot::ReadChangesAfter(int64_t position,
+                                                                             int limit) {
+  SHAPEID_ASSIGN_OR_RETURN(
+      PgResult rows,
+      c_.Query("cannot read the change log",
+               "SELECT seq, gallery, incarnation, version, kind, ids, updated_unix_ns "
+               "FROM shapeid_changes WHERE seq > $1 ORDER BY seq LIMIT $2",
+               PgParams().Int(position).Int(limit)));
+  std::vector<LoggedChange> changes(static_cast<size_t>(rows.rows()));
+  for (int r = 0; r < rows.rows(); ++r) {
+    LoggedChange& change = changes[static_cast<size_t>(r)];
+    change.seq = rows.Int(r, 0);
+    change.gallery = std::string(rows.Value(r, 1));
+    change.incarnation = rows.Int(r, 2);
+    change.version = static_cast<uint64_t>(rows.Int(r, 3));
+    change.kind = std::string(rows.Value(r, 4));
+    // BIGINT[] in text form: "{1,2,3}".
+    absl::string_view ids = rows.Value(r, 5);
+    ids.remove_prefix(1);
+    ids.remove_suffix(1);
+    for (absl::string_view id : absl::StrSplit(ids, ',', absl::SkipEmpty())) {
+      int64_t value = 0;
+      if (!absl::SimpleAtoi(id, &value)) {
+        return absl::DataLossError(absl::StrCat("change ", change.seq, " has a bad id list"));
+      }
+      change.ids.push_back(value);
+    }
+    change.updated = absl::FromUnixNanos(rows.Int(r, 6));
   }
-  reachable_callback_ = std::move(reachable);
-  follower_ = std::thread([this] { Follow(); });
+  return changes;
 }
 
-void PostgresGalleryStore::SetReachable(bool reachable) {
-  if (reachable == reachable_) return;
-  reachable_ = reachable;
-  reachable_now_.store(reachable);
-  if (reachable_callback_) reachable_callback_(reachable);
-}
-
-void PostgresGalleryStore::Follow() {
-  std::unique_ptr<PgConnection> listener;
-  absl::Time last_ok = absl::Now();
-  absl::Time next_poll = absl::Now();
-  absl::Time next_prune = absl::Now() + absl::Minutes(1);
-  std::string last_error;
-  bool notified_during_sync = false;
-  for (;;) {
-    {
-      std::lock_guard<std::mutex> lock(stop_mu_);
-      if (stop_) return;
+absl::StatusOr<std::vector<StoredSample>> PostgresSnapshot::ReadAppended(
+    const LoggedChange& change) {
+  SHAPEID_ASSIGN_OR_RETURN(
+      PgResult rows,
+      c_.Query("cannot read samples",
+               "SELECT id, label, features, crc FROM shapeid_samples WHERE incarnation = $1 AND "
+               "id = ANY($2::bigint[]) ORDER BY position",
+               PgParams().Int(change.incarnation).IntArray(change.ids), /*binary=*/true));
+  std::vector<StoredSample> samples(static_cast<size_t>(rows.rows()));
+  for (int r = 0; r < rows.rows(); ++r) {
+    StoredSample& s = samples[static_cast<size_t>(r)];
+    s.id = FromPgId(rows.BinaryInt(r, 0));
+    s.label = std::string(rows.Value(r, 1));
+    FeaturesFromBytes(Bytes(rows.Value(r, 2)), &s.features);
+    if (SampleCrc32(0, s.id, s.label, s.features) != static_cast<uint32_t>(rows.BinaryInt(r, 3))) {
+      return absl::DataLossError(absl::StrCat("gallery '", change.gallery,
+                                              "' in PostgreSQL is damaged: checksum mismatch "
+                                              "in sample id ",
+                                              s.id));
     }
-    bool poll_now = absl::Now() >= next_poll || notified_during_sync;
-    notified_during_sync = false;
-    if (listener == nullptr) {
-      absl::StatusOr<std::unique_ptr<PgConnection>> fresh = Pool::Connect(options_.conninfo);
-      if (fresh.ok() && (*fresh)->Exec("cannot listen", absl::StrCat("LISTEN ", kChannel)).ok()) {
-        listener = *std::move(fresh);
-        poll_now = true;  // whatever was missed while away
-      }
-    }
-    if (listener != nullptr) {
-      // Wait for a notification, a tenth of `refresh` at most, so that a stop and the poll
-      // deadline are noticed in time.
-      pollfd fd{listener->socket(), POLLIN, 0};
-      const int timeout_ms =
-          static_cast<int>(std::max<int64_t>(1, absl::ToInt64Milliseconds(options_.refresh) / 10));
-      if (::poll(&fd, 1, timeout_ms) != 0) {
-        absl::StatusOr<std::vector<std::string>> notified = listener->TakeNotifications();
-        if (!notified.ok()) {
-          listener.reset();
-        } else if (!notified->empty()) {
-          poll_now = true;
-        }
-      }
-    } else {
-      std::unique_lock<std::mutex> lock(stop_mu_);
-      stop_cv_.wait_for(lock, std::chrono::milliseconds(std::max<int64_t>(
-                                  1, absl::ToInt64Milliseconds(options_.refresh) / 10)));
-    }
-    if (listener != nullptr && poll_now) {
-      absl::Status synced;
-      {
-        std::lock_guard<std::mutex> lock(apply_mu_);
-        synced = listener->Exec("cannot read the change log", kSnapshot);
-        if (synced.ok()) synced = ApplyPending(*listener);
-        const absl::Status ended =
-            listener->Exec("cannot read the change log", synced.ok() ? "COMMIT" : "ROLLBACK");
-        if (synced.ok()) synced = ended;
-      }
-      // Notifications for changes committed during that read came with its COMMIT's reply and
-      // sit in libpq's queue, where poll() cannot see them: look there first.
-      if (listener->ok()) {
-        absl::StatusOr<std::vector<std::string>> queued = listener->TakeNotifications();
-        notified_during_sync = queued.ok() && !queued->empty();
-      }
-      if (!synced.ok() && synced.ToString() != last_error) {
-        // Once per distinct error: a replica that cannot apply the log says why.
-        last_error = synced.ToString();
-        logger_->Error("cannot apply other replicas' changes", {{"error", last_error}});
-      }
-      if (synced.ok()) {
-        last_error.clear();
-        last_ok = absl::Now();
-        last_sync_nanos_.store(absl::ToUnixNanos(last_ok));
-        // Twice per bound: a healthy replica always has a success younger than `refresh`, so
-        // the check below never flaps between polls.
-        next_poll = last_ok + options_.refresh / 2;
-        SetReachable(true);
-      } else if (!listener->ok()) {
-        listener.reset();
-      }
-      if (synced.ok() && absl::Now() >= next_prune) {
-        next_prune = absl::Now() + absl::Minutes(1);
-        (void)listener->Exec(
-            "prune the change log",
-            absl::StrCat("WITH gone AS (DELETE FROM shapeid_changes WHERE logged < "
-                         "clock_timestamp() - interval '",
-                         kLogRetention,
-                         "' RETURNING seq) UPDATE shapeid_log_floor SET seq = greatest(seq, "
-                         "(SELECT coalesce(max(seq), 0) FROM gone))"));
-      }
-    }
-    if (absl::Now() - last_ok > options_.refresh) SetReachable(false);
   }
+  return samples;
+}
+
+absl::StatusOr<bool> PostgresListener::WaitForNotification(absl::Duration timeout) {
+  pollfd fd{connection_->socket(), POLLIN, 0};
+  const int timeout_ms = static_cast<int>(std::max<int64_t>(1, absl::ToInt64Milliseconds(timeout)));
+  if (::poll(&fd, 1, timeout_ms) == 0) return false;
+  SHAPEID_ASSIGN_OR_RETURN(std::vector<std::string> notified, connection_->TakeNotifications());
+  return !notified.empty();
+}
+
+bool PostgresListener::TakeQueuedNotification() {
+  if (!connection_->ok()) return false;
+  absl::StatusOr<std::vector<std::string>> queued = connection_->TakeNotifications();
+  return queued.ok() && !queued->empty();
+}
+
+absl::Status PostgresListener::ReadSnapshot(
+    const std::function<absl::Status(PostgresSnapshot&)>& read) {
+  absl::Status status = connection_->Exec("cannot read the change log", kSnapshot);
+  if (status.ok()) {
+    PostgresSnapshot snapshot(*connection_);
+    status = read(snapshot);
+  }
+  const absl::Status ended =
+      connection_->Exec("cannot read the change log", status.ok() ? "COMMIT" : "ROLLBACK");
+  return status.ok() ? ended : status;
+}
+
+void PostgresListener::PruneLog() {
+  (void)connection_->Exec(
+      "prune the change log",
+      absl::StrCat("WITH gone AS (DELETE FROM shapeid_changes WHERE logged < "
+                   "clock_timestamp() - interval '",
+                   kLogRetention,
+                   "' RETURNING seq) UPDATE shapeid_log_floor SET seq = greatest(seq, "
+                   "(SELECT coalesce(max(seq), 0) FROM gone))"));
 }
 
 }  // namespace shapeid

@@ -2,23 +2,20 @@
 #define SHAPEID_SERVER_STORAGE_POSTGRES_GALLERY_STORE_H_
 
 #include <atomic>
-#include <condition_variable>
 #include <cstdint>
 #include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "absl/base/thread_annotations.h"
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/time/time.h"
-#include "core/gallery/gallery_registry.h"
+#include "absl/strings/string_view.h"
 #include "core/gallery/gallery_store.h"
-#include "server/logger.h"
 #include "server/storage/pg_connection.h"
 
 namespace shapeid {
@@ -28,16 +25,68 @@ struct PostgresGalleryStoreOptions {
   // "host=... dbname=...". The password is best left to PGPASSWORD or ~/.pgpass (a Secret),
   // out of flags and process listings. Never logged or put in an error message by shapeid.
   std::string conninfo;
-  // How stale a replica may get. Changes arrive at once by LISTEN/NOTIFY; the change log is
-  // also read every `refresh`, which bounds the delay if a notification is lost, and the
-  // connection is checked as often: a replica that cannot reach PostgreSQL for longer stops
-  // serving (see StartFollowing).
-  absl::Duration refresh = absl::Seconds(1);
-  // Connections for writes and catch-up reads (the follower has its own); at least 2.
+  // Connections for writes and catch-up reads (a listener has its own); at least 2.
   int pool_size = 4;
-  // Where the follower reports changes it could not apply and lost connections; null: a
-  // text logger on stderr.
-  std::shared_ptr<const Logger> logger;
+};
+
+// One row of the change log: a committed change to a gallery, with its version after it.
+struct LoggedChange {
+  int64_t seq = 0;
+  std::string gallery;
+  int64_t incarnation = 0;
+  uint64_t version = 0;
+  std::string kind;  // create, append, remove, delete
+  std::vector<int64_t> ids;
+  absl::Time updated;
+};
+
+// Reads of the store inside one REPEATABLE READ snapshot, so that a gallery read whole and a
+// position in the log agree even while other replicas write. Valid only inside the callback
+// of PostgresGalleryStore::ReadSnapshot or PostgresListener::ReadSnapshot.
+class PostgresSnapshot {
+ public:
+  explicit PostgresSnapshot(PgConnection& connection) : c_(connection) {}
+
+  // The last sequence number pruned from the log (0 if none): a position below it has
+  // missed changes that can no longer be read.
+  absl::StatusOr<int64_t> LogFloor();
+  // Names of every stored gallery.
+  absl::StatusOr<std::vector<std::string>> GalleryNames();
+  // Up to `limit` changes after `position`, in log order.
+  absl::StatusOr<std::vector<LoggedChange>> ReadChangesAfter(int64_t position, int limit);
+  // Gallery `name` whole (*found false: not stored).
+  absl::StatusOr<StoredGallery> ReadGallery(absl::string_view name, bool* found);
+  // The samples an append stored, in training order; fewer than `append.ids` when some were
+  // removed since. DataLoss for a checksum mismatch.
+  absl::StatusOr<std::vector<StoredSample>> ReadAppended(const LoggedChange& append);
+  // A statement failed: every later read of this snapshot fails too.
+  bool failed() const { return c_.InFailedTransaction(); }
+
+ private:
+  PgConnection& c_;
+};
+
+// A connection of its own that LISTENs for the store's change notifications. Not
+// thread-safe (one follower thread).
+class PostgresListener {
+ public:
+  explicit PostgresListener(std::unique_ptr<PgConnection> connection)
+      : connection_(std::move(connection)) {}
+
+  // Waits up to `timeout` for a notification: true if one came, false on timeout;
+  // Unavailable if the connection broke.
+  absl::StatusOr<bool> WaitForNotification(absl::Duration timeout);
+  // True if notifications arrived with the last statement's reply (those sit in libpq's
+  // queue, where WaitForNotification's poll cannot see them).
+  bool TakeQueuedNotification();
+  // `read` inside one snapshot on this connection, then COMMIT (ROLLBACK on error).
+  absl::Status ReadSnapshot(const std::function<absl::Status(PostgresSnapshot&)>& read);
+  // Deletes log rows older than the retention and raises the floor (best effort).
+  void PruneLog();
+  bool ok() const { return connection_->ok(); }
+
+ private:
+  const std::unique_ptr<PgConnection> connection_;
 };
 
 // Galleries in PostgreSQL, shared by any number of shapeid-server replicas (issue 11). Each
@@ -59,10 +108,12 @@ struct PostgresGalleryStoreOptions {
 //
 // Consistency between replicas: a write locks its gallery's row and is refused Aborted when
 // this replica's copy is not at the stored version (another replica wrote since); the gallery
-// then catches up (CatchUp) and retries (Gallery::RetryIfStale), so concurrent writers through
-// different replicas never lose or duplicate samples, and assigned ids never collide. Change
-// log rows are appended under one advisory lock, so their sequence numbers are in commit order
-// and a reader never skips a change that commits late.
+// then catches up (its CatchUpFunction, the replication follower's) and retries
+// (Gallery::RetryIfStale), so concurrent writers through different replicas never lose or
+// duplicate samples, and assigned ids never collide. Change log rows are appended under one
+// advisory lock, so their sequence numbers are in commit order and a reader never skips a
+// change that commits late. Applying the log to a replica's galleries is not the store's job:
+// server/replication/replication_follower.h reads it through ReadSnapshot and Listen.
 //
 // Errors: Unavailable when PostgreSQL cannot be reached (the call changed nothing, or, if the
 // connection died during COMMIT, may have: PostgreSQL cannot say); AlreadyExists for a name
@@ -73,7 +124,6 @@ class PostgresGalleryStore final : public GalleryStore {
   // Connects and creates the tables if needed. Unavailable if PostgreSQL cannot be reached.
   static absl::StatusOr<std::unique_ptr<PostgresGalleryStore>> Open(
       PostgresGalleryStoreOptions options);
-  ~PostgresGalleryStore() override;  // stops following
 
   absl::Status SaveGallery(const StoredGallery& gallery) override;
   absl::Status DeleteGallery(absl::string_view name) override;
@@ -81,39 +131,27 @@ class PostgresGalleryStore final : public GalleryStore {
                              absl::Time updated, uint64_t version) override;
   absl::Status RemoveSamples(absl::string_view name, absl::Span<const uint64_t> ids,
                              absl::Time updated, uint64_t version) override;
-  // Every gallery, in one snapshot of the database; remembers where the change log stood, so
-  // following starts from there.
+  // Every gallery, in one snapshot of the database; remembers where the change log stood
+  // (loaded_position), so following starts from there.
   absl::StatusOr<std::vector<StoredGallery>> LoadAll() override;
-  bool shared() const override { return true; }
-  absl::Status CatchUp(absl::string_view name) override;
 
-  // Keeps `registry` (loaded from this store) in step with the other replicas' writes, from a
-  // thread of its own, until the store is destroyed (destroy the store before the registry).
-  // `reachable(false)` is called when PostgreSQL has not been reachable for `refresh` (the
-  // replica's copy may then be stale; the server stops serving), `reachable(true)` once it is
-  // back and every change missed meanwhile has been applied. Call once, after LoadAll.
-  void StartFollowing(GalleryRegistry* registry, std::function<void(bool)> reachable);
+  // The log position the last LoadAll read its galleries at (0 before).
+  int64_t loaded_position() const { return loaded_position_.load(); }
 
-  // Stops following and waits for the thread (within about refresh / 10). Before the
-  // registry goes; the destructor calls it too.
-  void StopFollowing();
+  // `read` inside one snapshot on a pooled connection.
+  absl::Status ReadSnapshot(const std::function<absl::Status(PostgresSnapshot&)>& read);
+  // A new connection listening for change notifications; Unavailable if it cannot connect.
+  absl::StatusOr<std::unique_ptr<PostgresListener>> Listen();
 
-  // Applies every change logged so far (tests; the follower does it on its own).
-  absl::Status Sync();
-
-  // Changes applied from other replicas, and the last time a change was applied or the log
-  // was found up to date (tests, metrics).
-  int64_t changes_applied() const { return changes_applied_.load(); }
-  // Whether the follower reaches PostgreSQL within the bound, and when it last read the log
-  // to its end (metrics: how stale this replica may be). Before StartFollowing: true, now.
-  bool reachable() const { return reachable_now_.load(); }
-  absl::Time last_sync() const { return absl::FromUnixNanos(last_sync_nanos_.load()); }
+  // What this replica holds, for the write check: a follower that publishes a gallery read
+  // from the store calls HeldIncarnation after publishing it; one that applies a delete calls
+  // DroppedIncarnation (which forgets the name only if it still is that incarnation).
+  void HeldIncarnation(absl::string_view name, int64_t incarnation);
+  void DroppedIncarnation(absl::string_view name, int64_t incarnation);
 
  private:
-  struct Change;
-  class Pool;
-
-  PostgresGalleryStore(PostgresGalleryStoreOptions options, std::unique_ptr<Pool> pool);
+  PostgresGalleryStore(PostgresGalleryStoreOptions options,
+                       std::unique_ptr<PgConnectionPool> pool);
 
   // `work` in one transaction on a pooled connection, opened with `begin`.
   template <typename F>
@@ -127,44 +165,13 @@ class PostgresGalleryStore final : public GalleryStore {
                              absl::Span<const int64_t> ids,
                              const std::function<absl::Status(PgConnection&, int64_t)>& change);
 
-  // Reads the change log past applied_seq_ and applies it to registry_, in order. Holds
-  // apply_mu_ (one applier at a time; CatchUp and the follower share it).
-  absl::Status ApplyPending(PgConnection& connection) ABSL_EXCLUSIVE_LOCKS_REQUIRED(apply_mu_);
-  absl::Status ApplyOne(PgConnection& connection, const Change& change)
-      ABSL_EXCLUSIVE_LOCKS_REQUIRED(apply_mu_);
-  // Re-reads gallery `name` whole and publishes it (a create, or changes missed).
-  absl::Status Reload(PgConnection& connection, const std::string& name)
-      ABSL_EXCLUSIVE_LOCKS_REQUIRED(apply_mu_);
-  // Gallery `name` whole (*found false: not stored). Call inside one snapshot (REPEATABLE
-  // READ): its row and its samples are two statements.
-  absl::StatusOr<StoredGallery> ReadGallery(PgConnection& connection, absl::string_view name,
-                                            bool* found);
-
-  void Follow();
-  void SetReachable(bool reachable);
-
   const PostgresGalleryStoreOptions options_;
-  const std::unique_ptr<Pool> pool_;
+  const std::unique_ptr<PgConnectionPool> pool_;
 
   // Incarnation of each gallery this replica holds, for the write check.
   mutable std::mutex incarnations_mu_;
   std::map<std::string, int64_t, std::less<>> incarnations_ ABSL_GUARDED_BY(incarnations_mu_);
-
-  std::mutex apply_mu_;
-  int64_t applied_seq_ ABSL_GUARDED_BY(apply_mu_) = 0;
-  GalleryRegistry* registry_ = nullptr;  // set once by StartFollowing
-
-  std::function<void(bool)> reachable_callback_;
-  bool reachable_ = true;  // follower thread only
-  std::atomic<int64_t> changes_applied_{0};
-  std::atomic<bool> reachable_now_{true};
-  std::atomic<int64_t> last_sync_nanos_{absl::ToUnixNanos(absl::Now())};
-  std::shared_ptr<const Logger> logger_;
-
-  std::mutex stop_mu_;
-  std::condition_variable stop_cv_;
-  bool stop_ ABSL_GUARDED_BY(stop_mu_) = false;
-  std::thread follower_;
+  std::atomic<int64_t> loaded_position_{0};
 };
 
 }  // namespace shapeid

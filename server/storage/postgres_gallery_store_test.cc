@@ -14,6 +14,7 @@
 #include "core/gallery/gallery_test_shapes.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "server/replication/replication_follower.h"
 #include "server/storage/testing/postgres_instance.h"
 
 namespace shapeid {
@@ -56,30 +57,36 @@ class PostgresGalleryStoreTest : public ::testing::Test {
     conninfo_ = absl::StrCat("postgresql://shapeid@127.0.0.1:", pg_->port(), "/", db);
   }
 
-  std::unique_ptr<PostgresGalleryStore> Open(absl::Duration refresh = absl::Milliseconds(200)) {
-    auto store = PostgresGalleryStore::Open({conninfo_, refresh, 4, nullptr});
+  std::unique_ptr<PostgresGalleryStore> Open() {
+    auto store = PostgresGalleryStore::Open({conninfo_, 4});
     EXPECT_TRUE(store.ok()) << store.status();
     return store.ok() ? *std::move(store) : nullptr;
   }
 
-  // A replica: its store (following) and its registry, loaded from the store.
+  // A replica: its store, its registry, loaded from the store, and its follower (refresh
+  // 200 ms), which is the registry's catch-up function.
   struct Replica {
     std::shared_ptr<PostgresGalleryStore> store;
+    std::unique_ptr<ReplicationFollower> follower;
     std::unique_ptr<GalleryRegistry> registry;
     std::atomic<int> unreachable_reports{0};
     std::atomic<bool> reachable{true};
 
-    // Stop following before the registry goes (the registry's galleries keep the store alive,
-    // so releasing our pointer alone would not).
-    ~Replica() { store->StopFollowing(); }
+    // Stop following before the registry goes.
+    ~Replica() { follower->Stop(); }
   };
   std::unique_ptr<Replica> StartReplica() {
     auto replica = std::make_unique<Replica>();
     replica->store = Open();
-    replica->registry = std::make_unique<GalleryRegistry>(GalleryLimits{}, replica->store);
+    replica->follower = std::make_unique<ReplicationFollower>(
+        replica->store, ReplicationFollowerOptions{absl::Milliseconds(200), nullptr});
+    ReplicationFollower* follower = replica->follower.get();
+    replica->registry = std::make_unique<GalleryRegistry>(
+        GalleryLimits{}, replica->store,
+        [follower](absl::string_view name) { return follower->CatchUp(name); });
     EXPECT_TRUE(replica->registry->LoadFromStore().ok());
     Replica* r = replica.get();
-    replica->store->StartFollowing(replica->registry.get(), [r](bool reachable) {
+    replica->follower->Start(replica->registry.get(), [r](bool reachable) {
       r->reachable = reachable;
       if (!reachable) ++r->unreachable_reports;
     });
@@ -196,7 +203,7 @@ TEST_F(PostgresGalleryStoreTest, ReplicasSeeEachOthersChanges) {
   ASSERT_TRUE(on_a.ok()) << on_a.status();
   auto trained = (*on_a)->Train({{0, "box", Box(1)}, {5, "sphere", Sphere(1)}});
   ASSERT_TRUE(trained.ok()) << trained.status();
-  ASSERT_TRUE(b->store->Sync().ok());
+  ASSERT_TRUE(b->follower->Sync().ok());
 
   auto on_b = b->registry->Get("g");
   ASSERT_TRUE(on_b.ok()) << on_b.status();
@@ -206,7 +213,7 @@ TEST_F(PostgresGalleryStoreTest, ReplicasSeeEachOthersChanges) {
 
   // Removal through B, seen by A.
   ASSERT_TRUE((*on_b)->RemoveSamples({5}).ok());
-  ASSERT_TRUE(a->store->Sync().ok());
+  ASSERT_TRUE(a->follower->Sync().ok());
   EXPECT_EQ((*on_a)->Snapshot()->num_samples(), 1);
   EXPECT_EQ((*on_a)->Snapshot()->version(), (*on_b)->Snapshot()->version());
 
@@ -215,7 +222,7 @@ TEST_F(PostgresGalleryStoreTest, ReplicasSeeEachOthersChanges) {
   ASSERT_TRUE(a->registry->Delete("g").ok());
   ASSERT_TRUE(a->registry->Create("g", {}).ok());
   ASSERT_TRUE((*a->registry->Get("g"))->Train({{9, "cube", Box(3)}}).ok());
-  ASSERT_TRUE(b->store->Sync().ok());
+  ASSERT_TRUE(b->follower->Sync().ok());
   auto again = b->registry->Get("g");
   ASSERT_TRUE(again.ok());
   EXPECT_NE(again->get(), on_b->get());
@@ -240,14 +247,14 @@ TEST_F(PostgresGalleryStoreTest, FollowingAppliesChangesWithoutBeingAsked) {
   auto g = b->registry->Get("g");
   ASSERT_TRUE(g.ok());
   EXPECT_EQ((*g)->Snapshot()->num_samples(), 1);
-  EXPECT_GE(b->store->changes_applied(), 1);  // the create (read whole, with its sample)
+  EXPECT_GE(b->follower->changes_applied(), 1);  // the create (read whole, with its sample)
 }
 
 TEST_F(PostgresGalleryStoreTest, ConcurrentWritersThroughTwoReplicasLoseNothing) {
   auto a = StartReplica();
   auto b = StartReplica();
   ASSERT_TRUE(a->registry->Create("g", {}).ok());
-  ASSERT_TRUE(b->store->Sync().ok());
+  ASSERT_TRUE(b->follower->Sync().ok());
   constexpr int kThreads = 3;
   constexpr int kBatches = 8;
   std::atomic<int> failures{0};
@@ -270,8 +277,8 @@ TEST_F(PostgresGalleryStoreTest, ConcurrentWritersThroughTwoReplicasLoseNothing)
   }
   for (auto& w : writers) w.join();
   EXPECT_EQ(failures.load(), 0);
-  ASSERT_TRUE(a->store->Sync().ok());
-  ASSERT_TRUE(b->store->Sync().ok());
+  ASSERT_TRUE(a->follower->Sync().ok());
+  ASSERT_TRUE(b->follower->Sync().ok());
   const int expected = 2 * kThreads * kBatches * 2;
   for (Replica* replica : {a.get(), b.get()}) {
     auto snapshot = (*replica->registry->Get("g"))->Snapshot();
@@ -290,7 +297,7 @@ TEST_F(PostgresGalleryStoreTest, AReplicaReportsPostgresLossAndCatchesUpAfter) {
   auto a = StartReplica();
   auto b = StartReplica();
   ASSERT_TRUE(a->registry->Create("g", {}).ok());
-  ASSERT_TRUE(b->store->Sync().ok());
+  ASSERT_TRUE(b->follower->Sync().ok());
 
   ASSERT_TRUE(pg_->Stop().ok());
   // Both followers notice within `refresh` (200 ms here) plus the time to fail a connect.
@@ -327,7 +334,7 @@ TEST_F(PostgresGalleryStoreTest, AChangeThatDoesNotApplyReloadsTheGalleryInstead
   auto b = StartReplica();
   ASSERT_TRUE(a->registry->Create("g", {}).ok());
   ASSERT_TRUE((*a->registry->Get("g"))->Train({{1, "box", Box(1)}}).ok());
-  ASSERT_TRUE(b->store->Sync().ok());
+  ASSERT_TRUE(b->follower->Sync().ok());
   const std::shared_ptr<Gallery> held_by_a_stream = *b->registry->Get("g");
   // A log entry B's copy cannot take: it appends id 1, which B holds already (the state a
   // torn read would leave). B must read the gallery again from the store, not stop there.
@@ -342,7 +349,7 @@ TEST_F(PostgresGalleryStoreTest, AChangeThatDoesNotApplyReloadsTheGalleryInstead
                                "'append', '{1}', updated_unix_ns FROM shapeid_galleries WHERE "
                                "name = 'g'; UPDATE shapeid_galleries SET version = version + 1")
                   .ok());
-  ASSERT_TRUE(b->store->Sync().ok());
+  ASSERT_TRUE(b->follower->Sync().ok());
   auto on_b = (*b->registry->Get("g"))->Snapshot();
   EXPECT_EQ(on_b->version(), 2u);
   EXPECT_EQ(on_b->num_samples(), 1);
@@ -350,9 +357,9 @@ TEST_F(PostgresGalleryStoreTest, AChangeThatDoesNotApplyReloadsTheGalleryInstead
   EXPECT_EQ(b->registry->Get("g")->get(), held_by_a_stream.get());
   EXPECT_EQ(held_by_a_stream->Snapshot()->version(), 2u);
   // And the log goes on: a later change through A reaches B.
-  ASSERT_TRUE(a->store->Sync().ok());
+  ASSERT_TRUE(a->follower->Sync().ok());
   ASSERT_TRUE((*a->registry->Get("g"))->Train({{2, "box", Box(2)}}).ok());
-  ASSERT_TRUE(b->store->Sync().ok());
+  ASSERT_TRUE(b->follower->Sync().ok());
   EXPECT_EQ((*b->registry->Get("g"))->Snapshot()->num_samples(), 2);
 }
 
@@ -361,8 +368,8 @@ TEST_F(PostgresGalleryStoreTest, AReplicaAwayLongerThanTheLogKeepsReloadsEveryth
   auto b = StartReplica();
   ASSERT_TRUE(a->registry->Create("kept", {}).ok());
   ASSERT_TRUE(a->registry->Create("dropped", {}).ok());
-  ASSERT_TRUE(b->store->Sync().ok());
-  b->store->StopFollowing();  // B is away...
+  ASSERT_TRUE(b->follower->Sync().ok());
+  b->follower->Stop();  // B is away...
   ASSERT_TRUE((*a->registry->Get("kept"))->Train({{1, "box", Box(1)}}).ok());
   ASSERT_TRUE(a->registry->Delete("dropped").ok());
   // ...for longer than the log keeps: every row pruned, as the follower's prune would.
@@ -375,14 +382,14 @@ TEST_F(PostgresGalleryStoreTest, AReplicaAwayLongerThanTheLogKeepsReloadsEveryth
                          "FROM gone))")
                   .ok());
   // An empty log must not read as "nothing happened": the floor says rows were lost.
-  ASSERT_TRUE(b->store->Sync().ok());
+  ASSERT_TRUE(b->follower->Sync().ok());
   EXPECT_EQ(b->registry->Get("dropped").status().code(), absl::StatusCode::kNotFound);
   auto kept = b->registry->Get("kept");
   ASSERT_TRUE(kept.ok());
   EXPECT_EQ((*kept)->Snapshot()->num_samples(), 1);
   // And it follows the log from there.
   ASSERT_TRUE((*a->registry->Get("kept"))->Train({{2, "box", Box(2)}}).ok());
-  ASSERT_TRUE(b->store->Sync().ok());
+  ASSERT_TRUE(b->follower->Sync().ok());
   EXPECT_EQ((*b->registry->Get("kept"))->Snapshot()->num_samples(), 2);
 }
 
