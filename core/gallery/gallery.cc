@@ -372,7 +372,7 @@ absl::StatusOr<std::shared_ptr<const GallerySnapshot>> Gallery::Mutate(const Ori
     SHAPEID_ASSIGN_OR_RETURN(const bool needed, check(*current));
     if (!needed) return current;
   }
-  // The copy is the O(n d) cost of a change; readers keep using `current` meanwhile.
+  // The copy shares the index's blocks (O(blocks)); readers keep using `current` meanwhile.
   std::shared_ptr<GallerySnapshot> next(new GallerySnapshot(*current));
   if (change != nullptr) SHAPEID_RETURN_IF_ERROR(change(*next));
   // Seconds when the index has to be built; readers meanwhile use `current`.

@@ -64,8 +64,7 @@ struct GalleryLimits {
   // seconds of describing: enough for a dense scan, small enough that one client cannot
   // exhaust the server's memory.
   size_t max_points_per_cloud = 10'000'000;
-  // Samples per gallery. 1,000,000 x 81 floats = 324 MB; note that every commit copies the
-  // gallery's index (see Gallery::TrainBatch::Commit), so very large galleries train slowly.
+  // Samples per gallery: 1,000,000 x 240 floats (DFSD) = 960 MB of features.
   int64_t max_samples_per_gallery = 1'000'000;
   // Galleries per registry.
   size_t max_galleries = 1024;

@@ -728,49 +728,5 @@ TEST(GalleryTest, IncompatibleDescriptorLoadsButRefusesWork) {
   EXPECT_EQ((*unknown_restored)->Snapshot()->options().descriptor_spec, "esf:bins=10");
 }
 
-// Not a test: the cost of committing one sample into a large gallery (the index copy).
-// Run with --gtest_also_run_disabled_tests --gtest_filter=*CommitCost*.
-TEST(GalleryCostTest, DISABLED_CommitCost) {
-  for (int64_t n : {10'000, 100'000}) {
-    StoredGallery stored;
-    stored.name = "big";
-    stored.created = stored.updated = absl::Now();
-    std::mt19937 rng(1);
-    std::uniform_real_distribution<float> u(0.f, 1.f);
-    const auto descriptor = CreateDescriptor(stored.options.descriptor_spec);
-    ASSERT_TRUE(descriptor.ok());
-    const size_t d = (*descriptor)->dimension();
-    stored.dimension = static_cast<int>(d);
-    stored.descriptor_version = FindDescriptorKind("rphsd")->version;
-    for (int64_t i = 0; i < n; ++i) {
-      StoredSample s{static_cast<uint64_t>(i + 1), absl::StrCat("c", i % 40),
-                     std::vector<float>(d)};
-      for (float& f : s.features) f = u(rng);
-      stored.samples.push_back(std::move(s));
-    }
-    auto g = Gallery::Restore(stored, {}, nullptr);
-    ASSERT_TRUE(g.ok()) << g.status();
-    constexpr int kReps = 20;
-    const absl::Time start = absl::Now();
-    for (int r = 0; r < kReps; ++r) {
-      ASSERT_TRUE((*g)->Train({{0, "new", Box(static_cast<uint32_t>(r))}}).ok());
-    }
-    const absl::Duration per_commit = (absl::Now() - start) / kReps;
-    const absl::Time c0 = absl::Now();
-    for (int r = 0; r < kReps; ++r) {
-      KnnIndex copy = (*g)->Snapshot()->index();
-      ASSERT_EQ(copy.size(), n + kReps);
-    }
-    const absl::Duration per_copy = (absl::Now() - c0) / kReps;
-    const absl::Time q0 = absl::Now();
-    ASSERT_TRUE((*g)->Snapshot()->Classify(Box(99)).ok());
-    std::printf(
-        "n = %lld x d = %zu: Train of 1 sample %s (KnnIndex copy + free %s); "
-        "one Classify %s\n",
-        static_cast<long long>(n), d, absl::FormatDuration(per_commit).c_str(),
-        absl::FormatDuration(per_copy).c_str(), absl::FormatDuration(absl::Now() - q0).c_str());
-  }
-}
-
 }  // namespace
 }  // namespace shapeid
