@@ -179,7 +179,7 @@ grpc::ServerUnaryReactor* ShapeIdService::RemoveSamples(grpc::CallbackServerCont
           return absl::InvalidArgumentError("RemoveSamples: give sample_ids, labels or both");
         }
         const std::shared_ptr<const GallerySnapshot> snapshot = gallery->Snapshot();
-        return Work::Store(EstimateCommit(*snapshot, 0), [&request, response, &call, gallery] {
+        return Work::Store(EstimateRemove(*snapshot), [&request, response, &call, gallery] {
           const std::vector<std::string> labels(request.labels().begin(), request.labels().end());
           SHAPEID_ASSIGN_OR_RETURN(
               const int64_t removed,

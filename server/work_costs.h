@@ -29,9 +29,11 @@ WorkEstimate EstimateTrainSample(const Descriptor& descriptor, const AugmentOpti
                                  size_t points);
 // Describing a query and searching `snapshot` with it and its pose variants.
 WorkEstimate EstimateClassify(const GallerySnapshot& snapshot, size_t points);
-// Publishing `vectors` more (or fewer) descriptors into `snapshot`'s gallery: the commit copies
-// the gallery's index, then the store writes the change.
+// Appending `vectors` descriptors to `snapshot`'s gallery: O(vectors), the index's blocks are
+// shared with the snapshot (the store's write, mostly waiting on the disk, is not counted).
 absl::Duration EstimateCommit(const GallerySnapshot& snapshot, int64_t vectors);
+// Removing samples from `snapshot`'s gallery: the index is compacted, O(gallery).
+absl::Duration EstimateRemove(const GallerySnapshot& snapshot);
 // Building and storing a gallery of `vectors` descriptors of `dimension` floats (an import).
 absl::Duration EstimateBuild(int64_t vectors, int dimension);
 
