@@ -11,106 +11,32 @@
 
 #include "absl/strings/ascii.h"
 #include "absl/strings/match.h"
-#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
-#include "absl/strings/str_format.h"
 #include "absl/strings/strip.h"
 #include "absl/time/clock.h"
 #include "core/gallery/gallery_options.h"
 #include "core/status_macros.h"
 #include "server/storage/file_util.h"
 #include "server/storage/sample_checksum.h"
+#include "server/storage/sqlite_gallery_file.h"
 
 namespace shapeid {
 
+using sqlite_gallery_file::AsStoredId;
+using sqlite_gallery_file::BindGalleryRow;
+using sqlite_gallery_file::Damaged;
+using sqlite_gallery_file::GalleryRowCrc;
+using sqlite_gallery_file::InsertSample;
+using sqlite_gallery_file::kApplicationId;
+using sqlite_gallery_file::kConnectionPragmas;
+using sqlite_gallery_file::kGalleryColumns;
+using sqlite_gallery_file::kSchema;
+using sqlite_gallery_file::ReadGallery;
+
 namespace {
 
-// PRAGMA application_id: "SHID". Lets `file` and our loader tell a gallery from any other
-// SQLite database.
-constexpr int32_t kApplicationId = 0x53484944;
 constexpr absl::string_view kGallerySuffix = ".gallery";
 
-// Per connection: synchronous=FULL makes every COMMIT fsync the WAL before it returns, which
-// is the durability contract; cell_size_check catches more damage when pages are read.
-constexpr absl::string_view kConnectionPragmas =
-    "PRAGMA synchronous=FULL; PRAGMA cell_size_check=ON; PRAGMA trusted_schema=OFF;";
-
-// One row describes the gallery; samples are rows in training order (seq). Ids are uint64
-// stored as the int64 with the same bits. Every row carries a CRC-32 of its content.
-constexpr absl::string_view kSchema = R"sql(
-CREATE TABLE gallery(
-  singleton INTEGER PRIMARY KEY CHECK (singleton = 1),
-  name TEXT NOT NULL,
-  descriptor_spec TEXT NOT NULL,
-  dimension INTEGER NOT NULL,
-  knn_k INTEGER NOT NULL,
-  knn_weighting TEXT NOT NULL,
-  knn_scaling TEXT NOT NULL,
-  reject_distance REAL NOT NULL,
-  descriptor_version INTEGER NOT NULL,
-  software_version TEXT NOT NULL,
-  created_unix_ns INTEGER NOT NULL,
-  updated_unix_ns INTEGER NOT NULL,
-  crc INTEGER NOT NULL,
-  augment TEXT NOT NULL);
-CREATE TABLE samples(
-  seq INTEGER PRIMARY KEY,
-  id INTEGER NOT NULL UNIQUE,
-  label TEXT NOT NULL,
-  features BLOB NOT NULL,
-  crc INTEGER NOT NULL);
-)sql";
-
-// Format 1's columns; format 2 adds `augment` (AugmentOptionsToString), and samples of an
-// augmented gallery hold several descriptors (views) in their features blob.
-constexpr absl::string_view kGalleryColumnsV1 =
-    "name, descriptor_spec, dimension, knn_k, knn_weighting, knn_scaling, reject_distance, "
-    "descriptor_version, software_version, created_unix_ns, updated_unix_ns, crc";
-constexpr absl::string_view kGalleryColumns =
-    "name, descriptor_spec, dimension, knn_k, knn_weighting, knn_scaling, reject_distance, "
-    "descriptor_version, software_version, created_unix_ns, updated_unix_ns, crc, augment";
-
-uint32_t GalleryRowCrc(const GalleryMetadata& g) {
-  uint64_t reject_bits;
-  std::memcpy(&reject_bits, &g.options.reject_distance, sizeof(reject_bits));
-  const std::string text = absl::StrCat(
-      g.name, "\n", g.options.descriptor_spec, "\n", g.dimension, "\n", g.options.knn.k, "\n",
-      VoteWeightingName(g.options.knn.weighting), "\n", FeatureScalingName(g.options.knn.scaling),
-      "\n", reject_bits, "\n", g.descriptor_version, "\n", g.software_version, "\n",
-      absl::ToUnixNanos(g.created), "\n", absl::ToUnixNanos(g.updated),
-      // Only when on, so a format-1 row (no augmentation) keeps its checksum.
-      g.options.augment.enabled() ? absl::StrCat("\n", AugmentOptionsToString(g.options.augment))
-                                  : "");
-  return static_cast<uint32_t>(
-      crc32_z(0, reinterpret_cast<const Bytef*>(text.data()), text.size()));
-}
-
-int64_t AsStoredId(uint64_t id) { return static_cast<int64_t>(id); }
-uint64_t FromStoredId(int64_t id) { return static_cast<uint64_t>(id); }
-
-void BindGalleryRow(SqliteStatement& s, const GalleryMetadata& g) {
-  s.BindText(1, g.name);
-  s.BindText(2, g.options.descriptor_spec);
-  s.BindInt64(3, g.dimension);
-  s.BindInt64(4, g.options.knn.k);
-  s.BindText(5, VoteWeightingName(g.options.knn.weighting));
-  s.BindText(6, FeatureScalingName(g.options.knn.scaling));
-  s.BindDouble(7, g.options.reject_distance);
-  s.BindInt64(8, g.descriptor_version);
-  s.BindText(9, g.software_version);
-  s.BindInt64(10, absl::ToUnixNanos(g.created));
-  s.BindInt64(11, absl::ToUnixNanos(g.updated));
-  s.BindInt64(12, GalleryRowCrc(g));
-  s.BindText(13, AugmentOptionsToString(g.options.augment));
-}
-
-absl::Status InsertSample(SqliteStatement& insert, const StoredSample& sample) {
-  insert.BindInt64(1, AsStoredId(sample.id));
-  insert.BindText(2, sample.label);
-  insert.BindBlob(3, FeatureBytes(sample.features));
-  insert.BindInt64(4, SampleCrc32(0, sample.id, sample.label, sample.features));
-  return insert.Run();
-}
 
 std::string UtcStamp() {
   return absl::FormatTime("%Y%m%dT%H%M%SZ", absl::Now(), absl::UTCTimeZone());
@@ -278,127 +204,6 @@ bool IsProvenDamage(const absl::Status& status) {
          status.code() == absl::StatusCode::kFailedPrecondition;
 }
 
-// SQLite's own words ("database disk image is malformed") with ours in front.
-absl::Status Damaged(const std::string& path, const absl::Status& status) {
-  if (status.code() != absl::StatusCode::kDataLoss ||
-      absl::StrContains(status.message(), "damaged") ||
-      absl::StrContains(status.message(), "not a shapeid gallery")) {
-    return status;
-  }
-  absl::string_view detail = status.message();
-  absl::ConsumePrefix(&detail, absl::StrCat(path, ": "));
-  return absl::DataLossError(absl::StrCat("gallery file ", path, " is damaged: ", detail));
-}
-
-// Verifies and reads the gallery `name` from `db`, the file at `path`: DataLoss for damage
-// (or a file that is not a shapeid gallery), FailedPrecondition for a newer format, the disk's
-// code (ResourceExhausted, Unavailable) when it cannot be read.
-absl::StatusOr<StoredGallery> ReadGallery(SqliteDb& db, const std::string& path,
-                                          const std::string& name) {
-  const auto damaged = [&](absl::string_view what) {
-    return absl::DataLossError(absl::StrCat("gallery file ", path, " is damaged: ", what));
-  };
-  // A query on our tables that SQLite cannot even compile ("no such table") means the file
-  // is not a shapeid gallery's schema: damage, as a CRC mismatch is.
-  const auto schema = [&](auto result) -> decltype(result) {
-    if (!result.ok() && result.status().code() == absl::StatusCode::kInternal &&
-        (sqlite3_extended_errcode(db.raw()) & 0xff) == SQLITE_ERROR) {
-      return damaged(absl::StrCat("not a shapeid gallery's schema: ", result.status().message()));
-    }
-    return result;
-  };
-
-  // What the file is, before trusting anything in it.
-  SHAPEID_ASSIGN_OR_RETURN(const int64_t application_id, db.QueryInt("PRAGMA application_id"));
-  if (application_id != kApplicationId) {
-    return absl::DataLossError(absl::StrCat(path,
-                                            " is not a shapeid gallery (SQLite application_id ",
-                                            application_id, ", expected ", kApplicationId, ")"));
-  }
-  SHAPEID_ASSIGN_OR_RETURN(const int64_t format, db.QueryInt("PRAGMA user_version"));
-  if (format > SqliteGalleryStore::kFormatVersion) {
-    return absl::FailedPreconditionError(
-        absl::StrCat(path, " has format version ", format,
-                     ", written by a newer shapeid; this server reads "
-                     "up to version ",
-                     SqliteGalleryStore::kFormatVersion,
-                     ". Run the newer release, or export the gallery with it"));
-  }
-  if (format < 1) return damaged(absl::StrCat("format version ", format));
-  // quick_check: every page and b-tree structure (a truncated or overwritten file), in
-  // O(file size); CRCs below catch damage inside the rows.
-  SHAPEID_ASSIGN_OR_RETURN(const std::string check, db.QueryText("PRAGMA quick_check"));
-  if (check != "ok") return damaged(absl::StrCat("SQLite integrity check: ", check));
-
-  StoredGallery g;
-  {
-    SHAPEID_ASSIGN_OR_RETURN(
-        SqliteStatement row,
-        schema(db.Prepare(absl::StrCat("SELECT ", format == 1 ? kGalleryColumnsV1 : kGalleryColumns,
-                                       " FROM gallery"))));
-    SHAPEID_ASSIGN_OR_RETURN(const bool found, row.Step());
-    if (!found) return damaged("the gallery row is missing");
-    g.name = row.ColumnText(0);
-    g.options.descriptor_spec = row.ColumnText(1);
-    g.dimension = static_cast<int>(row.ColumnInt64(2));
-    g.options.knn.k = static_cast<int>(row.ColumnInt64(3));
-    absl::StatusOr<VoteWeighting> weighting = ParseVoteWeighting(row.ColumnText(4));
-    absl::StatusOr<FeatureScaling> scaling = ParseFeatureScaling(row.ColumnText(5));
-    g.options.reject_distance = row.ColumnDouble(6);
-    g.descriptor_version = static_cast<uint32_t>(row.ColumnInt64(7));
-    g.software_version = row.ColumnText(8);
-    g.created = absl::FromUnixNanos(row.ColumnInt64(9));
-    g.updated = absl::FromUnixNanos(row.ColumnInt64(10));
-    const uint32_t crc = static_cast<uint32_t>(row.ColumnInt64(11));
-    if (!weighting.ok() || !scaling.ok()) return damaged("unreadable kNN options");
-    if (format >= 2) {
-      absl::StatusOr<AugmentOptions> augment = ParseAugmentOptions(row.ColumnText(12));
-      if (!augment.ok()) return damaged(augment.status().message());
-      g.options.augment = *augment;
-    }
-    g.options.knn.weighting = *weighting;
-    g.options.knn.scaling = *scaling;
-    if (GalleryRowCrc(g) != crc) return damaged("checksum mismatch in the gallery row");
-    if (g.name != name) {
-      return damaged(absl::StrCat("it holds gallery '", g.name, "', not '", name, "'"));
-    }
-    if (g.dimension < 1) return damaged(absl::StrCat("dimension ", g.dimension));
-  }
-  {
-    // A capacity hint, O(log n): seq is the rowid, so max() is one b-tree descent, where
-    // count(*) would read every page a second time.
-    SHAPEID_ASSIGN_OR_RETURN(const int64_t last_seq,
-                             schema(db.QueryInt("SELECT coalesce(max(seq), 0) FROM samples")));
-    g.samples.reserve(static_cast<size_t>(last_seq));
-    SHAPEID_ASSIGN_OR_RETURN(
-        SqliteStatement rows,
-        schema(db.Prepare("SELECT seq, id, label, features, crc FROM samples ORDER BY seq")));
-    const size_t bytes = static_cast<size_t>(g.dimension) * sizeof(float);
-    while (true) {
-      SHAPEID_ASSIGN_OR_RETURN(const bool more, rows.Step());
-      if (!more) break;
-      StoredSample sample;
-      sample.id = FromStoredId(rows.ColumnInt64(1));
-      sample.label = rows.ColumnText(2);
-      const absl::Span<const uint8_t> blob = rows.ColumnBlob(3);
-      const std::string at =
-          absl::StrCat("sample id ", sample.id, " (row ", rows.ColumnInt64(0), ")");
-      // One descriptor per view: a positive multiple of the dimension.
-      if (blob.empty() || blob.size() % bytes != 0) {
-        return damaged(absl::StrCat(at, " has ", blob.size(),
-                                    " bytes of features, expected a positive multiple of ", bytes));
-      }
-      FeaturesFromBytes(blob, &sample.features);
-      if (SampleCrc32(0, sample.id, sample.label, sample.features) !=
-          static_cast<uint32_t>(rows.ColumnInt64(4))) {
-        return damaged(absl::StrCat(at, ": checksum mismatch"));
-      }
-      g.samples.push_back(std::move(sample));
-    }
-  }
-
-  return g;
-}
 
 }  // namespace
 
