@@ -6,7 +6,7 @@
 #include "absl/strings/str_cat.h"
 #include "core/gallery/gallery_test_shapes.h"
 #include "gtest/gtest.h"
-#include "server/storage/testing/postgres_instance.h"
+#include "server/storage/testing/postgres_database_test.h"
 
 namespace shapeid {
 namespace {
@@ -15,48 +15,16 @@ using gallery_testing::Box;
 
 // The follower's own contract; replication end to end (two replicas, PostgreSQL lost and
 // back, a pruned log) is in server/storage/postgres_gallery_store_test.cc.
-class ReplicationFollowerTest : public ::testing::Test {
+class ReplicationFollowerTest : public PostgresDatabaseTest {
  protected:
-  static void SetUpTestSuite() {
-    absl::StatusOr<std::unique_ptr<PostgresInstance>> started = PostgresInstance::Start();
-    if (started.ok()) {
-      pg_ = started->release();
-    } else {
-      start_error_ = new absl::Status(started.status());
-    }
-  }
-  static void TearDownTestSuite() {
-    delete pg_;
-    pg_ = nullptr;
-  }
-
-  void SetUp() override {
-    if (pg_ == nullptr) {
-      if (PostgresInstance::Required()) FAIL() << *start_error_;
-      GTEST_SKIP() << "no PostgreSQL to test against: " << *start_error_;
-    }
-    const std::string db =
-        absl::StrCat("f_", ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    auto admin = PgConnection::Connect(pg_->conninfo());
-    ASSERT_TRUE(admin.ok()) << admin.status();
-    ASSERT_TRUE((*admin)->Exec("drop", absl::StrCat("DROP DATABASE IF EXISTS \"", db, "\"")).ok());
-    ASSERT_TRUE((*admin)->Exec("create", absl::StrCat("CREATE DATABASE \"", db, "\"")).ok());
-    conninfo_ = absl::StrCat("postgresql://shapeid@127.0.0.1:", pg_->port(), "/", db);
-  }
+  ReplicationFollowerTest() : PostgresDatabaseTest("f_") {}
 
   std::shared_ptr<PostgresGalleryStore> Open() {
     auto store = PostgresGalleryStore::Open({conninfo_, 4});
     EXPECT_TRUE(store.ok()) << store.status();
     return store.ok() ? std::shared_ptr<PostgresGalleryStore>(*std::move(store)) : nullptr;
   }
-
-  static PostgresInstance* pg_;
-  static absl::Status* start_error_;
-  std::string conninfo_;
 };
-
-PostgresInstance* ReplicationFollowerTest::pg_ = nullptr;
-absl::Status* ReplicationFollowerTest::start_error_ = nullptr;
 
 TEST_F(ReplicationFollowerTest, AppliesFromWhereTheRegistryWasLoadedOnceStarted) {
   GalleryRegistry writer({}, Open());

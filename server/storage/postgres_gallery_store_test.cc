@@ -15,7 +15,7 @@
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "server/replication/replication_follower.h"
-#include "server/storage/testing/postgres_instance.h"
+#include "server/storage/testing/postgres_database_test.h"
 
 namespace shapeid {
 namespace {
@@ -26,36 +26,9 @@ using gallery_testing::MakeGallery;
 using gallery_testing::Sphere;
 using ::testing::HasSubstr;
 
-// One PostgreSQL for the whole binary (initdb takes a second or two); each test works in a
-// database of its own.
-class PostgresGalleryStoreTest : public ::testing::Test {
+class PostgresGalleryStoreTest : public PostgresDatabaseTest {
  protected:
-  static void SetUpTestSuite() {
-    absl::StatusOr<std::unique_ptr<PostgresInstance>> started = PostgresInstance::Start();
-    if (started.ok()) {
-      pg_ = started->release();
-    } else {
-      start_error_ = new absl::Status(started.status());
-    }
-  }
-  static void TearDownTestSuite() {
-    delete pg_;
-    pg_ = nullptr;
-  }
-
-  void SetUp() override {
-    if (pg_ == nullptr) {
-      if (PostgresInstance::Required()) FAIL() << *start_error_;
-      GTEST_SKIP() << "no PostgreSQL to test against: " << *start_error_;
-    }
-    const std::string db = absl::StrCat(
-        "t_", ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    auto admin = PgConnection::Connect(pg_->conninfo());
-    ASSERT_TRUE(admin.ok()) << admin.status();
-    ASSERT_TRUE((*admin)->Exec("drop", absl::StrCat("DROP DATABASE IF EXISTS \"", db, "\"")).ok());
-    ASSERT_TRUE((*admin)->Exec("create", absl::StrCat("CREATE DATABASE \"", db, "\"")).ok());
-    conninfo_ = absl::StrCat("postgresql://shapeid@127.0.0.1:", pg_->port(), "/", db);
-  }
+  PostgresGalleryStoreTest() : PostgresDatabaseTest("t_") {}
 
   std::unique_ptr<PostgresGalleryStore> Open() {
     auto store = PostgresGalleryStore::Open({conninfo_, 4});
@@ -92,14 +65,7 @@ class PostgresGalleryStoreTest : public ::testing::Test {
     });
     return replica;
   }
-
-  static PostgresInstance* pg_;
-  static absl::Status* start_error_;
-  std::string conninfo_;
 };
-
-PostgresInstance* PostgresGalleryStoreTest::pg_ = nullptr;
-absl::Status* PostgresGalleryStoreTest::start_error_ = nullptr;
 
 TEST_F(PostgresGalleryStoreTest, EveryWriteSurvivesBitForBit) {
   StoredGallery a = MakeGallery("a", 12, 1500, 1);  // more than one INSERT statement
