@@ -126,8 +126,8 @@ absl::Status ParseSpecLine(absl::string_view line, std::string* spec, AugmentOpt
     } else if (words[w] == "+pose=random") {
       augment->sensor.random_pose = true;
     } else {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "\"", words[w], "\" after the spec: expected +views=N or +pose=random"));
+      return absl::InvalidArgumentError(
+          absl::StrCat("\"", words[w], "\" after the spec: expected +views=N or +pose=random"));
     }
   }
   return ValidateAugmentOptions(*augment);
@@ -662,8 +662,7 @@ int RunDataset(const Dataset& data, const std::vector<SpecEntry>& specs,
       }
     }
     const double micros_1024 = TimeOne(*entry.descriptor, cloud_1024);
-    if (!EvaluateSpec(data, entry, gallery, clean, order, order_features, micros_1024,
-                      settings)) {
+    if (!EvaluateSpec(data, entry, gallery, clean, order, order_features, micros_1024, settings)) {
       std::fprintf(stderr,
                    "accuracy_grid: INTERNAL ERROR: a vote derived from the neighbour list differs "
                    "from KnnIndex::Classify (%s on %s)\n",

@@ -51,7 +51,8 @@ inline std::vector<PointCloud> ModelNet10TestClouds(const std::filesystem::path&
   std::sort(classes.begin(), classes.end());
   for (const fs::path& cls : classes) {
     std::vector<fs::path> files;
-    for (const auto& entry : fs::directory_iterator(cls / "test", error)) files.push_back(entry.path());
+    for (const auto& entry : fs::directory_iterator(cls / "test", error))
+      files.push_back(entry.path());
     std::sort(files.begin(), files.end());
     for (size_t i = 0; i < files.size() && i < per_class; ++i) {
       auto read = ReadPointCloud(files[i].string());

@@ -10,9 +10,9 @@
 #include <string>
 #include <vector>
 
+#include "absl/strings/str_cat.h"
 #include "bench/bench_clouds.h"
 #include "benchmark/benchmark.h"
-#include "absl/strings/str_cat.h"
 #include "core/descriptor_registry.h"
 #include "core/descriptors/reference_points.h"
 #include "core/descriptors/rphsd_kernels.h"
@@ -130,7 +130,8 @@ void BM_LimitIncrementsOnly(benchmark::State& state) {
       const float dx = (p[0] - k.input.center[0]) * k.input.inv_scale - k.rx[r];
       const float dy = (p[1] - k.input.center[1]) * k.input.inv_scale - k.ry[r];
       const float dz = (p[2] - k.input.center[2]) * k.input.inv_scale - k.rz[r];
-      const int bin = static_cast<int>(std::sqrt((dx * dx + dy * dy) + dz * dz) * k.input.bin_scale);
+      const int bin =
+          static_cast<int>(std::sqrt((dx * dx + dy * dy) + dz * dz) * k.input.bin_scale);
       slots[i * refs + r] = static_cast<int32_t>(r) * bins + std::min(bin, bins - 1);
     }
   }
@@ -265,7 +266,8 @@ void RobotViewBench(benchmark::State& state, const std::string& spec) {
   std::vector<float> out, variants;
   size_t next = 0, poses = 0;
   for (auto _ : state) {
-    const absl::Status status = (*descriptor)->ComputeWithPoseVariants(views[next], &out, &variants);
+    const absl::Status status =
+        (*descriptor)->ComputeWithPoseVariants(views[next], &out, &variants);
     if (!status.ok()) {
       state.SkipWithError(std::string(status.message()).c_str());
       return;

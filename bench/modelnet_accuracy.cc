@@ -21,17 +21,17 @@
 
 #include <algorithm>
 #include <chrono>
-#include <numeric>
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <numeric>
 #include <string>
 #include <vector>
 
 #include "CLI/CLI.hpp"
 #include "core/descriptor_registry.h"
-#include "core/io/point_cloud_reader.h"
 #include "core/gallery/gallery.h"
+#include "core/io/point_cloud_reader.h"
 #include "core/knn/knn_index.h"
 #include "core/views/perturb.h"
 
@@ -59,7 +59,8 @@ int main(int argc, char** argv) {
   double min_accuracy = 0;
   std::string perturbation_name = "clean";
   int augment_views = 0;
-  app.add_option("--data", data, "ModelNet10 folder with <class>/{train,test}/*.pcd")->capture_default_str();
+  app.add_option("--data", data, "ModelNet10 folder with <class>/{train,test}/*.pcd")
+      ->capture_default_str();
   app.add_option("--spec", spec, "descriptor spec")->capture_default_str();
   app.add_option("--k", k, "neighbours")->capture_default_str()->check(CLI::PositiveNumber);
   app.add_option("--scaling", scaling_name, "none | zscore | maxabs")->capture_default_str();
@@ -77,7 +78,8 @@ int main(int argc, char** argv) {
                  "also search with the approximate index (KnnIndex::UpdateApproximate) at each "
                  "of these probe counts, and compare with the exact answers")
       ->delimiter(',');
-  app.add_option("--approximate-lists", approximate_lists, "cells of the approximate index; 0: auto")
+  app.add_option("--approximate-lists", approximate_lists,
+                 "cells of the approximate index; 0: auto")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
@@ -115,7 +117,8 @@ int main(int argc, char** argv) {
       for (const fs::path& file : SortedEntries(cls / split)) {
         auto read = shapeid::ReadPointCloud(file.string());
         if (!read.ok()) {
-          std::fprintf(stderr, "modelnet_accuracy: %s\n", std::string(read.status().message()).c_str());
+          std::fprintf(stderr, "modelnet_accuracy: %s\n",
+                       std::string(read.status().message()).c_str());
           return 2;
         }
         const bool train = std::string(split) == "train";
@@ -125,8 +128,7 @@ int main(int argc, char** argv) {
         } else {
           const std::string key = fs::path(file).lexically_relative(data).generic_string();
           auto cloud = shapeid::ApplyPerturbation(
-              read->cloud, *perturbation,
-              shapeid::DeriveSeed(1, perturbation->name + "|" + key));
+              read->cloud, *perturbation, shapeid::DeriveSeed(1, perturbation->name + "|" + key));
           if (!cloud.ok()) {
             std::fprintf(stderr, "modelnet_accuracy: %s: %s\n", file.c_str(),
                          std::string(cloud.status().message()).c_str());
@@ -173,7 +175,8 @@ int main(int argc, char** argv) {
   for (const TestCloud& t : test) {
     auto result = index->Classify(t.values, options);
     if (!result.ok()) {
-      std::fprintf(stderr, "modelnet_accuracy: %s\n", std::string(result.status().message()).c_str());
+      std::fprintf(stderr, "modelnet_accuracy: %s\n",
+                   std::string(result.status().message()).c_str());
       return 2;
     }
     const bool correct = result->label == t.label;
@@ -191,9 +194,10 @@ int main(int argc, char** argv) {
         results->clear();
         const auto start = std::chrono::steady_clock::now();
         for (const TestCloud& t : test) results->push_back(*index->Classify(t.values, options));
-        micros.push_back(std::chrono::duration<double, std::micro>(
-                             std::chrono::steady_clock::now() - start).count() /
-                         static_cast<double>(test.size()));
+        micros.push_back(
+            std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start)
+                .count() /
+            static_cast<double>(test.size()));
       }
       std::sort(micros.begin(), micros.end());
       return micros[1];
@@ -257,8 +261,10 @@ int main(int argc, char** argv) {
               (*descriptor)->spec().ToString().c_str(), k, scaling_name.c_str(),
               weighting_name.c_str(), static_cast<long long>(index->size()),
               static_cast<long long>(index->num_rows()), test.size(), perturbation->name.c_str());
-  std::printf("overall accuracy %.2f %% (%d/%zu), mean per-class %.2f %%, %.1f us per test cloud described\n",
-              accuracy, right, test.size(), 100.0 * mean_class, 1e6 * describe_seconds / described);
+  std::printf(
+      "overall accuracy %.2f %% (%d/%zu), mean per-class %.2f %%, %.1f us per test cloud "
+      "described\n",
+      accuracy, right, test.size(), 100.0 * mean_class, 1e6 * describe_seconds / described);
   if (accuracy < min_accuracy) {
     std::printf("FAILED: below the required %.2f %%\n", min_accuracy);
     return 1;

@@ -29,8 +29,8 @@ namespace shapeid {
 namespace {
 
 constexpr absl::string_view kMethods[] = {
-    "Describe",      "DescribeCloud", "Train",         "Classify",       "ClassifyCloud",
-    "CreateGallery", "GetGallery",    "ListGalleries", "DeleteGallery",  "RemoveSamples",
+    "Describe",      "DescribeCloud", "Train",           "Classify",       "ClassifyCloud",
+    "CreateGallery", "GetGallery",    "ListGalleries",   "DeleteGallery",  "RemoveSamples",
     "ExportGallery", "ImportGallery", "ListDescriptors", "GetServerStats", "SetLogLevel"};
 
 // A successful ClassifyCloud of a 1,024-point cloud: what most calls look like.

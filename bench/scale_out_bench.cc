@@ -21,8 +21,8 @@
 #include <signal.h>
 #include <spawn.h>
 #include <sys/resource.h>
-#include <sys/wait.h>
 #include <sys/sysinfo.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -77,7 +77,6 @@ double SelfCpuSeconds() {
          u.ru_stime.tv_usec / 1e6;
 }
 
-
 // A client of `addresses`: round_robin over them when `balanced`, else pick_first.
 std::unique_ptr<Client> Connect(const std::vector<std::string>& addresses, bool balanced,
                                 int max_attempts = 3) {
@@ -117,8 +116,9 @@ struct ClassifyRun {
   std::vector<double> replica_cpu;  // seconds, per replica
 };
 
-ClassifyRun RunClassify(const std::vector<ChildServer*>& replicas, const std::vector<Query>& queries,
-                        int clients, double warmup_s, double seconds) {
+ClassifyRun RunClassify(const std::vector<ChildServer*>& replicas,
+                        const std::vector<Query>& queries, int clients, double warmup_s,
+                        double seconds) {
   std::vector<std::string> addresses;
   for (const ChildServer* r : replicas) addresses.push_back(r->address());
   std::vector<std::unique_ptr<Client>> own;

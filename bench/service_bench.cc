@@ -92,7 +92,8 @@ std::vector<Sample> ReadSplit(const fs::path& root, const std::string& split, si
       if (file.extension() != ".pcd") continue;
       auto read = ReadPointCloud(file.string());
       if (!read.ok()) {
-        std::fprintf(stderr, "cannot read %s: %s\n", file.c_str(), read.status().ToString().c_str());
+        std::fprintf(stderr, "cannot read %s: %s\n", file.c_str(),
+                     read.status().ToString().c_str());
         return {};
       }
       out.push_back({class_dir.filename().string(), std::move(read->cloud)});
@@ -117,12 +118,10 @@ Data LoadData(const std::string& root, size_t gallery_size, size_t num_clouds) {
   if (!data.train.empty() && !data.test.empty()) {
     const size_t read = data.train.size();
     FillTo(data.train, gallery_size);
-    data.source = absl::StrCat("ModelNet10 (", read, " train clouds",
-                               read < gallery_size ? absl::StrCat(", first ", gallery_size - read,
-                                                                  " repeated")
-                                                   : "",
-                               "; ", data.test.size(), " test clouds; ",
-                               data.test[0].cloud.size(), " points each)");
+    data.source = absl::StrCat(
+        "ModelNet10 (", read, " train clouds",
+        read < gallery_size ? absl::StrCat(", first ", gallery_size - read, " repeated") : "", "; ",
+        data.test.size(), " test clouds; ", data.test[0].cloud.size(), " points each)");
     return data;
   }
   data.train.clear();
@@ -399,7 +398,8 @@ InProcessResult InProcess(const Gallery& gallery, const std::vector<Sample>& tes
     auto answer = gallery.Snapshot()->Classify(s.cloud, limits);
     r.labels.push_back(answer.ok() ? answer->label : "<error>");
   }
-  for (int i = 0; i < warmup; ++i) (void)gallery.Snapshot()->Classify(test[i % test.size()].cloud, limits);
+  for (int i = 0; i < warmup; ++i)
+    (void)gallery.Snapshot()->Classify(test[i % test.size()].cloud, limits);
   std::vector<int64_t> ns;
   ns.reserve(requests);
   double describe = 0, search = 0;
@@ -464,7 +464,8 @@ LoadResult Load(const std::string& address, const std::vector<Query>& queries, i
     for (int c = 0; c < clients; ++c) {
       warm.emplace_back([&, c] {
         v1::ClassifyResponse response;
-        for (int i = 0; i < 20; ++i) ClassifyOnce(*stubs[c], queries[(c + i) % queries.size()], mode, &response);
+        for (int i = 0; i < 20; ++i)
+          ClassifyOnce(*stubs[c], queries[(c + i) % queries.size()], mode, &response);
       });
     }
     for (auto& th : warm) th.join();
@@ -485,7 +486,8 @@ LoadResult Load(const std::string& address, const std::vector<Query>& queries, i
       for (size_t i = c * 7919; Clock::now() < deadline; ++i) {
         response.Clear();
         const auto t0 = Clock::now();
-        const grpc::Status status = ClassifyOnce(*stubs[c], queries[i % queries.size()], mode, &response);
+        const grpc::Status status =
+            ClassifyOnce(*stubs[c], queries[i % queries.size()], mode, &response);
         const auto t1 = Clock::now();
         if (!status.ok()) {
           ++errors;
@@ -498,7 +500,8 @@ LoadResult Load(const std::string& address, const std::vector<Query>& queries, i
   }
   const double cpu0 = ProcessCpuSeconds();
   const auto start = Clock::now();
-  deadline = start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
+  deadline =
+      start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
   go.store(true, std::memory_order_release);
   for (auto& th : threads) th.join();
   const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
@@ -531,7 +534,7 @@ bool CreateAndTrain(v1::ShapeId::Stub& stub, const std::string& spec, int augmen
   {
     grpc::ClientContext context;
     v1::CreateGalleryRequest request;
-    request.set_name(kGalleryName);  // k = 1
+    request.set_name(kGalleryName);     // k = 1
     request.set_descriptor_spec(spec);  // empty: the server's default
     if (augment_views > 0) {
       request.mutable_augmentation()->set_views(static_cast<uint32_t>(augment_views));
@@ -542,7 +545,8 @@ bool CreateAndTrain(v1::ShapeId::Stub& stub, const std::string& spec, int augmen
       std::fprintf(stderr, "CreateGallery: %s\n", status.error_message().c_str());
       return false;
     }
-    std::printf("gallery: %s, dimension %u\n", gallery.descriptor_spec().c_str(), gallery.dimension());
+    std::printf("gallery: %s, dimension %u\n", gallery.descriptor_spec().c_str(),
+                gallery.dimension());
   }
   const size_t per_stream = (train.size() + streams - 1) / streams;
   for (size_t first = 0; first < train.size(); first += per_stream) {
@@ -598,7 +602,8 @@ int Run(int argc, char** argv) {
   std::string log_level_name = "error";
   std::string log_format_name = "text";
   std::string log_file = "/tmp/service_bench_rpc.log";
-  app.add_option("--data", data_dir, "ModelNet10 folder with <class>/{train,test}/*.pcd")->capture_default_str();
+  app.add_option("--data", data_dir, "ModelNet10 folder with <class>/{train,test}/*.pcd")
+      ->capture_default_str();
   app.add_flag("--quick", quick, "tiny numbers for a CI smoke (~2 s)");
   std::string spec;
   app.add_option("--spec", spec, "descriptor spec of the gallery (default: the server's default)");
@@ -606,12 +611,16 @@ int Run(int argc, char** argv) {
                  "synthetic sensor views per trained cloud (view augmentation; 0: off)")
       ->capture_default_str()
       ->check(CLI::Range(0, 64));
-  app.add_option("--seconds", seconds, "duration of each concurrent-load run")->capture_default_str();
+  app.add_option("--seconds", seconds, "duration of each concurrent-load run")
+      ->capture_default_str();
   app.add_option("--gallery_size", gallery_size, "samples in the gallery")->capture_default_str();
   app.add_option("--clouds", num_clouds, "distinct query clouds (cycled)")->capture_default_str();
-  app.add_option("--requests", requests, "single-client classifications measured")->capture_default_str();
-  app.add_option("--warmup", warmup, "single-client classifications before measuring")->capture_default_str();
-  app.add_option("--train_streams", train_streams, "Train streams the gallery is filled over")->capture_default_str();
+  app.add_option("--requests", requests, "single-client classifications measured")
+      ->capture_default_str();
+  app.add_option("--warmup", warmup, "single-client classifications before measuring")
+      ->capture_default_str();
+  app.add_option("--train_streams", train_streams, "Train streams the gallery is filled over")
+      ->capture_default_str();
   app.add_option("--clients", clients, "concurrent client counts")->capture_default_str();
   app.add_option("--channels", channels_mode, "shared | per-client | both")->capture_default_str();
   app.add_option("--write_mode", write_mode_name, "unary | plain | coalesced (see ClassifyOnce)")
@@ -658,10 +667,11 @@ int Run(int argc, char** argv) {
     // points, a few distinct ones cycled (the cost does not depend on the shape).
     data.test.clear();
     for (size_t i = 0; i < std::min<size_t>(num_clouds, 16); ++i) {
-      data.test.push_back({"query", bench::SurfaceCloud(points, 900000 + static_cast<uint32_t>(i))});
+      data.test.push_back(
+          {"query", bench::SurfaceCloud(points, 900000 + static_cast<uint32_t>(i))});
     }
-    absl::StrAppend(&data.source, "; queries: ", data.test.size(), " synthetic clouds of ",
-                    points, " points");
+    absl::StrAppend(&data.source, "; queries: ", data.test.size(), " synthetic clouds of ", points,
+                    " points");
   }
   std::printf("clouds: %s\n", data.source.c_str());
 
@@ -717,8 +727,10 @@ int Run(int argc, char** argv) {
 
   std::vector<LoadResult> loads;
   for (int c : clients) {
-    if (channels_mode != "per-client") loads.push_back(Load(server->address(), queries, c, false, seconds, mode));
-    if (channels_mode != "shared" && c > 1) loads.push_back(Load(server->address(), queries, c, true, seconds, mode));
+    if (channels_mode != "per-client")
+      loads.push_back(Load(server->address(), queries, c, false, seconds, mode));
+    if (channels_mode != "shared" && c > 1)
+      loads.push_back(Load(server->address(), queries, c, true, seconds, mode));
   }
   capture.Mark();
   const std::string load_after = LoadAverage();
@@ -729,8 +741,9 @@ int Run(int argc, char** argv) {
 
   // ------------------------------------------------------------------ report
   const double ratio = local.stats.p50_us > 0 ? rpc.stats.p50_us / local.stats.p50_us : 0;
-  std::printf("\nSingle client, sequential, %lld classifications (after %d warm-up), write mode %s\n",
-              static_cast<long long>(rpc.stats.count), warmup, write_mode_name.c_str());
+  std::printf(
+      "\nSingle client, sequential, %lld classifications (after %d warm-up), write mode %s\n",
+      static_cast<long long>(rpc.stats.count), warmup, write_mode_name.c_str());
   std::printf("  %-12s %9s %9s %9s %9s\n", "", "p50 us", "p90 us", "p99 us", "mean us");
   std::printf("  %-12s %9.1f %9.1f %9.1f %9.1f\n", "RPC", rpc.stats.p50_us, rpc.stats.p90_us,
               rpc.stats.p99_us, rpc.stats.mean_us);
@@ -741,8 +754,10 @@ int Run(int argc, char** argv) {
   std::printf("  server-side describe %.1f us + search %.1f us (in-process: %.1f + %.1f)\n",
               rpc.server.describe_us, rpc.server.search_us, local.describe_us, local.search_us);
   const bool modelnet_size = points == 0 || points == 1024;
-  std::printf("  target p50 < 1000 us (1,024-point clouds): %s\n",
-              !modelnet_size ? "not this size" : rpc.stats.p50_us < 1000 ? "MET" : "MISSED");
+  std::printf("  target p50 < 1000 us (1,024-point clouds): %s\n", !modelnet_size ? "not this size"
+                                                                   : rpc.stats.p50_us < 1000
+                                                                       ? "MET"
+                                                                       : "MISSED");
   if (rpc.errors > 0 || rpc.label_mismatches > 0) {
     std::printf("  WARNING: %lld errors, %lld answers differ from in-process\n",
                 static_cast<long long>(rpc.errors), static_cast<long long>(rpc.label_mismatches));
@@ -757,7 +772,8 @@ int Run(int argc, char** argv) {
                 l.stats.p99_us, l.cpu_us_per_call, l.cpu_us_per_call - l.client_cpu_us_per_call,
                 static_cast<long long>(l.errors));
   }
-  std::printf("  (cpu us/call: the whole process; server cpu: less the load generator's threads)\n");
+  std::printf(
+      "  (cpu us/call: the whole process; server cpu: less the load generator's threads)\n");
   // The best 16-client configuration (or the largest client count measured).
   const int top = *std::max_element(clients.begin(), clients.end());
   const LoadResult* best = nullptr;
@@ -767,18 +783,19 @@ int Run(int argc, char** argv) {
   if (std::find(clients.begin(), clients.end(), 16) != clients.end()) {
     std::printf("  best at 16 clients: %.0f /s; target >= 3000 /s (1,024-point clouds): %s\n",
                 BestAt(loads, 16),
-                !modelnet_size ? "not this size" : BestAt(loads, 16) >= 3000 ? "MET" : "MISSED");
+                !modelnet_size              ? "not this size"
+                : BestAt(loads, 16) >= 3000 ? "MET"
+                                            : "MISSED");
   }
   if (options.log.level < LogLevel::kError) {
     const double rate = log.window_seconds > 0 ? log.window_lines / log.window_seconds : 0;
-    std::printf("\nServer log (%s, %s): %lld bytes, %lld lines (%.0f bytes/line) in %s; "
-                "%.0f lines/s, %.0f KB/s over the RPC phases (%.1f s)\n",
-                log_level_name.c_str(), log_format_name.c_str(),
-                static_cast<long long>(log.bytes), static_cast<long long>(log.lines),
-                log.lines > 0 ? static_cast<double>(log.bytes) / log.lines : 0.0,
-                log_file.c_str(), rate,
-                log.window_lines > 0 ? rate * log.bytes / log.lines / 1e3 : 0.0,
-                log.window_seconds);
+    std::printf(
+        "\nServer log (%s, %s): %lld bytes, %lld lines (%.0f bytes/line) in %s; "
+        "%.0f lines/s, %.0f KB/s over the RPC phases (%.1f s)\n",
+        log_level_name.c_str(), log_format_name.c_str(), static_cast<long long>(log.bytes),
+        static_cast<long long>(log.lines),
+        log.lines > 0 ? static_cast<double>(log.bytes) / log.lines : 0.0, log_file.c_str(), rate,
+        log.window_lines > 0 ? rate * log.bytes / log.lines / 1e3 : 0.0, log.window_seconds);
   }
   std::printf("load average after: %s\n", load_after.c_str());
 
@@ -787,25 +804,26 @@ int Run(int argc, char** argv) {
     load_json.push_back(absl::StrFormat(
         R"({"clients":%d,"channels":"%s","per_second":%.1f,"p50_us":%.1f,"p99_us":%.1f,"cpu_us_per_call":%.1f,"server_cpu_us_per_call":%.1f,"errors":%d})",
         l.clients, l.channel_per_client ? "per-client" : "shared", l.per_second, l.stats.p50_us,
-        l.stats.p99_us, l.cpu_us_per_call, l.cpu_us_per_call - l.client_cpu_us_per_call,
-        l.errors));
+        l.stats.p99_us, l.cpu_us_per_call, l.cpu_us_per_call - l.client_cpu_us_per_call, l.errors));
   }
   std::fputs(absl::StrFormat(
-      "JSON {\"bench\":\"service\",\"data\":\"%s\",\"points\":%zu,\"gallery_size\":%zu,"
-      "\"write_mode\":\"%s\",\"log_level\":\"%s\",\"log_format\":\"%s\","
-      "\"log_bytes\":%d,\"log_lines\":%d,\"log_lines_per_second\":%.0f,"
-      "\"rpc\":%s,\"in_process\":%s,\"overhead_ratio_p50\":%.2f,"
-      "\"overhead_us_p50\":%.1f,\"server_describe_us\":%.1f,\"server_search_us\":%.1f,"
-      "\"in_process_2t_per_second\":%.1f,\"load\":[%s],\"best_top\":%.1f,"
-      "\"loadavg_before\":\"%s\",\"loadavg_after\":\"%s\"}\n",
-      data.source.rfind("SYNTHETIC", 0) == 0 ? "synthetic" : "modelnet10",
-      points == 0 ? data.test[0].cloud.size() : points, gallery_size,
-      write_mode_name, log_level_name, log_format_name, log.bytes, log.lines,
-      log.window_seconds > 0 ? log.window_lines / log.window_seconds : 0.0,
-      StatsJson(rpc.stats), StatsJson(local.stats), ratio,
-      rpc.stats.p50_us - local.stats.p50_us, rpc.server.describe_us, rpc.server.search_us,
-      local.throughput_2t, absl::StrJoin(load_json, ","), best ? best->per_second : 0.0,
-      load_before, load_after).c_str(), stdout);
+                 "JSON {\"bench\":\"service\",\"data\":\"%s\",\"points\":%zu,\"gallery_size\":%zu,"
+                 "\"write_mode\":\"%s\",\"log_level\":\"%s\",\"log_format\":\"%s\","
+                 "\"log_bytes\":%d,\"log_lines\":%d,\"log_lines_per_second\":%.0f,"
+                 "\"rpc\":%s,\"in_process\":%s,\"overhead_ratio_p50\":%.2f,"
+                 "\"overhead_us_p50\":%.1f,\"server_describe_us\":%.1f,\"server_search_us\":%.1f,"
+                 "\"in_process_2t_per_second\":%.1f,\"load\":[%s],\"best_top\":%.1f,"
+                 "\"loadavg_before\":\"%s\",\"loadavg_after\":\"%s\"}\n",
+                 data.source.rfind("SYNTHETIC", 0) == 0 ? "synthetic" : "modelnet10",
+                 points == 0 ? data.test[0].cloud.size() : points, gallery_size, write_mode_name,
+                 log_level_name, log_format_name, log.bytes, log.lines,
+                 log.window_seconds > 0 ? log.window_lines / log.window_seconds : 0.0,
+                 StatsJson(rpc.stats), StatsJson(local.stats), ratio,
+                 rpc.stats.p50_us - local.stats.p50_us, rpc.server.describe_us,
+                 rpc.server.search_us, local.throughput_2t, absl::StrJoin(load_json, ","),
+                 best ? best->per_second : 0.0, load_before, load_after)
+                 .c_str(),
+             stdout);
   return rpc.errors > 0 ? 1 : 0;
 }
 

@@ -123,8 +123,7 @@ int Run(int argc, char** argv) {
       uint64_t next_id = static_cast<uint64_t>(samples) + 1;
       for (int b = 0; b < 3; ++b) {
         for (int i = 0; i < 10; ++i) {
-          std::vector<StoredSample> batch(static_cast<size_t>(batch_sizes[b]),
-                                          gallery.samples[0]);
+          std::vector<StoredSample> batch(static_cast<size_t>(batch_sizes[b]), gallery.samples[0]);
           for (StoredSample& s : batch) s.id = next_id++;
           const absl::Time a0 = absl::Now();
           if (!(*store)->AppendSamples("bench", batch, absl::Now(), 0).ok()) return 1;
@@ -172,8 +171,7 @@ int Run(int argc, char** argv) {
   std::printf("%-52s %10.3f s\n", "baseline: index rebuilt from memory (no disk)",
               Median(restore_s));
   std::printf("%-52s %10.2fx\n", "start-up / baseline", Median(load_s) / Median(restore_s));
-  std::printf("%-52s %10.3f s\n", "SaveGallery of the whole gallery (an import)",
-              Median(save_s));
+  std::printf("%-52s %10.3f s\n", "SaveGallery of the whole gallery (an import)", Median(save_s));
   for (int b = 0; b < 3; ++b) {
     std::printf("%-52s %10.2f ms\n",
                 absl::StrCat("AppendSamples of ", batch_sizes[b], " (one fsync'd commit)").c_str(),
@@ -186,15 +184,16 @@ int Run(int argc, char** argv) {
   raw /= static_cast<double>(samples);
   const double resident = Median(resident_per_sample);
   std::printf("%-52s %10.0f B\n", "raw floats + label + id per sample", raw);
-  std::printf("%-52s %10.0f B (%.2fx raw)\n",
-              "resident memory per loaded sample (RSS growth)", resident, resident / raw);
-  std::printf("JSON {\"bench\":\"store\",\"samples\":%lld,\"dim\":%d,\"startup_s\":%.3f,"
-              "\"baseline_s\":%.3f,\"save_s\":%.3f,\"file_bytes_per_sample\":%.1f,"
-              "\"raw_bytes_per_sample\":%.1f,\"resident_bytes_per_sample\":%.1f,"
-              "\"approximate_min_vectors\":%lld,\"approximate_ready_s\":%.3f}\n",
-              static_cast<long long>(samples), dim, Median(load_s), Median(restore_s),
-              Median(save_s), bytes_per_sample, raw, resident,
-              static_cast<long long>(limits.approximate.min_vectors), Median(ready_s));
+  std::printf("%-52s %10.0f B (%.2fx raw)\n", "resident memory per loaded sample (RSS growth)",
+              resident, resident / raw);
+  std::printf(
+      "JSON {\"bench\":\"store\",\"samples\":%lld,\"dim\":%d,\"startup_s\":%.3f,"
+      "\"baseline_s\":%.3f,\"save_s\":%.3f,\"file_bytes_per_sample\":%.1f,"
+      "\"raw_bytes_per_sample\":%.1f,\"resident_bytes_per_sample\":%.1f,"
+      "\"approximate_min_vectors\":%lld,\"approximate_ready_s\":%.3f}\n",
+      static_cast<long long>(samples), dim, Median(load_s), Median(restore_s), Median(save_s),
+      bytes_per_sample, raw, resident, static_cast<long long>(limits.approximate.min_vectors),
+      Median(ready_s));
   return 0;
 }
 

@@ -26,8 +26,8 @@ struct DescriptorParam {
 // One registry entry. Adding a descriptor is one file pair in core/descriptors/ that defines
 // an entry like this, plus one line in the table in descriptor_registry.cc.
 struct DescriptorKind {
-  std::string kind;     // "rphsd"
-  std::string summary;  // one line for --help and ListDescriptors
+  std::string kind;                     // "rphsd"
+  std::string summary;                  // one line for --help and ListDescriptors
   std::vector<DescriptorParam> params;  // canonical order
   // Builds the descriptor from a spec whose keys are all known and all present (defaults
   // filled). Returns InvalidArgument for values out of range.

@@ -35,7 +35,8 @@ TEST(DescriptorRegistryTest, EveryKindBuildsFromDefaultsWithACanonicalSpec) {
     size_t next = 0;
     for (const auto& [name, value] : (*d)->spec().params) {
       while (next < kind.params.size() && kind.params[next].name != name) {
-        EXPECT_TRUE(kind.params[next].omitted_at_default) << kind.kind << "." << kind.params[next].name;
+        EXPECT_TRUE(kind.params[next].omitted_at_default)
+            << kind.kind << "." << kind.params[next].name;
         ++next;
       }
       ASSERT_LT(next, kind.params.size()) << kind.kind << ": " << name << " out of order";

@@ -122,8 +122,8 @@ absl::StatusOr<int64_t> SpecParams::Int(absl::string_view key, int64_t min, int6
         absl::StrCat(spec_.kind, ": ", key, "=", *text, " is not an integer"));
   }
   if (value < min || value > max) {
-    return absl::InvalidArgumentError(absl::StrCat(spec_.kind, ": ", key, "=", value,
-                                                   " is outside [", min, ", ", max, "]"));
+    return absl::InvalidArgumentError(
+        absl::StrCat(spec_.kind, ": ", key, "=", value, " is outside [", min, ", ", max, "]"));
   }
   return value;
 }
@@ -137,8 +137,8 @@ absl::StatusOr<double> SpecParams::Double(absl::string_view key, double min, dou
         absl::StrCat(spec_.kind, ": ", key, "=", *text, " is not a finite number"));
   }
   if (value < min || value > max) {
-    return absl::InvalidArgumentError(absl::StrCat(spec_.kind, ": ", key, "=", *text,
-                                                   " is outside [", min, ", ", max, "]"));
+    return absl::InvalidArgumentError(
+        absl::StrCat(spec_.kind, ": ", key, "=", *text, " is outside [", min, ", ", max, "]"));
   }
   return value;
 }

@@ -30,8 +30,8 @@ TEST(DescriptorSpecTest, KindAloneAndBracketedValues) {
   // Commas inside [...] belong to the value; a ':' inside a value is kept.
   const auto custom = DescriptorSpec::Parse("rphsd:refs=[0,0,0;1,0,0],bins=4,x=fibonacci:9");
   ASSERT_TRUE(custom.ok()) << custom.status();
-  EXPECT_THAT(custom->params, ::testing::ElementsAre(Pair("refs", "[0,0,0;1,0,0]"), Pair("bins", "4"),
-                                                     Pair("x", "fibonacci:9")));
+  EXPECT_THAT(custom->params, ::testing::ElementsAre(Pair("refs", "[0,0,0;1,0,0]"),
+                                                     Pair("bins", "4"), Pair("x", "fibonacci:9")));
   const auto again = DescriptorSpec::Parse(custom->ToString());
   ASSERT_TRUE(again.ok());
   EXPECT_EQ(*again, *custom);
@@ -60,7 +60,8 @@ TEST(SpecParamsTest, TypedAccessWithRangesAndChoices) {
   const DescriptorSpec spec{"k", {{"n", "12"}, {"x", "0.25"}, {"mode", "Fast"}, {"bad", "1e999"}}};
   const SpecParams params(spec);
   EXPECT_EQ(*params.Int("n", 1, 100), 12);
-  EXPECT_THAT(params.Int("n", 13, 100).status().message(), HasSubstr("k: n=12 is outside [13, 100]"));
+  EXPECT_THAT(params.Int("n", 13, 100).status().message(),
+              HasSubstr("k: n=12 is outside [13, 100]"));
   EXPECT_THAT(params.Int("x", 0, 1).status().message(), HasSubstr("x=0.25 is not an integer"));
   EXPECT_DOUBLE_EQ(*params.Double("x", 0, 1), 0.25);
   EXPECT_THAT(params.Double("bad", 0, 1).status().message(), HasSubstr("is not a finite number"));

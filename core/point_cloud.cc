@@ -19,9 +19,8 @@ PointCloud::PointCloud(std::initializer_list<Eigen::Vector3f> points) {
 }
 
 double CloudStats::MaxAbsCentred() const {
-  return std::max({max.x() - centroid.x(), centroid.x() - min.x(),
-                   max.y() - centroid.y(), centroid.y() - min.y(),
-                   max.z() - centroid.z(), centroid.z() - min.z()});
+  return std::max({max.x() - centroid.x(), centroid.x() - min.x(), max.y() - centroid.y(),
+                   centroid.y() - min.y(), max.z() - centroid.z(), centroid.z() - min.z()});
 }
 
 namespace {
@@ -34,9 +33,9 @@ absl::Status NonFiniteError(const PointCloud& cloud) {
       // carry no point data.
       const char* axis = !std::isfinite(p.x()) ? "x" : (!std::isfinite(p.y()) ? "y" : "z");
       const float bad = !std::isfinite(p.x()) ? p.x() : (!std::isfinite(p.y()) ? p.y() : p.z());
-      return absl::InvalidArgumentError(absl::StrCat(
-          "point ", i, " has a non-finite coordinate (", axis, " is ", bad,
-          "); drop or repair non-finite points before describing the cloud"));
+      return absl::InvalidArgumentError(
+          absl::StrCat("point ", i, " has a non-finite coordinate (", axis, " is ", bad,
+                       "); drop or repair non-finite points before describing the cloud"));
     }
   }
   return absl::InternalError("non-finite coordinate detected but not found again");
@@ -47,16 +46,16 @@ absl::Status NonFiniteError(const PointCloud& cloud) {
 absl::StatusOr<CloudStats> ValidateCloud(const PointCloud& cloud, const CloudLimits& limits) {
   const size_t n = cloud.size();
   if (cloud.xyz().size() % 3 != 0) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "cloud holds ", cloud.xyz().size(), " floats, not a whole number of xyz points"));
+    return absl::InvalidArgumentError(absl::StrCat("cloud holds ", cloud.xyz().size(),
+                                                   " floats, not a whole number of xyz points"));
   }
   if (n < 3) {
     return absl::InvalidArgumentError(
         absl::StrCat("cloud has ", n, " point", n == 1 ? "" : "s", "; at least 3 are needed"));
   }
   if (n > limits.max_points) {
-    return absl::ResourceExhaustedError(absl::StrCat(
-        "cloud has ", n, " points, more than the limit of ", limits.max_points));
+    return absl::ResourceExhaustedError(
+        absl::StrCat("cloud has ", n, " points, more than the limit of ", limits.max_points));
   }
 
   // One pass over the floats: box, sum and a finiteness flag. Four points (12 floats) per
@@ -85,7 +84,8 @@ absl::StatusOr<CloudStats> ValidateCloud(const PointCloud& cloud, const CloudLim
     for (size_t b = 0; b < blocked; b += kLanes) {
       for (int v = 0; v < 3; ++v) {
         const __m128 x = _mm_loadu_ps(xyz + b + 4 * v);
-        bad = _mm_or_si128(bad, _mm_cmpeq_epi32(_mm_and_si128(_mm_castps_si128(x), exponent), exponent));
+        bad = _mm_or_si128(bad,
+                           _mm_cmpeq_epi32(_mm_and_si128(_mm_castps_si128(x), exponent), exponent));
         vsum[2 * v] = _mm_add_pd(vsum[2 * v], _mm_cvtps_pd(x));
         vsum[2 * v + 1] = _mm_add_pd(vsum[2 * v + 1], _mm_cvtps_pd(_mm_movehl_ps(x, x)));
         vlo[v] = _mm_min_ps(x, vlo[v]);  // same operand order as `v < lo ? v : lo`
@@ -129,8 +129,8 @@ absl::StatusOr<CloudStats> ValidateCloud(const PointCloud& cloud, const CloudLim
   }
   if (!all_finite) return NonFiniteError(cloud);
   if (lo[0] == hi[0] && lo[1] == hi[1] && lo[2] == hi[2]) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "all ", n, " points are identical: the cloud has zero extent and no shape"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("all ", n, " points are identical: the cloud has zero extent and no shape"));
   }
 
   CloudStats stats;

@@ -9,9 +9,9 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 
-#define SHAPEID_RETURN_IF_ERROR(expr)                 \
-  do {                                                \
-    ::absl::Status shapeid_status_ = (expr);          \
+#define SHAPEID_RETURN_IF_ERROR(expr)                  \
+  do {                                                 \
+    ::absl::Status shapeid_status_ = (expr);           \
     if (!shapeid_status_.ok()) return shapeid_status_; \
   } while (false)
 
@@ -24,8 +24,8 @@
   SHAPEID_ASSIGN_OR_RETURN_IMPL_(SHAPEID_STATUS_CONCAT_(shapeid_statusor_, __LINE__), lhs, rexpr)
 
 #define SHAPEID_ASSIGN_OR_RETURN_IMPL_(statusor, lhs, rexpr) \
-  auto statusor = (rexpr);                                    \
-  if (!statusor.ok()) return std::move(statusor).status();    \
+  auto statusor = (rexpr);                                   \
+  if (!statusor.ok()) return std::move(statusor).status();   \
   lhs = std::move(statusor).value()
 
 #endif  // SHAPEID_CORE_STATUS_MACROS_H_

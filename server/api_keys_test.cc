@@ -114,8 +114,8 @@ TEST(AuthorizationTest, EveryShapeIdMethodIsInTheScopeTable) {
   const google::protobuf::ServiceDescriptor* service =
       v1::DescribeRequest::descriptor()->file()->FindServiceByName("ShapeId");
   ASSERT_NE(service, nullptr);
-  const std::vector<std::string> read = {"Describe",       "DescribeCloud", "Classify",
-                                         "ClassifyCloud",  "GetGallery",    "ListGalleries",
+  const std::vector<std::string> read = {"Describe",        "DescribeCloud", "Classify",
+                                         "ClassifyCloud",   "GetGallery",    "ListGalleries",
                                          "ListDescriptors", "GetServerStats"};
   const std::vector<std::string> write = {"Train", "CreateGallery", "RemoveSamples",
                                           "ImportGallery", "ExportGallery"};

@@ -51,8 +51,7 @@ std::optional<Scope> RequiredScope(absl::string_view full_method) {
 }
 
 absl::Status Authorize(const ApiKeyStore& keys, absl::string_view full_method,
-                       std::optional<absl::string_view> authorization,
-                       const ApiKeyEntry** caller) {
+                       std::optional<absl::string_view> authorization, const ApiKeyEntry** caller) {
   if (keys.empty()) return absl::OkStatus();
   const std::optional<Scope> needed = RequiredScope(full_method);
   if (!needed.has_value()) return absl::OkStatus();

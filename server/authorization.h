@@ -19,7 +19,8 @@ inline constexpr absl::string_view kAuthorizationMetadata = "authorization";
 //   read   Describe, DescribeCloud, Classify, ClassifyCloud, GetGallery, ListGalleries,
 //          ListDescriptors, GetServerStats
 //   write  Train, CreateGallery, RemoveSamples, ImportGallery, ExportGallery
-//   admin  DeleteGallery, SetLogLevel, and every method the table does not name (a new RPC is admin-only
+//   admin  DeleteGallery, SetLogLevel, and every method the table does not name (a new RPC is
+//   admin-only
 //          until someone decides otherwise)
 // nullopt: open to every caller, key or not: grpc.health.v1 (Kubernetes' gRPC probes cannot
 // send metadata).

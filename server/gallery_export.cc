@@ -213,17 +213,16 @@ absl::Status GalleryImportAssembler::AddSamples(const v1::ExportedSamples& sampl
   for (uint64_t i = 0; i < n; ++i) {
     const uint32_t views = counted ? samples.view_counts(static_cast<int>(i)) : 1;
     if (views < 1 || views > 1 + AugmentOptions::kMaxViews) {
-      return absl::InvalidArgumentError(absl::StrCat("sample id ",
-                                                     samples.sample_ids(static_cast<int>(i)),
-                                                     " has ", views, " views; 1 to ",
-                                                     1 + AugmentOptions::kMaxViews, " allowed"));
+      return absl::InvalidArgumentError(
+          absl::StrCat("sample id ", samples.sample_ids(static_cast<int>(i)), " has ", views,
+                       " views; 1 to ", 1 + AugmentOptions::kMaxViews, " allowed"));
     }
     vectors += views;
   }
   if (static_cast<uint64_t>(samples.features_size()) != vectors * dimension) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        n, " samples with ", vectors, " views of dimension ", dimension, " need ",
-        vectors * dimension, " features, got ", samples.features_size()));
+    return absl::InvalidArgumentError(
+        absl::StrCat(n, " samples with ", vectors, " views of dimension ", dimension, " need ",
+                     vectors * dimension, " features, got ", samples.features_size()));
   }
   const auto received = static_cast<uint64_t>(gallery_.samples.size());
   if (received + n > announced_) {

@@ -80,8 +80,8 @@ absl::StatusOr<LogLevel> ParseLogLevel(absl::string_view name) {
        {LogLevel::kDebug, LogLevel::kInfo, LogLevel::kWarning, LogLevel::kError}) {
     if (absl::EqualsIgnoreCase(name, LogLevelName(level))) return level;
   }
-  return absl::InvalidArgumentError(absl::StrCat(
-      "log level '", name.substr(0, 32), "' is not one of debug, info, warning, error"));
+  return absl::InvalidArgumentError(absl::StrCat("log level '", name.substr(0, 32),
+                                                 "' is not one of debug, info, warning, error"));
 }
 
 absl::StatusOr<LogFormat> ParseLogFormat(absl::string_view name) {

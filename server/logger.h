@@ -13,8 +13,8 @@
 #include <variant>
 
 #include "absl/status/statusor.h"
-#include "absl/types/span.h"
 #include "absl/strings/string_view.h"
+#include "absl/types/span.h"
 
 namespace shapeid {
 
@@ -60,8 +60,7 @@ class Logger {
   explicit Logger(LoggerOptions options = {}, Sink sink = nullptr);
 
   bool Enabled(LogLevel level) const { return level >= level_.load(std::memory_order_relaxed); }
-  void Log(LogLevel level, absl::string_view message,
-           absl::Span<const LogField> fields = {}) const;
+  void Log(LogLevel level, absl::string_view message, absl::Span<const LogField> fields = {}) const;
   void Info(absl::string_view message, absl::Span<const LogField> fields = {}) const {
     Log(LogLevel::kInfo, message, fields);
   }

@@ -24,8 +24,11 @@ TEST(LoggerTest, JsonLinesParseWhateverTheFieldsHold) {
   // A gallery name as a hostile client might send it: quotes, a newline, a control
   // character, bytes that are not UTF-8.
   const std::string hostile = "a\"b\nc\x01\xff\xfe}{";
-  log.Info("rpc", {{"method", "Train"}, {"gallery", hostile}, {"us", int64_t{712}},
-                   {"ratio", 0.25}, {"empty", ""}});
+  log.Info("rpc", {{"method", "Train"},
+                   {"gallery", hostile},
+                   {"us", int64_t{712}},
+                   {"ratio", 0.25},
+                   {"empty", ""}});
   ASSERT_EQ(lines.size(), 1u);
   EXPECT_EQ(lines[0].back(), '\n');
   EXPECT_EQ(lines[0].find('\n'), lines[0].size() - 1) << "one line, whatever the fields hold";
@@ -39,16 +42,21 @@ TEST(LoggerTest, JsonLinesParseWhateverTheFieldsHold) {
   // The valid characters survive; the invalid bytes become U+FFFD.
   EXPECT_EQ(line["gallery"], "a\"b\nc\x01\xEF\xBF\xBD\xEF\xBF\xBD}{");
   // RFC 3339 UTC with microseconds.
-  EXPECT_THAT(line["time"].get<std::string>(), testing::MatchesRegex(
-                                                    "[0-9]{4}-[0-9]{2}-[0-9]{2}T[0-9]{2}:[0-9]{2}:"
-                                                    "[0-9]{2}\\.[0-9]{6}Z"));
+  EXPECT_THAT(line["time"].get<std::string>(),
+              testing::MatchesRegex("[0-9]{4}-[0-9]{2}-[0-9]{2}T[0-9]{2}:[0-9]{2}:"
+                                    "[0-9]{2}\\.[0-9]{6}Z"));
 }
 
 TEST(LoggerTest, TextLinesQuoteWhatWouldBreakKeyValueParsing) {
   std::vector<std::string> lines;
   const Logger log = Capturing({LogFormat::kText, LogLevel::kInfo}, &lines);
-  log.Info("rpc", {{"method", "Classify"}, {"gallery", "lab"}, {"error", "two words"},
-                   {"tricky", "a=b"}, {"newline", "x\ny"}, {"empty", ""}, {"n", 3}});
+  log.Info("rpc", {{"method", "Classify"},
+                   {"gallery", "lab"},
+                   {"error", "two words"},
+                   {"tricky", "a=b"},
+                   {"newline", "x\ny"},
+                   {"empty", ""},
+                   {"n", 3}});
   ASSERT_EQ(lines.size(), 1u);
   EXPECT_EQ(lines[0],
             "shapeid-server: rpc method=Classify gallery=lab error=\"two words\" "
@@ -73,7 +81,8 @@ TEST(LoggerTest, AControlCharacterInAMessageCannotStartAForgedLine) {
   const Logger log = Capturing({LogFormat::kText, LogLevel::kInfo}, &lines);
   log.Warning("gallery 'x\nshapeid-server: forged' set aside");
   ASSERT_EQ(lines.size(), 1u);
-  EXPECT_EQ(lines[0], "shapeid-server: WARNING: gallery 'x\\x0ashapeid-server: forged' set aside\n");
+  EXPECT_EQ(lines[0],
+            "shapeid-server: WARNING: gallery 'x\\x0ashapeid-server: forged' set aside\n");
 }
 
 TEST(LoggerTest, LinesBelowTheLevelAreDroppedAndTheLevelChangesLive) {

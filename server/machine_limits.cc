@@ -78,7 +78,7 @@ size_t MemoryLimitBytes() {
 int UsableCores() {
   int cores = SchedulableCpus();
   int quota = ParseCgroupCpuMax(FirstLine("/sys/fs/cgroup/cpu.max"));  // cgroup v2
-  if (quota == 0) {                                                     // cgroup v1
+  if (quota == 0) {                                                    // cgroup v1
     quota = CoresFromQuota(ReadInteger("/sys/fs/cgroup/cpu/cpu.cfs_quota_us"),
                            ReadInteger("/sys/fs/cgroup/cpu/cpu.cfs_period_us"));
   }

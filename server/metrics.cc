@@ -42,9 +42,8 @@ const prometheus::Histogram::BucketBoundaries& WorkBuckets() {
 // (a caller's backlog is bounded by --max_caller_backlog_seconds).
 const prometheus::Histogram::BucketBoundaries& WaitBuckets() {
   static const auto* buckets = new prometheus::Histogram::BucketBoundaries{
-      0.00001, 0.000025, 0.00005, 0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01,
-      0.025,   0.05,     0.1,     0.25,   0.5,     1,      2.5,   5,      10,    30,
-      60,      120,      300};
+      0.00001, 0.000025, 0.00005, 0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05,
+      0.1,     0.25,     0.5,     1,      2.5,     5,      10,    30,     60,    120,  300};
   return *buckets;
 }
 const prometheus::Histogram::BucketBoundaries& StoreBuckets() {

@@ -2,10 +2,10 @@
 
 #include <limits>
 #include <map>
-#include <set>
-#include <thread>
 #include <memory>
+#include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "absl/strings/str_cat.h"
@@ -77,9 +77,9 @@ TEST(ServerMetricsTest, CountsCallsByMethodGalleryAndCode) {
       Value(metrics,
             R"(shapeid_request_duration_seconds_bucket{method="ClassifyCloud",le="0.00075"})"),
       0);
-  EXPECT_EQ(
-      Value(metrics, R"(shapeid_request_duration_seconds_bucket{method="ClassifyCloud",le="0.001"})"),
-      2);
+  EXPECT_EQ(Value(metrics,
+                  R"(shapeid_request_duration_seconds_bucket{method="ClassifyCloud",le="0.001"})"),
+            2);
   EXPECT_EQ(metrics.points_received(), 3000u);
 }
 
@@ -101,15 +101,19 @@ TEST(ServerMetricsTest, NamesNotHeldAreUnknownAndGalleriesPastTheLimitFold) {
   metrics.RecordCall(Call("GetGallery", "c", absl::StatusCode::kOk));  // past the limit
   const std::string text = Scrape(metrics);
   EXPECT_EQ(
-      Value(metrics, R"(shapeid_requests_total{code="NOT_FOUND",gallery="_unknown",method="GetGallery"})"),
+      Value(metrics,
+            R"(shapeid_requests_total{code="NOT_FOUND",gallery="_unknown",method="GetGallery"})"),
       3);
   EXPECT_THAT(text, Not(HasSubstr("nope")));
-  EXPECT_EQ(Value(metrics,
-                  R"(shapeid_requests_total{code="FAILED_PRECONDITION",gallery="a",method="Classify"})"),
-            1);
-  EXPECT_EQ(Value(metrics, R"(shapeid_requests_total{code="OK",gallery="b",method="GetGallery"})"), 1);
   EXPECT_EQ(
-      Value(metrics, R"(shapeid_requests_total{code="OK",gallery="_other",method="GetGallery"})"), 1);
+      Value(metrics,
+            R"(shapeid_requests_total{code="FAILED_PRECONDITION",gallery="a",method="Classify"})"),
+      1);
+  EXPECT_EQ(Value(metrics, R"(shapeid_requests_total{code="OK",gallery="b",method="GetGallery"})"),
+            1);
+  EXPECT_EQ(
+      Value(metrics, R"(shapeid_requests_total{code="OK",gallery="_other",method="GetGallery"})"),
+      1);
   // The scrape-time gauges fold the same way: a and b by name, c and d as _other.
   EXPECT_EQ(Value(metrics, "shapeid_galleries"), 4);
   EXPECT_EQ(Value(metrics, R"(shapeid_gallery_samples{gallery="a"})"), 0);
@@ -130,13 +134,14 @@ TEST(ServerMetricsTest, OnlyGalleriesTheServerHoldsBecomeLabels) {
   metrics.RecordCall(Call("DescribeCloud", "bad\xff", absl::StatusCode::kOk));
   metrics.RecordCall(Call("DeleteGallery", "gone", absl::StatusCode::kOk));  // just deleted
   metrics.RecordCall(Call("GetGallery", "kept", absl::StatusCode::kOk));
+  EXPECT_EQ(Value(metrics,
+                  R"(shapeid_requests_total{code="OK",gallery="_unknown",method="DescribeCloud"})"),
+            3);
   EXPECT_EQ(
-      Value(metrics, R"(shapeid_requests_total{code="OK",gallery="_unknown",method="DescribeCloud"})"),
-      3);
-  EXPECT_EQ(Value(metrics, R"(shapeid_requests_total{code="OK",gallery="gone",method="DeleteGallery"})"),
-            1);
-  EXPECT_EQ(Value(metrics, R"(shapeid_requests_total{code="OK",gallery="kept",method="GetGallery"})"),
-            1);
+      Value(metrics, R"(shapeid_requests_total{code="OK",gallery="gone",method="DeleteGallery"})"),
+      1);
+  EXPECT_EQ(
+      Value(metrics, R"(shapeid_requests_total{code="OK",gallery="kept",method="GetGallery"})"), 1);
   EXPECT_THAT(Scrape(metrics), Not(HasSubstr("xxxxxxxx")));
 }
 
@@ -192,8 +197,7 @@ TEST(ServerMetricsTest, DescribeSearchAndStoreWrites) {
   EXPECT_EQ(Value(metrics, R"(shapeid_describe_duration_seconds_count{descriptor="rphsd"})"), 1);
   EXPECT_EQ(Value(metrics, R"(shapeid_search_duration_seconds_count{index="exact"})"), 1);
   EXPECT_EQ(Value(metrics, R"(shapeid_search_duration_seconds_count{index="approximate"})"), 1);
-  EXPECT_EQ(Value(metrics, R"(shapeid_store_write_duration_seconds_count{operation="append"})"),
-            2);
+  EXPECT_EQ(Value(metrics, R"(shapeid_store_write_duration_seconds_count{operation="append"})"), 2);
   EXPECT_EQ(Value(metrics, R"(shapeid_store_write_failures_total{operation="append"})"), 1);
 }
 
@@ -203,10 +207,10 @@ TEST(ServerMetricsTest, MethodSummariesCountErrorsAndEstimateQuantiles) {
   for (int i = 0; i < 98; ++i) {
     metrics.RecordCall(Call("ClassifyCloud", "", absl::StatusCode::kOk, absl::Microseconds(600)));
   }
-  metrics.RecordCall(Call("ClassifyCloud", "", absl::StatusCode::kInvalidArgument,
-                          absl::Milliseconds(40)));
-  metrics.RecordCall(Call("ClassifyCloud", "", absl::StatusCode::kUnavailable,
-                          absl::Milliseconds(40)));
+  metrics.RecordCall(
+      Call("ClassifyCloud", "", absl::StatusCode::kInvalidArgument, absl::Milliseconds(40)));
+  metrics.RecordCall(
+      Call("ClassifyCloud", "", absl::StatusCode::kUnavailable, absl::Milliseconds(40)));
   metrics.RecordCall(Call("Train", "", absl::StatusCode::kOk, absl::Seconds(2)));
   const std::vector<MethodSummary> summaries = metrics.MethodSummaries();
   ASSERT_EQ(summaries.size(), 2u);

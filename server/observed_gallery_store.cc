@@ -29,8 +29,8 @@ absl::Status ObservedGalleryStore::AppendSamples(absl::string_view name,
 }
 
 absl::Status ObservedGalleryStore::RemoveSamples(absl::string_view name,
-                                                 absl::Span<const uint64_t> ids,
-                                                 absl::Time updated, uint64_t version) {
+                                                 absl::Span<const uint64_t> ids, absl::Time updated,
+                                                 uint64_t version) {
   return Timed("remove", [&] { return store_->RemoveSamples(name, ids, updated, version); });
 }
 

@@ -69,7 +69,8 @@ absl::StatusOr<ProcessStats> ReadProcessStats() {
   stats.virtual_bytes = vsize;
   stats.resident_bytes = rss_pages * sysconf(_SC_PAGESIZE);
   double boot = 0;
-  if (BootTime(&boot)) stats.start_time_seconds = boot + static_cast<double>(start_ticks) / ticks_per_second;
+  if (BootTime(&boot))
+    stats.start_time_seconds = boot + static_cast<double>(start_ticks) / ticks_per_second;
   if (DIR* dir = opendir("/proc/self/fd")) {
     while (const dirent* entry = readdir(dir)) {
       if (entry->d_name[0] != '.') ++stats.open_fds;

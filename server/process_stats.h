@@ -11,13 +11,13 @@
 namespace shapeid {
 
 struct ProcessStats {
-  double cpu_seconds = 0;          // user + system
-  int64_t resident_bytes = 0;      // RSS
+  double cpu_seconds = 0;      // user + system
+  int64_t resident_bytes = 0;  // RSS
   int64_t virtual_bytes = 0;
   int64_t threads = 0;
   int64_t open_fds = 0;
-  int64_t max_fds = 0;             // the soft RLIMIT_NOFILE
-  double start_time_seconds = 0;   // since the Unix epoch
+  int64_t max_fds = 0;            // the soft RLIMIT_NOFILE
+  double start_time_seconds = 0;  // since the Unix epoch
 };
 
 // Unavailable when /proc is not mounted (the metrics then leave the process_* series out).

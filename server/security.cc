@@ -282,8 +282,7 @@ absl::Status CheckExposure(absl::string_view listen, const SecurityOptions& secu
       "--insecure to run it open on purpose"));
 }
 
-std::vector<std::string> SecurityWarnings(absl::string_view listen,
-                                          const SecurityOptions& security,
+std::vector<std::string> SecurityWarnings(absl::string_view listen, const SecurityOptions& security,
                                           const ApiKeyStore& keys) {
   std::vector<std::string> warnings;
   if (IsLoopbackAddress(listen)) return warnings;
@@ -292,9 +291,9 @@ std::vector<std::string> SecurityWarnings(absl::string_view listen,
     warnings.push_back(absl::StrCat("API keys cross the network in plaintext on ", listen,
                                     "; add --tls_cert and --tls_key"));
   } else if (keys.empty() && security.tls_client_ca_file.empty()) {
-    warnings.push_back(absl::StrCat(
-        "no API keys on ", listen, ": every client that reaches it may train, delete and import",
-        tls ? "" : " (--insecure)"));
+    warnings.push_back(absl::StrCat("no API keys on ", listen,
+                                    ": every client that reaches it may train, delete and import",
+                                    tls ? "" : " (--insecure)"));
   }
   return warnings;
 }

@@ -56,8 +56,7 @@ absl::Status CheckExposure(absl::string_view listen, const SecurityOptions& secu
 // What the start-up log should warn about in a configuration that starts but is weaker than
 // it may look: API keys in plaintext on a network address; a network address without keys
 // (and without client certificates). One line each; never a key or digest.
-std::vector<std::string> SecurityWarnings(absl::string_view listen,
-                                          const SecurityOptions& security,
+std::vector<std::string> SecurityWarnings(absl::string_view listen, const SecurityOptions& security,
                                           const ApiKeyStore& keys);
 
 // One line for the start-up log: "TLS with client certificates, 3 API keys (1 read, 1

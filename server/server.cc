@@ -111,8 +111,8 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
     ReplicationFollowerOptions follower_options;
     follower_options.refresh = options.store_refresh;
     follower_options.logger = server->logger_;
-    server->follower_ = std::make_shared<ReplicationFollower>(server->postgres_store_,
-                                                              std::move(follower_options));
+    server->follower_ =
+        std::make_shared<ReplicationFollower>(server->postgres_store_, std::move(follower_options));
     server->store_description_ =
         absl::StrCat("PostgreSQL ", DescribeConninfo(options.store), " (shared)");
     store = server->postgres_store_;
@@ -131,8 +131,8 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
   if (server->follower_ != nullptr) {
     // Weak: a gallery held by a stream may outlive the server; it then has nothing to catch
     // up with.
-    catch_up = [follower = std::weak_ptr<ReplicationFollower>(server->follower_)](
-                   absl::string_view name) {
+    catch_up = [follower =
+                    std::weak_ptr<ReplicationFollower>(server->follower_)](absl::string_view name) {
       const std::shared_ptr<ReplicationFollower> held = follower.lock();
       return held != nullptr ? held->CatchUp(name) : absl::OkStatus();
     };

@@ -12,9 +12,9 @@
 #include "prometheus/exposer.h"
 #include "server/logger.h"
 #include "server/metrics.h"
+#include "server/replication/replication_follower.h"
 #include "server/server_options.h"
 #include "server/shapeid_service.h"
-#include "server/replication/replication_follower.h"
 #include "server/storage/postgres_gallery_store.h"
 #include "server/storage/sqlite_gallery_store.h"
 

@@ -4,7 +4,6 @@
 #include <string>
 
 #include "absl/time/time.h"
-
 #include "core/gallery/gallery_options.h"
 #include "server/logger.h"
 #include "server/metrics.h"

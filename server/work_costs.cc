@@ -53,8 +53,7 @@ WorkEstimate EstimateClassify(const GallerySnapshot& snapshot, size_t points) {
 }
 
 absl::Duration EstimateCommit(const GallerySnapshot& snapshot, int64_t vectors) {
-  const double floats =
-      static_cast<double>(std::max<int64_t>(vectors, 0)) * snapshot.dimension();
+  const double floats = static_cast<double>(std::max<int64_t>(vectors, 0)) * snapshot.dimension();
   return absl::Seconds(kAppendFixedSeconds + kCommitSecondsPerFloat * floats);
 }
 

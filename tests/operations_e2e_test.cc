@@ -54,11 +54,13 @@ std::string HttpGet(const std::string& address, const std::string& path) {
   if (fd < 0) return "";
   std::string response;
   if (connect(fd, reinterpret_cast<const sockaddr*>(&server), sizeof server) == 0) {
-    const std::string request = absl::StrCat("GET ", path, " HTTP/1.0\r\nHost: ", address, "\r\n\r\n");
+    const std::string request =
+        absl::StrCat("GET ", path, " HTTP/1.0\r\nHost: ", address, "\r\n\r\n");
     if (write(fd, request.data(), request.size()) == static_cast<ssize_t>(request.size())) {
       char buffer[65536];
       ssize_t n;
-      while ((n = read(fd, buffer, sizeof buffer)) > 0) response.append(buffer, static_cast<size_t>(n));
+      while ((n = read(fd, buffer, sizeof buffer)) > 0)
+        response.append(buffer, static_cast<size_t>(n));
     }
   }
   close(fd);
@@ -121,7 +123,8 @@ class OperationsE2ETest : public ::testing::Test {
     std::string line;
     while (std::getline(text, line)) {
       if (line.empty()) continue;
-      const nlohmann::json parsed = nlohmann::json::parse(line, nullptr, /*allow_exceptions=*/false);
+      const nlohmann::json parsed =
+          nlohmann::json::parse(line, nullptr, /*allow_exceptions=*/false);
       EXPECT_FALSE(parsed.is_discarded()) << "not JSON: " << line;
       if (!parsed.is_discarded()) lines.push_back(parsed);
     }
@@ -132,7 +135,8 @@ class OperationsE2ETest : public ::testing::Test {
   std::vector<nlohmann::json> RpcLines(const std::string& method) const {
     std::vector<nlohmann::json> rpcs;
     for (const nlohmann::json& line : LogLines()) {
-      if (line.value("msg", "") == "rpc" && line.value("method", "") == method) rpcs.push_back(line);
+      if (line.value("msg", "") == "rpc" && line.value("method", "") == method)
+        rpcs.push_back(line);
     }
     return rpcs;
   }
@@ -145,7 +149,8 @@ class OperationsE2ETest : public ::testing::Test {
     ASSERT_TRUE(client_->CreateGallery(create).ok());
     std::vector<PointCloud> clouds;
     for (int kind = 0; kind < 3; ++kind) {
-      for (int i = 0; i < samples_per_shape; ++i) clouds.push_back(ShapeCloud(kind, 10 * kind + i, 500));
+      for (int i = 0; i < samples_per_shape; ++i)
+        clouds.push_back(ShapeCloud(kind, 10 * kind + i, 500));
     }
     std::vector<TrainSample> samples;
     for (size_t i = 0; i < clouds.size(); ++i) {
@@ -173,10 +178,15 @@ TEST_F(OperationsE2ETest, CountersAndHistogramsMoveWithTheCalls) {
   const Scrape after = ScrapeNow();
 
   // One ClassifyCloud series per outcome; 5 calls, 2,000 points.
-  EXPECT_EQ(Get(after, R"(shapeid_requests_total{code="OK",gallery="shelf",method="ClassifyCloud"})"), 5);
+  EXPECT_EQ(
+      Get(after, R"(shapeid_requests_total{code="OK",gallery="shelf",method="ClassifyCloud"})"), 5);
   EXPECT_EQ(Get(after, R"(shapeid_requests_total{code="OK",gallery="shelf",method="Train"})"), 1);
-  EXPECT_EQ(Get(after, R"(shapeid_requests_total{code="OK",gallery="shelf",method="CreateGallery"})"), 1);
-  EXPECT_EQ(Get(after, R"(shapeid_requests_total{code="NOT_FOUND",gallery="_unknown",method="GetGallery"})"), 1);
+  EXPECT_EQ(
+      Get(after, R"(shapeid_requests_total{code="OK",gallery="shelf",method="CreateGallery"})"), 1);
+  EXPECT_EQ(
+      Get(after,
+          R"(shapeid_requests_total{code="NOT_FOUND",gallery="_unknown",method="GetGallery"})"),
+      1);
   EXPECT_EQ(Get(after, R"(shapeid_points_received_total{method="ClassifyCloud"})"), 2000);
   EXPECT_EQ(Get(after, R"(shapeid_points_received_total{method="Train"})"), 6000);
   EXPECT_EQ(Get(after, R"(shapeid_samples_trained_total{gallery="shelf"})"), 12);
@@ -187,12 +197,15 @@ TEST_F(OperationsE2ETest, CountersAndHistogramsMoveWithTheCalls) {
   EXPECT_EQ(Get(after, R"(shapeid_request_duration_seconds_count{method="ClassifyCloud"})"), 5);
   EXPECT_GT(Get(after, R"(shapeid_request_duration_seconds_sum{method="ClassifyCloud"})"), 0);
   EXPECT_EQ(
-      Get(after, R"(shapeid_request_duration_seconds_bucket{method="ClassifyCloud",le="+Inf"})"), 5);
+      Get(after, R"(shapeid_request_duration_seconds_bucket{method="ClassifyCloud",le="+Inf"})"),
+      5);
   std::map<double, double> buckets;  // le -> cumulative count
-  const std::string bucket_prefix = R"(shapeid_request_duration_seconds_bucket{method="ClassifyCloud",le=")";
+  const std::string bucket_prefix =
+      R"(shapeid_request_duration_seconds_bucket{method="ClassifyCloud",le=")";
   for (const auto& [series, value] : after) {
     if (series.rfind(bucket_prefix, 0) != 0) continue;
-    const std::string le = series.substr(bucket_prefix.size(), series.size() - bucket_prefix.size() - 2);
+    const std::string le =
+        series.substr(bucket_prefix.size(), series.size() - bucket_prefix.size() - 2);
     buckets[le == "+Inf" ? std::numeric_limits<double>::infinity() : std::stod(le)] = value;
   }
   ASSERT_GT(buckets.size(), 10u);
@@ -275,7 +288,8 @@ TEST_F(OperationsE2ETest, TheRequestIdIsEchoedAndMadeUpWhenAbsentOrInvalid) {
 
 TEST_F(OperationsE2ETest, StatsSummariseAndTheLogLevelChangesLive) {
   TrainShelf(3);
-  for (int q = 0; q < 4; ++q) ASSERT_TRUE(client_->Classify("shelf", ShapeCloud(q % 3, 70 + q, 300)).ok());
+  for (int q = 0; q < 4; ++q)
+    ASSERT_TRUE(client_->Classify("shelf", ShapeCloud(q % 3, 70 + q, 300)).ok());
   const absl::StatusOr<v1::ServerStats> stats = client_->GetServerStats();
   ASSERT_TRUE(stats.ok()) << stats.status();
   EXPECT_EQ(stats->state(), "serving");
@@ -315,8 +329,8 @@ TEST_F(OperationsE2ETest, StatsSummariseAndTheLogLevelChangesLive) {
   bool change_logged = false;
   for (const nlohmann::json& line : LogLines()) {
     if (line.value("msg", "") == "log level changed") {
-      change_logged = line["from"] == "info" && line["to"] == "warning" &&
-                      line["request_id"] == kRequestId;
+      change_logged =
+          line["from"] == "info" && line["to"] == "warning" && line["request_id"] == kRequestId;
     }
   }
   EXPECT_TRUE(change_logged);
@@ -330,8 +344,9 @@ TEST_F(OperationsE2ETest, TheDashboardChartsOnlyMetricsTheServerExports) {
   ASSERT_TRUE(client_->Classify("shelf", ShapeCloud(0, 3, 300)).ok());
   EXPECT_FALSE(client_->GetGallery("absent").ok());
   std::set<std::string> exported = Names(ScrapeNow());
-  for (const char* postgres_only : {"shapeid_store_reachable", "shapeid_replication_changes_applied_total",
-                                    "shapeid_replication_sync_age_seconds"}) {
+  for (const char* postgres_only :
+       {"shapeid_store_reachable", "shapeid_replication_changes_applied_total",
+        "shapeid_replication_sync_age_seconds"}) {
     exported.insert(postgres_only);
   }
   // Store failures appear once a write fails; the series name is fixed in server/metrics.cc.
@@ -350,8 +365,8 @@ TEST_F(OperationsE2ETest, TheDashboardChartsOnlyMetricsTheServerExports) {
   }
   ASSERT_GT(charted.size(), 10u);
   for (const std::string& name : charted) {
-    EXPECT_TRUE(exported.count(name) > 0) << "the dashboard charts " << name
-                                          << ", which the server does not export";
+    EXPECT_TRUE(exported.count(name) > 0)
+        << "the dashboard charts " << name << ", which the server does not export";
   }
 }
 

@@ -33,7 +33,8 @@ std::vector<fs::path> Sample(const fs::path& root, const std::string& sub, int p
     if (!fs::is_directory(dir)) continue;
     for (const auto& entry : fs::directory_iterator(dir)) files.push_back(entry.path());
     std::sort(files.begin(), files.end());
-    for (int i = 0; i < per_class && i < static_cast<int>(files.size()); ++i) picked.push_back(files[i]);
+    for (int i = 0; i < per_class && i < static_cast<int>(files.size()); ++i)
+      picked.push_back(files[i]);
   }
   return picked;
 }
@@ -84,7 +85,8 @@ TEST(RealDataTest, EveryDescriptorOnModelNet10Clouds) {
 
 TEST(RealDataTest, EveryDescriptorOnDalesObjects) {
   const fs::path root = DataDir() / "dales-objects";
-  if (!fs::is_directory(root)) GTEST_SKIP() << "DALES Objects not found at " << root << "; skipping";
+  if (!fs::is_directory(root))
+    GTEST_SKIP() << "DALES Objects not found at " << root << "; skipping";
   DescribeAll(Sample(root, "", 1), 0);
 }
 

@@ -60,8 +60,8 @@ class ScaleOutE2ETest : public ::testing::Test {
   std::unique_ptr<ServerProcess> StartReplica() {
     auto replica = std::make_unique<ServerProcess>(std::vector<std::string>{
         "--store=" + pg_->conninfo(), absl::StrCat("--store_refresh_ms=", kRefreshMs)});
-    EXPECT_FALSE(replica->address().empty())
-        << "replica did not start; stderr:\n" << replica->StderrText();
+    EXPECT_FALSE(replica->address().empty()) << "replica did not start; stderr:\n"
+                                             << replica->StderrText();
     return replica;
   }
 
@@ -109,8 +109,7 @@ class ScaleOutE2ETest : public ::testing::Test {
 // A Train the client retried after its first attempt went unanswered (a replica killed) may
 // have committed all the same; the client then says so in an ALREADY_EXISTS.
 bool CommittedAfterRetry(const absl::Status& status) {
-  return absl::IsAlreadyExists(status) &&
-         absl::StrContains(status.message(), "may have committed");
+  return absl::IsAlreadyExists(status) && absl::StrContains(status.message(), "may have committed");
 }
 
 // Trains `count` clouds of shape `kind` with client-chosen ids from `first_id` (so that a

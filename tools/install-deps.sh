@@ -7,6 +7,8 @@ set -euo pipefail
 packages=(
   # toolchain
   build-essential cmake ninja-build pkg-config ccache git
+  # the format stage of tools/test.sh: C++ as clang-format 14 writes it (.clang-format)
+  clang-format
   # core science
   libeigen3-dev libnanoflann-dev libabsl-dev
   # RPC stack (server, client library)

@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # The test command (README, .ci/run). On a fresh Debian 12 machine it installs the packages,
-# then runs five stages; the first failure (a sanitizer report included) stops it, non-zero:
+# then runs six stages; the first failure (a sanitizer report included) stops it, non-zero:
+#   format     every tracked C++ file (.h .cc .inc) as clang-format-14 writes it (.clang-format);
+#              `clang-format -i FILE` fixes one; a few seconds;
 #   ci         the `ci` preset (optimised, assertions on, warnings are errors): every test;
 #   container  deploy/test_container.sh: the image of deploy/Dockerfile built with buildah,
 #              run, trained, restarted on its volume (base images and layers are reused
@@ -16,7 +18,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 stages=("$@")
-[ ${#stages[@]} -gt 0 ] || stages=(ci container asan tsan fuzz)
+[ ${#stages[@]} -gt 0 ] || stages=(format ci container asan tsan fuzz)
 
 tools/install-deps.sh
 
@@ -45,12 +47,14 @@ preset() {  # NAME: configure, build and test one preset
 
 for s in "${stages[@]}"; do
   case $s in
+    format)
+      stage format bash -c "git ls-files -z '*.h' '*.cc' '*.inc' | xargs -0 clang-format --dry-run -Werror" ;;
     ci|asan|tsan) stage "$s" preset "$s" ;;
     container) stage container deploy/test_container.sh build/ci/client/cli/shapeid ;;
     fuzz)
       stage fuzz bash -c 'cmake --preset fuzz && cmake --build --preset fuzz -j "$(nproc)" &&
         fuzz/run_fuzzers.sh build/fuzz "${SHAPEID_FUZZ_SECONDS:-60}"' ;;
-    *) echo "test.sh: unknown stage '$s' (ci, container, asan, tsan, fuzz)" >&2; exit 2 ;;
+    *) echo "test.sh: unknown stage '$s' (format, ci, container, asan, tsan, fuzz)" >&2; exit 2 ;;
   esac
 done
 echo "=== test.sh: all stages passed"

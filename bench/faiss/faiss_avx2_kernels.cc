@@ -1,9 +1,9 @@
-// A measurement aid for bench/faiss (target faiss_knn_bench_avx2): Debian's libfaiss.a (1.7.3) is built for baseline
-// x86-64, so its fvec_L2sqr and fvec_norm_L2sqr are scalar loops (fvec_*_ref). Upstream's
-// AVX2 build ("faiss_avx2", what pip/conda ship) computes them with one 8-wide accumulator
-// of sub/mul/add, a 4-wide step, a masked tail and a horizontal sum. These two definitions
-// do the same and are linked ahead of libfaiss.a with -Wl,--allow-multiple-definition, so
-// every Faiss path that computes an L2 distance or norm (flat scan, the BLAS path's norms,
+// A measurement aid for bench/faiss (target faiss_knn_bench_avx2): Debian's libfaiss.a (1.7.3) is
+// built for baseline x86-64, so its fvec_L2sqr and fvec_norm_L2sqr are scalar loops (fvec_*_ref).
+// Upstream's AVX2 build ("faiss_avx2", what pip/conda ship) computes them with one 8-wide
+// accumulator of sub/mul/add, a 4-wide step, a masked tail and a horizontal sum. These two
+// definitions do the same and are linked ahead of libfaiss.a with -Wl,--allow-multiple-definition,
+// so every Faiss path that computes an L2 distance or norm (flat scan, the BLAS path's norms,
 // IVF-Flat lists, HNSW) uses them. Everything else stays Debian's code.
 #include <immintrin.h>
 
@@ -28,8 +28,7 @@ __attribute__((target("avx2"))) inline float Finish(__m256 acc8, __m128 acc4) {
 
 }  // namespace
 
-__attribute__((target("avx2"))) float fvec_L2sqr(const float* x, const float* y,
-                                                 std::size_t d) {
+__attribute__((target("avx2"))) float fvec_L2sqr(const float* x, const float* y, std::size_t d) {
   __m256 acc8 = _mm256_setzero_ps();
   for (; d >= 8; d -= 8, x += 8, y += 8) {
     const __m256 diff = _mm256_sub_ps(_mm256_loadu_ps(x), _mm256_loadu_ps(y));

@@ -481,9 +481,9 @@ void RunApproximate(const Gallery& g, const Options& o, JsonWriter& json) {
     const double build_seconds = SecondsSince(start);
     const double rss = static_cast<double>(ResidentBytes() - before) / g.n;
     // The lists' copy of the vectors, a gallery row id and a cell per row, the centroids.
-    const double bytes = static_cast<double>(g.dim * sizeof(float) + sizeof(int64_t) +
-                                             sizeof(int32_t)) +
-                         static_cast<double>(o.nlist) * g.dim * sizeof(float) / g.n;
+    const double bytes =
+        static_cast<double>(g.dim * sizeof(float) + sizeof(int64_t) + sizeof(int32_t)) +
+        static_cast<double>(o.nlist) * g.dim * sizeof(float) / g.n;
     std::printf(
         "  shapeid IVF lists=%d: build %.1f s (2 threads), %.1f B/sample on top of the "
         "gallery (resident set delta of the copy and lists %.1f)\n",

@@ -119,7 +119,8 @@ void Finish(benchmark::State& state, const Inputs& inputs, const std::string& no
   size_t points = 0;
   for (const PointCloud& cloud : inputs.clouds) points += cloud.size();
   state.SetItemsProcessed(state.iterations());
-  state.counters["points"] = static_cast<double>(points) / static_cast<double>(inputs.clouds.size());
+  state.counters["points"] =
+      static_cast<double>(points) / static_cast<double>(inputs.clouds.size());
   state.counters["threads"] = ProcessThreads();
   state.SetLabel(note.empty() ? inputs.label : absl::StrCat(inputs.label, "; ", note));
 }
@@ -283,8 +284,8 @@ void RegisterAll() {
           ->Unit(benchmark::kMicrosecond);
     }
     for (const PclRow& row : pcl_rows) {
-      benchmark::RegisterBenchmark(absl::StrCat(row.name, "/", input).c_str(), PclBench,
-                                   row.method, points, std::string(row.note))
+      benchmark::RegisterBenchmark(absl::StrCat(row.name, "/", input).c_str(), PclBench, row.method,
+                                   points, std::string(row.note))
           ->Unit(benchmark::kMicrosecond);
     }
   }

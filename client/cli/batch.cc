@@ -164,8 +164,7 @@ TrainOutcome TrainFiles(Client& client, const std::string& gallery,
 
 ClassifyOutcome ClassifyFiles(
     Client& client, const std::string& gallery, const Client::ClassifyOptions& call,
-    const std::vector<std::string>& paths,
-    const BatchOptions& options, Progress& progress,
+    const std::vector<std::string>& paths, const BatchOptions& options, Progress& progress,
     const std::function<void(size_t, const v1::ClassifyResponse&, double)>& on_result,
     const std::function<void(size_t, const absl::Status&)>& on_failure) {
   const Clock::time_point start = Clock::now();
@@ -191,7 +190,8 @@ ClassifyOutcome ClassifyFiles(
         absl::StatusOr<ReadResult> read = ReadPointCloud(paths[i], options.read);
         if (read.ok()) {
           const Clock::time_point call_start = Clock::now();
-          absl::StatusOr<v1::ClassifyResponse> response = client.Classify(gallery, read->cloud, call);
+          absl::StatusOr<v1::ClassifyResponse> response =
+              client.Classify(gallery, read->cloud, call);
           slot.seconds = SecondsSince(call_start);
           if (response.ok()) {
             slot.response = std::move(response).value();

@@ -58,8 +58,7 @@ struct ClassifyOutcome {
 // ones before them are out, so output streams in input order), on one thread at a time.
 ClassifyOutcome ClassifyFiles(
     Client& client, const std::string& gallery, const Client::ClassifyOptions& call,
-    const std::vector<std::string>& paths,
-    const BatchOptions& options, Progress& progress,
+    const std::vector<std::string>& paths, const BatchOptions& options, Progress& progress,
     const std::function<void(size_t, const v1::ClassifyResponse&, double)>& on_result,
     const std::function<void(size_t, const absl::Status&)>& on_failure);
 

@@ -8,10 +8,10 @@
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "client/cli/input_files.h"
-#include "core/json.h"
 #include "core/descriptor.h"
 #include "core/descriptor_registry.h"
 #include "core/io/point_cloud_reader.h"
+#include "core/json.h"
 #include "core/status_macros.h"
 
 namespace shapeid {

@@ -10,8 +10,8 @@
 #include <iterator>
 #include <string>
 
-#include "client/cli/eval_command.h"
 #include "client/cli/cli_testing.h"
+#include "client/cli/eval_command.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 

@@ -5,8 +5,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
-#include "core/json.h"
 #include "client/gallery_file.h"
+#include "core/json.h"
 
 namespace shapeid {
 namespace {
@@ -71,8 +71,8 @@ int PrintGallery(const v1::Gallery& g, const CliContext& context) {
       "\n", "augment     ",
       g.augmentation().views() > 0
           ? absl::StrCat(g.augmentation().views(), " views per cloud (noise ",
-                         Number(g.augmentation().noise()), ", ", g.augmentation().min_points(),
-                         "-", g.augmentation().max_points(), " points, ",
+                         Number(g.augmentation().noise()), ", ", g.augmentation().min_points(), "-",
+                         g.augmentation().max_points(), " points, ",
                          g.augmentation().random_pose() ? "random" : "fixed", " pose)")
           : std::string("off"),
       "\n", "samples     ", g.sample_count(), " in ", g.label_counts_size(), " labels (",
@@ -312,9 +312,9 @@ int RunGalleryExport(const std::string& name, const std::string& file, const Cli
   switch (context.format) {
     case OutputFormat::kJson:
       return FinishOutput(WriteAll(out, absl::StrCat("{\"name\":", JsonString(name), ",\"file\":",
-                                               JsonString(shown), ",\"samples\":", samples,
-                                               ",\"bytes\":", bytes, "}\n")),
-                    context);
+                                                     JsonString(shown), ",\"samples\":", samples,
+                                                     ",\"bytes\":", bytes, "}\n")),
+                          context);
     case OutputFormat::kCsv:
       return FinishOutput(
           WriteAll(out, RenderCsv({{"name", "file", "samples", "bytes"},

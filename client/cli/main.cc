@@ -185,7 +185,8 @@ int main(int argc, char** argv) {
   describe_cmd->footer(shapeid::DescribeHelpFooter());
 
   // gallery create|list|show|delete|remove
-  CLI::App* gallery_cmd = app.add_subcommand("gallery", "Create, list, show, delete, export and import galleries");
+  CLI::App* gallery_cmd =
+      app.add_subcommand("gallery", "Create, list, show, delete, export and import galleries");
   gallery_cmd->fallthrough();
   gallery_cmd->require_subcommand(1);
   shapeid::GalleryCreateOptions create;
@@ -268,8 +269,8 @@ int main(int argc, char** argv) {
   classify_cmd->add_option("--k", classify.call.k, "Neighbours that vote (default: the gallery's)")
       ->check(CLI::Range(1u, 1000000u));
   classify_cmd->add_flag("--exact", classify.call.exact,
-                        "Search every stored vector, even where the server searches the gallery "
-                        "approximately (see `gallery info`)");
+                         "Search every stored vector, even where the server searches the gallery "
+                         "approximately (see `gallery info`)");
   classify_cmd->add_option("--top", classify.top, "Nearest samples shown per file")
       ->check(CLI::Range(0, 100))
       ->capture_default_str();

@@ -26,7 +26,7 @@ int RunTrain(const TrainOptions& options, const CliContext& context);
 struct ClassifyOptions {
   std::string gallery;
   Client::ClassifyOptions call;  // k (0: the gallery's) and exact
-  int top = 3;     // neighbours shown per file in table and csv output
+  int top = 3;                   // neighbours shown per file in table and csv output
   std::vector<std::string> paths;
   BatchOptions batch;
 };

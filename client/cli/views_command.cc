@@ -6,9 +6,9 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "client/cli/describe_command.h"
-#include "core/json.h"
 #include "core/io/pcd_writer.h"
 #include "core/io/point_cloud_reader.h"
+#include "core/json.h"
 #include "core/views/scan_simulator.h"
 #include "core/views/view_directions.h"
 

@@ -9,8 +9,8 @@
 #include "absl/strings/str_cat.h"
 #include "core/descriptor_registry.h"
 #include "core/descriptors/cnsd_downsample.h"
-#include "gmock/gmock.h"
 #include "core/testing/test_clouds.h"
+#include "gmock/gmock.h"
 #include "gtest/gtest.h"
 
 namespace shapeid {

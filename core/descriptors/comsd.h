@@ -36,8 +36,19 @@ struct Direction {
 };
 // In the spec's order.
 inline constexpr std::array<Direction, kNumDirections> kDirections = {{
-    {1, 0, 0},  {1, 1, 0},  {0, 1, 0},  {-1, 1, 0}, {0, 0, 1},  {1, 0, 1},  {0, 1, 1},
-    {-1, 0, 1}, {0, -1, 1}, {1, 1, 1},  {-1, 1, 1}, {1, -1, 1}, {-1, -1, 1},
+    {1, 0, 0},
+    {1, 1, 0},
+    {0, 1, 0},
+    {-1, 1, 0},
+    {0, 0, 1},
+    {1, 0, 1},
+    {0, 1, 1},
+    {-1, 0, 1},
+    {0, -1, 1},
+    {1, 1, 1},
+    {-1, 1, 1},
+    {1, -1, 1},
+    {-1, -1, 1},
 }};
 
 // Binary n^3 grid packed along z: row (i, j) is `words` = ceil(n / 64) uint64 words starting

@@ -12,22 +12,22 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
-#include "gmock/gmock.h"
-#include "gtest/gtest.h"
 #include "core/descriptor.h"
 #include "core/descriptor_registry.h"
 #include "core/point_cloud.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
 
 namespace shapeid {
 namespace {
 
-using ::testing::HasSubstr;
 using comsd_internal::AllCounts;
 using comsd_internal::kDimension;
 using comsd_internal::kDirections;
 using comsd_internal::kNumDirections;
 using comsd_internal::kNumFeatures;
 using comsd_internal::PopcountPath;
+using ::testing::HasSubstr;
 
 std::unique_ptr<Descriptor> MakeComsd(int grid) {
   auto descriptor = CreateDescriptor(absl::StrCat("comsd:grid=", grid));
@@ -126,7 +126,8 @@ std::vector<double> RefFeatures(const AllCounts& counts) {
   std::vector<double> out;
   for (const auto& c : counts) {
     double total = 0;
-    for (int r = 0; r < 2; ++r) for (int s = 0; s < 2; ++s) total += c.counts[r][s];
+    for (int r = 0; r < 2; ++r)
+      for (int s = 0; s < 2; ++s) total += c.counts[r][s];
     auto P = [&](int r, int s) { return c.counts[r][s] / total; };
     double entropy = 0, energy = 0, contrast = 0, homogeneity = 0, mu = 0;
     for (int r = 0; r < 2; ++r) {
@@ -291,10 +292,10 @@ TEST(ComsdTest, HandComputedTwoByTwoGrid) {
   }
 
   // The counts themselves, from the table above.
-  const int64_t table[kNumDirections][4] = {
-      {2, 0, 1, 1}, {1, 0, 1, 0}, {1, 1, 2, 0}, {0, 1, 1, 0}, {1, 1, 2, 0},
-      {1, 0, 1, 0}, {0, 0, 1, 1}, {0, 1, 1, 0}, {2, 0, 0, 0}, {0, 0, 1, 0},
-      {0, 0, 0, 1}, {1, 0, 0, 0}, {1, 0, 0, 0}};
+  const int64_t table[kNumDirections][4] = {{2, 0, 1, 1}, {1, 0, 1, 0}, {1, 1, 2, 0}, {0, 1, 1, 0},
+                                            {1, 1, 2, 0}, {1, 0, 1, 0}, {0, 0, 1, 1}, {0, 1, 1, 0},
+                                            {2, 0, 0, 0}, {0, 0, 1, 0}, {0, 0, 0, 1}, {1, 0, 0, 0},
+                                            {1, 0, 0, 0}};
   AllCounts hand;
   for (int dir = 0; dir < kNumDirections; ++dir) {
     for (int cell = 0; cell < 4; ++cell) hand[dir].counts[cell / 2][cell % 2] = table[dir][cell];
@@ -413,8 +414,7 @@ TEST(ComsdTest, PopcountPathsAreIdenticalOnRandomGrids) {
     ExpectCountsEqual(portable, hardware, absl::StrCat("n=", n));
     for (int d = 0; d < kNumDirections; ++d) {
       const auto dir = kDirections[d];
-      const int64_t pairs =
-          int64_t{n - std::abs(dir.dx)} * (n - std::abs(dir.dy)) * (n - dir.dz);
+      const int64_t pairs = int64_t{n - std::abs(dir.dx)} * (n - std::abs(dir.dy)) * (n - dir.dz);
       const auto& c = portable[d].counts;
       EXPECT_EQ(c[0][0] + c[0][1] + c[1][0] + c[1][1], pairs);
       for (int a = 0; a < 2; ++a) {
@@ -487,9 +487,8 @@ TEST(ComsdTest, ZeroExtentAxesGiveFiniteValues) {
       // Only the k = 0 plane is filled, so along (0, 0, 1) no pair ends on a filled voxel.
       auto stats = ValidateCloud(*cloud);
       ASSERT_TRUE(stats.ok());
-      const auto counts =
-          comsd_internal::CountCooccurrences(comsd_internal::Voxelize(*cloud, *stats, n),
-                                             PopcountPath::kPortable);
+      const auto counts = comsd_internal::CountCooccurrences(
+          comsd_internal::Voxelize(*cloud, *stats, n), PopcountPath::kPortable);
       EXPECT_EQ(counts[4].counts[0][1], 0);
       EXPECT_EQ(counts[4].counts[1][1], 0);
       EXPECT_GT(counts[4].counts[1][0], 0);

@@ -12,8 +12,6 @@
 
 #include "Eigen/Geometry"
 #include "absl/status/status.h"
-#include "gmock/gmock.h"
-#include "gtest/gtest.h"
 #include "core/descriptor.h"
 #include "core/descriptor_registry.h"
 #include "core/descriptors/dfsd_kernels.h"
@@ -21,13 +19,15 @@
 #include "core/simd.h"
 #include "core/testing/test_clouds.h"
 #include "core/views/test_surfaces.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
 
 namespace shapeid {
 namespace {
 
-using ::testing::HasSubstr;
 using dfsd_internal::Frequency;
 using dfsd_internal::KeptFrequencies;
+using ::testing::HasSubstr;
 
 std::unique_ptr<Descriptor> MustCreate(const std::string& spec) {
   absl::StatusOr<std::unique_ptr<Descriptor>> d = CreateDescriptor(spec);
@@ -81,7 +81,8 @@ std::vector<double> ReferenceDfsd(const PointCloud& cloud, int g, int order, boo
     for (int i = 0; i < g; ++i) {
       for (int j = 0; j < g; ++j) {
         for (int k = 0; k < g; ++k) {
-          const Eigen::Vector3d c((2.0 * i + 1) / g - 1, (2.0 * j + 1) / g - 1, (2.0 * k + 1) / g - 1);
+          const Eigen::Vector3d c((2.0 * i + 1) / g - 1, (2.0 * j + 1) / g - 1,
+                                  (2.0 * k + 1) / g - 1);
           double best = 1e300;
           for (size_t p = 0; p < cloud.size(); ++p) {
             const Eigen::Vector3d v = (cloud.point(p).cast<double>() - centre).cwiseProduct(scale);
@@ -92,15 +93,16 @@ std::vector<double> ReferenceDfsd(const PointCloud& cloud, int g, int order, boo
       }
     }
     const auto basis = [g](int freq, int i) {
-      return std::sqrt((freq == 0 ? 1.0 : 2.0) / g) * std::cos(M_PI * (2 * i + 1) * freq / (2.0 * g));
+      return std::sqrt((freq == 0 ? 1.0 : 2.0) / g) *
+             std::cos(M_PI * (2 * i + 1) * freq / (2.0 * g));
     };
     for (const Frequency& q : KeptFrequencies(g, order)) {
       double sum = 0;
       for (int i = 0; i < g; ++i) {
         for (int j = 0; j < g; ++j) {
           for (int k = 0; k < g; ++k) {
-            sum += field[(static_cast<size_t>(i) * g + j) * g + k] * basis(q.a, i) *
-                   basis(q.b, j) * basis(q.c, k);
+            sum += field[(static_cast<size_t>(i) * g + j) * g + k] * basis(q.a, i) * basis(q.b, j) *
+                   basis(q.c, k);
           }
         }
       }
@@ -402,8 +404,8 @@ TEST(DfsdTest, UprightFrameIgnoresYawButKnowsUp) {
     EXPECT_LT(BestPoseDistanceSq(*upright, turned, base), 1e-6 * norm_sq) << "yaw " << yaw;
   }
   // Upside down is another object to this frame (and no variant turns it back) ...
-  const Eigen::Matrix3f flip = Eigen::AngleAxisf(3.14159265f, Eigen::Vector3f::UnitX())
-                                   .toRotationMatrix();
+  const Eigen::Matrix3f flip =
+      Eigen::AngleAxisf(3.14159265f, Eigen::Vector3f::UnitX()).toRotationMatrix();
   const PointCloud upside_down = Transformed(cloud, flip, Eigen::Vector3f::Zero(), 1);
   EXPECT_GT(BestPoseDistanceSq(*upright, upside_down, base), 1e-3 * norm_sq);
   // ... while the box frame, which cannot know up, sees the same object.
@@ -433,8 +435,7 @@ TEST(DfsdTest, UprightFrameTakesTheClientsUpAxis) {
     y_up.Add(q.y(), q.z(), q.x());         // a cyclic permutation: +z goes to +y
     minus_x_up.Add(-q.z(), q.x(), q.y());  // +z goes to -x; x, y to y, z
   }
-  for (const auto& [spec, cloud] :
-       std::vector<std::pair<std::string, const PointCloud*>>{
+  for (const auto& [spec, cloud] : std::vector<std::pair<std::string, const PointCloud*>>{
            {"dfsd:frame=upright,up=y", &y_up}, {"dfsd:frame=upright,up=-x", &minus_x_up}}) {
     std::vector<float> got, variants;
     ASSERT_TRUE(MustCreate(spec)->ComputeWithPoseVariants(*cloud, &got, &variants).ok());

@@ -31,18 +31,18 @@ absl::StatusOr<ReferenceArrangement> ParseCustom(absl::string_view text) {
   for (absl::string_view point_text : absl::StrSplit(inner, ';')) {
     std::vector<absl::string_view> coords = absl::StrSplit(point_text, ',');
     if (coords.size() != 3) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "rphsd: reference point \"", point_text, "\" in ", text, " needs 3 coordinates x,y,z"));
+      return absl::InvalidArgumentError(absl::StrCat("rphsd: reference point \"", point_text,
+                                                     "\" in ", text, " needs 3 coordinates x,y,z"));
     }
     Eigen::Vector3f p;
     for (int a = 0; a < 3; ++a) {
       float v = 0;
       if (!absl::SimpleAtof(absl::StripAsciiWhitespace(coords[a]), &v) || !std::isfinite(v) ||
           std::fabs(v) > kMaxReferenceCoordinate) {
-        return absl::InvalidArgumentError(absl::StrCat(
-            "rphsd: coordinate \"", coords[a], "\" of reference point \"", point_text,
-            "\" is not a number in [-", kMaxReferenceCoordinate, ", ", kMaxReferenceCoordinate,
-            "]"));
+        return absl::InvalidArgumentError(
+            absl::StrCat("rphsd: coordinate \"", coords[a], "\" of reference point \"", point_text,
+                         "\" is not a number in [-", kMaxReferenceCoordinate, ", ",
+                         kMaxReferenceCoordinate, "]"));
       }
       p[a] = v;
     }
@@ -114,15 +114,15 @@ absl::StatusOr<ReferenceArrangement> ParseReferenceArrangement(absl::string_view
     int n = 0;
     if (!absl::SimpleAtoi(absl::string_view(lower).substr(10), &n) || n < 1 ||
         n > kMaxReferencePoints - 1) {
-      return absl::InvalidArgumentError(absl::StrCat("rphsd: refs=", text, ": fibonacci:N needs N in [1, ",
-                                                     kMaxReferencePoints - 1, "]"));
+      return absl::InvalidArgumentError(absl::StrCat(
+          "rphsd: refs=", text, ": fibonacci:N needs N in [1, ", kMaxReferencePoints - 1, "]"));
     }
     return ReferenceArrangement{absl::StrCat("fibonacci:", n), FibonacciReferences(n)};
   }
   if (text.size() >= 2 && text.front() == '[' && text.back() == ']') return ParseCustom(text);
-  return absl::InvalidArgumentError(absl::StrCat(
-      "rphsd: refs=", text,
-      " is not an arrangement; use cross7, cubic27, spherical27, fibonacci:N or [x,y,z;x,y,z;...]"));
+  return absl::InvalidArgumentError(absl::StrCat("rphsd: refs=", text,
+                                                 " is not an arrangement; use cross7, cubic27, "
+                                                 "spherical27, fibonacci:N or [x,y,z;x,y,z;...]"));
 }
 
 }  // namespace shapeid

@@ -54,11 +54,16 @@ using Ops = simd::Avx2Ops;
 
 void Accumulate(const HistogramInput& in, uint32_t* counts) {
   switch ((in.num_refs + Ops::kLanes - 1) / Ops::kLanes) {
-    case 1: return AccumulateVector<1>(in, counts);
-    case 2: return AccumulateVector<2>(in, counts);
-    case 3: return AccumulateVector<3>(in, counts);
-    case 4: return AccumulateVector<4>(in, counts);
-    default: return AccumulateVector<0>(in, counts);
+    case 1:
+      return AccumulateVector<1>(in, counts);
+    case 2:
+      return AccumulateVector<2>(in, counts);
+    case 3:
+      return AccumulateVector<3>(in, counts);
+    case 4:
+      return AccumulateVector<4>(in, counts);
+    default:
+      return AccumulateVector<0>(in, counts);
   }
 }
 }  // namespace avx2
@@ -71,9 +76,12 @@ using Ops = simd::Avx512Ops;
 
 void Accumulate(const HistogramInput& in, uint32_t* counts) {
   switch ((in.num_refs + Ops::kLanes - 1) / Ops::kLanes) {
-    case 1: return AccumulateVector<1>(in, counts);
-    case 2: return AccumulateVector<2>(in, counts);
-    default: return AccumulateVector<0>(in, counts);
+    case 1:
+      return AccumulateVector<1>(in, counts);
+    case 2:
+      return AccumulateVector<2>(in, counts);
+    default:
+      return AccumulateVector<0>(in, counts);
   }
 }
 }  // namespace avx512

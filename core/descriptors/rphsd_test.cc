@@ -124,8 +124,8 @@ TEST(RphsdTest, InvariantToTranslationAndUniformScale) {
   // Powers of two keep the scaled cloud exact, so the descriptors match to the bit; an
   // arbitrary factor and offset match to float rounding.
   const PointCloud cloud = RandomCloud(2000, 2);
-  for (const char* spec : {"rphsd", "rphsd:refs=cross7,bins=10,variant=reduced",
-                           "rphsd:refs=spherical27,bins=50"}) {
+  for (const char* spec :
+       {"rphsd", "rphsd:refs=cross7,bins=10,variant=reduced", "rphsd:refs=spherical27,bins=50"}) {
     const auto d = MustCreate(spec);
     const std::vector<float> base = MustCompute(*d, cloud);
     std::vector<float> pow2(cloud.xyz().begin(), cloud.xyz().end());
@@ -141,7 +141,8 @@ TEST(RphsdTest, InvariantToTranslationAndUniformScale) {
     ASSERT_EQ(other.size(), base.size());
     // Rounding can move a point across a bin edge; with 2000 points that changes a bin height
     // by 1/2000, hence the tolerance.
-    for (size_t i = 0; i < base.size(); ++i) EXPECT_NEAR(other[i], base[i], 2e-3) << spec << " " << i;
+    for (size_t i = 0; i < base.size(); ++i)
+      EXPECT_NEAR(other[i], base[i], 2e-3) << spec << " " << i;
   }
 }
 
@@ -171,8 +172,9 @@ TEST(RphsdTest, ReducedInvariantUnderAxisRotations) {
       {"z+90", [](const Eigen::Vector3f& p) { return Eigen::Vector3f(-p.y(), p.x(), p.z()); }},
       {"z+180", [](const Eigen::Vector3f& p) { return Eigen::Vector3f(-p.x(), -p.y(), p.z()); }},
   };
-  for (const char* spec : {"rphsd:refs=cross7,variant=reduced", "rphsd:refs=cubic27,variant=reduced",
-                           "rphsd:refs=cubic27,bins=10,variant=reduced"}) {
+  for (const char* spec :
+       {"rphsd:refs=cross7,variant=reduced", "rphsd:refs=cubic27,variant=reduced",
+        "rphsd:refs=cubic27,bins=10,variant=reduced"}) {
     const auto d = MustCreate(spec);
     const std::vector<float> base = MustCompute(*d, cloud);
     for (const auto& [name, rotate] : rotations) {
@@ -256,7 +258,8 @@ TEST(RphsdTest, InvalidCloudsAreErrorsNotCrashes) {
   }
   const auto limited = d->Compute(RandomCloud(100, 9), CloudLimits{50});
   EXPECT_EQ(limited.status().code(), absl::StatusCode::kResourceExhausted);
-  EXPECT_THAT(limited.status().message(), HasSubstr("cloud has 100 points, more than the limit of 50"));
+  EXPECT_THAT(limited.status().message(),
+              HasSubstr("cloud has 100 points, more than the limit of 50"));
 }
 
 TEST(RphsdTest, TinyAndHugeExtentsStayFinite) {

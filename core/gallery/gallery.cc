@@ -207,18 +207,14 @@ uint64_t NewGalleryIncarnation() {
   return (engine() >> 2) | 1;
 }
 
-absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Create(std::string name,
-                                                         const GalleryOptions& options,
-                                                         const GalleryLimits& limits,
-                                                         std::shared_ptr<GalleryStore> store,
-                                                         absl::Time created,
-                                                         CatchUpFunction catch_up) {
+absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Create(
+    std::string name, const GalleryOptions& options, const GalleryLimits& limits,
+    std::shared_ptr<GalleryStore> store, absl::Time created, CatchUpFunction catch_up) {
   SHAPEID_ASSIGN_OR_RETURN(std::unique_ptr<GallerySnapshot> snapshot,
                            EmptySnapshot(name, options, created));
   snapshot->meta_.incarnation = NewGalleryIncarnation();
-  return std::shared_ptr<Gallery>(
-      new Gallery(std::move(name), limits, std::move(store), std::move(catch_up),
-                  std::move(snapshot)));
+  return std::shared_ptr<Gallery>(new Gallery(std::move(name), limits, std::move(store),
+                                              std::move(catch_up), std::move(snapshot)));
 }
 
 absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Restore(const StoredGallery& stored,
@@ -250,8 +246,7 @@ absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Restore(const StoredGallery& s
   }
   snapshot->next_assigned_id_ = next_assigned;
   return std::shared_ptr<Gallery>(
-      new Gallery(stored.name, limits, std::move(store), std::move(catch_up),
-                  std::move(snapshot)));
+      new Gallery(stored.name, limits, std::move(store), std::move(catch_up), std::move(snapshot)));
 }
 
 std::shared_ptr<const GallerySnapshot> Gallery::Snapshot() const {

@@ -72,9 +72,9 @@ absl::Status GalleryRegistry::LoadFromStore() {
 absl::StatusOr<std::shared_ptr<Gallery>> GalleryRegistry::Create(absl::string_view name,
                                                                  const GalleryOptions& options) {
   // Validation and descriptor construction need no lock.
-  SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<Gallery> gallery,
-                           Gallery::Create(std::string(name), options, limits_, store_,
-                                           absl::Now(), catch_up_));
+  SHAPEID_ASSIGN_OR_RETURN(
+      std::shared_ptr<Gallery> gallery,
+      Gallery::Create(std::string(name), options, limits_, store_, absl::Now(), catch_up_));
   return Add(gallery, gallery->Snapshot()->ToStored(), "create", "");
 }
 
@@ -86,13 +86,12 @@ absl::StatusOr<std::shared_ptr<Gallery>> GalleryRegistry::Import(StoredGallery s
         " samples, more than max_samples_per_gallery = ", limits_.max_samples_per_gallery));
   }
   // Validation and the index build need no lock.
-  SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<Gallery> gallery,
-                           Gallery::Restore(stored, limits_, store_, Gallery::ApproximateBuild::kNow,
-                                            catch_up_));
+  SHAPEID_ASSIGN_OR_RETURN(
+      std::shared_ptr<Gallery> gallery,
+      Gallery::Restore(stored, limits_, store_, Gallery::ApproximateBuild::kNow, catch_up_));
   const std::shared_ptr<const GallerySnapshot> snapshot = gallery->Snapshot();
   if (!snapshot->incompatible().empty()) {
-    return absl::FailedPreconditionError(
-        absl::StrCat("cannot import: ", snapshot->incompatible()));
+    return absl::FailedPreconditionError(absl::StrCat("cannot import: ", snapshot->incompatible()));
   }
   return Add(gallery, stored, "import", "; import under another name or delete it");
 }
@@ -162,10 +161,10 @@ absl::Status GalleryRegistry::Delete(absl::string_view name) {
 }
 
 absl::Status GalleryRegistry::ApplyStoredGallery(const StoredGallery& stored) {
-  SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<Gallery> gallery,
-                           Gallery::Restore(stored, limits_, store_, Gallery::ApproximateBuild::kNow,
-                                            catch_up_));
-  std::shared_ptr<Gallery> same;     // the same incarnation, held: takes the stored state
+  SHAPEID_ASSIGN_OR_RETURN(
+      std::shared_ptr<Gallery> gallery,
+      Gallery::Restore(stored, limits_, store_, Gallery::ApproximateBuild::kNow, catch_up_));
+  std::shared_ptr<Gallery> same;      // the same incarnation, held: takes the stored state
   std::shared_ptr<Gallery> replaced;  // another incarnation: retired
   {
     std::lock_guard<std::mutex> lock(mu_);

@@ -48,8 +48,8 @@ absl::StatusOr<std::vector<float>> GallerySnapshot::DescribeForTraining(
 }
 
 absl::StatusOr<GalleryClassification> GallerySnapshot::Classify(const PointCloud& cloud,
-                                                                const CloudLimits& limits,
-                                                                int k, SearchMode mode) const {
+                                                                const CloudLimits& limits, int k,
+                                                                SearchMode mode) const {
   SHAPEID_RETURN_IF_ERROR(CheckCompatible());
   if (empty()) {
     return absl::FailedPreconditionError(

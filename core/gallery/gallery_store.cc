@@ -46,8 +46,8 @@ absl::Status InMemoryGalleryStore::AppendSamples(absl::string_view name,
 }
 
 absl::Status InMemoryGalleryStore::RemoveSamples(absl::string_view name,
-                                                 absl::Span<const uint64_t> ids,
-                                                 absl::Time updated, uint64_t version) {
+                                                 absl::Span<const uint64_t> ids, absl::Time updated,
+                                                 uint64_t version) {
   std::lock_guard<std::mutex> lock(mu_);
   if (!failure_.ok()) return failure_;
   auto it = galleries_.find(name);

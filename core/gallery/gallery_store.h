@@ -67,7 +67,6 @@ class GalleryStore {
                                      absl::Time updated, uint64_t version) = 0;
   // Everything saved, for GalleryRegistry::LoadFromStore at start-up.
   virtual absl::StatusOr<std::vector<StoredGallery>> LoadAll() = 0;
-
 };
 
 // Brings this server's copy of gallery `name` up to date with a store shared by several

@@ -29,8 +29,7 @@ inline void ExpectSameStoredGallery(const StoredGallery& a, const StoredGallery&
   EXPECT_EQ(a.options.knn.k, b.options.knn.k);
   EXPECT_EQ(a.options.knn.weighting, b.options.knn.weighting);
   EXPECT_EQ(a.options.knn.scaling, b.options.knn.scaling);
-  EXPECT_EQ(std::memcmp(&a.options.reject_distance, &b.options.reject_distance, sizeof(double)),
-            0);
+  EXPECT_EQ(std::memcmp(&a.options.reject_distance, &b.options.reject_distance, sizeof(double)), 0);
   EXPECT_EQ(AugmentOptionsToString(a.options.augment), AugmentOptionsToString(b.options.augment));
   EXPECT_EQ(a.created, b.created);
   EXPECT_EQ(a.updated, b.updated);

@@ -718,7 +718,8 @@ TEST(GalleryTest, IncompatibleDescriptorLoadsButRefusesWork) {
   EXPECT_EQ((*restored)->Snapshot()->num_samples(), 9);
   // Removal and export still work: the operator can salvage or prune it.
   EXPECT_TRUE((*restored)->RemoveSamples({1}).ok());
-  EXPECT_EQ((*restored)->Snapshot()->ToStored().descriptor_version, other_version.descriptor_version);
+  EXPECT_EQ((*restored)->Snapshot()->ToStored().descriptor_version,
+            other_version.descriptor_version);
 
   StoredGallery unknown = g->Snapshot()->ToStored();
   unknown.options.descriptor_spec = "esf:bins=10";

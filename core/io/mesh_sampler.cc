@@ -44,9 +44,9 @@ absl::Status TriangleMesh::Sample(size_t n, uint64_t seed, absl::string_view nam
   if (!(total > 0) || !std::isfinite(total)) {
     return absl::InvalidArgumentError(absl::StrCat(
         name, ": the mesh has ", triangles_.size(),
-        " triangles and no surface area to sample points on", triangles_.empty()
-            ? " (no faces; read its vertices instead by turning sampling off)"
-            : ""));
+        " triangles and no surface area to sample points on",
+        triangles_.empty() ? " (no faces; read its vertices instead by turning sampling off)"
+                           : ""));
   }
   SplitMix64 rng(seed);
   cloud->Reserve(cloud->size() + n);

@@ -36,9 +36,9 @@ absl::StatusOr<ReadResult> ParseOff(absl::string_view contents, absl::string_vie
   };
 
   if (!next() || line.substr(0, 3) != "OFF") {
-    return absl::InvalidArgumentError(absl::StrCat(
-        name, ": line ", std::max<uint64_t>(lines.line_number(), 1),
-        ": an OFF file starts with an \"OFF\" line; found ", QuoteForMessage(line)));
+    return absl::InvalidArgumentError(
+        absl::StrCat(name, ": line ", std::max<uint64_t>(lines.line_number(), 1),
+                     ": an OFF file starts with an \"OFF\" line; found ", QuoteForMessage(line)));
   }
   absl::string_view counts_text = line.substr(3);  // ModelNet writes "OFF490 518 0"
   while (!counts_text.empty() && IsBlank(counts_text.front())) counts_text.remove_prefix(1);
@@ -138,8 +138,8 @@ absl::StatusOr<ReadResult> ParseOff(absl::string_view contents, absl::string_vie
                                   " faces on line ", counts_line));
   }
   if (sample) {
-    absl::Status sampled = mesh.Sample(options.sample_points, options.sample_seed, name, "line",
-                                       &cloud);
+    absl::Status sampled =
+        mesh.Sample(options.sample_points, options.sample_seed, name, "line", &cloud);
     if (!sampled.ok()) return sampled;
   }
   return std::move(cloud).Finish(options);

@@ -1,16 +1,15 @@
 // PCD DATA binary_compressed, decompressed with Debian's liblzf.
-#include "core/io/pcd_internal.h"
+#include <lzf.h>
 
 #include <cstdint>
 #include <cstring>
 #include <string>
 #include <utility>
 
-#include <lzf.h>
-
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "core/io/cloud_accumulator.h"
+#include "core/io/pcd_internal.h"
 
 namespace shapeid {
 namespace pcd_internal {
@@ -49,25 +48,25 @@ absl::StatusOr<ReadResult> DecodeCompressed(absl::string_view contents, absl::st
         " does not match the header (", h.points, " points of ", layout.point_bytes, " bytes)"));
   }
   if (compressed > available - 8) {
-    return absl::InvalidArgumentError(
-        absl::StrCat(name, ": byte offset ", block, ": compressed data is truncated: expected ",
-                     compressed, " bytes, found ", available - 8));
+    return absl::InvalidArgumentError(absl::StrCat(name, ": byte offset ", block,
+                                                   ": compressed data is truncated: expected ",
+                                                   compressed, " bytes, found ", available - 8));
   }
   if (uncompressed == 0) return CloudAccumulator(name, "byte offset").Finish(options);
   // LZF expands at most 88 times (a 3-byte back reference copies 264 bytes); a larger claim
   // is corrupt, and refusing it avoids allocating what a forged header asks for.
   if (uncompressed > compressed * 100) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        name, ": byte offset ", h.data_offset, ": ", compressed,
-        " compressed bytes cannot hold ", uncompressed, " bytes; the data is corrupt"));
+    return absl::InvalidArgumentError(absl::StrCat(name, ": byte offset ", h.data_offset, ": ",
+                                                   compressed, " compressed bytes cannot hold ",
+                                                   uncompressed, " bytes; the data is corrupt"));
   }
   std::string data(uncompressed, '\0');
   const unsigned int got = lzf_decompress(sizes + 8, static_cast<unsigned int>(compressed),
                                           data.data(), static_cast<unsigned int>(uncompressed));
   if (got != uncompressed) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        name, ": byte offset ", block, ": the LZF block is corrupt (decompressed ", got,
-        " of ", uncompressed, " bytes)"));
+    return absl::InvalidArgumentError(absl::StrCat(name, ": byte offset ", block,
+                                                   ": the LZF block is corrupt (decompressed ", got,
+                                                   " of ", uncompressed, " bytes)"));
   }
   CloudAccumulator cloud(name, "byte offset");
   cloud.Reserve(h.points);

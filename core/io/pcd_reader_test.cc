@@ -1,12 +1,12 @@
 #include "core/io/pcd_reader.h"
 
+#include <lzf.h>
+
 #include <cmath>
 #include <limits>
 #include <random>
 #include <string>
 #include <vector>
-
-#include <lzf.h>
 
 #include "absl/strings/str_cat.h"
 #include "core/io/point_cloud_reader.h"
@@ -284,8 +284,8 @@ std::string CompressedFile(const std::vector<float>& xyz) {
   block.resize(size);
   std::string file = absl::StrCat(
       "VERSION 0.7\nFIELDS intensity x _ y z\nSIZE 2 4 1 8 4\nTYPE U F U F F\n"
-      "COUNT 1 1 3 1 1\nWIDTH ", n, "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS ", n,
-      "\nDATA binary_compressed\n");
+      "COUNT 1 1 3 1 1\nWIDTH ",
+      n, "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS ", n, "\nDATA binary_compressed\n");
   AppendBytes<uint32_t>(&file, size);
   AppendBytes<uint32_t>(&file, static_cast<uint32_t>(soa.size()));
   return file + block;

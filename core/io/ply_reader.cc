@@ -57,14 +57,14 @@ bool ParseType(absl::string_view word, Type* type) {
     const char* name;
     Kind kind;
     int size;
-  } kTypes[] = {{"char", Kind::kSigned, 1},    {"int8", Kind::kSigned, 1},
-                {"uchar", Kind::kUnsigned, 1}, {"uint8", Kind::kUnsigned, 1},
-                {"short", Kind::kSigned, 2},   {"int16", Kind::kSigned, 2},
+  } kTypes[] = {{"char", Kind::kSigned, 1},     {"int8", Kind::kSigned, 1},
+                {"uchar", Kind::kUnsigned, 1},  {"uint8", Kind::kUnsigned, 1},
+                {"short", Kind::kSigned, 2},    {"int16", Kind::kSigned, 2},
                 {"ushort", Kind::kUnsigned, 2}, {"uint16", Kind::kUnsigned, 2},
-                {"int", Kind::kSigned, 4},     {"int32", Kind::kSigned, 4},
-                {"uint", Kind::kUnsigned, 4},  {"uint32", Kind::kUnsigned, 4},
-                {"float", Kind::kFloat, 4},    {"float32", Kind::kFloat, 4},
-                {"double", Kind::kFloat, 8},   {"float64", Kind::kFloat, 8}};
+                {"int", Kind::kSigned, 4},      {"int32", Kind::kSigned, 4},
+                {"uint", Kind::kUnsigned, 4},   {"uint32", Kind::kUnsigned, 4},
+                {"float", Kind::kFloat, 4},     {"float32", Kind::kFloat, 4},
+                {"double", Kind::kFloat, 8},    {"float64", Kind::kFloat, 8}};
   for (const auto& t : kTypes) {
     if (word == t.name) {
       *type = Type{t.kind, t.size};
@@ -87,8 +87,9 @@ absl::StatusOr<Header> ParseHeader(absl::string_view contents, absl::string_view
     for (absl::string_view w; tokens.Next(&w);) words.push_back(w);
     if (ln == 1) {
       if (words.size() != 1 || words[0] != "ply") {
-        return LineError(name, ln, absl::StrCat("a PLY file starts with a \"ply\" line; found ",
-                                                QuoteForMessage(line)));
+        return LineError(
+            name, ln,
+            absl::StrCat("a PLY file starts with a \"ply\" line; found ", QuoteForMessage(line)));
       }
       continue;
     }
@@ -133,8 +134,9 @@ absl::StatusOr<Header> ParseHeader(absl::string_view contents, absl::string_view
       p.is_list = list;
       const absl::string_view type_word = list ? words[3] : words[1];
       if (list && (!ParseType(words[2], &p.count_type) || p.count_type.kind == Kind::kFloat)) {
-        return LineError(name, ln, absl::StrCat("list count type ", QuoteForMessage(words[2]),
-                                                " is not an integer PLY type"));
+        return LineError(name, ln,
+                         absl::StrCat("list count type ", QuoteForMessage(words[2]),
+                                      " is not an integer PLY type"));
       }
       if (!ParseType(type_word, &p.type)) {
         return LineError(name, ln, absl::StrCat("unknown PLY type ", QuoteForMessage(type_word)));
@@ -159,8 +161,12 @@ absl::StatusOr<Header> ParseHeader(absl::string_view contents, absl::string_view
 class ValueReader {
  public:
   ValueReader(absl::string_view contents, absl::string_view name, const Header& h)
-      : name_(name), format_(h.format), data_(contents), pos_(h.data_offset),
-        lines_(contents.substr(h.data_offset), h.data_line), tokens_(absl::string_view()) {}
+      : name_(name),
+        format_(h.format),
+        data_(contents),
+        pos_(h.data_offset),
+        lines_(contents.substr(h.data_offset), h.data_line),
+        tokens_(absl::string_view()) {}
 
   // Starts the next element instance; its location goes to *where.
   absl::Status BeginInstance(uint64_t* where) {
@@ -176,18 +182,18 @@ class ValueReader {
         return absl::OkStatus();
       }
     }
-    return absl::InvalidArgumentError(absl::StrCat(
-        name_, ": line ", lines_.line_number(), ": the ascii data ends before the header's ",
-        "element counts are read"));
+    return absl::InvalidArgumentError(absl::StrCat(name_, ": line ", lines_.line_number(),
+                                                   ": the ascii data ends before the header's ",
+                                                   "element counts are read"));
   }
 
   // Ends an ascii instance: its line must hold nothing more.
   absl::Status EndInstance() {
     absl::string_view token;
     if (format_ == Format::kAscii && tokens_.Next(&token)) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          name_, ": line ", lines_.line_number(), ": extra value ", QuoteForMessage(token),
-          " after the element's properties"));
+      return absl::InvalidArgumentError(absl::StrCat(name_, ": line ", lines_.line_number(),
+                                                     ": extra value ", QuoteForMessage(token),
+                                                     " after the element's properties"));
     }
     return absl::OkStatus();
   }
@@ -196,8 +202,8 @@ class ValueReader {
     if (format_ == Format::kAscii) {
       absl::string_view token;
       if (!tokens_.Next(&token)) {
-        return absl::InvalidArgumentError(absl::StrCat(
-            name_, ": line ", lines_.line_number(), ": too few values for the element"));
+        return absl::InvalidArgumentError(absl::StrCat(name_, ": line ", lines_.line_number(),
+                                                       ": too few values for the element"));
       }
       if (!absl::SimpleAtod(token, value)) {
         return absl::InvalidArgumentError(absl::StrCat(name_, ": line ", lines_.line_number(),
@@ -208,8 +214,8 @@ class ValueReader {
     }
     const size_t size = static_cast<size_t>(type.size);
     if (data_.size() - pos_ < size) {
-      return absl::InvalidArgumentError(absl::StrCat(name_, ": byte offset ", pos_,
-                                                     ": the binary data is truncated"));
+      return absl::InvalidArgumentError(
+          absl::StrCat(name_, ": byte offset ", pos_, ": the binary data is truncated"));
     }
     unsigned char b[8];
     std::memcpy(b, data_.data() + pos_, size);
@@ -293,8 +299,8 @@ absl::StatusOr<ReadResult> ParsePly(absl::string_view contents, absl::string_vie
     coord[a] = static_cast<size_t>(found);
     if (found < 0) {
       return LineError(name, vertex->line,
-                       absl::StrCat("the vertex element has no scalar \"",
-                                    std::string(1, "xyz"[a]), "\" property"));
+                       absl::StrCat("the vertex element has no scalar \"", std::string(1, "xyz"[a]),
+                                    "\" property"));
     }
   }
   const bool sample = options.sample_faces > 0;
@@ -344,8 +350,8 @@ absl::StatusOr<ReadResult> ParsePly(absl::string_view contents, absl::string_vie
         double count = 0;
         SHAPEID_RETURN_IF_ERROR(reader.Read(prop.count_type, &count));
         if (!(count >= 0 && count <= 4294967295.0) || count != std::floor(count)) {
-          return absl::InvalidArgumentError(absl::StrCat(
-              name, ": ", reader.Where(), ": list length ", count, " is not a count"));
+          return absl::InvalidArgumentError(
+              absl::StrCat(name, ": ", reader.Where(), ": list length ", count, " is not a count"));
         }
         const bool keep = is_face && static_cast<int>(p) == indices_property;
         if (keep) polygon.clear();
@@ -355,9 +361,9 @@ absl::StatusOr<ReadResult> ParsePly(absl::string_view contents, absl::string_vie
           if (!keep) continue;
           if (!(item >= 0 && item < static_cast<double>(vertex->count)) ||
               item != std::floor(item)) {
-            return absl::InvalidArgumentError(absl::StrCat(
-                name, ": ", reader.Where(), ": vertex index ", item,
-                " is not an integer in [0, ", vertex->count, ")"));
+            return absl::InvalidArgumentError(
+                absl::StrCat(name, ": ", reader.Where(), ": vertex index ", item,
+                             " is not an integer in [0, ", vertex->count, ")"));
           }
           polygon.push_back(static_cast<uint64_t>(item));
         }
@@ -377,8 +383,8 @@ absl::StatusOr<ReadResult> ParsePly(absl::string_view contents, absl::string_vie
         name, ": ", reader.Where(), ": more data than the header's element counts describe"));
   }
   if (sample) {
-    SHAPEID_RETURN_IF_ERROR(
-        mesh.Sample(options.sample_faces, options.sample_seed, name, ascii ? "line" : "byte offset", &cloud));
+    SHAPEID_RETURN_IF_ERROR(mesh.Sample(options.sample_faces, options.sample_seed, name,
+                                        ascii ? "line" : "byte offset", &cloud));
   }
   return std::move(cloud).Finish(options);
 }

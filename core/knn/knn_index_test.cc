@@ -582,7 +582,8 @@ TEST(KnnIndexTest, RowMapsComeAndGoWithMultiViewSamples) {
   ASSERT_TRUE(before.ok());
   // Two query vectors may meet one sample twice: it still takes one place.
   for (std::size_t a = 0; a < before->size(); ++a) {
-    for (std::size_t b = a + 1; b < before->size(); ++b) EXPECT_NE((*before)[a].id, (*before)[b].id);
+    for (std::size_t b = a + 1; b < before->size(); ++b)
+      EXPECT_NE((*before)[a].id, (*before)[b].id);
   }
 
   AddOrDie(index, 100, "many", {50, 0, 0, 20.2f, 3.0f, 1.0f, 60, 0, 0});

@@ -41,7 +41,8 @@ Data Clustered(int n, int clusters, int views, uint64_t seed) {
     const int c = static_cast<int>(rng.Next() % static_cast<uint64_t>(clusters));
     std::vector<float> features;
     for (int v = 0; v < views; ++v) {
-      for (int j = 0; j < kDim; ++j) features.push_back(centres[static_cast<size_t>(c)][j] + normal());
+      for (int j = 0; j < kDim; ++j)
+        features.push_back(centres[static_cast<size_t>(c)][j] + normal());
     }
     data.samples.push_back(std::move(features));
     data.cluster.push_back(c);
@@ -179,9 +180,8 @@ TEST(KnnIvfTest, LowDimensionsKeepTheExactKdTree) {
 TEST(KnnIvfTest, InvalidOptionsChangeNothing) {
   KnnIndex index = Build(Clustered(1000, 5, 1, 4));
   ASSERT_TRUE(index.UpdateApproximate(Approximate(1, 8)).ok());
-  for (const ApproximateOptions& bad :
-       {Approximate(-1), Approximate(1, -2), Approximate(1, 0, -3),
-        Approximate(1, ApproximateOptions::kMaxLists + 1)}) {
+  for (const ApproximateOptions& bad : {Approximate(-1), Approximate(1, -2), Approximate(1, 0, -3),
+                                        Approximate(1, ApproximateOptions::kMaxLists + 1)}) {
     const absl::Status status = index.UpdateApproximate(bad);
     EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << status;
     EXPECT_EQ(index.approximate_lists(), 8);

@@ -73,7 +73,8 @@ inline void EmitLanes(const float* dist, const BlockedView& v, int64_t block, in
   while (mask != 0) {
     const int lane = __builtin_ctz(mask);
     mask &= mask - 1;
-    if (dist[lane] <= top->limit()) top->Offer(dist[lane], v.RowId(block * kBlockLanes + lane), query);
+    if (dist[lane] <= top->limit())
+      top->Offer(dist[lane], v.RowId(block * kBlockLanes + lane), query);
   }
 }
 
@@ -225,7 +226,8 @@ __attribute__((target("avx512f"))) inline __m512 StepAvx512(__m512 qj, __m512 sj
 template <bool kScaled>
 __attribute__((target("avx512f"))) void ScanAvx512(const BlockedView& v, const float* queries,
                                                    int num_queries, const float* scale,
-                                                   int first_check, TopK* top, const int* query_ids) {
+                                                   int first_check, TopK* top,
+                                                   const int* query_ids) {
   const int d = v.dim;
   const int64_t num_blocks = NumBlocks(v.size);
   const __m512 one = _mm512_set1_ps(1.0f);
@@ -272,7 +274,8 @@ void ScanBlocks(SimdLevel level, const BlockedView& view, const float* queries, 
     case SimdLevel::kAvx512:
       return scale != nullptr
                  ? ScanAvx512<true>(view, queries, num_queries, scale, first_check, top, query_ids)
-                 : ScanAvx512<false>(view, queries, num_queries, scale, first_check, top, query_ids);
+                 : ScanAvx512<false>(view, queries, num_queries, scale, first_check, top,
+                                     query_ids);
     case SimdLevel::kAvx2:
       return scale != nullptr
                  ? ScanAvx2<true>(view, queries, num_queries, scale, first_check, top, query_ids)
@@ -283,8 +286,9 @@ void ScanBlocks(SimdLevel level, const BlockedView& view, const float* queries, 
 #else
   (void)level;
 #endif
-  return scale != nullptr ? ScanScalar<true>(view, queries, num_queries, scale, first_check, top, query_ids)
-                          : ScanScalar<false>(view, queries, num_queries, scale, first_check, top, query_ids);
+  return scale != nullptr
+             ? ScanScalar<true>(view, queries, num_queries, scale, first_check, top, query_ids)
+             : ScanScalar<false>(view, queries, num_queries, scale, first_check, top, query_ids);
 }
 
 float DistanceSq(const float* query, const float* scale, const float* x, std::ptrdiff_t stride,

@@ -12,9 +12,8 @@ namespace shapeid {
 
 absl::Status ValidateAugmentOptions(const AugmentOptions& options) {
   if (options.views < 0 || options.views > AugmentOptions::kMaxViews) {
-    return absl::InvalidArgumentError(absl::StrCat("augmentation: views ", options.views,
-                                                   " is outside [0, ", AugmentOptions::kMaxViews,
-                                                   "]"));
+    return absl::InvalidArgumentError(absl::StrCat(
+        "augmentation: views ", options.views, " is outside [0, ", AugmentOptions::kMaxViews, "]"));
   }
   const SensorViewOptions& s = options.sensor;
   if (!(std::isfinite(s.noise_fraction) && s.noise_fraction >= 0 && s.noise_fraction <= 1)) {
@@ -24,12 +23,11 @@ absl::Status ValidateAugmentOptions(const AugmentOptions& options) {
   }
   if (s.min_points < 3 || s.min_points > s.max_points) {
     return absl::InvalidArgumentError(absl::StrCat("augmentation: points [", s.min_points, ", ",
-                                                   s.max_points,
-                                                   "] must satisfy 3 <= min <= max"));
+                                                   s.max_points, "] must satisfy 3 <= min <= max"));
   }
   if (!(s.view.min_up >= -1 && s.view.min_up <= s.view.max_up && s.view.max_up <= 1)) {
-    return absl::InvalidArgumentError(absl::StrCat("augmentation: viewpoint band [",
-                                                   s.view.min_up, ", ", s.view.max_up,
+    return absl::InvalidArgumentError(absl::StrCat("augmentation: viewpoint band [", s.view.min_up,
+                                                   ", ", s.view.max_up,
                                                    "] must satisfy -1 <= min <= max <= 1"));
   }
   return absl::OkStatus();
@@ -86,10 +84,9 @@ absl::StatusOr<std::vector<PointCloud>> AugmentedViews(const PointCloud& cloud,
   std::vector<PointCloud> views;
   views.reserve(static_cast<size_t>(options.views));
   for (int i = 0; i < options.views; ++i) {
-    SHAPEID_ASSIGN_OR_RETURN(
-        PointCloud view,
-        SensorView(cloud, options.sensor,
-                   DeriveSeed(options.seed ^ cloud_seed, absl::StrCat("view", i))));
+    SHAPEID_ASSIGN_OR_RETURN(PointCloud view, SensorView(cloud, options.sensor,
+                                                         DeriveSeed(options.seed ^ cloud_seed,
+                                                                    absl::StrCat("view", i))));
     views.push_back(std::move(view));
   }
   return views;

@@ -85,8 +85,7 @@ TEST(AugmentTest, TextFormRoundTrips) {
   EXPECT_FALSE(ParseAugmentOptions("off")->enabled());
   EXPECT_EQ(ParseAugmentOptions("views=3")->sensor.max_points, 500u);  // defaults fill in
   for (const char* bad : {"views=x", "colour=red", "points=5", "pose=sideways", "views=99"}) {
-    EXPECT_EQ(ParseAugmentOptions(bad).status().code(), absl::StatusCode::kInvalidArgument)
-        << bad;
+    EXPECT_EQ(ParseAugmentOptions(bad).status().code(), absl::StatusCode::kInvalidArgument) << bad;
   }
 }
 

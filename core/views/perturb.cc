@@ -327,9 +327,9 @@ absl::StatusOr<PointCloud> SensorView(const PointCloud& cloud, const SensorViewO
         "sensor view: noise fraction ", options.noise_fraction, " must be finite and >= 0"));
   }
   if (options.min_points < 1 || options.min_points > options.max_points) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("sensor view: points [", options.min_points, ", ", options.max_points,
-                     "] must satisfy 1 <= min <= max"));
+    return absl::InvalidArgumentError(absl::StrCat("sensor view: points [", options.min_points,
+                                                   ", ", options.max_points,
+                                                   "] must satisfy 1 <= min <= max"));
   }
   SplitMix64 rng(seed);
   const uint64_t view_seed = rng.Next(), noise_seed = rng.Next(), subsample_seed = rng.Next(),
@@ -337,8 +337,8 @@ absl::StatusOr<PointCloud> SensorView(const PointCloud& cloud, const SensorViewO
   // The count before anything else, so it does not depend on what the view kept.
   const size_t span = options.max_points - options.min_points + 1;
   const size_t points =
-      options.min_points + std::min(span - 1, static_cast<size_t>(rng.Uniform() *
-                                                                  static_cast<double>(span)));
+      options.min_points +
+      std::min(span - 1, static_cast<size_t>(rng.Uniform() * static_cast<double>(span)));
   SHAPEID_ASSIGN_OR_RETURN(PointCloud view, PartialView(cloud, options.view, view_seed));
   // Noise relative to the whole object: the visible part's extent varies with the viewpoint.
   const double view_extent = CloudExtent(view);

@@ -298,8 +298,7 @@ TEST(PerturbTest, SensorViewIsOneSparseNoisySideInAnyPose) {
     const auto posed = SensorView(sphere, options, seed);
     ASSERT_TRUE(posed.ok());
     ASSERT_EQ(posed->size(), view->size());
-    EXPECT_NEAR(Distance(*posed, 0, view->size() - 1), Distance(*view, 0, view->size() - 1),
-                1e-5);
+    EXPECT_NEAR(Distance(*posed, 0, view->size() - 1), Distance(*view, 0, view->size() - 1), 1e-5);
     EXPECT_GT((posed->point(0) - view->point(0)).norm(), 1e-3);
   }
   // The counts spread over the range rather than sitting at one end.

@@ -198,13 +198,15 @@ absl::StatusOr<std::unique_ptr<PgConnection>> ConnectBounded(const std::string& 
       {"connect_timeout", "3"},     {"keepalives", "1"},       {"keepalives_idle", "5"},
       {"keepalives_interval", "2"}, {"keepalives_count", "2"}, {"tcp_user_timeout", "5000"}};
   // A keyword here would hide PGAPPNAME (libpq reads the environment only for what is unset).
-  if (std::getenv("PGAPPNAME") == nullptr) defaults.push_back({"application_name", "shapeid-server"});
+  if (std::getenv("PGAPPNAME") == nullptr)
+    defaults.push_back({"application_name", "shapeid-server"});
   return PgConnection::Connect(conninfo, defaults);
 }
 
 absl::StatusOr<std::unique_ptr<PgConnection>> PgConnectionPool::Lease() {
   std::unique_lock<std::mutex> lock(mu_);
-  cv_.wait(lock, [&]() ABSL_NO_THREAD_SAFETY_ANALYSIS { return !idle_.empty() || leased_ < size_; });
+  cv_.wait(lock,
+           [&]() ABSL_NO_THREAD_SAFETY_ANALYSIS { return !idle_.empty() || leased_ < size_; });
   ++leased_;
   if (!idle_.empty()) {
     std::unique_ptr<PgConnection> connection = std::move(idle_.back());

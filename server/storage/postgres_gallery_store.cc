@@ -172,8 +172,8 @@ absl::Status InsertSamples(PgConnection& connection, absl::string_view what, int
 absl::Status LogChange(PgConnection& connection, absl::string_view what, absl::string_view name,
                        int64_t incarnation, uint64_t version, absl::string_view kind,
                        absl::Span<const int64_t> ids, absl::Time updated) {
-  SHAPEID_RETURN_IF_ERROR(connection.Exec(
-      what, "SELECT pg_advisory_xact_lock($1)", PgParams().Int(kLogLockKey)));
+  SHAPEID_RETURN_IF_ERROR(
+      connection.Exec(what, "SELECT pg_advisory_xact_lock($1)", PgParams().Int(kLogLockKey)));
   SHAPEID_RETURN_IF_ERROR(connection.Exec(
       what,
       "INSERT INTO shapeid_changes (gallery, incarnation, version, kind, ids, updated_unix_ns) "
@@ -251,13 +251,13 @@ absl::Status PostgresGalleryStore::SaveGallery(const StoredGallery& g) {
                             ") VALUES ($1,$2,$3,$4,$5,$6,$7,$8,$9,$10,$11,$12,$13,$14)"),
                GalleryRow(g));
     if (absl::IsAlreadyExists(inserted)) {
-      return absl::AlreadyExistsError(absl::StrCat(
-          "gallery '", g.name, "' already exists (created through another replica)"));
+      return absl::AlreadyExistsError(
+          absl::StrCat("gallery '", g.name, "' already exists (created through another replica)"));
     }
     SHAPEID_RETURN_IF_ERROR(inserted);
     SHAPEID_RETURN_IF_ERROR(InsertSamples(c, what, incarnation, g.samples));
-    SHAPEID_RETURN_IF_ERROR(LogChange(c, what, g.name, incarnation, g.version, "create", {},
-                                      g.updated));
+    SHAPEID_RETURN_IF_ERROR(
+        LogChange(c, what, g.name, incarnation, g.version, "create", {}, g.updated));
     // Before COMMIT: the follower may read the change the moment it commits, and must then
     // know it as this replica's own.
     std::lock_guard<std::mutex> lock(incarnations_mu_);
@@ -275,17 +275,18 @@ absl::Status PostgresGalleryStore::SaveGallery(const StoredGallery& g) {
 absl::Status PostgresGalleryStore::DeleteGallery(absl::string_view name) {
   const std::string what = absl::StrCat("cannot delete gallery '", name, "'");
   const absl::Status status = WithConnection(what, [&](PgConnection& c) -> absl::Status {
-    SHAPEID_ASSIGN_OR_RETURN(
-        PgResult row, c.Query(what, "DELETE FROM shapeid_galleries WHERE name = $1 RETURNING "
-                                    "incarnation, version",
-                              PgParams().Text(std::string(name))));
+    SHAPEID_ASSIGN_OR_RETURN(PgResult row,
+                             c.Query(what,
+                                     "DELETE FROM shapeid_galleries WHERE name = $1 RETURNING "
+                                     "incarnation, version",
+                                     PgParams().Text(std::string(name))));
     // Deleted through another replica meanwhile: the gallery is gone, as asked.
     if (row.rows() == 0) return absl::OkStatus();
     const int64_t incarnation = row.Int(0, 0);
     SHAPEID_RETURN_IF_ERROR(c.Exec(what, "DELETE FROM shapeid_samples WHERE incarnation = $1",
                                    PgParams().Int(incarnation)));
-    return LogChange(c, what, name, incarnation, static_cast<uint64_t>(row.Int(0, 1)), "delete",
-                     {}, absl::Now());
+    return LogChange(c, what, name, incarnation, static_cast<uint64_t>(row.Int(0, 1)), "delete", {},
+                     absl::Now());
   });
   // After COMMIT only: a delete that did not commit leaves the gallery, and its writes.
   if (status.ok()) {
@@ -309,7 +310,8 @@ absl::Status PostgresGalleryStore::ChangeSamples(
   return WithConnection(what, [&](PgConnection& c) -> absl::Status {
     SHAPEID_ASSIGN_OR_RETURN(
         PgResult row,
-        c.Query(what, "SELECT incarnation, version FROM shapeid_galleries WHERE name = $1 FOR UPDATE",
+        c.Query(what,
+                "SELECT incarnation, version FROM shapeid_galleries WHERE name = $1 FOR UPDATE",
                 PgParams().Text(std::string(name))));
     // Aborted: this replica's copy is behind the store (deleted, made again, or written
     // through another replica); the gallery catches up and tries again.
@@ -319,8 +321,9 @@ absl::Status PostgresGalleryStore::ChangeSamples(
     const int64_t incarnation = row.Int(0, 0);
     const uint64_t stored_version = static_cast<uint64_t>(row.Int(0, 1));
     if (incarnation != expected || stored_version + 1 != version) {
-      return absl::AbortedError(absl::StrCat(what, ": changed through another replica (stored "
-                                                   "version ",
+      return absl::AbortedError(absl::StrCat(what,
+                                             ": changed through another replica (stored "
+                                             "version ",
                                              stored_version, ", this replica's ", version - 1,
                                              ")"));
     }
@@ -341,25 +344,25 @@ absl::Status PostgresGalleryStore::AppendSamples(absl::string_view name,
   std::vector<int64_t> ids;
   ids.reserve(batch.size());
   for (const StoredSample& s : batch) ids.push_back(AsPgId(s.id));
-  return ChangeSamples(name, absl::StrCat("store ", batch.size(), " samples in"), updated,
-                       version, "append", ids,
-                       [&](PgConnection& c, int64_t incarnation) {
+  return ChangeSamples(name, absl::StrCat("store ", batch.size(), " samples in"), updated, version,
+                       "append", ids, [&](PgConnection& c, int64_t incarnation) {
                          return InsertSamples(c, "cannot store samples", incarnation, batch);
                        });
 }
 
 absl::Status PostgresGalleryStore::RemoveSamples(absl::string_view name,
-                                                 absl::Span<const uint64_t> ids,
-                                                 absl::Time updated, uint64_t version) {
+                                                 absl::Span<const uint64_t> ids, absl::Time updated,
+                                                 uint64_t version) {
   std::vector<int64_t> stored_ids;
   stored_ids.reserve(ids.size());
   for (uint64_t id : ids) stored_ids.push_back(AsPgId(id));
   return ChangeSamples(
       name, absl::StrCat("remove ", ids.size(), " samples from"), updated, version, "remove",
       stored_ids, [&](PgConnection& c, int64_t incarnation) {
-        return c.Exec("cannot remove samples",
-                      "DELETE FROM shapeid_samples WHERE incarnation = $1 AND id = ANY($2::bigint[])",
-                      PgParams().Int(incarnation).IntArray(stored_ids));
+        return c.Exec(
+            "cannot remove samples",
+            "DELETE FROM shapeid_samples WHERE incarnation = $1 AND id = ANY($2::bigint[])",
+            PgParams().Int(incarnation).IntArray(stored_ids));
       });
 }
 
@@ -369,12 +372,14 @@ absl::StatusOr<StoredGallery> PostgresSnapshot::ReadGallery(absl::string_view na
   const std::string what = absl::StrCat("cannot read gallery '", name, "'");
   SHAPEID_ASSIGN_OR_RETURN(
       PgResult row,
-      c.Query(what, absl::StrCat("SELECT ", kGalleryColumns, " FROM shapeid_galleries WHERE name = $1"),
+      c.Query(what,
+              absl::StrCat("SELECT ", kGalleryColumns, " FROM shapeid_galleries WHERE name = $1"),
               PgParams().Text(std::string(name))));
   *found = row.rows() == 1;
   if (!*found) return StoredGallery();
   const auto damaged = [&](absl::string_view why) {
-    return absl::DataLossError(absl::StrCat("gallery '", name, "' in PostgreSQL is damaged: ", why));
+    return absl::DataLossError(
+        absl::StrCat("gallery '", name, "' in PostgreSQL is damaged: ", why));
   };
   StoredGallery g;
   SHAPEID_ASSIGN_OR_RETURN(static_cast<GalleryMetadata&>(g), FromGalleryRow(row, 0, damaged));
@@ -408,24 +413,27 @@ absl::StatusOr<std::vector<StoredGallery>> PostgresGalleryStore::LoadAll() {
   std::vector<StoredGallery> all;
   int64_t seq = 0;
   // One snapshot of the database: the galleries as of the log position read with them.
-  const absl::Status status = WithConnection("cannot load galleries", [&](PgConnection& c) {
-    SHAPEID_ASSIGN_OR_RETURN(
-        PgResult last,
-        c.Query("cannot load galleries",
-                "SELECT greatest((SELECT coalesce(max(seq), 0) FROM shapeid_changes), "
-                "(SELECT seq FROM shapeid_log_floor))"));
-    seq = last.Int(0, 0);
-    SHAPEID_ASSIGN_OR_RETURN(
-        PgResult names, c.Query("cannot load galleries",
-                                "SELECT name FROM shapeid_galleries ORDER BY name"));
-    for (int r = 0; r < names.rows(); ++r) {
-      bool found = false;
-      SHAPEID_ASSIGN_OR_RETURN(StoredGallery g,
-                               PostgresSnapshot(c).ReadGallery(names.Value(r, 0), &found));
-      if (found) all.push_back(std::move(g));
-    }
-    return absl::OkStatus();
-  }, kSnapshot);
+  const absl::Status status = WithConnection(
+      "cannot load galleries",
+      [&](PgConnection& c) {
+        SHAPEID_ASSIGN_OR_RETURN(
+            PgResult last,
+            c.Query("cannot load galleries",
+                    "SELECT greatest((SELECT coalesce(max(seq), 0) FROM shapeid_changes), "
+                    "(SELECT seq FROM shapeid_log_floor))"));
+        seq = last.Int(0, 0);
+        SHAPEID_ASSIGN_OR_RETURN(
+            PgResult names,
+            c.Query("cannot load galleries", "SELECT name FROM shapeid_galleries ORDER BY name"));
+        for (int r = 0; r < names.rows(); ++r) {
+          bool found = false;
+          SHAPEID_ASSIGN_OR_RETURN(StoredGallery g,
+                                   PostgresSnapshot(c).ReadGallery(names.Value(r, 0), &found));
+          if (found) all.push_back(std::move(g));
+        }
+        return absl::OkStatus();
+      },
+      kSnapshot);
   SHAPEID_RETURN_IF_ERROR(status);
   {
     std::lock_guard<std::mutex> lock(incarnations_mu_);
@@ -466,8 +474,8 @@ void PostgresGalleryStore::DroppedIncarnation(absl::string_view name, int64_t in
 }
 
 absl::StatusOr<int64_t> PostgresSnapshot::LogFloor() {
-  SHAPEID_ASSIGN_OR_RETURN(PgResult floor,
-                           c_.Query("cannot read the change log", "SELECT seq FROM shapeid_log_floor"));
+  SHAPEID_ASSIGN_OR_RETURN(
+      PgResult floor, c_.Query("cannot read the change log", "SELECT seq FROM shapeid_log_floor"));
   return floor.rows() == 1 ? floor.Int(0, 0) : 0;
 }
 

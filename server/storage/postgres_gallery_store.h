@@ -13,8 +13,8 @@
 #include "absl/base/thread_annotations.h"
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "absl/time/time.h"
 #include "absl/strings/string_view.h"
+#include "absl/time/time.h"
 #include "core/gallery/gallery_store.h"
 #include "server/storage/pg_connection.h"
 
@@ -150,13 +150,11 @@ class PostgresGalleryStore final : public GalleryStore {
   void DroppedIncarnation(absl::string_view name, int64_t incarnation);
 
  private:
-  PostgresGalleryStore(PostgresGalleryStoreOptions options,
-                       std::unique_ptr<PgConnectionPool> pool);
+  PostgresGalleryStore(PostgresGalleryStoreOptions options, std::unique_ptr<PgConnectionPool> pool);
 
   // `work` in one transaction on a pooled connection, opened with `begin`.
   template <typename F>
-  absl::Status WithConnection(absl::string_view what, const F& work,
-                              const char* begin = "BEGIN");
+  absl::Status WithConnection(absl::string_view what, const F& work, const char* begin = "BEGIN");
 
   // The write path of AppendSamples and RemoveSamples: checks incarnation and version under
   // the gallery's row lock, runs `change`, logs it, commits.

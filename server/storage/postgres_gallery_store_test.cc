@@ -284,9 +284,8 @@ TEST_F(PostgresGalleryStoreTest, AReplicaReportsPostgresLossAndCatchesUpAfter) {
   auto trained = (*a->registry->Get("g"))->Train({{1, "box", Box(1)}});
   ASSERT_TRUE(trained.ok()) << trained.status();
   const absl::Time back = absl::Now() + absl::Seconds(20);
-  while (absl::Now() < back &&
-         (!a->reachable || !b->reachable ||
-          (*b->registry->Get("g"))->Snapshot()->num_samples() != 1)) {
+  while (absl::Now() < back && (!a->reachable || !b->reachable ||
+                                (*b->registry->Get("g"))->Snapshot()->num_samples() != 1)) {
     absl::SleepFor(absl::Milliseconds(10));
   }
   EXPECT_TRUE(a->reachable);

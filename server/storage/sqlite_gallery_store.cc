@@ -37,7 +37,6 @@ namespace {
 
 constexpr absl::string_view kGallerySuffix = ".gallery";
 
-
 std::string UtcStamp() {
   return absl::FormatTime("%Y%m%dT%H%M%SZ", absl::Now(), absl::UTCTimeZone());
 }
@@ -203,7 +202,6 @@ bool IsProvenDamage(const absl::Status& status) {
   return status.code() == absl::StatusCode::kDataLoss ||
          status.code() == absl::StatusCode::kFailedPrecondition;
 }
-
 
 }  // namespace
 

@@ -7,13 +7,13 @@
 // PostgresInstance::StartOrSkip; CI installs the package and sets
 // SHAPEID_REQUIRE_POSTGRES=1, so that there a missing PostgreSQL fails instead of skipping.
 
+#include <glob.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
 #include <cstdio>
 #include <cstdlib>
-#include <glob.h>
 #include <memory>
 #include <string>
 
@@ -44,9 +44,10 @@ class PostgresInstance {
         return absl::UnavailableError("cannot hand the cluster directory to user postgres");
       }
     }
-    if (absl::Status s = pg->RunAsOwner(absl::StrCat(
-            "'", bin, "/initdb' -D '", pg->dir_, "/data' -U shapeid --auth=trust -E UTF8 "
-            "--no-sync >'", pg->dir_, "/initdb.log' 2>&1"));
+    if (absl::Status s = pg->RunAsOwner(absl::StrCat("'", bin, "/initdb' -D '", pg->dir_,
+                                                     "/data' -U shapeid --auth=trust -E UTF8 "
+                                                     "--no-sync >'",
+                                                     pg->dir_, "/initdb.log' 2>&1"));
         !s.ok()) {
       return absl::UnavailableError(absl::StrCat("initdb failed: ", pg->ReadFile("initdb.log")));
     }
@@ -74,8 +75,8 @@ class PostgresInstance {
 
   // Stops the server (fast shutdown: clients are disconnected) / starts it again, same port.
   absl::Status Stop() {
-    return RunAsOwner(absl::StrCat("'", bin_, "/pg_ctl' -D '", dir_,
-                                   "/data' -m fast -w stop >>'", dir_, "/server.log' 2>&1"));
+    return RunAsOwner(absl::StrCat("'", bin_, "/pg_ctl' -D '", dir_, "/data' -m fast -w stop >>'",
+                                   dir_, "/server.log' 2>&1"));
   }
   absl::Status StartServer() {
     const absl::Status started = RunAsOwner(absl::StrCat(
@@ -125,7 +126,8 @@ class PostgresInstance {
     return absl::OkStatus();
   }
   absl::Status RunAsOwner(const std::string& command) const {
-    return Run(as_user_.empty() ? command : absl::StrCat(as_user_, "sh -c \"", Escape(command), "\""));
+    return Run(as_user_.empty() ? command
+                                : absl::StrCat(as_user_, "sh -c \"", Escape(command), "\""));
   }
   static std::string Escape(const std::string& command) {
     std::string out;
