@@ -143,8 +143,8 @@ absl::StatusOr<double> SpecParams::Double(absl::string_view key, double min, dou
   return value;
 }
 
-absl::StatusOr<std::string> SpecParams::Choice(
-    absl::string_view key, std::initializer_list<absl::string_view> choices) const {
+absl::StatusOr<std::string> SpecParams::ChoiceOf(
+    absl::string_view key, absl::Span<const absl::string_view> choices) const {
   auto text = Text(key);
   if (!text.ok()) return text.status();
   const std::string lower = absl::AsciiStrToLower(*text);

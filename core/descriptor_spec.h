@@ -1,14 +1,17 @@
 #ifndef SHAPEID_CORE_DESCRIPTOR_SPEC_H_
 #define SHAPEID_CORE_DESCRIPTOR_SPEC_H_
 
+#include <array>
+#include <cstddef>
 #include <cstdint>
-#include <initializer_list>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
+#include "absl/types/span.h"
+#include "core/enum_names.h"
 
 namespace shapeid {
 
@@ -49,13 +52,22 @@ class SpecParams {
 
   absl::StatusOr<int64_t> Int(absl::string_view key, int64_t min, int64_t max) const;
   absl::StatusOr<double> Double(absl::string_view key, double min, double max) const;
-  // One of `choices`, exactly as spelled there.
-  absl::StatusOr<std::string> Choice(absl::string_view key,
-                                     std::initializer_list<absl::string_view> choices) const;
+  // The value named in `names` (core/enum_names.h); an error lists the names.
+  template <typename Enum, size_t N>
+  absl::StatusOr<Enum> Choice(absl::string_view key, const EnumNames<Enum, N>& names) const {
+    std::array<absl::string_view, N> choices;
+    for (size_t i = 0; i < N; ++i) choices[i] = names[i].name;
+    auto name = ChoiceOf(key, choices);
+    if (!name.ok()) return name.status();
+    return *ValueNamed(names, *name);
+  }
   // The raw text (for values with their own grammar, like reference arrangements).
   absl::StatusOr<std::string> Text(absl::string_view key) const;
 
  private:
+  absl::StatusOr<std::string> ChoiceOf(absl::string_view key,
+                                       absl::Span<const absl::string_view> choices) const;
+
   const DescriptorSpec& spec_;
 };
 

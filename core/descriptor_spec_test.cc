@@ -65,8 +65,11 @@ TEST(SpecParamsTest, TypedAccessWithRangesAndChoices) {
   EXPECT_THAT(params.Int("x", 0, 1).status().message(), HasSubstr("x=0.25 is not an integer"));
   EXPECT_DOUBLE_EQ(*params.Double("x", 0, 1), 0.25);
   EXPECT_THAT(params.Double("bad", 0, 1).status().message(), HasSubstr("is not a finite number"));
-  EXPECT_EQ(*params.Choice("mode", {"slow", "fast"}), "fast");
-  EXPECT_THAT(params.Choice("mode", {"a", "b"}).status().message(),
+  enum class Mode { kSlow, kFast, kA, kB };
+  constexpr EnumNames<Mode, 2> kSpeeds = {{{Mode::kSlow, "slow"}, {Mode::kFast, "fast"}}};
+  constexpr EnumNames<Mode, 2> kLetters = {{{Mode::kA, "a"}, {Mode::kB, "b"}}};
+  EXPECT_EQ(*params.Choice("mode", kSpeeds), Mode::kFast);
+  EXPECT_THAT(params.Choice("mode", kLetters).status().message(),
               HasSubstr("mode=Fast is not one of a, b"));
   EXPECT_EQ(params.Text("missing").status().code(), absl::StatusCode::kInternal);
 }

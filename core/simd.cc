@@ -2,9 +2,19 @@
 
 #include <algorithm>
 #include <cstdlib>
-#include <cstring>
+
+#include "core/enum_names.h"
 
 namespace shapeid {
+namespace {
+
+constexpr EnumNames<SimdLevel, 3> kSimdLevelNames = {{
+    {SimdLevel::kScalar, "scalar"},
+    {SimdLevel::kAvx2, "avx2"},
+    {SimdLevel::kAvx512, "avx512"},
+}};
+
+}  // namespace
 
 SimdLevel DetectedSimdLevel() {
 #if defined(__x86_64__) || defined(__i386__)
@@ -22,25 +32,11 @@ SimdLevel ActiveSimdLevel() {
     const SimdLevel detected = DetectedSimdLevel();
     const char* env = std::getenv("SHAPEID_SIMD");
     if (env == nullptr) return detected;
-    SimdLevel wanted = detected;
-    if (std::strcmp(env, "scalar") == 0) wanted = SimdLevel::kScalar;
-    if (std::strcmp(env, "avx2") == 0) wanted = SimdLevel::kAvx2;
-    if (std::strcmp(env, "avx512") == 0) wanted = SimdLevel::kAvx512;
-    return std::min(wanted, detected);
+    return std::min(ValueNamed(kSimdLevelNames, env).value_or(detected), detected);
   }();
   return level;
 }
 
-absl::string_view SimdLevelName(SimdLevel level) {
-  switch (level) {
-    case SimdLevel::kScalar:
-      return "scalar";
-    case SimdLevel::kAvx2:
-      return "avx2";
-    case SimdLevel::kAvx512:
-      return "avx512";
-  }
-  return "unknown";
-}
+absl::string_view SimdLevelName(SimdLevel level) { return NameOf(kSimdLevelNames, level); }
 
 }  // namespace shapeid

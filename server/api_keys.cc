@@ -11,9 +11,16 @@
 #include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
+#include "core/enum_names.h"
 
 namespace shapeid {
 namespace {
+
+constexpr EnumNames<Scope, 3> kScopeNames = {{
+    {Scope::kRead, "read"},
+    {Scope::kWrite, "write"},
+    {Scope::kAdmin, "admin"},
+}};
 
 bool ValidKeyName(absl::string_view name) {
   if (name.empty() || name.size() > 64) return false;
@@ -40,24 +47,14 @@ bool ParseDigest(absl::string_view hex, Sha256Digest* digest) {
 
 }  // namespace
 
-absl::string_view ScopeName(Scope scope) {
-  switch (scope) {
-    case Scope::kRead:
-      return "read";
-    case Scope::kWrite:
-      return "write";
-    case Scope::kAdmin:
-      return "admin";
-  }
-  return "?";
-}
+absl::string_view ScopeName(Scope scope) { return NameOf(kScopeNames, scope, "?"); }
 
 absl::StatusOr<Scope> ParseScope(absl::string_view text) {
-  for (Scope scope : {Scope::kRead, Scope::kWrite, Scope::kAdmin}) {
-    if (text == ScopeName(scope)) return scope;
+  for (const EnumName<Scope>& scope : kScopeNames) {
+    if (text == scope.name) return scope.value;  // exact: a key file is not case-folded
   }
   return absl::InvalidArgumentError(
-      absl::StrCat("unknown scope '", text, "'; use read, write or admin"));
+      absl::StrCat("unknown scope '", text, "'; use one of ", NameList(kScopeNames)));
 }
 
 Sha256Digest Sha256(absl::string_view data) {

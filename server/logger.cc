@@ -11,10 +11,23 @@
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
+#include "core/enum_names.h"
 #include "core/json.h"
 
 namespace shapeid {
 namespace {
+
+constexpr EnumNames<LogLevel, 4> kLogLevelNames = {{
+    {LogLevel::kDebug, "debug"},
+    {LogLevel::kInfo, "info"},
+    {LogLevel::kWarning, "warning"},
+    {LogLevel::kError, "error"},
+}};
+
+constexpr EnumNames<LogFormat, 2> kLogFormatNames = {{
+    {LogFormat::kText, "text"},
+    {LogFormat::kJson, "json"},
+}};
 
 // Writes the whole line to stderr, retrying short writes: one write(2) for any line below
 // PIPE_BUF, so concurrent lines stay whole even when several processes share the stream.
@@ -61,34 +74,18 @@ void AppendValue(LogFormat format, const LogField& field, std::string* out) {
 
 }  // namespace
 
-absl::string_view LogLevelName(LogLevel level) {
-  switch (level) {
-    case LogLevel::kDebug:
-      return "debug";
-    case LogLevel::kInfo:
-      return "info";
-    case LogLevel::kWarning:
-      return "warning";
-    case LogLevel::kError:
-      return "error";
-  }
-  return "info";
-}
+absl::string_view LogLevelName(LogLevel level) { return NameOf(kLogLevelNames, level, "info"); }
 
 absl::StatusOr<LogLevel> ParseLogLevel(absl::string_view name) {
-  for (const LogLevel level :
-       {LogLevel::kDebug, LogLevel::kInfo, LogLevel::kWarning, LogLevel::kError}) {
-    if (absl::EqualsIgnoreCase(name, LogLevelName(level))) return level;
-  }
+  if (auto level = ValueNamed(kLogLevelNames, name)) return *level;
   return absl::InvalidArgumentError(absl::StrCat("log level '", name.substr(0, 32),
-                                                 "' is not one of debug, info, warning, error"));
+                                                 "' is not one of ", NameList(kLogLevelNames)));
 }
 
 absl::StatusOr<LogFormat> ParseLogFormat(absl::string_view name) {
-  if (absl::EqualsIgnoreCase(name, "text")) return LogFormat::kText;
-  if (absl::EqualsIgnoreCase(name, "json")) return LogFormat::kJson;
-  return absl::InvalidArgumentError(
-      absl::StrCat("log format '", name.substr(0, 32), "' is not one of text, json"));
+  if (auto format = ValueNamed(kLogFormatNames, name)) return *format;
+  return absl::InvalidArgumentError(absl::StrCat("log format '", name.substr(0, 32),
+                                                 "' is not one of ", NameList(kLogFormatNames)));
 }
 
 Logger::Logger(LoggerOptions options, Sink sink)

@@ -43,6 +43,7 @@
 #include "core/descriptors/cnsd_downsample.h"
 #include "core/descriptors/cnsd_kernels.h"
 #include "core/descriptors/cost_model.h"
+#include "core/enum_names.h"
 #include "core/status_macros.h"
 
 namespace shapeid {
@@ -148,6 +149,11 @@ namespace {
 
 enum class Downsample { kVoxel, kRandom };
 
+constexpr EnumNames<Downsample, 2> kDownsampleNames = {{
+    {Downsample::kVoxel, "voxel"},
+    {Downsample::kRandom, "random"},
+}};
+
 class CnsdDescriptor final : public Descriptor {
  public:
   CnsdDescriptor(DescriptorSpec spec, std::vector<double> thresholds, size_t max_points,
@@ -221,8 +227,8 @@ absl::StatusOr<std::unique_ptr<Descriptor>> CreateCnsd(const DescriptorSpec& fil
   SHAPEID_ASSIGN_OR_RETURN(const double t_end, params.Double("t_end", 0.0, 1.0));
   SHAPEID_ASSIGN_OR_RETURN(const double t_step, params.Double("t_step", 1e-4, 1.0));
   SHAPEID_ASSIGN_OR_RETURN(const int64_t max_points, params.Int("max_points", 8, 100000));
-  SHAPEID_ASSIGN_OR_RETURN(const std::string downsample,
-                           params.Choice("downsample", {"voxel", "random"}));
+  SHAPEID_ASSIGN_OR_RETURN(const Downsample downsample,
+                           params.Choice("downsample", kDownsampleNames));
   SHAPEID_ASSIGN_OR_RETURN(const int64_t seed,
                            params.Int("seed", 0, std::numeric_limits<int64_t>::max()));
   if (t_start > t_end) {
@@ -236,12 +242,11 @@ absl::StatusOr<std::unique_ptr<Descriptor>> CreateCnsd(const DescriptorSpec& fil
                             {"t_end", FormatSpecNumber(t_end)},
                             {"t_step", FormatSpecNumber(t_step)},
                             {"max_points", absl::StrCat(max_points)},
-                            {"downsample", downsample},
+                            {"downsample", std::string(NameOf(kDownsampleNames, downsample))},
                             {"seed", absl::StrCat(seed)}}};
-  return std::unique_ptr<Descriptor>(new CnsdDescriptor(
-      std::move(canonical), std::move(thresholds), static_cast<size_t>(max_points),
-      downsample == "voxel" ? Downsample::kVoxel : Downsample::kRandom,
-      static_cast<uint64_t>(seed)));
+  return std::unique_ptr<Descriptor>(new CnsdDescriptor(std::move(canonical), std::move(thresholds),
+                                                        static_cast<size_t>(max_points), downsample,
+                                                        static_cast<uint64_t>(seed)));
 }
 
 }  // namespace

@@ -21,6 +21,7 @@
 #include "core/descriptors/cost_model.h"
 #include "core/descriptors/dfsd_frame.h"
 #include "core/descriptors/dfsd_kernels.h"
+#include "core/enum_names.h"
 #include "core/simd.h"
 #include "core/status_macros.h"
 
@@ -47,35 +48,31 @@ bool HasPoseVariants(DfsdOptions::Frame frame) {
   return frame == DfsdOptions::Frame::kBox || frame == DfsdOptions::Frame::kUpright;
 }
 
-absl::string_view FrameName(DfsdOptions::Frame frame) {
-  switch (frame) {
-    case DfsdOptions::Frame::kUpright:
-      return "upright";
-    case DfsdOptions::Frame::kPca:
-      return "pca";
-    case DfsdOptions::Frame::kBox:
-      return "box";
-    case DfsdOptions::Frame::kAxes:
-      break;
-  }
-  return "axes";
-}
+constexpr EnumNames<DfsdOptions::Frame, 4> kFrameNames = {{
+    {DfsdOptions::Frame::kAxes, "axes"},
+    {DfsdOptions::Frame::kPca, "pca"},
+    {DfsdOptions::Frame::kBox, "box"},
+    {DfsdOptions::Frame::kUpright, "upright"},
+}};
 
-absl::string_view FieldsName(DfsdOptions::Fields fields) {
-  switch (fields) {
-    case DfsdOptions::Fields::kIsotropic:
-      return "isotropic";
-    case DfsdOptions::Fields::kAnisotropic:
-      return "anisotropic";
-    case DfsdOptions::Fields::kBoth:
-      break;
-  }
-  return "both";
-}
+constexpr EnumNames<DfsdOptions::Fields, 3> kFieldsNames = {{
+    {DfsdOptions::Fields::kBoth, "both"},
+    {DfsdOptions::Fields::kIsotropic, "isotropic"},
+    {DfsdOptions::Fields::kAnisotropic, "anisotropic"},
+}};
 
-constexpr absl::string_view kUpNames[] = {"z", "y", "x", "-z", "-y", "-x"};
+constexpr EnumNames<DfsdOptions::Up, 6> kUpNames = {{
+    {DfsdOptions::Up::kPlusZ, "z"},
+    {DfsdOptions::Up::kPlusY, "y"},
+    {DfsdOptions::Up::kPlusX, "x"},
+    {DfsdOptions::Up::kMinusZ, "-z"},
+    {DfsdOptions::Up::kMinusY, "-y"},
+    {DfsdOptions::Up::kMinusX, "-x"},
+}};
 
-absl::string_view UpName(DfsdOptions::Up up) { return kUpNames[static_cast<int>(up)]; }
+absl::string_view FrameName(DfsdOptions::Frame frame) { return NameOf(kFrameNames, frame); }
+absl::string_view FieldsName(DfsdOptions::Fields fields) { return NameOf(kFieldsNames, fields); }
+absl::string_view UpName(DfsdOptions::Up up) { return NameOf(kUpNames, up); }
 
 int NumFields(DfsdOptions::Fields fields) { return fields == DfsdOptions::Fields::kBoth ? 2 : 1; }
 
@@ -353,24 +350,10 @@ absl::StatusOr<std::unique_ptr<Descriptor>> CreateFromSpec(const DescriptorSpec&
   options.grid = static_cast<int>(grid);
   SHAPEID_ASSIGN_OR_RETURN(const int64_t order, params.Int("order", 1, 3 * (grid - 1) + 1));
   options.order = static_cast<int>(order);
-  SHAPEID_ASSIGN_OR_RETURN(const std::string frame,
-                           params.Choice("frame", {"axes", "pca", "box", "upright"}));
-  options.frame = frame == "pca"       ? DfsdOptions::Frame::kPca
-                  : frame == "box"     ? DfsdOptions::Frame::kBox
-                  : frame == "upright" ? DfsdOptions::Frame::kUpright
-                                       : DfsdOptions::Frame::kAxes;
-  SHAPEID_ASSIGN_OR_RETURN(const std::string fields,
-                           params.Choice("fields", {"both", "isotropic", "anisotropic"}));
-  options.fields = fields == "isotropic"     ? DfsdOptions::Fields::kIsotropic
-                   : fields == "anisotropic" ? DfsdOptions::Fields::kAnisotropic
-                                             : DfsdOptions::Fields::kBoth;
+  SHAPEID_ASSIGN_OR_RETURN(options.frame, params.Choice("frame", kFrameNames));
+  SHAPEID_ASSIGN_OR_RETURN(options.fields, params.Choice("fields", kFieldsNames));
   SHAPEID_ASSIGN_OR_RETURN(options.size_weight, params.Double("size", 0.0, 1000.0));
-  SHAPEID_ASSIGN_OR_RETURN(const std::string up,
-                           params.Choice("up", {kUpNames[0], kUpNames[1], kUpNames[2], kUpNames[3],
-                                                kUpNames[4], kUpNames[5]}));
-  for (int i = 0; i < 6; ++i) {
-    if (up == kUpNames[i]) options.up = static_cast<DfsdOptions::Up>(i);
-  }
+  SHAPEID_ASSIGN_OR_RETURN(options.up, params.Choice("up", kUpNames));
   return CreateDfsd(options);
 }
 

@@ -6,10 +6,16 @@
 #include "absl/strings/str_cat.h"
 #include "core/descriptors/cost_model.h"
 #include "core/descriptors/rphsd_kernels.h"
+#include "core/enum_names.h"
 #include "core/status_macros.h"
 
 namespace shapeid {
 namespace {
+
+constexpr EnumNames<RphsdOptions::Variant, 2> kVariantNames = {{
+    {RphsdOptions::Variant::kComplete, "complete"},
+    {RphsdOptions::Variant::kReduced, "reduced"},
+}};
 
 constexpr int kMaxBins = 100000;
 // The diagonal of the [-1, 1]^3 cube: the largest distance between a normalised point and
@@ -106,7 +112,7 @@ absl::StatusOr<std::unique_ptr<Rphsd>> Rphsd::Create(RphsdOptions options) {
   DescriptorSpec spec{"rphsd",
                       {{"refs", options.references.name},
                        {"bins", absl::StrCat(options.bins)},
-                       {"variant", reduced ? "reduced" : "complete"}}};
+                       {"variant", std::string(NameOf(kVariantNames, options.variant))}}};
   const size_t dimension = reduced ? 6 : 3 * k;
   return std::unique_ptr<Rphsd>(new Rphsd(std::move(spec), dimension, std::move(options)));
 }
@@ -215,10 +221,7 @@ DescriptorKind RphsdKind() {
         SHAPEID_ASSIGN_OR_RETURN(options.references, ParseReferenceArrangement(refs));
         SHAPEID_ASSIGN_OR_RETURN(const int64_t bins, params.Int("bins", 1, kMaxBins));
         options.bins = static_cast<int>(bins);
-        SHAPEID_ASSIGN_OR_RETURN(const std::string variant,
-                                 params.Choice("variant", {"complete", "reduced"}));
-        options.variant = variant == "reduced" ? RphsdOptions::Variant::kReduced
-                                               : RphsdOptions::Variant::kComplete;
+        SHAPEID_ASSIGN_OR_RETURN(options.variant, params.Choice("variant", kVariantNames));
         SHAPEID_ASSIGN_OR_RETURN(auto rphsd, Rphsd::Create(std::move(options)));
         return std::unique_ptr<Descriptor>(std::move(rphsd));
       }};

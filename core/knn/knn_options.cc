@@ -2,48 +2,44 @@
 
 #include <string>
 
-#include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
+#include "core/enum_names.h"
 
 namespace shapeid {
 
+namespace {
+
+constexpr EnumNames<FeatureScaling, 3> kFeatureScalingNames = {{
+    {FeatureScaling::kNone, "none"},
+    {FeatureScaling::kZScore, "zscore"},
+    {FeatureScaling::kMaxAbs, "maxabs"},
+}};
+
+constexpr EnumNames<VoteWeighting, 2> kVoteWeightingNames = {{
+    {VoteWeighting::kUniform, "uniform"},
+    {VoteWeighting::kDistance, "distance"},
+}};
+
+}  // namespace
+
 absl::StatusOr<FeatureScaling> ParseFeatureScaling(absl::string_view text) {
-  const std::string name = absl::AsciiStrToLower(absl::StripAsciiWhitespace(text));
-  if (name == "none") return FeatureScaling::kNone;
-  if (name == "zscore") return FeatureScaling::kZScore;
-  if (name == "maxabs") return FeatureScaling::kMaxAbs;
-  return absl::InvalidArgumentError(
-      absl::StrCat("unknown feature scaling \"", text, "\"; expected one of none, zscore, maxabs"));
+  if (auto scaling = ValueNamed(kFeatureScalingNames, text)) return *scaling;
+  return absl::InvalidArgumentError(absl::StrCat(
+      "unknown feature scaling \"", text, "\"; expected one of ", NameList(kFeatureScalingNames)));
 }
 
 absl::string_view FeatureScalingName(FeatureScaling scaling) {
-  switch (scaling) {
-    case FeatureScaling::kNone:
-      return "none";
-    case FeatureScaling::kZScore:
-      return "zscore";
-    case FeatureScaling::kMaxAbs:
-      return "maxabs";
-  }
-  return "unknown";
+  return NameOf(kFeatureScalingNames, scaling);
 }
 
 absl::StatusOr<VoteWeighting> ParseVoteWeighting(absl::string_view text) {
-  const std::string name = absl::AsciiStrToLower(absl::StripAsciiWhitespace(text));
-  if (name == "uniform") return VoteWeighting::kUniform;
-  if (name == "distance") return VoteWeighting::kDistance;
-  return absl::InvalidArgumentError(
-      absl::StrCat("unknown vote weighting \"", text, "\"; expected one of uniform, distance"));
+  if (auto weighting = ValueNamed(kVoteWeightingNames, text)) return *weighting;
+  return absl::InvalidArgumentError(absl::StrCat(
+      "unknown vote weighting \"", text, "\"; expected one of ", NameList(kVoteWeightingNames)));
 }
 
 absl::string_view VoteWeightingName(VoteWeighting weighting) {
-  switch (weighting) {
-    case VoteWeighting::kUniform:
-      return "uniform";
-    case VoteWeighting::kDistance:
-      return "distance";
-  }
-  return "unknown";
+  return NameOf(kVoteWeightingNames, weighting);
 }
 
 absl::Status ValidateKnnOptions(const KnnOptions& options) {
