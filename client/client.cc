@@ -34,7 +34,7 @@ std::string ChunkBytes(const PointCloud& cloud, size_t first, size_t count) {
 // Writes a request stream so that a small cloud leaves in one flush: messages are held back
 // one step, headers carry buffer_hint, the last message goes with WriteLast (which also
 // half-closes). With the context's initial metadata corked, a header plus one chunk is a
-// single write to the transport (~20 us per call saved, measured).
+// single write to the transport (docs/performance.md).
 template <typename Request>
 class StreamWriter {
  public:

@@ -149,8 +149,7 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
   builder.RegisterService(server->service_.get());
   builder.SetMaxReceiveMessageSize(options.max_message_bytes);
   // No thread-count option: gRPC 1.51's callback API runs reactions on its own executor,
-  // which ResourceQuota::SetMaxThreads does not govern (measured: 0, 2 and 8 threads gave the
-  // same throughput with 16 clients).
+  // which ResourceQuota::SetMaxThreads does not govern (docs/performance.md).
   server->server_ = builder.BuildAndStart();
   if (server->server_ == nullptr || server->port_ == 0) {
     return absl::UnavailableError(absl::StrCat(

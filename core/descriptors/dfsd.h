@@ -57,8 +57,8 @@ struct DfsdOptions {
     // ambiguous; the vertical never moves.
     kUpright,
   };
-  // kBox since issue 13: a robot sees objects in any pose. kAxes is ~3 points more
-  // accurate on data that is known to be upright and aligned (docs/accuracy.md).
+  // kBox by default: a robot sees objects in any pose. On data known to be upright and
+  // aligned kAxes or kUpright is more accurate (figures in docs/accuracy.md).
   Frame frame = Frame::kBox;
   // frame=upright only: which input axis points up. Spec values z (default), y, x, -z, -y,
   // -x. A cloud whose up is +y gives, with up=y, exactly the descriptor that the same cloud

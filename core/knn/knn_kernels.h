@@ -23,9 +23,8 @@ namespace knn_internal {
 // so one query accumulates 32 distances per block with vertical SIMD only (two AVX-512 or
 // four AVX2 registers per dimension, i.e. independent add chains): no horizontal sums, no
 // dimension tails, and the gallery is read once, front to back, as one sequential stream.
-// (Blocks of 16 scanned two at a time read two interleaved streams and measured ~1.6x
-// slower on 100k x 81; see bench/knn_bench.cc.) The last block is zero-padded; padding
-// lanes are never reported. Row `row` lives at block row / 32, lane row % 32.
+// (Why 32 and one stream: docs/performance.md, bench/knn_bench.cc.) The last block is zero-padded;
+// padding lanes are never reported. Row `row` lives at block row / 32, lane row % 32.
 inline constexpr int kBlockLanes = 32;
 inline constexpr std::size_t kStorageAlignment = 64;  // one cache line, one zmm load
 

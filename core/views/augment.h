@@ -1,7 +1,7 @@
 #ifndef SHAPEID_CORE_VIEWS_AUGMENT_H_
 #define SHAPEID_CORE_VIEWS_AUGMENT_H_
 
-// Training-time view augmentation (issue 13). A robot sees one side of an object, sparse and
+// Training-time view augmentation. A robot sees one side of an object, sparse and
 // noisy; a gallery trained on whole, clean models matches such a view poorly however good
 // the descriptor (a partial view's shape really is different). So each training cloud is
 // also turned into synthetic sensor views (SensorView: one random viewpoint, noise,

@@ -106,8 +106,8 @@ absl::StatusOr<Eigen::Vector3d> RandomViewDirection(const PartialViewOptions& op
 absl::StatusOr<PointCloud> PartialView(const PointCloud& cloud, const PartialViewOptions& options,
                                        uint64_t seed);
 
-// What one depth sensor on a robot sees of an object (issue 13's robot protocol, and the
-// views of training-time augmentation): the side facing one random viewpoint, with noise,
+// What one depth sensor on a robot sees of an object (the robot protocol of docs/accuracy.md,
+// and the views of training-time augmentation): the side facing one random viewpoint, with noise,
 // as sparse as a distant object, in any pose.
 struct SensorViewOptions {
   // Where the camera may be (PartialView).

@@ -89,7 +89,7 @@ class PostgresListener {
   const std::unique_ptr<PgConnection> connection_;
 };
 
-// Galleries in PostgreSQL, shared by any number of shapeid-server replicas (issue 11). Each
+// Galleries in PostgreSQL, shared by any number of shapeid-server replicas. Each
 // replica keeps every gallery in memory for Classify, exactly as with the embedded store;
 // PostgreSQL is the truth and the channel between replicas.
 //

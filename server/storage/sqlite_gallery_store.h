@@ -68,7 +68,7 @@ struct SqliteGalleryStoreOptions {
 class SqliteGalleryStore final : public GalleryStore {
  public:
   // Galleries' on-disk format; stored as PRAGMA user_version. Bump on any schema change and
-  // teach LoadAll to read the old one. 2 (issue 13): the gallery row's `augment` column, and
+  // teach LoadAll to read the old one. 2: the gallery row's `augment` column, and
   // samples with several views. Format-1 files load (as galleries without augmentation) and
   // stay format 1 as they are appended to.
   static constexpr int kFormatVersion = 2;
