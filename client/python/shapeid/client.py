@@ -1,0 +1,490 @@
+"""The Python client of a shapeid server: the calls of the C++ client (client/client.h), with
+the same deadlines, retries, API keys, TLS and chunking."""
+
+import json
+import time
+
+import grpc
+import numpy as np
+
+from . import clouds as _clouds
+from . import gallery_file as _gallery_file
+from . import results as _results
+from ._target import resolve as _resolve_target
+from .errors import ShapeidError, error_for, from_rpc_error
+
+try:
+    from .v1 import shapeid_pb2 as _pb
+    from .v1 import shapeid_pb2_grpc as _pb_grpc
+except ImportError as e:  # a source checkout: the stubs are made when the package is built
+    raise ImportError(
+        "shapeid: the generated stubs (shapeid/v1/shapeid_pb2*.py) are missing (%s). Install "
+        "the package (pip install --no-build-isolation client/python, docs/python.md), which "
+        "generates them from proto/ with protoc and grpc_python_plugin." % e) from e
+
+__all__ = ["Client"]
+
+_RETRIED = (grpc.StatusCode.UNAVAILABLE, grpc.StatusCode.CANCELLED)
+_HEALTH_STATUSES = {0: "UNKNOWN", 1: "SERVING", 2: "NOT_SERVING", 3: "SERVICE_UNKNOWN"}
+_REQUEST_ID_CHARS = frozenset(
+    "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789._:/+=-")
+
+
+class Client:
+    """A connection to a shapeid server (or a set of replicas).
+
+        client = shapeid.Client("127.0.0.1:50051")
+        client.create_gallery("lab")
+        client.train("lab", [mug_points, box_points], ["mug", "box"])
+        print(client.classify("lab", scan).label)
+
+    A cloud is an N x 3 numpy array of floats, an open3d.geometry.PointCloud or a ROS
+    PointCloud2 message (shapeid.clouds says exactly what is accepted and how it converts).
+
+    Every call has a deadline: `timeout` seconds when given, else the client's `deadline`
+    (30 s), retries and backoff included. Calls that are safe to repeat are retried up to
+    `max_attempts` times while the server answers UNAVAILABLE or CANCELLED (a replica that
+    is down, loading or shutting down), after `initial_backoff` seconds, doubled each time;
+    never on RESOURCE_EXHAUSTED. Errors raise a ShapeidError subclass carrying the gRPC code
+    and the server's message.
+
+    Thread safety: a Client may be shared by any number of threads; it holds no per-call
+    state. Close it (or use it as a context manager) to release its connections.
+    """
+
+    def __init__(self, target="127.0.0.1:50051", *, deadline=30.0, max_attempts=3,
+                 initial_backoff=0.1, chunk_points=16384, load_balancing="round_robin",
+                 api_key=None, request_id=None, tls=False, tls_ca_file=None,
+                 tls_cert_file=None, tls_key_file=None, tls_server_name=None):
+        """Checks the options (ValueError naming the bad one) and opens the channel. Touches
+        the network only to look up the host names of a list of replicas; a server that is
+        down, or a TLS handshake that fails, shows as UnavailableError on the first call.
+
+        target: "HOST:PORT", "dns:///NAME:PORT" (every address a replica), "unix:///PATH",
+          or a list "HOST:PORT,HOST:PORT" of replicas (looked up once), as ClientOptions
+          (client/client_options.h) says.
+        load_balancing: "round_robin" (calls spread over the replicas that serve) or
+          "pick_first" (one replica until it breaks).
+        api_key: sent with every call as "authorization: Bearer KEY". Use TLS on a network.
+        request_id: sent with every call as "x-request-id" (1 to 128 of A-Z a-z 0-9 ._:/+=-)
+          so the server's logs find every call of a job.
+        tls: turn TLS on (it is also on when any tls_* file is given). tls_ca_file: PEM of
+          the CAs that may sign the server's certificate (None: the system's roots).
+          tls_cert_file and tls_key_file: this client's certificate and key, for mutual TLS
+          (both or neither). tls_server_name: the name the server's certificate must carry
+          when it is not the target's host.
+        chunk_points: points per PointChunk message; a cloud of at most this many points
+          travels in one DescribeCloud / ClassifyCloud message.
+        """
+        if not target:
+            raise ValueError("target is empty")
+        if not isinstance(max_attempts, int) or max_attempts < 1:
+            raise ValueError("max_attempts must be an integer >= 1, got %r" % (max_attempts,))
+        if not isinstance(chunk_points, int) or chunk_points < 1:
+            raise ValueError("chunk_points must be an integer >= 1, got %r" % (chunk_points,))
+        if not deadline or deadline <= 0:
+            raise ValueError("deadline must be positive (seconds), got %r" % (deadline,))
+        if initial_backoff < 0:
+            raise ValueError("initial_backoff must be >= 0, got %r" % (initial_backoff,))
+        metadata = []
+        if api_key:
+            if any(c <= " " or c == "\x7f" or not c.isascii() for c in api_key):
+                raise ValueError("the API key holds a space, a line break or another character "
+                                 "metadata cannot carry (a stray newline from a file?)")
+            metadata.append(("authorization", "Bearer " + api_key))
+        if request_id:
+            if len(request_id) > 128 or not set(request_id) <= _REQUEST_ID_CHARS:
+                raise ValueError("request id %r: a request id is 1 to 128 characters of A-Z a-z "
+                                 "0-9 . _ : / + = -" % (request_id,))
+            metadata.append(("x-request-id", request_id))
+        self._target = target
+        self._deadline = float(deadline)
+        self._max_attempts = max_attempts
+        self._initial_backoff = float(initial_backoff)
+        self._chunk_points = chunk_points
+        self._metadata = tuple(metadata)
+        self._channel = _make_channel(target, load_balancing, tls, tls_ca_file, tls_cert_file,
+                                      tls_key_file, tls_server_name)
+        self._stub = _pb_grpc.ShapeIdStub(self._channel)
+        self._health_check = self._channel.unary_unary(
+            "/grpc.health.v1.Health/Check", request_serializer=_identity,
+            response_deserializer=_identity)
+        # Set once a server answers UNIMPLEMENTED to DescribeCloud / ClassifyCloud (an older
+        # release): stream from then on. Written only from False to True.
+        self._server_lacks_one_message_calls = False
+
+    @property
+    def target(self):
+        return self._target
+
+    def close(self):
+        """Closes the channel; calls after this fail."""
+        self._channel.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def __repr__(self):
+        return "shapeid.Client(%r)" % self._target
+
+    # -----------------------------------------------------------------------------------------
+    # Clouds
+
+    def describe(self, cloud, *, spec="", gallery="", drop_non_finite=False, timeout=None):
+        """The descriptor of `cloud` as a DescribeResult (values: numpy float32). `spec` empty:
+        the spec of `gallery` if given, else the server's default ("dfsd")."""
+        encoded = _clouds.encode(cloud, drop_non_finite=drop_non_finite)
+        header = _pb.DescribeHeader(descriptor_spec=spec, gallery=gallery,
+                                    expected_points=encoded.num_points)
+        response = self._cloud_call(header, encoded, _pb.DescribeCloudRequest,
+                                    _pb.DescribeRequest, self._stub.DescribeCloud,
+                                    self._stub.Describe, timeout)
+        return _results.DescribeResult.from_proto(response)
+
+    def classify(self, gallery, cloud, *, k=0, exact=False, drop_non_finite=False,
+                 timeout=None):
+        """Classifies `cloud` against `gallery` with `k` neighbours (0: the gallery's k) as a
+        ClassifyResult. NotFoundError for an unknown gallery, FailedPreconditionError for an
+        empty one. exact=True searches every stored vector even where the server searches
+        the gallery approximately."""
+        encoded = _clouds.encode(cloud, drop_non_finite=drop_non_finite)
+        header = _pb.ClassifyHeader(gallery=gallery, k=k, exact=exact,
+                                    expected_points=encoded.num_points)
+        response = self._cloud_call(header, encoded, _pb.ClassifyCloudRequest,
+                                    _pb.ClassifyRequest, self._stub.ClassifyCloud,
+                                    self._stub.Classify, timeout)
+        return _results.ClassifyResult.from_proto(response)
+
+    def train(self, gallery, clouds, labels, *, ids=None, augmentation=None,
+              drop_non_finite=False, timeout=None):
+        """Adds labelled clouds to `gallery` in one stream: all of them or, on any error, none.
+        Returns a TrainResult (the new sample ids, in order).
+
+        clouds: one cloud, or a sequence of clouds (a 3-D array is a batch of N x 3 clouds).
+        labels: one label for every cloud, or one per cloud.
+        ids: None (the server assigns ids), or one id per cloud (0: the server assigns
+          that one). Retried on UNAVAILABLE only when every id is client-chosen, so a
+          repeated stream cannot add a sample twice; an AlreadyExistsError after such a
+          retry says that the first attempt may have committed.
+        augmentation: a shapeid.Augmentation for this stream instead of the gallery's.
+        Every cloud is converted before anything is sent; a bad one raises TypeError or
+        ValueError naming its index.
+        """
+        clouds = _as_cloud_list(clouds)
+        if isinstance(labels, str):
+            labels = [labels] * len(clouds)
+        labels = list(labels)
+        if len(labels) != len(clouds):
+            raise ValueError("%d clouds but %d labels" % (len(clouds), len(labels)))
+        for i, label in enumerate(labels):
+            if not isinstance(label, str) or not label:
+                raise ValueError("labels[%d] is %r; a label is a non-empty string" % (i, label))
+        ids = [0] * len(clouds) if ids is None else [int(i) for i in ids]
+        if len(ids) != len(clouds):
+            raise ValueError("%d clouds but %d ids" % (len(clouds), len(ids)))
+        if any(i < 0 or i >= 1 << 64 for i in ids):
+            raise ValueError("sample ids are unsigned 64-bit integers (0: the server assigns)")
+        encoded = []
+        for i, cloud in enumerate(clouds):
+            try:
+                encoded.append(_clouds.encode(cloud, drop_non_finite=drop_non_finite))
+            except (TypeError, ValueError) as e:
+                raise type(e)("clouds[%d]: %s" % (i, e)) from None
+        header = _pb.TrainHeader(gallery=gallery)
+        if augmentation is not None:
+            augmentation.to_proto(header.augmentation)
+
+        def requests():
+            yield _pb.TrainRequest(header=header)
+            for label, sample_id, cloud in zip(labels, ids, encoded):
+                yield _pb.TrainRequest(sample=_pb.SampleHeader(
+                    label=label, sample_id=sample_id, expected_points=cloud.num_points))
+                for chunk in cloud.chunks(self._chunk_points):
+                    yield _pb.TrainRequest(points=_pb.PointChunk(xyz=chunk))
+
+        attempts = []
+
+        def attempt(remaining):
+            attempts.append(None)
+            return self._stub.Train(requests(), timeout=remaining, metadata=self._metadata)
+
+        all_ids = bool(ids) and all(ids)
+        try:
+            response = self._call(all_ids, attempt, timeout)
+        except ShapeidError as e:
+            if e.code == grpc.StatusCode.ALREADY_EXISTS and len(attempts) > 1:
+                raise error_for(e.code, e.message + " (an earlier attempt of this train got no "
+                                "answer and may have committed these samples: check the "
+                                "gallery before training them again)") from None
+            raise
+        return _results.TrainResult.from_proto(response)
+
+    # -----------------------------------------------------------------------------------------
+    # Galleries
+
+    def create_gallery(self, name, *, spec="", k=0, weighting=None, scaling=None,
+                       reject_distance=0.0, augmentation=None, timeout=None):
+        """Creates gallery `name` and returns it (a Gallery). spec: descriptor spec ("":
+        the server's default, "dfsd"); k: neighbours that vote (0: 1); weighting: "uniform"
+        or "distance"; scaling: "none", "zscore" or "maxabs"; reject_distance > 0: answer
+        "unknown" beyond it; augmentation: a shapeid.Augmentation. Sent once (not retried).
+        AlreadyExistsError if the name is taken."""
+        request = _pb.CreateGalleryRequest(name=name, descriptor_spec=spec,
+                                           reject_distance=reject_distance)
+        request.knn.k = k
+        if weighting is not None:
+            request.knn.weighting = _choice(weighting, _results.WEIGHTINGS, "weighting")
+        if scaling is not None:
+            request.knn.scaling = _choice(scaling, _results.SCALINGS, "scaling")
+        if augmentation is not None:
+            augmentation.to_proto(request.augmentation)
+        response = self._unary(False, self._stub.CreateGallery, request, timeout)
+        return _results.Gallery.from_proto(response)
+
+    def get_gallery(self, name, *, timeout=None):
+        """Gallery `name` (NotFoundError if there is none)."""
+        request = _pb.GetGalleryRequest(name=name)
+        return _results.Gallery.from_proto(
+            self._unary(True, self._stub.GetGallery, request, timeout))
+
+    def list_galleries(self, *, timeout=None):
+        """Every gallery, sorted by name."""
+        response = self._unary(True, self._stub.ListGalleries, _pb.ListGalleriesRequest(),
+                               timeout)
+        return [_results.Gallery.from_proto(g) for g in response.galleries]
+
+    def delete_gallery(self, name, *, timeout=None):
+        """Deletes gallery `name`; returns how many samples went with it. Sent once."""
+        response = self._unary(False, self._stub.DeleteGallery,
+                               _pb.DeleteGalleryRequest(name=name), timeout)
+        return response.samples_deleted
+
+    def remove_samples(self, gallery, *, ids=(), labels=(), timeout=None):
+        """Removes the samples with any of `ids` and every sample of `labels`, all or nothing
+        (an unknown id: NotFoundError). Returns a RemoveResult. Sent once."""
+        if isinstance(labels, str):
+            labels = [labels]
+        request = _pb.RemoveSamplesRequest(gallery=gallery, sample_ids=[int(i) for i in ids],
+                                           labels=list(labels))
+        response = self._unary(False, self._stub.RemoveSamples, request, timeout)
+        return _results.RemoveResult(response.removed, response.remaining)
+
+    def export_gallery(self, name, file, *, timeout=None):
+        """Streams gallery `name` into `file` (a path, or a binary file object) as the
+        portable gallery file of `shapeid gallery export`; returns the number of samples.
+        A path only ever holds a whole export (written beside it, then renamed); on an
+        error it keeps what it held. Retried only while no chunk has been written. The
+        whole stream must fit the deadline: raise `timeout` for very large galleries."""
+        request = _pb.ExportGalleryRequest(name=name)
+        writer = _gallery_file.Writer(file)
+        delivered = []
+        try:
+            def attempt(remaining):
+                samples = 0
+                for chunk in self._stub.ExportGallery(request, timeout=remaining,
+                                                      metadata=self._metadata):
+                    delivered.append(None)
+                    writer.write(chunk.SerializeToString())
+                    if chunk.HasField("trailer"):
+                        samples = chunk.trailer.sample_count
+                return samples
+
+            samples = self._call(True, attempt, timeout, may_retry=lambda: not delivered)
+            writer.commit()
+            return samples
+        finally:
+            writer.close()
+
+    def import_gallery(self, file, *, name="", timeout=None):
+        """Streams a gallery file (a path or a binary file object, as export_gallery or
+        `shapeid gallery export` wrote it) into the server, all or nothing, optionally under
+        a new `name`; returns the new Gallery. AlreadyExistsError if the name is taken,
+        FailedPreconditionError for another descriptor version, InvalidArgumentError /
+        DataLossError for a damaged export. Never retried."""
+        chunks = _gallery_file.read_chunks(file, _pb.GalleryExportChunk)
+        first = next(chunks, None)  # ValueError now for a file that is not an export
+        source_error = []
+
+        def requests():
+            try:
+                chunk, request = first, _pb.ImportGalleryRequest(name=name)
+                while chunk is not None:
+                    request.chunk.CopyFrom(chunk)
+                    yield request
+                    chunk, request = next(chunks, None), _pb.ImportGalleryRequest()
+            except Exception as e:  # cancels the call: the server must not commit a part
+                source_error.append(e)
+                raise
+
+        def attempt(remaining):
+            return self._stub.ImportGallery(requests(), timeout=remaining,
+                                            metadata=self._metadata)
+
+        try:
+            response = self._call(False, attempt, timeout)
+        except ShapeidError:
+            if source_error:
+                raise source_error[0] from None
+            raise
+        return _results.Gallery.from_proto(response)
+
+    # -----------------------------------------------------------------------------------------
+    # The server
+
+    def list_descriptors(self, *, timeout=None):
+        """The descriptors the server offers, with their parameters and defaults."""
+        response = self._unary(True, self._stub.ListDescriptors, _pb.ListDescriptorsRequest(),
+                               timeout)
+        return [_results.DescriptorKind.from_proto(d) for d in response.descriptors]
+
+    def get_server_stats(self, *, timeout=None):
+        """A live summary of the server that answers (ServerStats). Read scope."""
+        response = self._unary(True, self._stub.GetServerStats, _pb.GetServerStatsRequest(),
+                               timeout)
+        return _results.ServerStats.from_proto(response)
+
+    def set_log_level(self, level, *, timeout=None):
+        """Sets the answering server's log level ("debug", "info", "warning", "error") until
+        it restarts; returns a LogLevel (previous and new). Admin scope."""
+        response = self._unary(True, self._stub.SetLogLevel, _pb.SetLogLevelRequest(level=level),
+                               timeout)
+        return _results.LogLevel(response.previous_level, response.level)
+
+    def health(self, *, timeout=None):
+        """grpc.health.v1 Check of the whole server as a Health (`.serving` is True when it
+        answers SERVING). UnavailableError when it cannot be reached. Needs no key."""
+        reply = self._unary(True, self._health_check, b"", timeout)
+        # HealthCheckResponse: field 1 (status), a varint; absent means UNKNOWN (0).
+        status = reply[1] if len(reply) >= 2 and reply[0] == 0x08 else 0
+        return _results.Health(_HEALTH_STATUSES.get(status, "UNKNOWN"))
+
+    # -----------------------------------------------------------------------------------------
+
+    def _call(self, retry, attempt, timeout, may_retry=None):
+        """Runs attempt(remaining_seconds) until it returns, retrying (when `retry`) while it
+        raises UNAVAILABLE or CANCELLED, all within one deadline, as the C++ client's Call.
+        `may_retry`, when given, is asked before each further attempt (False: stop)."""
+        budget = self._deadline if timeout is None else timeout
+        if budget <= 0:
+            raise ValueError("timeout must be positive (seconds), got %r" % (timeout,))
+        deadline = time.monotonic() + budget
+        backoff = self._initial_backoff
+        attempts = self._max_attempts if retry else 1
+        error = None
+        for i in range(attempts):
+            if i > 0:
+                if may_retry is not None and not may_retry():
+                    break
+                if time.monotonic() + backoff >= deadline:
+                    break  # the last answer stands
+                time.sleep(backoff)
+                backoff *= 2
+            try:
+                return attempt(max(deadline - time.monotonic(), 0.0))
+            except grpc.RpcError as e:
+                error = e
+                if e.code() not in _RETRIED:
+                    break
+        raise from_rpc_error(error) from None
+
+    def _unary(self, retry, method, request, timeout):
+        return self._call(retry, lambda remaining: method(
+            request, timeout=remaining, metadata=self._metadata), timeout)
+
+    def _cloud_call(self, header, encoded, one_message, stream_request, unary, stream, timeout):
+        """Describe and Classify: the header and the cloud in one message when the cloud has
+        at most chunk_points points (and the server knows the one-message calls), else a
+        stream of the header then chunks. Retried like any idempotent call."""
+        if (encoded.num_points <= self._chunk_points
+                and not self._server_lacks_one_message_calls):
+            request = one_message(header=header, points=_pb.PointChunk(xyz=encoded.data))
+            try:
+                return self._unary(True, unary, request, timeout)
+            except ShapeidError as e:
+                if e.code != grpc.StatusCode.UNIMPLEMENTED:
+                    raise
+                self._server_lacks_one_message_calls = True
+
+        def requests():
+            yield stream_request(header=header)
+            for chunk in encoded.chunks(self._chunk_points):
+                yield stream_request(points=_pb.PointChunk(xyz=chunk))
+
+        return self._call(True, lambda remaining: stream(
+            requests(), timeout=remaining, metadata=self._metadata), timeout)
+
+
+def _identity(value):
+    return value
+
+
+def _choice(value, table, what):
+    if value not in table:
+        raise ValueError("%s must be one of %s, got %r" % (what, ", ".join(table), value))
+    return table[value]
+
+
+def _as_cloud_list(clouds):
+    """`clouds` as a list of clouds: one cloud alone, a 3-D array's first axis, or a
+    sequence."""
+    if isinstance(clouds, np.ndarray):
+        return list(clouds) if clouds.ndim == 3 else [clouds]
+    if hasattr(clouds, "points") or _clouds._looks_like_point_cloud2(clouds):
+        return [clouds]
+    try:
+        return list(clouds)
+    except TypeError:
+        raise TypeError("clouds must be a cloud or a sequence of clouds, got %s"
+                        % type(clouds).__name__) from None
+
+
+def _read_pem(path, what):
+    try:
+        with open(path, "rb") as f:
+            text = f.read(1 << 20)
+    except OSError as e:
+        raise ValueError("cannot read the %s '%s': %s" % (what, path, e.strerror)) from None
+    if b"-----BEGIN " not in text:
+        raise ValueError("the %s '%s' is not a PEM file" % (what, path))
+    return text
+
+
+def _make_channel(target, load_balancing, tls, ca_file, cert_file, key_file, server_name):
+    resolved = _resolve_target(target)
+    replicas = "," in target or target.startswith("dns:")
+    if load_balancing == "round_robin" and replicas:
+        # healthCheckConfig: replicas that are loading or draining (NOT_SERVING) get no calls.
+        config = {"loadBalancingConfig": [{"round_robin": {}}],
+                  "healthCheckConfig": {"serviceName": ""}}
+    elif load_balancing in ("round_robin", "pick_first"):
+        config = {"loadBalancingConfig": [{load_balancing: {}}]}
+    else:
+        raise ValueError("load_balancing must be round_robin or pick_first, got %r"
+                         % (load_balancing,))
+    options = [("grpc.service_config", json.dumps(config))]
+    if resolved.authority:
+        options.append(("grpc.default_authority", resolved.authority))
+    tls = tls or bool(ca_file or cert_file or key_file)
+    if not tls:
+        if server_name:
+            raise ValueError("tls_server_name is set but TLS is off")
+        return grpc.insecure_channel(resolved.target, options=options)
+    if not resolved.one_host and not server_name:
+        raise ValueError("target '%s' lists replicas on different hosts and TLS checks one name "
+                         "for all of them: set tls_server_name to a name every replica's "
+                         "certificate carries" % target)
+    if bool(cert_file) != bool(key_file):
+        raise ValueError("a client certificate needs its key, and a key its certificate: give "
+                         "both TLS files or neither")
+    credentials = grpc.ssl_channel_credentials(
+        root_certificates=_read_pem(ca_file, "TLS CA file") if ca_file else None,
+        private_key=_read_pem(key_file, "TLS client key file") if key_file else None,
+        certificate_chain=_read_pem(cert_file, "TLS client certificate file") if cert_file
+        else None)
+    if server_name:
+        options.append(("grpc.ssl_target_name_override", server_name))
+    return grpc.secure_channel(resolved.target, credentials, options=options)
+

@@ -1,0 +1,285 @@
+"""Point clouds as robots hold them, turned into the bytes a shapeid server reads.
+
+`encode` is the one entry point: it takes an N x 3 numpy array, an Open3D point cloud or a
+ROS PointCloud2 message (ROS 1 or ROS 2, duck-typed) and returns an `EncodedCloud`: the
+points' bytes and the layout they are in. Today the layout is always `PACKED_XYZ32`, the
+wire's packed little-endian float32 x y z (proto PointChunk); the conversion is by value
+(float64 is rounded to the nearest float32, big-endian is swapped), never a reinterpretation
+of bytes. A later wire header that declares a sensor layout can forward a PointCloud2's own
+bytes instead: only `encode` changes.
+
+Errors are raised before anything is sent: TypeError for something that is not a cloud or
+an unsupported element type, ValueError for a cloud of the wrong shape, a mis-declared
+PointCloud2, a coordinate beyond float32's range, or non-finite points when
+drop_non_finite is False (the default, as in the CLI's --drop-nonfinite).
+"""
+
+import dataclasses
+import sys
+
+import numpy as np
+
+__all__ = ["EncodedCloud", "Layout", "PACKED_XYZ32", "encode", "FLOAT32", "FLOAT64"]
+
+# sensor_msgs/PointField datatypes (the same numbers in ROS 1 and ROS 2).
+_DATATYPE_NAMES = {1: "INT8", 2: "UINT8", 3: "INT16", 4: "UINT16", 5: "INT32", 6: "UINT32",
+                   7: "FLOAT32", 8: "FLOAT64"}
+FLOAT32 = 7
+FLOAT64 = 8
+_FLOAT_SIZES = {FLOAT32: 4, FLOAT64: 8}
+_PC2_ATTRIBUTES = ("height", "width", "fields", "is_bigendian", "point_step", "row_step", "data")
+_EXPECTED = ("an N x 3 numpy array of floats, an open3d.geometry.PointCloud or a "
+             "sensor_msgs PointCloud2 message")
+
+
+@dataclasses.dataclass(frozen=True)
+class Layout:
+    """Where x, y and z sit in each point's bytes, as a PointCloud2 declares it."""
+    point_step: int
+    offsets: tuple      # byte offsets of x, y, z
+    datatype: int       # FLOAT32 or FLOAT64
+    big_endian: bool
+
+
+# The wire format of proto PointChunk.xyz: 12 bytes a point, float32 x y z, little-endian.
+PACKED_XYZ32 = Layout(point_step=12, offsets=(0, 4, 8), datatype=FLOAT32, big_endian=False)
+
+
+@dataclasses.dataclass(frozen=True)
+class EncodedCloud:
+    """A cloud ready for the wire: `num_points` points as `data`, laid out as `layout`."""
+    data: bytes
+    num_points: int
+    layout: Layout
+    dropped_non_finite: int = 0   # points left out (drop_non_finite=True)
+
+    def chunks(self, points_per_chunk):
+        """The bytes in runs of at most `points_per_chunk` points (at least one run)."""
+        step = points_per_chunk * self.layout.point_step
+        if len(self.data) <= step:
+            yield self.data
+            return
+        view = memoryview(self.data)
+        for start in range(0, len(self.data), step):
+            yield bytes(view[start:start + step])
+
+
+def encode(cloud, *, drop_non_finite=False):
+    """`cloud` as an EncodedCloud (see the module's comment for what is accepted).
+
+    drop_non_finite: False (the default) refuses a cloud with a NaN or infinite coordinate
+    (ValueError naming how many and the first); True leaves those points out (organised
+    depth-camera clouds mark missing returns with NaN).
+    """
+    width = None  # of an organised cloud, to name a point by row and column
+    if isinstance(cloud, np.ndarray):
+        points = _from_array(cloud, "the array")
+    elif _looks_like_point_cloud2(cloud):
+        points = _from_point_cloud2(cloud)
+        width = int(cloud.width) if int(cloud.height) > 1 else None
+    elif hasattr(cloud, "points") and not isinstance(cloud, (str, bytes, dict)):
+        points = _from_array(np.asarray(cloud.points), type(cloud).__name__ + ".points")
+    else:
+        raise TypeError("expected %s; got %s%s" % (_EXPECTED, _type_name(cloud), _hint(cloud)))
+    points, dropped = _finite(points, drop_non_finite, width)
+    return EncodedCloud(data=points.tobytes(), num_points=len(points), layout=PACKED_XYZ32,
+                        dropped_non_finite=dropped)
+
+
+# ---------------------------------------------------------------------------------------------
+# numpy arrays (and Open3D's .points, a float64 N x 3 view)
+
+def _from_array(array, what):
+    """An (N, 3) C-contiguous little-endian float32 array holding `array`'s values."""
+    if array.dtype.kind != "f":
+        if array.dtype.kind in "iub":
+            raise TypeError(
+                "%s has dtype %s: points must be floating point. If the integers are "
+                "coordinates, convert them explicitly: cloud.astype(numpy.float32)"
+                % (what, array.dtype))
+        raise TypeError("%s has dtype %s: points must be float16, float32 or float64"
+                        % (what, array.dtype))
+    if array.ndim != 2 or array.shape[1] != 3:
+        hint = ""
+        if array.ndim == 2 and array.shape[0] == 3:
+            hint = ": points are rows; for 3 x N coordinates pass cloud.T"
+        elif array.ndim == 2 and array.shape[1] > 3:
+            hint = ": shapeid takes x y z only; pass cloud[:, :3]"
+        elif array.ndim == 1 and array.size % 3 == 0:
+            hint = ": for a flat x y z x y z ... array pass cloud.reshape(-1, 3)"
+        raise ValueError("%s has shape %s; expected (N, 3), one x y z row per point%s"
+                         % (what, array.shape, hint))
+    if array.dtype == _F32LE and array.flags.c_contiguous:
+        return array
+    out = np.empty(array.shape, _F32LE)
+    with np.errstate(over="ignore", invalid="ignore"):
+        out[...] = array   # by value: rounds float64, swaps big-endian, gathers any strides
+    if array.dtype.itemsize > 4:
+        _check_range(array, out, what)
+    return out
+
+
+_F32LE = np.dtype("<f4")
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def _check_range(source, converted, what):
+    """ValueError when a finite value of `source` became infinite in float32 `converted`."""
+    # Cheap when all is well: one reduction over the converted points.
+    if np.isfinite(converted).all():
+        return
+    overflow = np.isinf(converted) & np.isfinite(source)
+    if overflow.any():
+        row, axis = np.argwhere(overflow)[0]
+        raise ValueError(
+            "%s: point %d: %s = %r does not fit in a float32 (|value| <= %.4g); subtract an "
+            "offset first (every descriptor is translation invariant)"
+            % (what, row, "xyz"[axis], float(source[row, axis]), _FLOAT32_MAX))
+
+
+def _finite(points, drop, width=None):
+    """`points` without non-finite rows (drop) or unchanged; ValueError if any and not drop.
+    `width`: the row length of an organised cloud, for the message."""
+    finite = np.isfinite(points)
+    if finite.all():
+        return points, 0
+    rows = finite.all(axis=1)
+    bad = len(points) - int(np.count_nonzero(rows))
+    if not drop:
+        first = int(np.argmin(rows))
+        where = "point %d" % first
+        if width:
+            where += " (row %d, column %d)" % divmod(first, width)
+        raise ValueError(
+            "%d of %d points have a NaN or infinite coordinate (the first: %s, %s); pass "
+            "drop_non_finite=True to leave them out" % (bad, len(points), where, points[first].tolist()))
+    return points[rows], bad
+
+
+# ---------------------------------------------------------------------------------------------
+# sensor_msgs/PointCloud2, ROS 1 or ROS 2
+
+def _looks_like_point_cloud2(cloud):
+    return any(hasattr(cloud, a) for a in ("fields", "point_step", "row_step"))
+
+
+def _from_point_cloud2(msg):
+    missing = [a for a in _PC2_ATTRIBUTES if not hasattr(msg, a)]
+    if missing:
+        raise TypeError("%s looks like a PointCloud2 but has no %s; expected %s"
+                        % (_type_name(msg), ", ".join(missing), _EXPECTED))
+    height, width = _count(msg.height, "height"), _count(msg.width, "width")
+    point_step, row_step = _count(msg.point_step, "point_step"), _count(msg.row_step, "row_step")
+    big_endian = bool(msg.is_bigendian)
+    data = _bytes_of(msg.data)
+    if height * width == 0:
+        return np.empty((0, 3), _F32LE)
+    if point_step == 0:
+        raise ValueError("PointCloud2: point_step is 0")
+    if row_step < width * point_step:
+        raise ValueError("PointCloud2: row_step %d < width %d x point_step %d"
+                         % (row_step, width, point_step))
+    if len(data) != height * row_step:
+        raise ValueError("PointCloud2: data holds %d bytes; height %d x row_step %d is %d"
+                         % (len(data), height, row_step, height * row_step))
+
+    by_name = {}
+    for field in msg.fields:
+        by_name.setdefault(getattr(field, "name", None), field)
+    names, formats, offsets = [], [], []
+    order = ">" if big_endian else "<"
+    datatypes = set()
+    for name in "xyz":
+        field = by_name.get(name)
+        if field is None:
+            present = ", ".join(repr(getattr(f, "name", "?")) for f in msg.fields) or "none"
+            raise ValueError("PointCloud2 has no field '%s' (fields: %s); shapeid needs x, y "
+                             "and z" % (name, present))
+        datatype, offset = int(field.datatype), int(field.offset)
+        size = _FLOAT_SIZES.get(datatype)
+        if size is None:
+            raise ValueError(
+                "PointCloud2 field '%s' has datatype %d (%s); shapeid reads FLOAT32 (7) or "
+                "FLOAT64 (8) coordinates" % (name, datatype, _DATATYPE_NAMES.get(datatype, "unknown")))
+        if getattr(field, "count", 1) not in (0, 1):
+            raise ValueError("PointCloud2 field '%s' has count %d; a coordinate is one value"
+                             % (name, field.count))
+        if offset < 0 or offset + size > point_step:
+            raise ValueError("PointCloud2 field '%s' at offset %d (%d bytes) does not fit in "
+                             "point_step %d" % (name, offset, size, point_step))
+        names.append(name)
+        formats.append(order + ("f4" if size == 4 else "f8"))
+        offsets.append(offset)
+        datatypes.add(datatype)
+
+    raw = np.frombuffer(data, np.uint8)
+    if datatypes == {FLOAT32} and offsets[1] == offsets[0] + 4 and offsets[2] == offsets[0] + 8:
+        # x y z adjacent float32s (nearly every driver): one strided copy. Little-endian
+        # copies 12 bytes a point as one opaque item, twice as fast as three floats.
+        out = np.empty((height, width, 3), _F32LE)
+        if big_endian:
+            out[...] = np.ndarray((height, width, 3), ">f4", raw, offsets[0],
+                                  (row_step, point_step, 4))
+        else:
+            out.view("V12").reshape(height, width)[...] = np.ndarray(
+                (height, width), "V12", raw, offsets[0], (row_step, point_step))
+        return out.reshape(-1, 3)
+    struct = np.dtype({"names": names, "formats": formats, "offsets": offsets,
+                       "itemsize": point_step})
+    points = np.ndarray((height, width), struct, raw, 0, (row_step, point_step))
+    out = np.empty((height, width, 3), _F32LE)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for axis, name in enumerate(names):
+            out[..., axis] = points[name]
+    out = out.reshape(-1, 3)
+    if FLOAT64 in datatypes and not np.isfinite(out).all():
+        source = np.empty(out.shape, np.float64)
+        for axis, name in enumerate(names):
+            source[:, axis] = points[name].reshape(-1)
+        _check_range(source, out, "PointCloud2")
+    return out
+
+
+def _count(value, name):
+    try:
+        number = int(value)
+    except (TypeError, ValueError):
+        raise TypeError("PointCloud2 %s is %r; expected an integer" % (name, value)) from None
+    if number < 0:
+        raise ValueError("PointCloud2 %s is %d" % (name, number))
+    return number
+
+
+def _bytes_of(data):
+    """A PointCloud2's data as something numpy reads without copying where it can: bytes
+    (ROS 1), array.array('B') (ROS 2), bytearray, memoryview or a list of ints."""
+    if isinstance(data, (bytes, bytearray)):
+        return data
+    if isinstance(data, (list, tuple)):
+        values = np.asarray(data)
+        if values.size and (values.dtype.kind not in "iu" or values.min() < 0 or values.max() > 255):
+            raise ValueError("PointCloud2 data is a list that is not of bytes (0-255)")
+        return values.astype(np.uint8).tobytes()
+    try:
+        view = memoryview(data)
+    except TypeError:
+        raise TypeError("PointCloud2 data is %s; expected bytes, bytearray, memoryview, "
+                        "array.array('B') or a list of ints" % _type_name(data)) from None
+    if not view.c_contiguous:
+        raise ValueError("PointCloud2 data is a non-contiguous buffer")
+    return view.cast("B") if view.format != "B" or view.ndim != 1 else view
+
+
+# ---------------------------------------------------------------------------------------------
+
+def _type_name(value):
+    kind = type(value)
+    return kind.__name__ if kind.__module__ == "builtins" else "%s.%s" % (kind.__module__, kind.__name__)
+
+
+def _hint(value):
+    if isinstance(value, (list, tuple)):
+        return " (a list: convert it with numpy.asarray(points, dtype=numpy.float32))"
+    if "torch" in sys.modules and type(value).__module__.startswith("torch"):
+        return " (a tensor: pass tensor.cpu().numpy())"
+    return ""

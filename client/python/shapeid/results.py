@@ -1,0 +1,272 @@
+"""What the calls return: frozen dataclasses built from the server's response messages.
+Every field means what the proto's field of the same name means
+(proto/shapeid/v1/shapeid.proto); durations are float seconds, times are aware UTC
+datetimes, descriptors are numpy float32 arrays.
+"""
+
+import dataclasses
+import datetime
+from typing import Dict, List, Optional
+
+import numpy as np
+
+__all__ = [
+    "Neighbor", "Vote", "ClassifyResult", "DescribeResult", "TrainResult", "Augmentation",
+    "Gallery", "RemoveResult", "DescriptorParameter", "DescriptorKind", "MethodStats",
+    "WorkLaneStats", "GalleryStats", "ServerStats", "Health", "LogLevel",
+]
+
+WEIGHTINGS = {"uniform": 1, "distance": 2}
+SCALINGS = {"none": 1, "zscore": 2, "maxabs": 3}
+
+
+def _name(table, value):
+    for name, number in table.items():
+        if number == value:
+            return name
+    return "unspecified"
+
+
+def _seconds(duration):
+    return duration.seconds + duration.nanos / 1e9
+
+
+def _time(timestamp):
+    if timestamp.seconds == 0 and timestamp.nanos == 0:
+        return None
+    return datetime.datetime.fromtimestamp(timestamp.seconds + timestamp.nanos / 1e9,
+                                           datetime.timezone.utc)
+
+
+@dataclasses.dataclass(frozen=True)
+class Neighbor:
+    sample_id: int
+    label: str
+    distance: float  # between descriptors, in the gallery's scaled feature space
+    view: int = 0    # 0: the trained cloud; i >= 1: its i-th synthetic view
+
+
+@dataclasses.dataclass(frozen=True)
+class Vote:
+    label: str
+    weight: float
+
+
+@dataclasses.dataclass(frozen=True)
+class ClassifyResult:
+    label: str                 # the winner, or "unknown" beyond the reject distance
+    unknown: bool
+    confidence: float          # the winner's share of the vote, (0, 1]; 0 when unknown
+    neighbors: List[Neighbor]  # nearest first
+    votes: List[Vote]          # most weight first
+    num_points: int            # points the server received
+    describe_seconds: float
+    search_seconds: float
+    approximate: bool          # the search read the approximate index
+
+    @classmethod
+    def from_proto(cls, r):
+        return cls(label=r.label, unknown=r.unknown, confidence=r.confidence,
+                   neighbors=[Neighbor(n.sample_id, n.label, n.distance, n.view)
+                              for n in r.neighbors],
+                   votes=[Vote(v.label, v.weight) for v in r.votes],
+                   num_points=r.num_points, describe_seconds=_seconds(r.describe_time),
+                   search_seconds=_seconds(r.search_time), approximate=r.approximate)
+
+
+@dataclasses.dataclass(frozen=True)
+class DescribeResult:
+    descriptor_spec: str  # canonical: equal specs give equal vectors
+    values: np.ndarray    # float32, exactly as the server computed them
+    num_points: int
+    describe_seconds: float
+
+    @classmethod
+    def from_proto(cls, r):
+        return cls(descriptor_spec=r.descriptor_spec, values=np.array(r.values, np.float32),
+                   num_points=r.num_points, describe_seconds=_seconds(r.describe_time))
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainResult:
+    sample_ids: List[int]  # in the order of the clouds given, server-assigned ones included
+    gallery_sample_count: int
+    gallery_version: int
+    describe_seconds: float  # over all the samples
+
+    @classmethod
+    def from_proto(cls, r):
+        return cls(sample_ids=list(r.sample_ids), gallery_sample_count=r.gallery_sample_count,
+                   gallery_version=r.gallery_version, describe_seconds=_seconds(r.describe_time))
+
+
+@dataclasses.dataclass(frozen=True)
+class Augmentation:
+    """Training-time view augmentation (proto ViewAugmentation): each trained cloud also
+    becomes `views` synthetic single-view scans. Zeros and None take the server's defaults."""
+    views: int = 0              # 0 to 64; 0: off
+    noise: Optional[float] = None  # fraction of the object's extent; None: 0.01
+    min_points: int = 0         # 0: 300
+    max_points: int = 0         # 0: 500
+    random_pose: bool = False
+    seed: int = 0               # 0: 1
+
+    def to_proto(self, message):
+        message.views = self.views
+        if self.noise is not None:
+            message.noise = self.noise
+        message.min_points = self.min_points
+        message.max_points = self.max_points
+        message.random_pose = self.random_pose
+        message.seed = self.seed
+
+    @classmethod
+    def from_proto(cls, a):
+        return cls(views=a.views, noise=a.noise if a.HasField("noise") else None,
+                   min_points=a.min_points, max_points=a.max_points, random_pose=a.random_pose,
+                   seed=a.seed)
+
+
+@dataclasses.dataclass(frozen=True)
+class Gallery:
+    name: str
+    descriptor_spec: str  # canonical
+    dimension: int
+    k: int
+    weighting: str        # "uniform" or "distance"
+    scaling: str          # "none", "zscore" or "maxabs"
+    reject_distance: float
+    sample_count: int
+    label_counts: Dict[str, int]  # sorted by label
+    create_time: Optional[datetime.datetime]
+    update_time: Optional[datetime.datetime]
+    version: int
+    descriptor_version: int
+    software_version: str
+    incompatible: str     # empty, or why this server cannot train or classify it
+    augmentation: Augmentation
+    vector_count: int
+    approximate_lists: int  # 0: exact search
+
+    @classmethod
+    def from_proto(cls, g):
+        return cls(name=g.name, descriptor_spec=g.descriptor_spec, dimension=g.dimension,
+                   k=g.knn.k, weighting=_name(WEIGHTINGS, g.knn.weighting),
+                   scaling=_name(SCALINGS, g.knn.scaling), reject_distance=g.reject_distance,
+                   sample_count=g.sample_count,
+                   label_counts={c.label: c.count for c in g.label_counts},
+                   create_time=_time(g.create_time), update_time=_time(g.update_time),
+                   version=g.version, descriptor_version=g.descriptor_version,
+                   software_version=g.software_version, incompatible=g.incompatible,
+                   augmentation=Augmentation.from_proto(g.augmentation),
+                   vector_count=g.vector_count, approximate_lists=g.approximate_lists)
+
+
+@dataclasses.dataclass(frozen=True)
+class RemoveResult:
+    removed: int
+    remaining: int
+
+
+@dataclasses.dataclass(frozen=True)
+class DescriptorParameter:
+    name: str
+    default_value: str
+    help: str
+
+
+@dataclasses.dataclass(frozen=True)
+class DescriptorKind:
+    kind: str
+    summary: str
+    parameters: List[DescriptorParameter]
+    default_spec: str
+    default_dimension: int
+
+    @classmethod
+    def from_proto(cls, d):
+        return cls(kind=d.kind, summary=d.summary,
+                   parameters=[DescriptorParameter(p.name, p.default_value, p.help)
+                               for p in d.parameters],
+                   default_spec=d.default_spec, default_dimension=d.default_dimension)
+
+
+@dataclasses.dataclass(frozen=True)
+class MethodStats:
+    method: str
+    calls: int
+    errors: int
+    latency_p50_seconds: Optional[float]  # None when there were no calls
+    latency_p99_seconds: Optional[float]
+    wait_p50_seconds: Optional[float]     # None when no call queued work
+    wait_p99_seconds: Optional[float]
+
+
+@dataclasses.dataclass(frozen=True)
+class WorkLaneStats:
+    lane: str  # "cheap", "heavy" or "store"
+    workers: int
+    running: int
+    queued: int
+
+
+@dataclasses.dataclass(frozen=True)
+class GalleryStats:
+    name: str
+    samples: int
+    version: int
+
+
+@dataclasses.dataclass(frozen=True)
+class ServerStats:
+    version: str
+    uptime_seconds: float
+    state: str  # "serving", "loading", "store unreachable" or "draining"
+    calls_in_flight: int
+    methods: List[MethodStats]
+    galleries: List[GalleryStats]  # largest first
+    samples: int
+    points_received: int
+    resident_memory_bytes: int
+    store: str
+    log_level: str
+    metrics_address: str
+    work: List[WorkLaneStats]
+    memory_budget_bytes: int
+    memory_held_bytes: int
+    memory_held_peak_bytes: int
+
+    @classmethod
+    def from_proto(cls, s):
+        def optional(message, field):
+            return _seconds(getattr(message, field)) if message.HasField(field) else None
+        return cls(
+            version=s.version, uptime_seconds=_seconds(s.uptime), state=s.state,
+            calls_in_flight=s.calls_in_flight,
+            methods=[MethodStats(m.method, m.calls, m.errors, optional(m, "latency_p50"),
+                                 optional(m, "latency_p99"), optional(m, "wait_p50"),
+                                 optional(m, "wait_p99")) for m in s.methods],
+            galleries=[GalleryStats(g.name, g.samples, g.version) for g in s.galleries],
+            samples=s.samples, points_received=s.points_received,
+            resident_memory_bytes=s.resident_memory_bytes, store=s.store,
+            log_level=s.log_level, metrics_address=s.metrics_address,
+            work=[WorkLaneStats(w.lane, w.workers, w.running, w.queued) for w in s.work],
+            memory_budget_bytes=s.memory_budget_bytes, memory_held_bytes=s.memory_held_bytes,
+            memory_held_peak_bytes=s.memory_held_peak_bytes)
+
+
+@dataclasses.dataclass(frozen=True)
+class Health:
+    """grpc.health.v1 status of the whole server: "SERVING", "NOT_SERVING" (loading its
+    galleries or shutting down), "UNKNOWN" or "SERVICE_UNKNOWN"."""
+    status: str
+
+    @property
+    def serving(self):
+        return self.status == "SERVING"
+
+
+@dataclasses.dataclass(frozen=True)
+class LogLevel:
+    previous_level: str
+    level: str
