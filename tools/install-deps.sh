@@ -42,9 +42,15 @@ packages=(
   # reliability (docs/reliability.md): clang and libFuzzer for the fuzz targets, and
   # llvm-symbolizer for readable sanitizer reports (GCC's sanitizers use it too)
   clang-14 libclang-rt-14-dev llvm-14
-  # Python interop test (tests/python): a client generated from the proto with grpc_python_plugin,
-  # run by Debian's /usr/bin/python3
-  python3-grpcio python3-protobuf
+  # the Python package (client/python): its stubs made by grpc_python_plugin (above), run by
+  # Debian's /usr/bin/python3 over these
+  python3-grpcio python3-protobuf python3-numpy
+  # installing the Python package as docs/python.md says: pip, setuptools and wheel (offline,
+  # --no-build-isolation), and venv for a --system-site-packages environment
+  python3-pip python3-setuptools python3-wheel python3-venv
+  # the Python package's tests (pytest) and the clouds robots hold: Open3D point clouds, ROS 1
+  # sensor_msgs PointCloud2 messages (Debian's message classes import without a ROS master)
+  python3-pytest python3-open3d python3-sensor-msgs
 )
 
 sudo_if_needed() { if [ "$(id -u)" -eq 0 ]; then "$@"; else sudo "$@"; fi; }

@@ -1,0 +1,376 @@
+"""The client against a real shapeid-server: every call, inputs of every kind giving the
+descriptor and label of the float32 xyz they hold, errors as exceptions with their codes,
+deadlines, retries, chunking and one client shared by 16 threads."""
+
+import concurrent.futures
+import io
+import os
+import subprocess
+import time
+
+import grpc
+import numpy as np
+import pytest
+
+import shapeid
+from conftest import SHAPES, shape
+from test_clouds import LAYOUTS, ros1_message, ros2_message
+
+QUERY = shape(1, 999)  # a ball
+
+
+def variants(points):
+    """`points` (float32) as everything a robot may hold, by name."""
+    wide = np.concatenate([points, np.zeros((len(points), 2), np.float32)], axis=1)
+    out = {
+        "float64": points.astype(np.float64),
+        "fortran": np.asfortranarray(points),
+        "strided": np.repeat(points, 3, axis=0)[1::3],
+        "view-of-N-x-5": wide[:, :3],
+        "big-endian": points.astype(">f8"),
+        "pc2-ros1-xyzi16": ros1_message(points, LAYOUTS["xyzi16"]),
+        "pc2-ros1-padded32-big-endian": ros1_message(points, LAYOUTS["padded32"], True),
+        "pc2-ros2-float64": ros2_message(points, LAYOUTS["xyz64"]),
+        "pc2-ros2-organised": ros2_message(points, LAYOUTS["xyzi16"], height=32,
+                                           row_padding=4),
+    }
+    try:
+        import open3d
+    except ImportError:
+        pass
+    else:
+        cloud = open3d.geometry.PointCloud()
+        cloud.points = open3d.utility.Vector3dVector(points.astype(np.float64))
+        out["open3d"] = cloud
+    return out
+
+
+def test_every_input_kind_gives_the_same_descriptor(client):
+    reference = client.describe(QUERY)
+    assert reference.descriptor_spec.startswith("dfsd:")
+    assert reference.values.dtype == np.float32 and len(reference.values) == 240
+    assert reference.num_points == 1024
+    inputs = variants(QUERY)
+    assert "open3d" in inputs, "python3-open3d must be installed (tools/install-deps.sh)"
+    for name, cloud in inputs.items():
+        got = client.describe(cloud)
+        assert got.num_points == 1024, name
+        assert np.array_equal(got.values, reference.values), name
+
+
+def test_every_input_kind_gives_the_same_classification(client, trained):
+    reference = client.classify(trained["name"], QUERY, k=3)
+    assert reference.label == "ball"
+    for name, cloud in variants(QUERY).items():
+        got = client.classify(trained["name"], cloud, k=3)
+        assert got.neighbors == reference.neighbors, name
+        assert (got.label, got.votes, got.confidence) == (
+            reference.label, reference.votes, reference.confidence), name
+
+
+def test_nans_dropped_give_the_cloud_without_them(client):
+    with_nans = np.concatenate([QUERY, np.full((5, 3), np.nan, np.float32)])
+    message = ros1_message(with_nans[:1024], LAYOUTS["xyzi16"], height=32)
+    with pytest.raises(ValueError, match="drop_non_finite=True"):
+        client.describe(with_nans)
+    assert np.array_equal(client.describe(with_nans, drop_non_finite=True).values,
+                          client.describe(QUERY).values)
+    dropped = client.describe(message, drop_non_finite=True)
+    assert dropped.num_points == 1024
+
+
+def test_train_classify_get_list_delete(client):
+    created = client.create_gallery("lifecycle", spec="rphsd:bins=30", k=3,
+                                    weighting="distance", scaling="zscore")
+    assert created.name == "lifecycle"
+    assert created.descriptor_spec == "rphsd:refs=cubic27,bins=30,variant=complete"
+    assert (created.dimension, created.k, created.weighting, created.scaling) == (
+        81, 3, "distance", "zscore")
+    assert created.sample_count == 0 and created.create_time.year >= 2024
+
+    clouds = [shape(kind, 200 + 10 * i + kind) for i in range(4) for kind in range(3)]
+    labels = [SHAPES[kind] for _ in range(4) for kind in range(3)]
+    ids = [1000 + i for i in range(12)]
+    ids[5] = 0  # the server assigns this one
+    trained = client.train("lifecycle", clouds, labels, ids=ids)
+    assert trained.sample_ids[:5] == ids[:5] and trained.sample_ids[6:] == ids[6:]
+    assert trained.sample_ids[5] >= 1 << 63
+    assert trained.gallery_sample_count == 12
+    assert trained.gallery_version > created.version
+    assert trained.describe_seconds > 0
+
+    gallery = client.get_gallery("lifecycle")
+    assert gallery.sample_count == 12 and gallery.version == trained.gallery_version
+    assert gallery.label_counts == {"ball": 4, "plate": 4, "rod": 4}
+    assert list(gallery.label_counts) == sorted(gallery.label_counts)
+    assert "lifecycle" in [g.name for g in client.list_galleries()]
+
+    label_of = dict(zip(trained.sample_ids, labels))
+    for kind in range(3):
+        answer = client.classify("lifecycle", shape(kind, 5000 + kind, 2000))
+        assert answer.label == SHAPES[kind] and not answer.unknown
+        assert answer.num_points == 2000 and len(answer.neighbors) == 3
+        distances = [n.distance for n in answer.neighbors]
+        assert distances == sorted(distances)
+        assert all(label_of[n.sample_id] == n.label for n in answer.neighbors)
+        assert answer.votes[0].label == answer.label
+        assert 0 < answer.confidence <= 1
+        assert answer.describe_seconds > 0 and answer.search_seconds > 0
+        assert not answer.approximate
+        assert len(client.classify("lifecycle", shape(kind, 1), k=1).neighbors) == 1
+
+    removed = client.remove_samples("lifecycle", ids=[1000], labels="rod")
+    assert (removed.removed, removed.remaining) == (5, 7)
+    assert client.delete_gallery("lifecycle") == 7
+    with pytest.raises(shapeid.NotFoundError):
+        client.get_gallery("lifecycle")
+
+
+def test_train_takes_one_cloud_one_label_or_a_batch(client, gallery):
+    assert client.train(gallery, QUERY, "ball").gallery_sample_count == 1
+    batch = np.stack([shape(0, 1), shape(0, 2)])  # (2, 1024, 3)
+    assert client.train(gallery, batch, "plate").gallery_sample_count == 3
+    with pytest.raises(ValueError, match="2 clouds but 3 labels"):
+        client.train(gallery, batch, ["a", "b", "c"])
+    with pytest.raises(ValueError, match=r"labels\[1\] is ''"):
+        client.train(gallery, batch, ["a", ""])
+    with pytest.raises(ValueError, match=r"clouds\[1\]: the array has shape \(5, 2\)"):
+        client.train(gallery, [QUERY, np.zeros((5, 2))], "x")
+    with pytest.raises(TypeError, match=r"clouds\[0\]: the array has dtype int64"):
+        client.train(gallery, [np.zeros((5, 3), np.int64)], "x")
+    assert client.get_gallery(gallery).sample_count == 3  # nothing sent by the refusals
+
+
+def test_augmentation_and_reject_distance(client):
+    created = client.create_gallery("augmented", augmentation=shapeid.Augmentation(views=2),
+                                    reject_distance=1e-9)
+    assert created.augmentation.views == 2 and created.reject_distance == 1e-9
+    client.train("augmented", [shape(0, 1), shape(2, 2)], ["plate", "rod"])
+    assert client.get_gallery("augmented").vector_count == 6
+    plain = client.train("augmented", shape(1, 3), "ball",
+                         augmentation=shapeid.Augmentation(views=0))
+    assert client.get_gallery("augmented").vector_count == 7
+    assert plain.gallery_sample_count == 3
+    answer = client.classify("augmented", shape(1, 4))
+    assert answer.unknown and answer.label == "unknown" and answer.confidence == 0
+    client.delete_gallery("augmented")
+
+
+def test_big_clouds_stream_in_chunks_with_the_same_answers(server, client, trained):
+    points = shape(1, 42, 5000)
+    small = shapeid.Client(server.address, chunk_points=700)  # 5000 points: 8 chunks
+    try:
+        assert np.array_equal(small.describe(points).values, client.describe(points).values)
+        assert (small.classify(trained["name"], points, k=3).neighbors
+                == client.classify(trained["name"], points, k=3).neighbors)
+        small.create_gallery("chunked")
+        small.train("chunked", [points, shape(0, 43, 3000)], ["ball", "plate"])
+        client.create_gallery("whole")
+        client.train("whole", [points, shape(0, 43, 3000)], ["ball", "plate"])
+        assert (small.classify("chunked", QUERY).neighbors[0].distance
+                == client.classify("whole", QUERY).neighbors[0].distance)
+    finally:
+        small.close()
+
+
+def test_export_import_round_trip_and_cli_compatibility(client, trained, tmp_path):
+    path = tmp_path / "shapes.shapeid"
+    assert client.export_gallery(trained["name"], path) == 12
+    assert path.read_bytes().startswith(b"SHAPEIDG")
+    assert sorted(os.listdir(tmp_path)) == ["shapes.shapeid"]  # no temporary file left
+
+    imported = client.import_gallery(path, name="shapes-copy")
+    original = client.get_gallery(trained["name"])
+    assert (imported.name, imported.sample_count, imported.label_counts) == (
+        "shapes-copy", 12, original.label_counts)
+    assert (client.classify("shapes-copy", QUERY, k=3).neighbors
+            == client.classify(trained["name"], QUERY, k=3).neighbors)
+
+    buffer = io.BytesIO()
+    assert client.export_gallery("shapes-copy", buffer) == 12
+    buffer.seek(0)
+    with pytest.raises(shapeid.AlreadyExistsError):
+        client.import_gallery(buffer)
+
+    # The CLI writes the same bytes and reads ours.
+    cli_file = tmp_path / "cli.shapeid"
+    subprocess.run([os.environ["SHAPEID_CLI"], "--server", client.target, "--quiet",
+                    "gallery", "export", trained["name"], str(cli_file)], check=True)
+    assert cli_file.read_bytes() == path.read_bytes()
+    subprocess.run([os.environ["SHAPEID_CLI"], "--server", client.target, "--quiet",
+                    "gallery", "import", str(path), "--name", "shapes-by-cli"], check=True,
+                   stdout=subprocess.DEVNULL)
+    assert client.get_gallery("shapes-by-cli").sample_count == 12
+    for name in ("shapes-copy", "shapes-by-cli"):
+        client.delete_gallery(name)
+
+
+def test_import_of_damaged_files(client, trained, tmp_path):
+    path = tmp_path / "g.shapeid"
+    client.export_gallery(trained["name"], path)
+    data = path.read_bytes()
+    (tmp_path / "short").write_bytes(data[:len(data) // 2])
+    with pytest.raises(shapeid.DataLossError, match=r"short: ends inside chunk \d+"):
+        client.import_gallery(tmp_path / "short", name="never")
+    (tmp_path / "other").write_bytes(b"# .xyz\n0 0 0\n")
+    with pytest.raises(ValueError, match="is not a shapeid gallery export"):
+        client.import_gallery(tmp_path / "other", name="never")
+    flipped = bytearray(data)
+    flipped[-3] ^= 0xFF  # inside the trailer's CRC
+    (tmp_path / "flipped").write_bytes(bytes(flipped))
+    with pytest.raises((shapeid.DataLossError, shapeid.InvalidArgumentError)):
+        client.import_gallery(tmp_path / "flipped", name="never")
+    assert "never" not in [g.name for g in client.list_galleries()]
+    with pytest.raises(shapeid.NotFoundError):
+        client.export_gallery("no-such-gallery", tmp_path / "nothing.shapeid")
+    assert not (tmp_path / "nothing.shapeid").exists()
+
+
+def test_list_descriptors(client):
+    kinds = {d.kind: d for d in client.list_descriptors()}
+    assert set(kinds) == {"rphsd", "comsd", "cnsd", "dfsd"}
+    assert kinds["dfsd"].default_spec == "dfsd:grid=12,order=8,frame=box,fields=both,size=0"
+    assert kinds["dfsd"].default_dimension == 240
+    assert (kinds["rphsd"].default_spec, kinds["rphsd"].default_dimension) == (
+        "rphsd:refs=cubic27,bins=100,variant=complete", 81)
+    for d in kinds.values():
+        assert d.summary and all(p.help for p in d.parameters)
+        expected = ",".join("%s=%s" % (p.name, p.default_value) for p in d.parameters
+                            if (d.kind, p.name) != ("dfsd", "up"))
+        assert d.default_spec == "%s:%s" % (d.kind, expected)
+
+
+def test_health_stats_and_log_level(client, trained):
+    health = client.health()
+    assert health.serving and health.status == "SERVING"
+    stats = client.get_server_stats()
+    assert stats.version and stats.state == "serving" and stats.uptime_seconds > 0
+    assert trained["name"] in [g.name for g in stats.galleries]
+    methods = {m.method: m for m in stats.methods}
+    assert methods["ClassifyCloud"].calls >= 1
+    assert methods["ClassifyCloud"].latency_p50_seconds > 0
+    assert {w.lane for w in stats.work} == {"cheap", "heavy", "store"}
+    level = client.set_log_level("warning")
+    assert level.level == "warning"
+    assert client.set_log_level(level.previous_level).previous_level == "warning"
+    with pytest.raises(shapeid.InvalidArgumentError):
+        client.set_log_level("loud")
+
+
+def test_server_errors_are_exceptions_with_code_and_message(client, trained, gallery):
+    with pytest.raises(shapeid.NotFoundError) as caught:
+        client.classify("nope", QUERY)
+    assert caught.value.code == grpc.StatusCode.NOT_FOUND
+    assert "nope" in caught.value.message and str(caught.value).startswith("NOT_FOUND: ")
+    assert isinstance(caught.value, shapeid.ShapeidError) and isinstance(caught.value, LookupError)
+
+    with pytest.raises(shapeid.AlreadyExistsError):
+        client.create_gallery(trained["name"])
+    with pytest.raises(shapeid.InvalidArgumentError, match=r"\[A-Za-z0-9\]") as caught:
+        client.create_gallery("no spaces")
+    assert isinstance(caught.value, ValueError)
+    with pytest.raises(shapeid.FailedPreconditionError, match="has no samples"):
+        client.classify(gallery, QUERY)
+    with pytest.raises(shapeid.InvalidArgumentError, match="cloud has 2 points"):
+        client.describe(QUERY[:2])
+    with pytest.raises(shapeid.InvalidArgumentError):
+        client.describe(QUERY, spec="nosuchdescriptor")
+    with pytest.raises(shapeid.NotFoundError):
+        client.train("nope", QUERY, "ball")
+    with pytest.raises(shapeid.NotFoundError):
+        client.remove_samples(trained["name"], ids=[12345])
+    with pytest.raises(ValueError, match="weighting must be one of uniform, distance"):
+        client.create_gallery("x", weighting="heavy")
+    assert client.get_gallery(trained["name"]).sample_count == 12  # unchanged by it all
+
+
+def test_sample_id_collision_fails_the_whole_stream(client, gallery):
+    client.train(gallery, QUERY, "ball", ids=[7])
+    with pytest.raises(shapeid.AlreadyExistsError):
+        client.train(gallery, [shape(0, 1), QUERY], ["plate", "ball"], ids=[8, 7])
+    assert client.get_gallery(gallery).sample_count == 1  # all or nothing
+
+
+def test_deadlines(server, client):
+    big = shape(1, 8, 300_000)  # ~0.1 s to describe: far beyond the deadlines below
+    with pytest.raises(shapeid.DeadlineExceededError) as caught:
+        client.describe(big, timeout=0.01)
+    assert caught.value.code == grpc.StatusCode.DEADLINE_EXCEEDED
+    assert isinstance(caught.value, TimeoutError)
+    with shapeid.Client(server.address, deadline=0.01) as hasty:
+        with pytest.raises(shapeid.DeadlineExceededError):
+            hasty.describe(big)
+        assert hasty.describe(big, timeout=30).num_points == 300_000  # a per-call timeout wins
+    with pytest.raises(ValueError, match="timeout must be positive"):
+        client.health(timeout=0)
+
+
+def test_retries_of_idempotent_calls_only():
+    # Nothing listens on port 1: every attempt fails UNAVAILABLE at once.
+    with shapeid.Client("127.0.0.1:1", initial_backoff=0.1, max_attempts=3) as down:
+        start = time.monotonic()
+        with pytest.raises(shapeid.UnavailableError) as caught:
+            down.get_gallery("g")
+        retried = time.monotonic() - start
+        assert isinstance(caught.value, ConnectionError)
+        start = time.monotonic()
+        with pytest.raises(shapeid.UnavailableError):
+            down.create_gallery("g")  # not idempotent: sent once
+        once = time.monotonic() - start
+        start = time.monotonic()
+        with pytest.raises(shapeid.UnavailableError):
+            down.train("g", QUERY, "ball")  # no client-chosen ids: sent once
+        train_once = time.monotonic() - start
+        start = time.monotonic()
+        with pytest.raises(shapeid.UnavailableError):
+            down.train("g", QUERY, "ball", ids=[5])  # every id chosen: retried
+        train_retried = time.monotonic() - start
+        start = time.monotonic()
+        with pytest.raises(shapeid.UnavailableError):
+            down.classify("g", QUERY, timeout=0.15)  # the backoff stops at the deadline
+        bounded = time.monotonic() - start
+    assert retried >= 0.3 and train_retried >= 0.3, (retried, train_retried)  # 0.1 + 0.2 s
+    assert once < 0.1 and train_once < 0.1, (once, train_once)
+    assert 0.1 <= bounded < 0.3, bounded
+
+
+def test_options_are_checked():
+    for kwargs, message in [({"max_attempts": 0}, "max_attempts must be an integer >= 1"),
+                            ({"chunk_points": 0}, "chunk_points must be an integer >= 1"),
+                            ({"deadline": -1}, "deadline must be positive"),
+                            ({"api_key": "key\n"}, "a stray newline"),
+                            ({"request_id": "job 7"}, "a request id is 1 to 128 characters"),
+                            ({"load_balancing": "random"}, "round_robin or pick_first"),
+                            ({"tls_server_name": "x"}, "TLS is off"),
+                            ({"tls_cert_file": "c.pem"}, "needs its key"),
+                            ({"tls_ca_file": "/nonexistent.pem"}, "cannot read the TLS CA file")]:
+        with pytest.raises(ValueError, match=message):
+            shapeid.Client("127.0.0.1:50051", **kwargs)
+    with pytest.raises(ValueError, match="entry 2 '' is empty"):
+        shapeid.Client("127.0.0.1:1,")
+    with pytest.raises(ValueError, match="an IPv6 address without brackets"):
+        shapeid.Client("::1:5,::2:5")
+
+
+def test_replica_lists_and_request_ids(server, trained):
+    # The same server twice is a list of two replicas, balanced round_robin.
+    with shapeid.Client("%s,%s" % (server.address, server.address), request_id="job-7") as c:
+        assert c.classify(trained["name"], QUERY).label == "ball"
+    with shapeid.Client(server.address, load_balancing="pick_first") as c:
+        assert c.health().serving
+
+
+def test_one_client_shared_by_16_threads(client, trained):
+    queries = [(kind, shape(kind, 7000 + i, 800)) for i in range(8) for kind in range(3)]
+    reference = {id(q): client.classify(trained["name"], q, k=3) for _, q in queries}
+
+    def work(item):
+        kind, points = item
+        return kind, id(points), client.classify(trained["name"], points, k=3)
+
+    with concurrent.futures.ThreadPoolExecutor(16) as pool:
+        results = list(pool.map(work, queries * 8))
+    assert len(results) == 192
+    for kind, key, answer in results:
+        assert answer.label == SHAPES[kind]
+        assert (answer.neighbors, answer.votes) == (reference[key].neighbors, reference[key].votes)

@@ -1,0 +1,311 @@
+"""shapeid.clouds without a server: what each kind of cloud converts to, and every refusal
+with its documented type and message. That the server then answers identically is in
+test_client.py."""
+
+import array
+import time
+import types
+
+import numpy as np
+import pytest
+
+from shapeid import clouds
+
+from conftest import shape
+
+XYZ = shape(0, 7, 500)          # the float32 points every variant below holds
+REFERENCE = XYZ.tobytes()       # packed little-endian float32 x y z
+
+
+def wire(cloud, **kwargs):
+    encoded = clouds.encode(cloud, **kwargs)
+    assert encoded.layout == clouds.PACKED_XYZ32
+    assert len(encoded.data) == 12 * encoded.num_points
+    return encoded.data
+
+
+# ---------------------------------------------------------------------------------------------
+# numpy arrays
+
+def test_float32_array_goes_as_it_is():
+    assert wire(XYZ) == REFERENCE
+
+
+@pytest.mark.parametrize("variant", [
+    "float64", "float16-exact", "fortran", "strided-rows", "view-of-wider", "reversed",
+    "big-endian-f4", "big-endian-f8", "transposed-view"])
+def test_array_variants_convert_by_value(variant):
+    reference = XYZ
+    if variant == "float16-exact":  # float16 values are exact in float32
+        reference = XYZ.astype(np.float16).astype(np.float32)
+        cloud = XYZ.astype(np.float16)
+    elif variant == "float64":
+        cloud = XYZ.astype(np.float64)
+    elif variant == "fortran":
+        cloud = np.asfortranarray(XYZ)
+    elif variant == "strided-rows":
+        doubled = np.repeat(XYZ, 2, axis=0)
+        cloud = doubled[::2]
+    elif variant == "view-of-wider":  # x y z intensity r g b, the first three columns
+        wide = np.concatenate([XYZ, np.ones((len(XYZ), 4), np.float32)], axis=1)
+        cloud = wide[:, :3]
+    elif variant == "reversed":
+        reference = XYZ[::-1]
+        cloud = XYZ[::-1].astype(np.float64)[:, ::-1][:, ::-1]
+    elif variant == "big-endian-f4":
+        cloud = XYZ.astype(">f4")
+    elif variant == "big-endian-f8":
+        cloud = XYZ.astype(">f8")
+    else:
+        cloud = np.ascontiguousarray(XYZ.T).T
+    assert not (variant != "float64" and cloud.flags.c_contiguous and cloud.dtype == "<f4")
+    assert wire(cloud) == reference.tobytes()
+
+
+def test_float64_rounds_to_nearest_float32():
+    values = np.array([[0.1, 1 / 3, 2.0 ** -30], [1e10 + 1, -7.77, 123456789.123]])
+    assert wire(values) == values.astype(np.float32).tobytes()
+
+
+def test_three_by_three_is_three_points():
+    points = np.arange(9, dtype=np.float32).reshape(3, 3)
+    assert wire(points) == points.tobytes()
+
+
+@pytest.mark.parametrize("shape_, message", [
+    ((100, 2), r"has shape \(100, 2\); expected \(N, 3\)"),
+    ((300,), r"shape \(300,\); expected \(N, 3\).*cloud.reshape\(-1, 3\)"),
+    ((3, 100), r"points are rows; for 3 x N coordinates pass cloud.T"),
+    ((100, 4), r"x y z only; pass cloud\[:, :3\]"),
+    ((2, 100, 3), r"shape \(2, 100, 3\); expected \(N, 3\)"),
+])
+def test_wrong_shapes_are_value_errors(shape_, message):
+    with pytest.raises(ValueError, match=message):
+        clouds.encode(np.zeros(shape_, np.float32))
+
+
+@pytest.mark.parametrize("dtype, message", [
+    (np.int64, r"dtype int64: points must be floating point.*astype\(numpy.float32\)"),
+    (np.uint16, r"dtype uint16: points must be floating point"),
+    (np.bool_, r"dtype bool: points must be floating point"),
+    (np.complex64, r"dtype complex64: points must be float16, float32 or float64"),
+    (object, r"dtype object: points must be float16, float32 or float64"),
+])
+def test_wrong_dtypes_are_type_errors(dtype, message):
+    with pytest.raises(TypeError, match=message):
+        clouds.encode(np.zeros((10, 3), dtype))
+
+
+@pytest.mark.parametrize("value, message", [
+    ([[0.0, 0.0, 0.0]] * 3, r"got list \(a list: convert it with numpy.asarray"),
+    (None, r"expected an N x 3 numpy array of floats, an open3d.geometry.PointCloud or a "
+           r"sensor_msgs PointCloud2 message; got NoneType"),
+    ("scan.pcd", r"got str"),
+    (b"\0" * 36, r"got bytes"),
+])
+def test_what_is_no_cloud_is_a_type_error(value, message):
+    with pytest.raises(TypeError, match=message):
+        clouds.encode(value)
+
+
+def test_float64_beyond_float32_range_is_refused():
+    points = XYZ.astype(np.float64)
+    points[17, 1] = 1e39
+    with pytest.raises(ValueError, match=r"point 17: y = 1e\+39 does not fit in a float32"):
+        clouds.encode(points)
+
+
+def test_non_finite_points_refused_by_default_dropped_on_request():
+    points = XYZ.copy()
+    points[[3, 40], [0, 2]] = [np.nan, np.inf]
+    with pytest.raises(ValueError, match=r"2 of 500 points have a NaN or infinite coordinate "
+                                         r"\(the first: point 3, \[nan, .*drop_non_finite=True"):
+        clouds.encode(points)
+    encoded = clouds.encode(points, drop_non_finite=True)
+    assert encoded.dropped_non_finite == 2
+    assert encoded.data == np.delete(XYZ, [3, 40], axis=0).tobytes()
+
+
+def test_chunks_cut_whole_points():
+    encoded = clouds.encode(XYZ)
+    chunks = list(encoded.chunks(64))
+    assert [len(c) for c in chunks] == [64 * 12] * 7 + [52 * 12]
+    assert b"".join(chunks) == REFERENCE
+    assert list(encoded.chunks(10_000)) == [REFERENCE]
+
+
+# ---------------------------------------------------------------------------------------------
+# PointCloud2: ROS 1 (Debian's python3-sensor-msgs) and ROS 2-style objects
+
+def records(points, layout, big_endian=False):
+    """`points` as PointCloud2 bytes: `layout` lists (name, offset, numpy type) with x y z
+    among them; other fields get junk, padding stays 0xAB."""
+    order = ">" if big_endian else "<"
+    step = layout[0]
+    fields = layout[1:]
+    dtype = np.dtype({"names": [f[0] for f in fields],
+                      "formats": [order + f[2] for f in fields],
+                      "offsets": [f[1] for f in fields], "itemsize": step})
+    out = np.frombuffer(bytearray(b"\xab" * step * len(points)), dtype)
+    for name, _, _ in fields:
+        out[name] = points[:, "xyz".index(name)] if name in "xyz" else 77
+    return out.tobytes()
+
+
+DATATYPES = {"f4": 7, "f8": 8, "u2": 4, "u1": 2, "i4": 5}
+
+
+def ros2_message(points, layout, big_endian=False, data_kind="array", height=1,
+                 row_padding=0):
+    """A ROS 2-style PointCloud2: plain objects with the message's attributes."""
+    step = layout[0]
+    n = len(points)
+    width = n // height
+    rows = [records(points[r * width:(r + 1) * width], layout, big_endian) +
+            b"\xcd" * row_padding for r in range(height)]
+    data = b"".join(rows)
+    data = {"array": lambda d: array.array("B", d), "bytes": bytes, "bytearray": bytearray,
+            "memoryview": memoryview, "list": list}[data_kind](data)
+    fields = [types.SimpleNamespace(name=name, offset=offset, datatype=DATATYPES[kind],
+                                    count=1) for name, offset, kind in layout[1:]]
+    return types.SimpleNamespace(header=None, height=height, width=width, fields=fields,
+                                 is_bigendian=big_endian, point_step=step,
+                                 row_step=width * step + row_padding, data=data, is_dense=False)
+
+
+def ros1_message(points, layout, big_endian=False, height=1, row_padding=0):
+    from sensor_msgs.msg import PointCloud2, PointField
+    m = ros2_message(points, layout, big_endian, "bytes", height, row_padding)
+    return PointCloud2(height=m.height, width=m.width, is_bigendian=big_endian,
+                       point_step=m.point_step, row_step=m.row_step, data=m.data, is_dense=False,
+                       fields=[PointField(name=f.name, offset=f.offset, datatype=f.datatype,
+                                          count=1) for f in m.fields])
+
+
+LAYOUTS = {
+    # point_step, then (name, offset, type): PCL's PointXYZI, an Ouster-like 32-byte point
+    # with intensity first, float64 xyz, and x y z not adjacent
+    "xyzi16": (16, ("x", 0, "f4"), ("y", 4, "f4"), ("z", 8, "f4"), ("intensity", 12, "f4")),
+    "padded32": (32, ("intensity", 0, "f4"), ("ring", 4, "u2"), ("x", 8, "f4"), ("y", 12, "f4"),
+                 ("z", 16, "f4")),
+    "xyz64": (32, ("x", 0, "f8"), ("y", 8, "f8"), ("z", 16, "f8"), ("intensity", 24, "f4")),
+    "scattered": (20, ("z", 0, "f4"), ("intensity", 4, "f4"), ("x", 8, "f4"), ("y", 16, "f4")),
+    "mixed": (24, ("x", 0, "f8"), ("y", 8, "f4"), ("z", 16, "f8")),
+}
+
+
+@pytest.mark.parametrize("big_endian", [False, True], ids=["little", "big"])
+@pytest.mark.parametrize("layout", sorted(LAYOUTS))
+def test_point_cloud2_ros1_gives_the_float32_xyz_it_holds(layout, big_endian):
+    message = ros1_message(XYZ, LAYOUTS[layout], big_endian)
+    assert type(message).__module__.startswith("sensor_msgs")
+    assert wire(message) == REFERENCE
+
+
+@pytest.mark.parametrize("data_kind", ["array", "bytes", "bytearray", "memoryview", "list"])
+def test_point_cloud2_ros2_data_of_every_kind(data_kind):
+    message = ros2_message(XYZ, LAYOUTS["xyzi16"], data_kind=data_kind)
+    assert wire(message) == REFERENCE
+
+
+def test_organised_point_cloud2_with_row_padding():
+    # 20 rows of 25 points, 8 bytes of padding after each row
+    message = ros2_message(XYZ, LAYOUTS["padded32"], height=20, row_padding=8)
+    assert message.row_step == 25 * 32 + 8
+    assert wire(message) == REFERENCE
+    assert wire(ros1_message(XYZ, LAYOUTS["xyz64"], True, height=20, row_padding=3)) == REFERENCE
+
+
+def test_organised_point_cloud2_with_nans_refused_or_dropped():
+    points = XYZ.copy()
+    points[[26, 27, 490]] = np.nan  # row 1, columns 1 and 2; row 19, column 15
+    message = ros1_message(points, LAYOUTS["xyzi16"], height=20)
+    with pytest.raises(ValueError, match=r"3 of 500 points have a NaN or infinite coordinate "
+                                         r"\(the first: point 26 \(row 1, column 1\), "
+                                         r"\[nan, nan, nan\]\); pass drop_non_finite=True"):
+        clouds.encode(message)
+    encoded = clouds.encode(message, drop_non_finite=True)
+    assert encoded.dropped_non_finite == 3
+    assert encoded.data == np.delete(XYZ, [26, 27, 490], axis=0).tobytes()
+
+
+def test_empty_point_cloud2_is_no_points():
+    message = ros2_message(XYZ[:0], LAYOUTS["xyzi16"])
+    message.width = 0
+    assert clouds.encode(message).num_points == 0
+
+
+def mis_declared(change):
+    message = ros2_message(XYZ[:100], LAYOUTS["xyzi16"], data_kind="bytes")
+    change(message)
+    return message
+
+
+def field(message, name):
+    return next(f for f in message.fields if f.name == name)
+
+
+@pytest.mark.parametrize("change, error, message", [
+    (lambda m: m.fields.pop(1), ValueError,
+     r"PointCloud2 has no field 'y' \(fields: 'x', 'z', 'intensity'\); shapeid needs x, y and z"),
+    (lambda m: setattr(field(m, "z"), "offset", 14), ValueError,
+     r"field 'z' at offset 14 \(4 bytes\) does not fit in point_step 16"),
+    (lambda m: setattr(field(m, "x"), "datatype", 4), ValueError,
+     r"field 'x' has datatype 4 \(UINT16\); shapeid reads FLOAT32 \(7\) or FLOAT64 \(8\)"),
+    (lambda m: setattr(field(m, "y"), "datatype", 42), ValueError,
+     r"field 'y' has datatype 42 \(unknown\)"),
+    (lambda m: setattr(field(m, "x"), "count", 3), ValueError,
+     r"field 'x' has count 3; a coordinate is one value"),
+    (lambda m: setattr(m, "data", m.data[:-1]), ValueError,
+     r"data holds 1599 bytes; height 1 x row_step 1600 is 1600"),
+    (lambda m: setattr(m, "data", m.data + b"\0" * 16), ValueError,
+     r"data holds 1616 bytes; height 1 x row_step 1600 is 1600"),
+    (lambda m: setattr(m, "row_step", 1500), ValueError,
+     r"row_step 1500 < width 100 x point_step 16"),
+    (lambda m: setattr(m, "point_step", 0), ValueError, r"point_step is 0"),
+    (lambda m: setattr(m, "height", 2), ValueError,
+     r"data holds 1600 bytes; height 2 x row_step 1600 is 3200"),
+    (lambda m: setattr(m, "width", "many"), TypeError, r"width is 'many'; expected an integer"),
+    (lambda m: setattr(m, "data", 3.5), TypeError,
+     r"data is float; expected bytes, bytearray, memoryview, array.array\('B'\)"),
+    (lambda m: setattr(m, "data", [1, 2, 300] * 534 + [0, 0]), ValueError,
+     r"data is a list that is not of bytes"),
+    (lambda m: delattr(m, "row_step"), TypeError,
+     r"looks like a PointCloud2 but has no row_step; expected an N x 3"),
+])
+def test_mis_declared_point_cloud2(change, error, message):
+    with pytest.raises(error, match=message):
+        clouds.encode(mis_declared(change))
+
+
+def test_point_cloud2_of_a_million_points_converts_in_under_10_ms():
+    n = 1_000_000
+    points = np.random.default_rng(1).uniform(-5, 5, (n, 3)).astype(np.float32)
+    message = ros1_message(points, LAYOUTS["padded32"])
+    best = float("inf")
+    for _ in range(5):
+        start = time.perf_counter()
+        encoded = clouds.encode(message)
+        best = min(best, time.perf_counter() - start)
+    assert encoded.data == points.tobytes()
+    # The goal is 10 ms (bench/python_client_bench.py measures it); the bound here leaves
+    # room for a loaded CI machine running other tests at once.
+    assert best < 0.025, "%.1f ms" % (best * 1e3)
+
+
+# ---------------------------------------------------------------------------------------------
+# Open3D
+
+def test_open3d_point_cloud():
+    open3d = pytest.importorskip("open3d", reason="python3-open3d is in tools/install-deps.sh")
+    cloud = open3d.geometry.PointCloud()
+    cloud.points = open3d.utility.Vector3dVector(XYZ.astype(np.float64))
+    cloud.colors = open3d.utility.Vector3dVector(np.ones((len(XYZ), 3)))
+    assert np.asarray(cloud.points).dtype == np.float64  # the issue's trap: not float32
+    assert wire(cloud) == REFERENCE
+    assert clouds.encode(open3d.geometry.PointCloud()).num_points == 0
+
+
+def test_open3d_style_object_with_bad_points():
+    with pytest.raises(ValueError, match=r"Thing.points has shape \(10, 2\)"):
+        clouds.encode(type("Thing", (), {"points": np.zeros((10, 2))})())
