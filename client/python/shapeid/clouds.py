@@ -73,15 +73,21 @@ def encode(cloud, *, drop_non_finite=False):
     """
     width = None  # of an organised cloud, to name a point by row and column
     if isinstance(cloud, np.ndarray):
-        points = _from_array(cloud, "the array")
+        points, source = _from_array(cloud)
+        what = "the array"
     elif _looks_like_point_cloud2(cloud):
-        points = _from_point_cloud2(cloud)
+        points, source = _from_point_cloud2(cloud)
         width = int(cloud.width) if int(cloud.height) > 1 else None
+        what = "PointCloud2"
     elif hasattr(cloud, "points") and not isinstance(cloud, (str, bytes, dict)):
-        points = _from_array(np.asarray(cloud.points), type(cloud).__name__ + ".points")
+        what = type(cloud).__name__ + ".points"
+        try:
+            points, source = _from_array(np.asarray(cloud.points))
+        except (TypeError, ValueError) as e:
+            raise type(e)(what + str(e)[len("the array"):]) from None
     else:
         raise TypeError("expected %s; got %s%s" % (_EXPECTED, _type_name(cloud), _hint(cloud)))
-    points, dropped = _finite(points, drop_non_finite, width)
+    points, dropped = _finite(points, drop_non_finite, width, source, what)
     return EncodedCloud(data=points.tobytes(), num_points=len(points), layout=PACKED_XYZ32,
                         dropped_non_finite=dropped)
 
@@ -89,16 +95,20 @@ def encode(cloud, *, drop_non_finite=False):
 # ---------------------------------------------------------------------------------------------
 # numpy arrays (and Open3D's .points, a float64 N x 3 view)
 
-def _from_array(array, what):
-    """An (N, 3) C-contiguous little-endian float32 array holding `array`'s values."""
+_F32LE = np.dtype("<f4")
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def _from_array(array):
+    """(points, source): an (N, 3) C-contiguous little-endian float32 array holding `array`'s
+    values, and `array` itself when its values may overflow float32 (else None)."""
     if array.dtype.kind != "f":
         if array.dtype.kind in "iub":
             raise TypeError(
-                "%s has dtype %s: points must be floating point. If the integers are "
-                "coordinates, convert them explicitly: cloud.astype(numpy.float32)"
-                % (what, array.dtype))
-        raise TypeError("%s has dtype %s: points must be float16, float32 or float64"
-                        % (what, array.dtype))
+                "the array has dtype %s: points must be floating point. If the integers are "
+                "coordinates, convert them explicitly: cloud.astype(numpy.float32)" % array.dtype)
+        raise TypeError("the array has dtype %s: points must be float16, float32 or float64"
+                        % array.dtype)
     if array.ndim != 2 or array.shape[1] != 3:
         hint = ""
         if array.ndim == 2 and array.shape[0] == 3:
@@ -107,42 +117,32 @@ def _from_array(array, what):
             hint = ": shapeid takes x y z only; pass cloud[:, :3]"
         elif array.ndim == 1 and array.size % 3 == 0:
             hint = ": for a flat x y z x y z ... array pass cloud.reshape(-1, 3)"
-        raise ValueError("%s has shape %s; expected (N, 3), one x y z row per point%s"
-                         % (what, array.shape, hint))
+        raise ValueError("the array has shape %s; expected (N, 3), one x y z row per point%s"
+                         % (array.shape, hint))
     if array.dtype == _F32LE and array.flags.c_contiguous:
-        return array
+        return array, None
     out = np.empty(array.shape, _F32LE)
     with np.errstate(over="ignore", invalid="ignore"):
         out[...] = array   # by value: rounds float64, swaps big-endian, gathers any strides
-    if array.dtype.itemsize > 4:
-        _check_range(array, out, what)
-    return out
+    return out, (array if array.dtype.itemsize > 4 else None)
 
 
-_F32LE = np.dtype("<f4")
-_FLOAT32_MAX = float(np.finfo(np.float32).max)
-
-
-def _check_range(source, converted, what):
-    """ValueError when a finite value of `source` became infinite in float32 `converted`."""
-    # Cheap when all is well: one reduction over the converted points.
-    if np.isfinite(converted).all():
-        return
-    overflow = np.isinf(converted) & np.isfinite(source)
-    if overflow.any():
-        row, axis = np.argwhere(overflow)[0]
-        raise ValueError(
-            "%s: point %d: %s = %r does not fit in a float32 (|value| <= %.4g); subtract an "
-            "offset first (every descriptor is translation invariant)"
-            % (what, row, "xyz"[axis], float(source[row, axis]), _FLOAT32_MAX))
-
-
-def _finite(points, drop, width=None):
-    """`points` without non-finite rows (drop) or unchanged; ValueError if any and not drop.
-    `width`: the row length of an organised cloud, for the message."""
+def _finite(points, drop, width, source, what):
+    """`points` without non-finite rows (drop) or unchanged; ValueError if any and not drop,
+    or if a finite value of `source` (the values before conversion, or a function giving
+    them) overflowed float32. `width`: the row length of an organised cloud."""
     finite = np.isfinite(points)
-    if finite.all():
+    if finite.all():  # one pass over the points when all is well
         return points, 0
+    if source is not None:
+        source = source() if callable(source) else source
+        overflow = ~finite & np.isfinite(source)
+        if overflow.any():
+            row, axis = np.argwhere(overflow)[0]
+            raise ValueError(
+                "%s: point %d: %s = %r does not fit in a float32 (|value| <= %.4g); subtract "
+                "an offset first (every descriptor is translation invariant)"
+                % (what, row, "xyz"[axis], float(source[row, axis]), _FLOAT32_MAX))
     rows = finite.all(axis=1)
     bad = len(points) - int(np.count_nonzero(rows))
     if not drop:
@@ -152,7 +152,8 @@ def _finite(points, drop, width=None):
             where += " (row %d, column %d)" % divmod(first, width)
         raise ValueError(
             "%d of %d points have a NaN or infinite coordinate (the first: %s, %s); pass "
-            "drop_non_finite=True to leave them out" % (bad, len(points), where, points[first].tolist()))
+            "drop_non_finite=True to leave them out"
+            % (bad, len(points), where, points[first].tolist()))
     return points[rows], bad
 
 
@@ -164,6 +165,7 @@ def _looks_like_point_cloud2(cloud):
 
 
 def _from_point_cloud2(msg):
+    """(points, source) as _from_array gives them, from a PointCloud2's buffer."""
     missing = [a for a in _PC2_ATTRIBUTES if not hasattr(msg, a)]
     if missing:
         raise TypeError("%s looks like a PointCloud2 but has no %s; expected %s"
@@ -173,7 +175,7 @@ def _from_point_cloud2(msg):
     big_endian = bool(msg.is_bigendian)
     data = _bytes_of(msg.data)
     if height * width == 0:
-        return np.empty((0, 3), _F32LE)
+        return np.empty((0, 3), _F32LE), None
     if point_step == 0:
         raise ValueError("PointCloud2: point_step is 0")
     if row_step < width * point_step:
@@ -186,9 +188,8 @@ def _from_point_cloud2(msg):
     by_name = {}
     for field in msg.fields:
         by_name.setdefault(getattr(field, "name", None), field)
-    names, formats, offsets = [], [], []
     order = ">" if big_endian else "<"
-    datatypes = set()
+    formats, offsets, sizes = [], [], []
     for name in "xyz":
         field = by_name.get(name)
         if field is None:
@@ -200,44 +201,43 @@ def _from_point_cloud2(msg):
         if size is None:
             raise ValueError(
                 "PointCloud2 field '%s' has datatype %d (%s); shapeid reads FLOAT32 (7) or "
-                "FLOAT64 (8) coordinates" % (name, datatype, _DATATYPE_NAMES.get(datatype, "unknown")))
+                "FLOAT64 (8) coordinates"
+                % (name, datatype, _DATATYPE_NAMES.get(datatype, "unknown")))
         if getattr(field, "count", 1) not in (0, 1):
             raise ValueError("PointCloud2 field '%s' has count %d; a coordinate is one value"
                              % (name, field.count))
         if offset < 0 or offset + size > point_step:
             raise ValueError("PointCloud2 field '%s' at offset %d (%d bytes) does not fit in "
                              "point_step %d" % (name, offset, size, point_step))
-        names.append(name)
         formats.append(order + ("f4" if size == 4 else "f8"))
         offsets.append(offset)
-        datatypes.add(datatype)
+        sizes.append(size)
 
     raw = np.frombuffer(data, np.uint8)
-    if datatypes == {FLOAT32} and offsets[1] == offsets[0] + 4 and offsets[2] == offsets[0] + 8:
-        # x y z adjacent float32s (nearly every driver): one strided copy. Little-endian
-        # copies 12 bytes a point as one opaque item, twice as fast as three floats.
-        out = np.empty((height, width, 3), _F32LE)
-        if big_endian:
-            out[...] = np.ndarray((height, width, 3), ">f4", raw, offsets[0],
-                                  (row_step, point_step, 4))
-        else:
+    out = np.empty((height, width, 3), _F32LE)
+    size = sizes[0]
+    if sizes == [size] * 3 and offsets[1] == offsets[0] + size and offsets[2] == offsets[1] + size:
+        # x y z adjacent, of one type (nearly every driver): one strided view, one pass.
+        if size == 4 and not big_endian:  # 12 bytes a point copied as one opaque item
             out.view("V12").reshape(height, width)[...] = np.ndarray(
                 (height, width), "V12", raw, offsets[0], (row_step, point_step))
-        return out.reshape(-1, 3)
-    struct = np.dtype({"names": names, "formats": formats, "offsets": offsets,
+            return out.reshape(-1, 3), None
+        xyz = np.ndarray((height, width, 3), formats[0], raw, offsets[0],
+                         (row_step, point_step, size))
+        with np.errstate(over="ignore", invalid="ignore"):
+            out[...] = xyz
+        return out.reshape(-1, 3), (xyz.reshape(-1, 3) if size == 8 else None)
+    struct = np.dtype({"names": list("xyz"), "formats": formats, "offsets": offsets,
                        "itemsize": point_step})
     points = np.ndarray((height, width), struct, raw, 0, (row_step, point_step))
-    out = np.empty((height, width, 3), _F32LE)
     with np.errstate(over="ignore", invalid="ignore"):
-        for axis, name in enumerate(names):
+        for axis, name in enumerate("xyz"):
             out[..., axis] = points[name]
-    out = out.reshape(-1, 3)
-    if FLOAT64 in datatypes and not np.isfinite(out).all():
-        source = np.empty(out.shape, np.float64)
-        for axis, name in enumerate(names):
-            source[:, axis] = points[name].reshape(-1)
-        _check_range(source, out, "PointCloud2")
-    return out
+
+    def source():
+        return np.stack([points[name].reshape(-1).astype(np.float64) for name in "xyz"], axis=1)
+
+    return out.reshape(-1, 3), (source if 8 in sizes else None)
 
 
 def _count(value, name):

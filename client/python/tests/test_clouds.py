@@ -229,6 +229,14 @@ def test_organised_point_cloud2_with_nans_refused_or_dropped():
     assert encoded.data == np.delete(XYZ, [26, 27, 490], axis=0).tobytes()
 
 
+@pytest.mark.parametrize("layout", ["xyz64", "mixed"])
+def test_point_cloud2_float64_beyond_float32_range_is_refused(layout):
+    points = XYZ.astype(np.float64)
+    points[33, 2] = -3e200
+    with pytest.raises(ValueError, match=r"PointCloud2: point 33: z = -3e\+200 does not fit"):
+        clouds.encode(ros2_message(points, LAYOUTS[layout]))
+
+
 def test_empty_point_cloud2_is_no_points():
     message = ros2_message(XYZ[:0], LAYOUTS["xyzi16"])
     message.width = 0
