@@ -30,7 +30,7 @@ setup(
     version="0.1.0",
     description="Client of a shapeid server: 3D object recognition from point clouds",
     packages=["shapeid"],
-    python_requires=">=3.9",
+    python_requires=">=3.10",
     # Debian's python3-grpcio, python3-protobuf and python3-numpy provide these; --no-deps
     # keeps pip from looking for them elsewhere.
     install_requires=["grpcio", "protobuf", "numpy"],

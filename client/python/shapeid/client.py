@@ -400,7 +400,7 @@ class Client:
         stream of the header then chunks. Retried like any idempotent call."""
         if (encoded.num_points <= self._chunk_points
                 and not self._server_lacks_one_message_calls):
-            request = one_message(header=header, points=_pb.PointChunk(xyz=encoded.data))
+            request = one_message(header=header, points=_pb.PointChunk(xyz=encoded.tobytes()))
             try:
                 return self._unary(True, unary, request, timeout)
             except ShapeidError as e:

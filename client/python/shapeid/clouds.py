@@ -45,23 +45,28 @@ class Layout:
 PACKED_XYZ32 = Layout(point_step=12, offsets=(0, 4, 8), datatype=FLOAT32, big_endian=False)
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(slots=True)
 class EncodedCloud:
-    """A cloud ready for the wire: `num_points` points as `data`, laid out as `layout`."""
-    data: bytes
+    """A cloud ready for the wire: `num_points` points in `data`, laid out as `layout`.
+    `data` is a read-only byte view over the converted points (over the caller's own array
+    when that was already packed little-endian float32): protobuf copies the bytes it sends,
+    so they are copied once, a message at a time, not once more here."""
+    data: memoryview
     num_points: int
     layout: Layout
     dropped_non_finite: int = 0   # points left out (drop_non_finite=True)
+
+    def tobytes(self):
+        return self.data.tobytes()
 
     def chunks(self, points_per_chunk):
         """The bytes in runs of at most `points_per_chunk` points (at least one run)."""
         step = points_per_chunk * self.layout.point_step
         if len(self.data) <= step:
-            yield self.data
+            yield self.data.tobytes()
             return
-        view = memoryview(self.data)
         for start in range(0, len(self.data), step):
-            yield bytes(view[start:start + step])
+            yield self.data[start:start + step].tobytes()
 
 
 def encode(cloud, *, drop_non_finite=False):
@@ -88,7 +93,8 @@ def encode(cloud, *, drop_non_finite=False):
     else:
         raise TypeError("expected %s; got %s%s" % (_EXPECTED, _type_name(cloud), _hint(cloud)))
     points, dropped = _finite(points, drop_non_finite, width, source, what)
-    return EncodedCloud(data=points.tobytes(), num_points=len(points), layout=PACKED_XYZ32,
+    data = memoryview(points.reshape(-1).view(np.uint8)).toreadonly()
+    return EncodedCloud(data=data, num_points=len(points), layout=PACKED_XYZ32,
                         dropped_non_finite=dropped)
 
 

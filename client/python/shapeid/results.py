@@ -1,5 +1,5 @@
-"""What the calls return: frozen dataclasses built from the server's response messages.
-Every field means what the proto's field of the same name means
+"""What the calls return: dataclasses (with __slots__, cheap to build on every call) made from
+the server's response messages. Every field means what the proto's field of the same name means
 (proto/shapeid/v1/shapeid.proto); durations are float seconds, times are aware UTC
 datetimes, descriptors are numpy float32 arrays.
 """
@@ -38,7 +38,7 @@ def _time(timestamp):
                                            datetime.timezone.utc)
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(slots=True)
 class Neighbor:
     sample_id: int
     label: str
@@ -46,13 +46,13 @@ class Neighbor:
     view: int = 0    # 0: the trained cloud; i >= 1: its i-th synthetic view
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(slots=True)
 class Vote:
     label: str
     weight: float
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(slots=True)
 class ClassifyResult:
     label: str                 # the winner, or "unknown" beyond the reject distance
     unknown: bool
@@ -74,7 +74,7 @@ class ClassifyResult:
                    search_seconds=_seconds(r.search_time), approximate=r.approximate)
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(slots=True)
 class DescribeResult:
     descriptor_spec: str  # canonical: equal specs give equal vectors
     values: np.ndarray    # float32, exactly as the server computed them
@@ -87,7 +87,7 @@ class DescribeResult:
                    num_points=r.num_points, describe_seconds=_seconds(r.describe_time))
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(slots=True)
 class TrainResult:
     sample_ids: List[int]  # in the order of the clouds given, server-assigned ones included
     gallery_sample_count: int
@@ -100,7 +100,7 @@ class TrainResult:
                    gallery_version=r.gallery_version, describe_seconds=_seconds(r.describe_time))
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(slots=True)
 class Augmentation:
     """Training-time view augmentation (proto ViewAugmentation): each trained cloud also
     becomes `views` synthetic single-view scans. Zeros and None take the server's defaults."""
@@ -127,7 +127,7 @@ class Augmentation:
                    seed=a.seed)
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(slots=True)
 class Gallery:
     name: str
     descriptor_spec: str  # canonical
@@ -162,20 +162,20 @@ class Gallery:
                    vector_count=g.vector_count, approximate_lists=g.approximate_lists)
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(slots=True)
 class RemoveResult:
     removed: int
     remaining: int
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(slots=True)
 class DescriptorParameter:
     name: str
     default_value: str
     help: str
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(slots=True)
 class DescriptorKind:
     kind: str
     summary: str
@@ -191,7 +191,7 @@ class DescriptorKind:
                    default_spec=d.default_spec, default_dimension=d.default_dimension)
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(slots=True)
 class MethodStats:
     method: str
     calls: int
@@ -202,7 +202,7 @@ class MethodStats:
     wait_p99_seconds: Optional[float]
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(slots=True)
 class WorkLaneStats:
     lane: str  # "cheap", "heavy" or "store"
     workers: int
@@ -210,14 +210,14 @@ class WorkLaneStats:
     queued: int
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(slots=True)
 class GalleryStats:
     name: str
     samples: int
     version: int
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(slots=True)
 class ServerStats:
     version: str
     uptime_seconds: float
@@ -255,7 +255,7 @@ class ServerStats:
             memory_held_peak_bytes=s.memory_held_peak_bytes)
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(slots=True)
 class Health:
     """grpc.health.v1 status of the whole server: "SERVING", "NOT_SERVING" (loading its
     galleries or shutting down), "UNKNOWN" or "SERVICE_UNKNOWN"."""
@@ -266,7 +266,7 @@ class Health:
         return self.status == "SERVING"
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(slots=True)
 class LogLevel:
     previous_level: str
     level: str

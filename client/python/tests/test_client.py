@@ -306,32 +306,24 @@ def test_deadlines(server, client):
 
 
 def test_retries_of_idempotent_calls_only():
-    # Nothing listens on port 1: every attempt fails UNAVAILABLE at once.
-    with shapeid.Client("127.0.0.1:1", initial_backoff=0.1, max_attempts=3) as down:
-        start = time.monotonic()
-        with pytest.raises(shapeid.UnavailableError) as caught:
-            down.get_gallery("g")
-        retried = time.monotonic() - start
-        assert isinstance(caught.value, ConnectionError)
-        start = time.monotonic()
-        with pytest.raises(shapeid.UnavailableError):
-            down.create_gallery("g")  # not idempotent: sent once
-        once = time.monotonic() - start
-        start = time.monotonic()
-        with pytest.raises(shapeid.UnavailableError):
-            down.train("g", QUERY, "ball")  # no client-chosen ids: sent once
-        train_once = time.monotonic() - start
-        start = time.monotonic()
-        with pytest.raises(shapeid.UnavailableError):
-            down.train("g", QUERY, "ball", ids=[5])  # every id chosen: retried
-        train_retried = time.monotonic() - start
-        start = time.monotonic()
-        with pytest.raises(shapeid.UnavailableError):
-            down.classify("g", QUERY, timeout=0.15)  # the backoff stops at the deadline
-        bounded = time.monotonic() - start
-    assert retried >= 0.3 and train_retried >= 0.3, (retried, train_retried)  # 0.1 + 0.2 s
-    assert once < 0.1 and train_once < 0.1, (once, train_once)
-    assert 0.1 <= bounded < 0.3, bounded
+    # Nothing listens on port 1: every attempt fails UNAVAILABLE at once, so a call's time is
+    # its backoff: 0.25 + 0.5 s over 3 attempts, 0 when sent once.
+    with shapeid.Client("127.0.0.1:1", initial_backoff=0.25, max_attempts=3) as down:
+        def seconds(call, *args, **kwargs):
+            start = time.monotonic()
+            with pytest.raises(shapeid.UnavailableError) as caught:
+                call(*args, **kwargs)
+            assert isinstance(caught.value, ConnectionError)
+            return time.monotonic() - start
+
+        assert seconds(down.get_gallery, "g") >= 0.75
+        assert seconds(down.create_gallery, "g") < 0.5  # not idempotent: sent once
+        assert seconds(down.train, "g", QUERY, "ball") < 0.5  # ids left to the server: once
+        assert seconds(down.train, "g", QUERY, "ball", ids=[5]) >= 0.75  # every id chosen
+        # The backoff stops at the deadline: 0.25 s, then 0.5 s more would pass 0.4 s.
+        assert 0.25 <= seconds(down.classify, "g", QUERY, timeout=0.4) < 0.6
+    with shapeid.Client("127.0.0.1:1", initial_backoff=0.25, max_attempts=1) as once:
+        assert seconds(once.get_gallery, "g") < 0.5
 
 
 def test_options_are_checked():
