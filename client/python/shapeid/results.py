@@ -74,7 +74,7 @@ class ClassifyResult:
                    search_seconds=_seconds(r.search_time), approximate=r.approximate)
 
 
-@dataclasses.dataclass(slots=True)
+@dataclasses.dataclass(slots=True, eq=False)  # compare .values with numpy, not ==
 class DescribeResult:
     descriptor_spec: str  # canonical: equal specs give equal vectors
     values: np.ndarray    # float32, exactly as the server computed them
