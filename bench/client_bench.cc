@@ -57,8 +57,7 @@ int Run(int argc, char** argv) {
   bool latencies = false;
   app.add_option("--server", options.target, "the server")->required();
   app.add_option("--gallery", gallery, "gallery to classify against")->capture_default_str();
-  app.add_option("--clouds", clouds_path, "raw float32 xyz, clouds one after another")
-      ->required();
+  app.add_option("--clouds", clouds_path, "raw float32 xyz, clouds one after another")->required();
   app.add_option("--points_per_cloud", points_per_cloud)->capture_default_str();
   app.add_option("--warmup", warmup, "calls before timing")->capture_default_str();
   app.add_option("--requests", requests, "single-thread calls timed")->capture_default_str();
