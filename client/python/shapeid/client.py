@@ -1,7 +1,6 @@
 """The Python client of a shapeid server: the calls of the C++ client (client/client.h), with
 the same deadlines, retries, API keys, TLS and chunking."""
 
-import json
 import time
 
 import grpc
@@ -10,7 +9,7 @@ import numpy as np
 from . import clouds as _clouds
 from . import gallery_file as _gallery_file
 from . import results as _results
-from ._target import resolve as _resolve_target
+from ._channel import make_channel as _make_channel
 from .errors import ShapeidError, error_for, from_rpc_error
 
 try:
@@ -439,52 +438,3 @@ def _as_cloud_list(clouds):
     except TypeError:
         raise TypeError("clouds must be a cloud or a sequence of clouds, got %s"
                         % type(clouds).__name__) from None
-
-
-def _read_pem(path, what):
-    try:
-        with open(path, "rb") as f:
-            text = f.read(1 << 20)
-    except OSError as e:
-        raise ValueError("cannot read the %s '%s': %s" % (what, path, e.strerror)) from None
-    if b"-----BEGIN " not in text:
-        raise ValueError("the %s '%s' is not a PEM file" % (what, path))
-    return text
-
-
-def _make_channel(target, load_balancing, tls, ca_file, cert_file, key_file, server_name):
-    resolved = _resolve_target(target)
-    replicas = "," in target or target.startswith("dns:")
-    if load_balancing == "round_robin" and replicas:
-        # healthCheckConfig: replicas that are loading or draining (NOT_SERVING) get no calls.
-        config = {"loadBalancingConfig": [{"round_robin": {}}],
-                  "healthCheckConfig": {"serviceName": ""}}
-    elif load_balancing in ("round_robin", "pick_first"):
-        config = {"loadBalancingConfig": [{load_balancing: {}}]}
-    else:
-        raise ValueError("load_balancing must be round_robin or pick_first, got %r"
-                         % (load_balancing,))
-    options = [("grpc.service_config", json.dumps(config))]
-    if resolved.authority:
-        options.append(("grpc.default_authority", resolved.authority))
-    tls = tls or bool(ca_file or cert_file or key_file)
-    if not tls:
-        if server_name:
-            raise ValueError("tls_server_name is set but TLS is off")
-        return grpc.insecure_channel(resolved.target, options=options)
-    if not resolved.one_host and not server_name:
-        raise ValueError("target '%s' lists replicas on different hosts and TLS checks one name "
-                         "for all of them: set tls_server_name to a name every replica's "
-                         "certificate carries" % target)
-    if bool(cert_file) != bool(key_file):
-        raise ValueError("a client certificate needs its key, and a key its certificate: give "
-                         "both TLS files or neither")
-    credentials = grpc.ssl_channel_credentials(
-        root_certificates=_read_pem(ca_file, "TLS CA file") if ca_file else None,
-        private_key=_read_pem(key_file, "TLS client key file") if key_file else None,
-        certificate_chain=_read_pem(cert_file, "TLS client certificate file") if cert_file
-        else None)
-    if server_name:
-        options.append(("grpc.ssl_target_name_override", server_name))
-    return grpc.secure_channel(resolved.target, credentials, options=options)
-
