@@ -1,6 +1,7 @@
 #ifndef SHAPEID_CORE_DESCRIPTOR_H_
 #define SHAPEID_CORE_DESCRIPTOR_H_
 
+#include <array>
 #include <cstddef>
 #include <string>
 #include <utility>
@@ -67,6 +68,10 @@ class Descriptor {
   // above, for every cloud of that size. `cpu` is the expected time, within about 2x for
   // ordinary clouds (docs/performance.md, "Describe cost"; degenerate clouds may take longer).
   virtual DescribeCost EstimateCost(size_t num_points) const = 0;
+
+  // Which way is up (a unit vector) in the frame this descriptor expects its clouds in: +z
+  // unless the spec says otherwise (DFSD's `up`). A caller's sensor `up` is turned onto it.
+  virtual std::array<float, 3> up_direction() const { return {0, 0, 1}; }
 
  protected:
   Descriptor(DescriptorSpec canonical_spec, size_t dimension)

@@ -1,6 +1,7 @@
 #ifndef SHAPEID_SERVER_CLOUD_ASSEMBLER_H_
 #define SHAPEID_SERVER_CLOUD_ASSEMBLER_H_
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -10,13 +11,43 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
 #include "core/point_cloud.h"
+#include "core/rigid_transform.h"
 #include "server/memory_budget.h"
 
 namespace shapeid {
 
-// Builds one point cloud from the PointChunk messages of a stream: packed little-endian
-// float32 xyz, 12 bytes per point, any number of chunks of any size. gRPC-free, so the
-// service and its tests share it. Not thread-safe (one per stream).
+// The byte layout of a cloud's point chunks (proto PointLayout, in sensor_msgs/PointCloud2's
+// terms). The default is packed little-endian float32 x y z, 12 bytes a point.
+struct PointLayout {
+  enum class Type { kFloat32, kFloat64 };
+  struct Coordinate {
+    uint32_t offset = 0;  // bytes from the start of the point
+    Type type = Type::kFloat32;
+  };
+  uint32_t point_step = 12;
+  std::array<Coordinate, 3> xyz = {{{0, Type::kFloat32}, {4, Type::kFloat32}, {8, Type::kFloat32}}};
+  bool big_endian = false;
+  uint32_t width = 0;     // points per row of an organised cloud; 0: rows are not padded
+  uint32_t row_step = 0;  // bytes from one row to the next, >= width * point_step
+  bool drop_nonfinite = false;
+
+  // The default layout (whatever drop_nonfinite says): chunks are copied as they are.
+  bool is_packed_float32() const;
+};
+
+// InvalidArgument naming the field when the layout does not hold together: a zero point_step,
+// a coordinate past its point's end, coordinates that overlap, a row shorter than its points.
+absl::Status ValidatePointLayout(const PointLayout& layout);
+
+// What a call's clouds are on the wire and how they are moved into the gallery's frame.
+struct CloudFormat {
+  PointLayout layout;
+  RigidTransform frame;  // applied to every point as it is decoded
+};
+
+// Builds one point cloud from the PointChunk messages of a stream, decoding the call's layout
+// into float32 x y z and applying its frame, any number of chunks of any size. gRPC-free, so
+// the service and its tests share it. Not thread-safe (one per stream).
 //
 // With a memory budget, every byte the cloud's storage takes is held from it for `caller`
 // until the next Start or the assembler's end (the cloud Finish returns is still in use
@@ -27,21 +58,28 @@ class CloudAssembler {
                           std::string caller = "")
       : max_points_(max_points), budget_(budget), caller_(std::move(caller)) {}
 
-  // Starts a new cloud. `expected_points` (0: unknown) is checked by Finish and reserves
-  // memory; over the limit or the memory budget it is ResourceExhausted at once, before any
-  // point arrives.
-  absl::Status Start(uint64_t expected_points);
+  // Starts a new cloud in `format` (validated here: InvalidArgument naming the field).
+  // `expected_points` (0: unknown; points sent, before any are dropped) is checked by Finish
+  // and reserves memory; over the limit or the memory budget it is ResourceExhausted at once,
+  // before any point arrives.
+  absl::Status Start(uint64_t expected_points, const CloudFormat& format = {});
 
-  // Appends one chunk. InvalidArgument if its size is not a multiple of 12 bytes;
-  // ResourceExhausted (with the numbers) once the cloud passes the limit or the budget.
-  absl::Status Append(absl::string_view xyz_bytes);
+  // Appends one chunk. In the default layout InvalidArgument if its size is not a multiple of
+  // 12 bytes; a declared layout's chunks may end inside a point or a row. ResourceExhausted
+  // (with the numbers) once the points sent pass the limit or the cloud passes the budget.
+  absl::Status Append(absl::string_view bytes);
 
-  // The cloud received since Start; InvalidArgument if it has fewer points than announced.
-  // Finiteness and the other section-0 checks are the descriptor's (core/point_cloud.h).
+  // The cloud received since Start; InvalidArgument if it has fewer points than announced or
+  // the stream ended inside a point. Finiteness (unless dropped) and the other section-0
+  // checks are the descriptor's (core/point_cloud.h).
   absl::StatusOr<PointCloud> Finish();
 
   bool started() const { return started_; }
+  // Points kept in the current cloud.
   size_t points() const { return cloud_.size(); }
+  // Points sent since the assembler was made, over every cloud, dropped ones included: the
+  // call's count.
+  uint64_t points_received() const { return points_received_; }
   size_t max_points() const { return max_points_; }
   // Bytes held from the budget now.
   size_t held_bytes() const { return memory_.bytes(); }
@@ -49,6 +87,12 @@ class CloudAssembler {
  private:
   // Makes room for `points` points in all, holding the memory from the budget first.
   absl::Status Reserve(size_t points);
+  // Counts `count` more points sent against the limit and makes room for them.
+  absl::Status Admit(size_t count);
+  // Decodes `count` whole points at `bytes` (the layout's point_step apart) onto the cloud.
+  void Decode(const char* bytes, size_t count);
+  // Appends packed float32 bytes as they are.
+  void CopyPacked(absl::string_view bytes);
 
   size_t max_points_;
   MemoryBudget* budget_;
@@ -56,6 +100,11 @@ class CloudAssembler {
   MemoryBudget::Grant memory_;
   bool started_ = false;
   uint64_t expected_points_ = 0;
+  CloudFormat format_;
+  size_t sent_ = 0;            // points sent in this cloud, dropped ones included
+  std::string partial_point_;  // the bytes of a point cut by a chunk's end
+  size_t row_offset_ = 0;      // bytes into the current row (padded rows only)
+  uint64_t points_received_ = 0;
   PointCloud cloud_;
 };
 

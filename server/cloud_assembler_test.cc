@@ -1,7 +1,11 @@
 #include "server/cloud_assembler.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
+#include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "gmock/gmock.h"
@@ -76,6 +80,155 @@ TEST(CloudAssemblerTest, ErrorsSayWhatIsWrongWithNumbers) {
   const auto short_cloud = assembler.Finish();
   EXPECT_EQ(short_cloud.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(short_cloud.status().message(), HasSubstr("announced 2 points but 1 arrived"));
+}
+
+// A sensor's bytes for `xyz` (packed float32 x y z): each point `layout.point_step` bytes with
+// x, y, z at the layout's offsets and types, in its byte order, other bytes 0xAB (intensity,
+// padding), rows padded to row_step.
+std::string SensorBytes(const std::vector<float>& xyz, const PointLayout& layout) {
+  std::string out;
+  const size_t points = xyz.size() / 3;
+  for (size_t i = 0; i < points; ++i) {
+    std::string point(layout.point_step, '\xAB');
+    for (int a = 0; a < 3; ++a) {
+      char bytes[8];
+      size_t size = 4;
+      if (layout.xyz[a].type == PointLayout::Type::kFloat64) {
+        const double v = xyz[3 * i + a];
+        std::memcpy(bytes, &v, 8);
+        size = 8;
+      } else {
+        std::memcpy(bytes, &xyz[3 * i + a], 4);
+      }
+      if (layout.big_endian) std::reverse(bytes, bytes + size);
+      std::memcpy(point.data() + layout.xyz[a].offset, bytes, size);
+    }
+    out += point;
+    if (layout.width != 0 && (i + 1) % layout.width == 0) {
+      out.append(layout.row_step - layout.width * layout.point_step, '\xCD');
+    }
+  }
+  return out;
+}
+
+// Assembles `bytes` in `format`, sent in chunks of `chunk` bytes.
+absl::StatusOr<PointCloud> Assemble(const std::string& bytes, const CloudFormat& format,
+                                    size_t chunk, size_t max_points = 1000) {
+  CloudAssembler assembler(max_points);
+  if (absl::Status s = assembler.Start(0, format); !s.ok()) return s;
+  for (size_t at = 0; at < bytes.size(); at += chunk) {
+    if (absl::Status s = assembler.Append(absl::string_view(bytes).substr(at, chunk)); !s.ok()) {
+      return s;
+    }
+  }
+  return assembler.Finish();
+}
+
+const std::vector<float> kSixPoints = {1.5f,  -2.25f, 3,  4, 5,    6.125f, -7,   8,     9e-3f,
+                                       10.5f, 11,     12, 0, -0.f, 1e6f,   0.1f, 2e-7f, -3};
+
+TEST(CloudAssemblerTest, SensorLayoutsDecodeToTheFloat32PointsTheyCarry) {
+  using Type = PointLayout::Type;
+  std::vector<std::pair<std::string, PointLayout>> layouts;
+  PointLayout intensity;  // PointCloud2 of x y z intensity
+  intensity.point_step = 16;
+  layouts.push_back({"x y z intensity", intensity});
+  PointLayout padded = intensity;  // PCL's PointXYZ: 16 bytes, as an organised 3 x 2 cloud
+  padded.width = 3;
+  padded.row_step = 3 * 16 + 5;
+  layouts.push_back({"organised, padded rows", padded});
+  PointLayout doubles;  // float64, big-endian, z first, gaps
+  doubles.point_step = 40;
+  doubles.xyz = {{{16, Type::kFloat64}, {28, Type::kFloat64}, {0, Type::kFloat64}}};
+  doubles.big_endian = true;
+  layouts.push_back({"float64 big-endian shuffled", doubles});
+  PointLayout mixed;
+  mixed.point_step = 21;
+  mixed.xyz = {{{1, Type::kFloat64}, {9, Type::kFloat32}, {13, Type::kFloat64}}};
+  layouts.push_back({"mixed types, odd step", mixed});
+  for (const auto& [name, layout] : layouts) {
+    const std::string bytes = SensorBytes(kSixPoints, layout);
+    for (const size_t chunk : {size_t{1}, size_t{7}, size_t{16}, bytes.size()}) {
+      const auto cloud = Assemble(bytes, {layout, {}}, chunk);
+      ASSERT_TRUE(cloud.ok()) << name << ", chunks of " << chunk << ": " << cloud.status();
+      EXPECT_EQ(cloud->xyz(), kSixPoints) << name << ", chunks of " << chunk;
+    }
+  }
+}
+
+TEST(CloudAssemblerTest, NonFinitePointsAreDroppedOnlyWhenAsked) {
+  std::vector<float> xyz = kSixPoints;
+  xyz[4] = NAN;                                      // point 1
+  xyz[15] = std::numeric_limits<float>::infinity();  // point 5
+  PointLayout layout;
+  layout.point_step = 16;
+  const std::string bytes = SensorBytes(xyz, layout);
+  const auto kept = Assemble(bytes, {layout, {}}, 10);
+  ASSERT_TRUE(kept.ok());
+  EXPECT_EQ(kept->size(), 6u);  // refused later, by the descriptor's validation
+  layout.drop_nonfinite = true;
+  const auto dropped = Assemble(bytes, {layout, {}}, 10);
+  ASSERT_TRUE(dropped.ok());
+  EXPECT_THAT(dropped->xyz(),
+              ::testing::ElementsAre(1.5f, -2.25f, 3, -7, 8, 9e-3f, 10.5f, 11, 12, 0, -0.f, 1e6f));
+  // In the default packed layout too; the announced count is of the points sent.
+  CloudAssembler assembler(100);
+  PointLayout packed;
+  packed.drop_nonfinite = true;
+  ASSERT_TRUE(assembler.Start(6, {packed, {}}).ok());
+  ASSERT_TRUE(assembler.Append(Bytes(xyz)).ok());
+  const auto packed_cloud = assembler.Finish();
+  ASSERT_TRUE(packed_cloud.ok()) << packed_cloud.status();
+  EXPECT_EQ(packed_cloud->xyz(), dropped->xyz());
+  EXPECT_EQ(assembler.points_received(), 6u);
+}
+
+TEST(CloudAssemblerTest, TheFrameMovesEveryPoint) {
+  CloudFormat format;
+  // A quarter turn about z, then up by 10.
+  format.frame = *RigidTransformFromRows(std::vector<double>{0, -1, 0, 0, 1, 0, 0, 0, 0, 0, 1, 10});
+  const auto cloud = Assemble(Bytes({1, 2, 3, 4, 5, 6}), format, 12);
+  ASSERT_TRUE(cloud.ok());
+  EXPECT_THAT(cloud->xyz(), ::testing::ElementsAre(-2, 1, 13, -5, 4, 16));
+}
+
+TEST(CloudAssemblerTest, LayoutsThatDoNotHoldTogetherAreRefused) {
+  using Type = PointLayout::Type;
+  const auto refused = [](PointLayout layout) { return CloudAssembler(10).Start(0, {layout, {}}); };
+  PointLayout past_end;
+  past_end.point_step = 16;
+  past_end.xyz[2] = {12, Type::kFloat64};
+  EXPECT_THAT(refused(past_end).message(),
+              HasSubstr("z at offset 12 (8 bytes) ends past point_step 16"));
+  PointLayout overlap;
+  overlap.point_step = 16;
+  overlap.xyz[1] = {2, Type::kFloat32};
+  EXPECT_THAT(refused(overlap).message(), HasSubstr("x and y overlap (offsets 0 and 2)"));
+  PointLayout short_row;
+  short_row.width = 4;
+  short_row.row_step = 40;
+  EXPECT_THAT(refused(short_row).message(),
+              HasSubstr("row_step 40 is less than width 4 x point_step 12"));
+  PointLayout half_row;
+  half_row.width = 4;
+  EXPECT_THAT(refused(half_row).message(), HasSubstr("go together"));
+  PointLayout zero;
+  zero.point_step = 0;
+  EXPECT_EQ(refused(zero).code(), absl::StatusCode::kInvalidArgument);
+}
+
+TEST(CloudAssemblerTest, ADeclaredLayoutMustEndOnAPointAndCountsSentPointsAgainstTheLimit) {
+  PointLayout layout;
+  layout.point_step = 16;
+  const std::string bytes = SensorBytes(kSixPoints, layout);
+  const auto cut = Assemble(bytes.substr(0, 40), {layout, {}}, 40);
+  EXPECT_EQ(cut.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(cut.status().message(), HasSubstr("ended inside a point: 8 of its 16 bytes"));
+  layout.drop_nonfinite = true;
+  std::vector<float> nan_points(3 * 6, NAN);
+  const auto over = Assemble(SensorBytes(nan_points, layout), {layout, {}}, 1000, 5);
+  EXPECT_EQ(over.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_THAT(over.status().message(), HasSubstr("more than the limit of 5 points"));
 }
 
 }  // namespace

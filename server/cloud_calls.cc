@@ -25,9 +25,24 @@ namespace {
 
 #define SHAPEID_METHOD(name) "/shapeid.v1.ShapeId/" #name
 
-// Bytes of a PointChunk's xyz as points, for the call's report (a partial point counts
+// Points in a one-message call's bytes, for its report and cost (a partial point counts
 // nothing; the assembler refuses it).
-int64_t PointsIn(const std::string& xyz) { return static_cast<int64_t>(xyz.size() / 12); }
+int64_t PointsIn(const std::string& bytes, const CloudFormat& format) {
+  return static_cast<int64_t>(bytes.size() / format.layout.point_step);
+}
+
+// The format of the clouds a header announces: its point layout, and its sensor frame turned
+// towards the descriptor's up (+z without a descriptor: an incompatible gallery, refused later).
+template <typename Header>
+absl::StatusOr<CloudFormat> FormatOf(const Header& header, const Descriptor* descriptor) {
+  CloudFormat format;
+  SHAPEID_ASSIGN_OR_RETURN(format.layout, FromProto(header.layout()));
+  SHAPEID_ASSIGN_OR_RETURN(
+      format.frame,
+      FromProto(header.sensor_frame(), descriptor != nullptr ? descriptor->up_direction()
+                                                             : std::array<float, 3>{0, 0, 1}));
+  return format;
+}
 
 absl::Status RequireGalleryName(absl::string_view rpc, const std::string& name) {
   if (name.empty()) {
@@ -40,9 +55,10 @@ absl::Status RequireGalleryName(absl::string_view rpc, const std::string& name) 
 // chunk, so the same checks and the same messages. Its memory is the call's (RunUnary holds
 // the request's).
 absl::StatusOr<PointCloud> CloudInOneMessage(const ServiceRuntime& runtime,
-                                             uint64_t expected_points, absl::string_view xyz) {
+                                             uint64_t expected_points, const CloudFormat& format,
+                                             absl::string_view xyz) {
   CloudAssembler assembler(runtime.registry->limits().max_points_per_cloud);
-  SHAPEID_RETURN_IF_ERROR(assembler.Start(expected_points));
+  SHAPEID_RETURN_IF_ERROR(assembler.Start(expected_points, format));
   SHAPEID_RETURN_IF_ERROR(assembler.Append(xyz));
   return assembler.Finish();
 }
@@ -139,8 +155,8 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest, v1::Desc
           return absl::InvalidArgumentError(
               "Describe: the first message must be a DescribeHeader; points came first");
         }
-        call().record().points += PointsIn(request.points().xyz());
         SHAPEID_RETURN_IF_ERROR(assembler_.Append(request.points().xyz()));
+        call().record().points = static_cast<int64_t>(assembler_.points_received());
         return std::nullopt;
       case v1::DescribeRequest::KIND_NOT_SET:
         break;
@@ -154,7 +170,8 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest, v1::Desc
     }
     if (header.descriptor_spec().empty()) call().record().gallery = header.gallery();
     SHAPEID_ASSIGN_OR_RETURN(descriptor_, DescriptorToUse(header, runtime_));
-    return assembler_.Start(header.expected_points());
+    SHAPEID_ASSIGN_OR_RETURN(const CloudFormat format, FormatOf(header, descriptor_.get()));
+    return assembler_.Start(header.expected_points(), format);
   }
 
   absl::StatusOr<Work> OnEnd() override {
@@ -206,12 +223,12 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainRespo
         ++sample_headers_;
         if (!assembler_.started()) {  // the first sample: nothing to describe yet
           sample_ = request.sample();
-          SHAPEID_RETURN_IF_ERROR(assembler_.Start(sample_.expected_points()));
+          SHAPEID_RETURN_IF_ERROR(assembler_.Start(sample_.expected_points(), format_));
           return std::nullopt;
         }
         return DescribeSample().Then(Work::Inline([this, sample = request.sample()] {
           sample_ = sample;
-          return assembler_.Start(sample.expected_points());
+          return assembler_.Start(sample.expected_points(), format_);
         }));
       }
       case v1::TrainRequest::kPoints:
@@ -222,8 +239,8 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainRespo
           return absl::InvalidArgumentError(
               absl::StrCat("Train: points after sample ", samples_, " without a SampleHeader"));
         }
-        call().record().points += PointsIn(request.points().xyz());
         SHAPEID_RETURN_IF_ERROR(assembler_.Append(request.points().xyz()));
+        call().record().points = static_cast<int64_t>(assembler_.points_received());
         return std::nullopt;
       case v1::TrainRequest::KIND_NOT_SET:
         break;
@@ -237,6 +254,7 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainRespo
     SHAPEID_RETURN_IF_ERROR(RequireGalleryName("Train", header.gallery()));
     SHAPEID_ASSIGN_OR_RETURN(gallery_, runtime_.registry->Get(header.gallery()));
     const std::shared_ptr<const GallerySnapshot> snapshot = gallery_->Snapshot();
+    SHAPEID_ASSIGN_OR_RETURN(format_, FormatOf(header, snapshot->shared_descriptor().get()));
     batch_ = std::make_unique<TrainBatch>(gallery_->NewBatch());
     augment_ = snapshot->options().augment;
     if (header.has_augmentation()) {
@@ -300,6 +318,7 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainRespo
   std::shared_ptr<Gallery> gallery_;
   std::unique_ptr<TrainBatch> batch_;
   AugmentOptions augment_;
+  CloudFormat format_;
   v1::SampleHeader sample_;
   int64_t sample_headers_ = 0;
   int64_t samples_ = 0;
@@ -327,7 +346,10 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest, v1::Clas
         call().record().gallery = request.header().gallery();
         SHAPEID_ASSIGN_OR_RETURN(gallery_, GalleryToClassify(*runtime_.registry, request.header()));
         header_ = request.header();
-        SHAPEID_RETURN_IF_ERROR(assembler_.Start(request.header().expected_points()));
+        SHAPEID_ASSIGN_OR_RETURN(
+            const CloudFormat format,
+            FormatOf(header_, gallery_->Snapshot()->shared_descriptor().get()));
+        SHAPEID_RETURN_IF_ERROR(assembler_.Start(header_.expected_points(), format));
         return std::nullopt;
       }
       case v1::ClassifyRequest::kPoints:
@@ -335,8 +357,8 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest, v1::Clas
           return absl::InvalidArgumentError(
               "Classify: the first message must be a ClassifyHeader; points came first");
         }
-        call().record().points += PointsIn(request.points().xyz());
         SHAPEID_RETURN_IF_ERROR(assembler_.Append(request.points().xyz()));
+        call().record().points = static_cast<int64_t>(assembler_.points_received());
         return std::nullopt;
       case v1::ClassifyRequest::KIND_NOT_SET:
         break;
@@ -385,13 +407,14 @@ absl::StatusOr<Work> DescribeCloud(const ServiceRuntime& runtime,
   if (request.header().descriptor_spec().empty()) {
     call.record().gallery = request.header().gallery();
   }
-  call.record().points = PointsIn(request.points().xyz());
   SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<const Descriptor> descriptor,
                            DescriptorToUse(request.header(), runtime));
+  SHAPEID_ASSIGN_OR_RETURN(CloudFormat format, FormatOf(request.header(), descriptor.get()));
+  call.record().points = PointsIn(request.points().xyz(), format);
   return DescribeWork(
-      descriptor, request.points().xyz().size() / 12,
-      [&runtime, &request] {
-        return CloudInOneMessage(runtime, request.header().expected_points(),
+      descriptor, static_cast<size_t>(call.record().points),
+      [&runtime, &request, format = std::move(format)] {
+        return CloudInOneMessage(runtime, request.header().expected_points(), format,
                                  request.points().xyz());
       },
       call, response);
@@ -401,16 +424,19 @@ absl::StatusOr<Work> ClassifyCloud(const ServiceRuntime& runtime,
                                    const v1::ClassifyCloudRequest& request,
                                    v1::ClassifyResponse* response, AdmittedCall& call) {
   call.record().gallery = request.header().gallery();
-  call.record().points = PointsIn(request.points().xyz());
   if (!request.has_header()) {
     return absl::InvalidArgumentError("ClassifyCloud: the request has no header");
   }
   SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
                            GalleryToClassify(*runtime.registry, request.header()));
+  SHAPEID_ASSIGN_OR_RETURN(
+      CloudFormat format,
+      FormatOf(request.header(), gallery->Snapshot()->shared_descriptor().get()));
+  call.record().points = PointsIn(request.points().xyz(), format);
   return ClassifyWork(
-      gallery, request.header(), request.points().xyz().size() / 12,
-      [&runtime, &request] {
-        return CloudInOneMessage(runtime, request.header().expected_points(),
+      gallery, request.header(), static_cast<size_t>(call.record().points),
+      [&runtime, &request, format = std::move(format)] {
+        return CloudInOneMessage(runtime, request.header().expected_points(), format,
                                  request.points().xyz());
       },
       call, response);

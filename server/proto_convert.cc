@@ -57,6 +57,59 @@ v1::KnnOptions ToProto(const KnnOptions& knn) {
   return out;
 }
 
+absl::StatusOr<PointLayout> FromProto(const v1::PointLayout& layout) {
+  PointLayout out;
+  out.drop_nonfinite = layout.drop_nonfinite();
+  if (layout.point_step() == 0 && !layout.has_x() && !layout.has_y() && !layout.has_z() &&
+      !layout.is_bigendian() && layout.width() == 0 && layout.row_step() == 0) {
+    return out;  // the default layout, perhaps dropping non-finite points
+  }
+  out.point_step = layout.point_step();
+  out.big_endian = layout.is_bigendian();
+  out.width = layout.width();
+  out.row_step = layout.row_step();
+  const v1::PointCoordinate* coordinates[3] = {&layout.x(), &layout.y(), &layout.z()};
+  const bool present[3] = {layout.has_x(), layout.has_y(), layout.has_z()};
+  static constexpr const char* kAxis[3] = {"x", "y", "z"};
+  for (int a = 0; a < 3; ++a) {
+    if (!present[a]) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("point layout: ", kAxis[a], " is missing (a layout names x, y and z)"));
+    }
+    const int datatype = coordinates[a]->datatype();
+    if (datatype == v1::FLOAT32 || datatype == v1::FLOAT64) {
+      out.xyz[a] = {coordinates[a]->offset(), datatype == v1::FLOAT64
+                                                  ? PointLayout::Type::kFloat64
+                                                  : PointLayout::Type::kFloat32};
+      continue;
+    }
+    // sensor_msgs/PointField's other datatypes, by number.
+    static constexpr const char* kRosTypes[] = {"unspecified", "INT8",  "UINT8", "INT16",
+                                                "UINT16",      "INT32", "UINT32"};
+    const std::string type = datatype >= 0 && datatype <= 6
+                                 ? absl::StrCat(kRosTypes[datatype], " (", datatype, ")")
+                                 : absl::StrCat(datatype);
+    return absl::InvalidArgumentError(absl::StrCat("point layout: ", kAxis[a], " has datatype ",
+                                                   type,
+                                                   "; x, y and z must be FLOAT32 (7) or "
+                                                   "FLOAT64 (8)"));
+  }
+  SHAPEID_RETURN_IF_ERROR(ValidatePointLayout(out));
+  return out;
+}
+
+absl::StatusOr<RigidTransform> FromProto(const v1::SensorFrame& frame,
+                                         const std::array<float, 3>& gallery_up) {
+  if (!frame.transform().empty() && !frame.up().empty()) {
+    return absl::InvalidArgumentError(
+        "sensor frame: give a transform or an up direction, not both (a transform fixes up "
+        "too)");
+  }
+  if (!frame.transform().empty()) return RigidTransformFromRows(frame.transform());
+  if (!frame.up().empty()) return RotationTakingUpTo(frame.up(), gallery_up);
+  return RigidTransform();
+}
+
 absl::StatusOr<AugmentOptions> FromProto(const v1::ViewAugmentation& augmentation) {
   AugmentOptions out;
   // Clamped before the int conversion; ValidateAugmentOptions names the value if too large.

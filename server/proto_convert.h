@@ -11,9 +11,21 @@
 #include "core/gallery/gallery_options.h"
 #include "core/gallery/gallery_snapshot.h"
 #include "core/knn/knn_options.h"
+#include "server/cloud_assembler.h"
 #include "shapeid/v1/shapeid.pb.h"
 
 namespace shapeid {
+
+// A header's point layout; the empty message is the default packed float32 layout.
+// InvalidArgument naming the field: a coordinate missing or of a type other than FLOAT32 or
+// FLOAT64, or what ValidatePointLayout refuses.
+absl::StatusOr<PointLayout> FromProto(const v1::PointLayout& layout);
+
+// The transform a header's sensor frame asks for: its rigid transform, or the rotation that
+// turns its `up` onto `gallery_up` (the descriptor's up_direction); identity when empty.
+// InvalidArgument when both are given or either is malformed (core/rigid_transform.h).
+absl::StatusOr<RigidTransform> FromProto(const v1::SensorFrame& frame,
+                                         const std::array<float, 3>& gallery_up);
 
 // UNSPECIFIED enums and k = 0 take the defaults (uniform, no scaling, k = 1).
 absl::StatusOr<KnnOptions> FromProto(const v1::KnnOptions& knn);

@@ -107,6 +107,12 @@ class DfsdDescriptor : public Descriptor {
   }
 
  public:
+  std::array<float, 3> up_direction() const override {
+    constexpr std::array<std::array<float, 3>, 6> kDirections = {
+        {{0, 0, 1}, {0, 1, 0}, {1, 0, 0}, {0, 0, -1}, {0, -1, 0}, {-1, 0, 0}}};
+    return kDirections[static_cast<int>(options_.up)];  // in DfsdOptions::Up's order
+  }
+
   DescribeCost EstimateCost(size_t num_points) const override {
     // CPU: the distance kernel is per point and cell of each field; the frames are per point
     // (box: the most passes and sorts), and more so once their hulls take slabs: ordinary

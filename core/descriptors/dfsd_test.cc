@@ -452,6 +452,14 @@ TEST(DfsdTest, UprightFrameTakesTheClientsUpAxis) {
             "dfsd:grid=12,order=8,frame=upright,fields=both,size=0,up=-y");
 }
 
+TEST(DfsdTest, UpDirectionIsTheSpecsUp) {
+  using Direction = std::array<float, 3>;
+  EXPECT_EQ(MustCreate("dfsd")->up_direction(), (Direction{0, 0, 1}));
+  EXPECT_EQ(MustCreate("dfsd:frame=upright,up=y")->up_direction(), (Direction{0, 1, 0}));
+  EXPECT_EQ(MustCreate("dfsd:frame=upright,up=-x")->up_direction(), (Direction{-1, 0, 0}));
+  EXPECT_EQ(MustCreate("rphsd")->up_direction(), (Direction{0, 0, 1}));
+}
+
 TEST(DfsdTest, SizeBlockCarriesTheLogExtentsLargestFirst) {
   auto d = MustCreate("dfsd:frame=axes,size=0.5");
   const PointCloud cloud = testing_clouds::UniformCloud(2000, 1);  // extents ~2, 4, 1
