@@ -27,8 +27,15 @@
 namespace shapeid {
 namespace {
 
-std::string ChunkBytes(const PointCloud& cloud, size_t first, size_t count) {
-  return std::string(reinterpret_cast<const char*>(cloud.data() + 3 * first), count * 12);
+// A PointCloud as the default wire layout (packed little-endian float32 x y z; this client
+// runs on little-endian hosts, as the server's tests do).
+SensorCloud Packed(const PointCloud& cloud) {
+  return {absl::string_view(reinterpret_cast<const char*>(cloud.data()), cloud.size() * 12), {}};
+}
+
+// Bytes a point takes in `layout` (12 for the default).
+size_t PointStep(const v1::PointLayout& layout) {
+  return layout.point_step() != 0 ? layout.point_step() : 12;
 }
 
 // Writes a request stream so that a small cloud leaves in one flush: messages are held back
@@ -73,13 +80,14 @@ class StreamWriter {
   bool open_ = true;
 };
 
-// Pushes `cloud` as PointChunk messages of at most `chunk_points` points.
+// Pushes `cloud` as PointChunk messages of at most `chunk_points` points' bytes.
 template <typename Request>
-void PushCloud(StreamWriter<Request>& writer, const PointCloud& cloud, size_t chunk_points) {
-  for (size_t first = 0; first < cloud.size(); first += chunk_points) {
+void PushCloud(StreamWriter<Request>& writer, const SensorCloud& cloud, size_t chunk_points) {
+  const size_t chunk_bytes = chunk_points * PointStep(cloud.layout);
+  for (size_t first = 0; first < cloud.data.size(); first += chunk_bytes) {
     Request request;
-    request.mutable_points()->set_xyz(
-        ChunkBytes(cloud, first, std::min(chunk_points, cloud.size() - first)));
+    const absl::string_view chunk = cloud.data.substr(first, chunk_bytes);
+    request.mutable_points()->set_xyz(chunk.data(), chunk.size());
     writer.Push(std::move(request), /*buffer=*/false);
   }
 }
@@ -172,6 +180,14 @@ absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const ClientOptions& 
 }
 
 }  // namespace
+
+uint64_t PointsIn(absl::string_view data, const v1::PointLayout& layout) {
+  const uint64_t step = PointStep(layout);
+  if (layout.width() == 0 || layout.row_step() == 0) return data.size() / step;
+  const uint64_t rows = data.size() / layout.row_step();
+  const uint64_t rest = data.size() % layout.row_step();
+  return rows * layout.width() + std::min<uint64_t>(rest / step, layout.width());
+}
 
 absl::Status FromGrpcStatus(const grpc::Status& status) {
   if (status.ok()) return absl::OkStatus();
@@ -266,7 +282,7 @@ absl::Status Client::Call(bool retry, bool corked, const Attempt& attempt,
 
 template <typename Request, typename Response, typename Open>
 absl::StatusOr<Response> Client::SingleCloudCall(Open open, const Request& header,
-                                                 const PointCloud& cloud) {
+                                                 const SensorCloud& cloud) {
   Response response;
   absl::Status status = Call(true, true, [&](grpc::ClientContext& context) {
     response.Clear();
@@ -283,13 +299,13 @@ absl::StatusOr<Response> Client::SingleCloudCall(Open open, const Request& heade
 
 template <typename OneMessage, typename StreamRequest, typename Response, typename Header,
           typename Unary, typename Open>
-absl::StatusOr<Response> Client::CloudCall(const Header& header, const PointCloud& cloud,
+absl::StatusOr<Response> Client::CloudCall(const Header& header, const SensorCloud& cloud,
                                            Unary unary, Open open) {
-  if (cloud.size() <= options_.chunk_points &&
+  if (cloud.data.size() <= options_.chunk_points * PointStep(cloud.layout) &&
       !server_lacks_one_message_calls_.load(std::memory_order_relaxed)) {
     OneMessage request;
     *request.mutable_header() = header;
-    request.mutable_points()->set_xyz(ChunkBytes(cloud, 0, cloud.size()));
+    request.mutable_points()->set_xyz(cloud.data.data(), cloud.data.size());
     Response response;
     const absl::Status status = Call(true, false, [&](grpc::ClientContext& context) {
       response.Clear();
@@ -307,10 +323,25 @@ absl::StatusOr<Response> Client::CloudCall(const Header& header, const PointClou
 absl::StatusOr<v1::DescribeResponse> Client::Describe(const PointCloud& cloud,
                                                       const std::string& spec,
                                                       const std::string& gallery) {
+  DescribeOptions options;
+  options.spec = spec;
+  options.gallery = gallery;
+  return Describe(Packed(cloud), options);
+}
+
+absl::StatusOr<v1::DescribeResponse> Client::Describe(const PointCloud& cloud,
+                                                      const DescribeOptions& options) {
+  return Describe(Packed(cloud), options);
+}
+
+absl::StatusOr<v1::DescribeResponse> Client::Describe(const SensorCloud& cloud,
+                                                      const DescribeOptions& options) {
   v1::DescribeHeader header;
-  header.set_descriptor_spec(spec);
-  header.set_gallery(gallery);
-  header.set_expected_points(cloud.size());
+  header.set_descriptor_spec(options.spec);
+  header.set_gallery(options.gallery);
+  header.set_expected_points(PointsIn(cloud.data, cloud.layout));
+  *header.mutable_layout() = cloud.layout;
+  *header.mutable_sensor_frame() = options.sensor_frame;
   return CloudCall<v1::DescribeCloudRequest, v1::DescribeRequest, v1::DescribeResponse>(
       header, cloud,
       [&](grpc::ClientContext* context, const v1::DescribeCloudRequest& request,
@@ -332,11 +363,19 @@ absl::StatusOr<v1::ClassifyResponse> Client::Classify(const std::string& gallery
 absl::StatusOr<v1::ClassifyResponse> Client::Classify(const std::string& gallery,
                                                       const PointCloud& cloud,
                                                       const ClassifyOptions& options) {
+  return Classify(gallery, Packed(cloud), options);
+}
+
+absl::StatusOr<v1::ClassifyResponse> Client::Classify(const std::string& gallery,
+                                                      const SensorCloud& cloud,
+                                                      const ClassifyOptions& options) {
   v1::ClassifyHeader header;
   header.set_gallery(gallery);
   header.set_k(options.k);
   header.set_exact(options.exact);
-  header.set_expected_points(cloud.size());
+  header.set_expected_points(PointsIn(cloud.data, cloud.layout));
+  *header.mutable_layout() = cloud.layout;
+  *header.mutable_sensor_frame() = options.sensor_frame;
   return CloudCall<v1::ClassifyCloudRequest, v1::ClassifyRequest, v1::ClassifyResponse>(
       header, cloud,
       [&](grpc::ClientContext* context, const v1::ClassifyCloudRequest& request,
@@ -350,13 +389,41 @@ absl::StatusOr<v1::ClassifyResponse> Client::Classify(const std::string& gallery
 
 absl::StatusOr<v1::TrainResponse> Client::Train(const std::string& gallery,
                                                 absl::Span<const TrainSample> samples) {
-  bool all_ids = true;
+  return Train(gallery, samples, TrainOptions());
+}
+
+absl::StatusOr<v1::TrainResponse> Client::Train(const std::string& gallery,
+                                                absl::Span<const TrainSample> samples,
+                                                const TrainOptions& options) {
+  std::vector<WireSample> wire;
+  wire.reserve(samples.size());
   for (size_t i = 0; i < samples.size(); ++i) {
     if (samples[i].cloud == nullptr) {
       return absl::InvalidArgumentError(absl::StrCat("Train: sample ", i, " has no cloud"));
     }
-    all_ids = all_ids && samples[i].sample_id != 0;
+    wire.push_back({&samples[i].label, samples[i].sample_id, Packed(*samples[i].cloud)});
   }
+  return TrainWire(gallery, v1::PointLayout(), wire, options);
+}
+
+absl::StatusOr<v1::TrainResponse> Client::Train(const std::string& gallery,
+                                                const v1::PointLayout& layout,
+                                                absl::Span<const SensorTrainSample> samples,
+                                                const TrainOptions& options) {
+  std::vector<WireSample> wire;
+  wire.reserve(samples.size());
+  for (const SensorTrainSample& sample : samples) {
+    wire.push_back({&sample.label, sample.sample_id, SensorCloud{sample.data, layout}});
+  }
+  return TrainWire(gallery, layout, wire, options);
+}
+
+absl::StatusOr<v1::TrainResponse> Client::TrainWire(const std::string& gallery,
+                                                    const v1::PointLayout& layout,
+                                                    const std::vector<WireSample>& samples,
+                                                    const TrainOptions& options) {
+  bool all_ids = true;
+  for (const WireSample& sample : samples) all_ids = all_ids && sample.sample_id != 0;
   v1::TrainResponse response;
   int attempts = 0;
   absl::Status status = Call(all_ids, true, [&](grpc::ClientContext& context) {
@@ -366,14 +433,16 @@ absl::StatusOr<v1::TrainResponse> Client::Train(const std::string& gallery,
     StreamWriter<v1::TrainRequest> stream(writer.get());
     v1::TrainRequest header;
     header.mutable_header()->set_gallery(gallery);
+    *header.mutable_header()->mutable_layout() = layout;
+    *header.mutable_header()->mutable_sensor_frame() = options.sensor_frame;
     stream.Push(std::move(header), /*buffer=*/true);
-    for (const TrainSample& sample : samples) {
+    for (const WireSample& sample : samples) {
       v1::TrainRequest start;
-      start.mutable_sample()->set_label(sample.label);
+      start.mutable_sample()->set_label(*sample.label);
       start.mutable_sample()->set_sample_id(sample.sample_id);
-      start.mutable_sample()->set_expected_points(sample.cloud->size());
+      start.mutable_sample()->set_expected_points(PointsIn(sample.cloud.data, layout));
       stream.Push(std::move(start), /*buffer=*/true);
-      PushCloud(stream, *sample.cloud, options_.chunk_points);
+      PushCloud(stream, sample.cloud, options_.chunk_points);
     }
     stream.Close();
     return writer->Finish();

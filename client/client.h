@@ -45,6 +45,26 @@ struct TrainSample {
   const PointCloud* cloud = nullptr;
 };
 
+// One labelled cloud for Train in a sensor's own layout (given once per call): its bytes,
+// borrowed.
+struct SensorTrainSample {
+  std::string label;
+  uint64_t sample_id = 0;  // as in TrainSample
+  absl::string_view data;
+};
+
+// A cloud in a sensor's own byte layout (the `data` of a sensor_msgs/PointCloud2 with the
+// layout its fields declare), sent as it is: the server decodes it (proto PointLayout) and
+// refuses a layout that does not hold together. Borrowed: it must outlive the call.
+struct SensorCloud {
+  absl::string_view data;
+  v1::PointLayout layout;
+};
+
+// The points `data` holds in `layout` (padded rows' padding skipped; an empty layout is
+// packed float32, 12 bytes a point): what the header announces as expected_points.
+uint64_t PointsIn(absl::string_view data, const v1::PointLayout& layout);
+
 class Client {
  public:
   // Checks `options` (InvalidArgument for an empty target, a bad list of endpoints (see
@@ -71,6 +91,19 @@ class Client {
                                                 const std::string& spec = "",
                                                 const std::string& gallery = "");
 
+  // Per-call choices of Describe.
+  struct DescribeOptions {
+    std::string spec;     // empty: the spec of `gallery` if given, else the server's default
+    std::string gallery;  // optional: describe with this gallery's spec
+    // The sensor's frame (a rigid transform, or which way is up); empty: the points are in
+    // the frame the descriptor expects.
+    v1::SensorFrame sensor_frame;
+  };
+  absl::StatusOr<v1::DescribeResponse> Describe(const PointCloud& cloud,
+                                                const DescribeOptions& options);
+  absl::StatusOr<v1::DescribeResponse> Describe(const SensorCloud& cloud,
+                                                const DescribeOptions& options);
+
   // Classifies `cloud` against `gallery` with `k` neighbours (0: the gallery's k).
   // FAILED_PRECONDITION on an empty gallery, NOT_FOUND on an unknown one. A cloud of up to
   // options().chunk_points points goes in one ClassifyCloud message (about a third less
@@ -86,8 +119,13 @@ class Client {
     // Search every stored vector even where the server searches the gallery approximately
     // (v1::Gallery::approximate_lists > 0): slower, never misses a neighbour.
     bool exact = false;
+    // The sensor's frame, as in DescribeOptions.
+    v1::SensorFrame sensor_frame;
   };
   absl::StatusOr<v1::ClassifyResponse> Classify(const std::string& gallery, const PointCloud& cloud,
+                                                const ClassifyOptions& options);
+  absl::StatusOr<v1::ClassifyResponse> Classify(const std::string& gallery,
+                                                const SensorCloud& cloud,
                                                 const ClassifyOptions& options);
 
   // Adds `samples` to `gallery` in one stream: all of them or, on any error, none.
@@ -96,6 +134,19 @@ class Client {
   // may mean the first attempt committed (ClientOptions::max_attempts).
   absl::StatusOr<v1::TrainResponse> Train(const std::string& gallery,
                                           absl::Span<const TrainSample> samples);
+
+  // Per-call choices of Train, for every sample of the call.
+  struct TrainOptions {
+    // The sensor's frame, as in DescribeOptions.
+    v1::SensorFrame sensor_frame;
+  };
+  absl::StatusOr<v1::TrainResponse> Train(const std::string& gallery,
+                                          absl::Span<const TrainSample> samples,
+                                          const TrainOptions& options);
+  // Train with every sample's bytes in `layout` (a sensor's own), sent as they are.
+  absl::StatusOr<v1::TrainResponse> Train(const std::string& gallery, const v1::PointLayout& layout,
+                                          absl::Span<const SensorTrainSample> samples,
+                                          const TrainOptions& options = {});
 
   // Gallery management: thin wrappers over the unary RPCs of the same names.
   absl::StatusOr<v1::Gallery> CreateGallery(const v1::CreateGalleryRequest& request);
@@ -160,16 +211,26 @@ class Client {
                     const std::function<bool()>& may_retry = nullptr);
   // Describe and Classify: `header`, then `cloud` in chunks, on the client stream `open`
   // starts (a stub method), retried like any idempotent call.
+  // Both Trains: `samples` (label, id, cloud) in one stream whose header declares `layout`.
+  struct WireSample {
+    const std::string* label;
+    uint64_t sample_id;
+    SensorCloud cloud;
+  };
+  absl::StatusOr<v1::TrainResponse> TrainWire(const std::string& gallery,
+                                              const v1::PointLayout& layout,
+                                              const std::vector<WireSample>& samples,
+                                              const TrainOptions& options);
   template <typename Request, typename Response, typename Open>
   absl::StatusOr<Response> SingleCloudCall(Open open, const Request& header,
-                                           const PointCloud& cloud);
+                                           const SensorCloud& cloud);
   // Describe and Classify: `header` and `cloud` in one OneMessage request through `unary`
   // (DescribeCloud, ClassifyCloud) when the cloud has at most options_.chunk_points points,
   // else (and for good once a server answers UNIMPLEMENTED to it: an older server) on the
   // stream `open` starts, through SingleCloudCall. Retried like any idempotent call.
   template <typename OneMessage, typename StreamRequest, typename Response, typename Header,
             typename Unary, typename Open>
-  absl::StatusOr<Response> CloudCall(const Header& header, const PointCloud& cloud, Unary unary,
+  absl::StatusOr<Response> CloudCall(const Header& header, const SensorCloud& cloud, Unary unary,
                                      Open open);
 
   const ClientOptions options_;

@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
+#include <cstring>
 #include <map>
 #include <random>
 #include <string>
@@ -245,6 +247,127 @@ TEST_F(ClientTest, ClassifyInOneMessageOrStreamedGivesTheSameAnswer) {
   }
   // Errors keep their code on the one-message path too.
   EXPECT_TRUE(absl::IsNotFound((*one_message_client)->Classify("missing", cloud).status()));
+}
+
+// `cloud` as a sensor would send it: x y z float64 big-endian at offsets 8, 16, 0, with an
+// intensity float between, 32 bytes a point (a PointCloud2 of FLOAT64 fields).
+SensorCloud AsSensorBytes(const PointCloud& cloud, std::string* storage) {
+  storage->assign(cloud.size() * 32, '\0');
+  const int offsets[3] = {8, 16, 0};
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    for (int a = 0; a < 3; ++a) {
+      const double v = cloud.xyz()[3 * i + a];
+      char bytes[8];
+      std::memcpy(bytes, &v, 8);
+      std::reverse(bytes, bytes + 8);
+      std::memcpy(storage->data() + 32 * i + offsets[a], bytes, 8);
+    }
+    const float intensity = 0.5f * static_cast<float>(i);
+    std::memcpy(storage->data() + 32 * i + 24, &intensity, 4);
+  }
+  SensorCloud sensor{*storage, {}};
+  sensor.layout.set_point_step(32);
+  sensor.layout.set_is_bigendian(true);
+  v1::PointCoordinate* coordinates[3] = {sensor.layout.mutable_x(), sensor.layout.mutable_y(),
+                                         sensor.layout.mutable_z()};
+  for (int a = 0; a < 3; ++a) {
+    coordinates[a]->set_offset(offsets[a]);
+    coordinates[a]->set_datatype(v1::FLOAT64);
+  }
+  return sensor;
+}
+
+TEST_F(ClientTest, ASensorsOwnLayoutGivesTheAnswerOfTheFloat32PointsItCarries) {
+  CreateTrained("parts");
+  const PointCloud cloud = Shape(1, 31, 1500);
+  std::string storage;
+  const SensorCloud sensor = AsSensorBytes(cloud, &storage);
+  EXPECT_EQ(PointsIn(sensor.data, sensor.layout), 1500u);
+  auto packed = client_->Describe(cloud, "rphsd");
+  ASSERT_TRUE(packed.ok()) << packed.status();
+  // Streamed (1,500 points over this client's 1,000 a chunk) and in one message.
+  ClientOptions options;
+  options.target = server_->address();
+  auto one_message_client = Client::Connect(options);
+  ASSERT_TRUE(one_message_client.ok());
+  for (Client* client : {client_.get(), one_message_client->get()}) {
+    Client::DescribeOptions describe;
+    describe.spec = "rphsd";
+    auto decoded = client->Describe(sensor, describe);
+    ASSERT_TRUE(decoded.ok()) << decoded.status();
+    EXPECT_THAT(decoded->values(), ::testing::ElementsAreArray(packed->values()));
+    Client::ClassifyOptions classify;
+    classify.k = 3;
+    auto classified = client->Classify("parts", sensor, classify);
+    ASSERT_TRUE(classified.ok()) << classified.status();
+    EXPECT_EQ(classified->label(), "rod");
+  }
+  // Train takes the layout for the whole call.
+  const SensorTrainSample sample{"rod", 77, sensor.data};
+  auto trained = client_->Train("parts", sensor.layout, {&sample, 1});
+  ASSERT_TRUE(trained.ok()) << trained.status();
+  auto nearest = client_->Classify("parts", cloud, 1);
+  ASSERT_TRUE(nearest.ok());
+  EXPECT_EQ(nearest->neighbors(0).sample_id(), 77u);
+  EXPECT_EQ(nearest->neighbors(0).distance(), 0.0);
+  // A layout that does not hold together is the server's INVALID_ARGUMENT, naming the field.
+  SensorCloud wrong = sensor;
+  wrong.layout.mutable_z()->set_offset(28);
+  const auto refused = client_->Describe(wrong, {});
+  EXPECT_TRUE(absl::IsInvalidArgument(refused.status()));
+  EXPECT_THAT(refused.status().message(), HasSubstr("z at offset 28 (8 bytes) ends past"));
+}
+
+TEST_F(ClientTest, TheSensorsFrameTurnsItsPointsIntoTheGallerys) {
+  // An object seen by a camera whose optical frame has y down and z forward: the object's
+  // up (+z) is the camera's -y.
+  const PointCloud upright = Shape(0, 5, 800);
+  PointCloud camera;
+  for (size_t i = 0; i < upright.size(); ++i) {
+    const Eigen::Vector3f p = upright.point(i);
+    camera.Add(p.x(), -p.z(), p.y());
+  }
+  const std::string spec = "dfsd:frame=upright";
+  auto expected = client_->Describe(upright, spec);
+  ASSERT_TRUE(expected.ok()) << expected.status();
+  const auto near_expected = [&](const v1::DescribeResponse& got) {
+    ASSERT_EQ(got.values_size(), expected->values_size());
+    for (int i = 0; i < got.values_size(); ++i) {
+      EXPECT_NEAR(got.values(i), expected->values(i), 1e-3 * (1 + std::abs(expected->values(i))))
+          << "value " << i;
+    }
+  };
+  Client::DescribeOptions options;
+  options.spec = spec;
+  auto unturned = client_->Describe(camera, options);
+  ASSERT_TRUE(unturned.ok());
+  EXPECT_THAT(unturned->values(), ::testing::Not(::testing::ElementsAreArray(expected->values())))
+      << "lying on its side: another object";
+
+  for (double v : {0.0, -1.0, 0.0}) options.sensor_frame.add_up(v);
+  auto by_up = client_->Describe(camera, options);
+  ASSERT_TRUE(by_up.ok()) << by_up.status();
+  near_expected(*by_up);
+
+  // The same as a camera-to-base transform [R | t] (t moves nothing a descriptor sees).
+  options.sensor_frame.Clear();
+  for (double v : {1.0, 0.0, 0.0, 0.5, 0.0, 0.0, 1.0, -2.0, 0.0, -1.0, 0.0, 3.0}) {
+    options.sensor_frame.add_transform(v);
+  }
+  auto by_transform = client_->Describe(camera, options);
+  ASSERT_TRUE(by_transform.ok()) << by_transform.status();
+  near_expected(*by_transform);
+
+  // Both at once, or a transform that is not rigid: INVALID_ARGUMENT naming why.
+  options.sensor_frame.add_up(1);
+  options.sensor_frame.add_up(0);
+  options.sensor_frame.add_up(0);
+  EXPECT_THAT(client_->Describe(camera, options).status().message(), HasSubstr("not both"));
+  options.sensor_frame.Clear();
+  for (int v : {2, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}) options.sensor_frame.add_transform(v);
+  const auto scaled = client_->Describe(camera, options);
+  EXPECT_TRUE(absl::IsInvalidArgument(scaled.status()));
+  EXPECT_THAT(scaled.status().message(), HasSubstr("not a rotation"));
 }
 
 // Reads a client stream to its end, then answers `status` (the response is set beforehand).

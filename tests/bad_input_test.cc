@@ -606,7 +606,80 @@ std::vector<RpcCase> BadInputTest::RequestTable() {
   import_header.set_name("copy");
   *import_header.mutable_chunk() = export_[0];
 
+  // Sensor layouts and frames (DescribeHeader.layout, .sensor_frame): x y z float32 in 16 bytes.
+  const auto layout_header = [](const std::function<void(v1::PointLayout*)>& edit) {
+    v1::DescribeRequest r = DHeader();
+    v1::PointLayout* layout = r.mutable_header()->mutable_layout();
+    layout->set_point_step(16);
+    v1::PointCoordinate* axes[3] = {layout->mutable_x(), layout->mutable_y(), layout->mutable_z()};
+    for (int a = 0; a < 3; ++a) {
+      axes[a]->set_offset(4 * a);
+      axes[a]->set_datatype(v1::FLOAT32);
+    }
+    edit(layout);
+    return r;
+  };
+  const auto frame_header = [](const std::vector<double>& up, const std::vector<double>& rows) {
+    v1::DescribeRequest r = DHeader();
+    for (double v : up) r.mutable_header()->mutable_sensor_frame()->add_up(v);
+    for (double v : rows) r.mutable_header()->mutable_sensor_frame()->add_transform(v);
+    return r;
+  };
+  const v1::DescribeRequest dropping = layout_header([](v1::PointLayout* layout) {
+    layout->Clear();
+    layout->set_drop_nonfinite(true);
+  });
+
   std::vector<RpcCase> rows = {
+      // Describe: a sensor's layout and frame
+      {"Describe: a layout without x",
+       Describe({layout_header([](v1::PointLayout* l) { l->clear_x(); }), DPoints(box)}), kInvalid,
+       "point layout: x is missing"},
+      {"Describe: an integer coordinate",
+       Describe({layout_header([](v1::PointLayout* l) {
+                   l->mutable_x()->set_datatype(static_cast<v1::PointDatatype>(5));
+                 }),
+                 DPoints(box)}),
+       kInvalid, "x has datatype INT32 (5)"},
+      {"Describe: a coordinate past point_step",
+       Describe({layout_header([](v1::PointLayout* l) {
+                   l->mutable_z()->set_offset(12);
+                   l->mutable_z()->set_datatype(v1::FLOAT64);
+                 }),
+                 DPoints(box)}),
+       kInvalid, "z at offset 12 (8 bytes) ends past point_step 16"},
+      {"Describe: overlapping coordinates",
+       Describe({layout_header([](v1::PointLayout* l) { l->mutable_y()->set_offset(2); }),
+                 DPoints(box)}),
+       kInvalid, "x and y overlap"},
+      {"Describe: rows shorter than their points",
+       Describe({layout_header([](v1::PointLayout* l) {
+                   l->set_width(10);
+                   l->set_row_step(100);
+                 }),
+                 DPoints(box)}),
+       kInvalid, "row_step 100 is less than width 10 x point_step 16"},
+      {"Describe: the points end inside a point",
+       Describe({layout_header([](v1::PointLayout*) {}), DPoints(box.substr(0, 16 * 20 + 8))}),
+       kInvalid, "ended inside a point: 8 of its 16 bytes"},
+      {"Describe: every point non-finite and dropped",
+       Describe({dropping, DPoints(BoxWith(0, nan, nan, nan).substr(0, 12))}), kInvalid,
+       "at least 3 are needed"},
+      {"Describe: a transform that scales",
+       Describe({frame_header({}, {2, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}), DPoints(box)}), kInvalid,
+       "not a rotation"},
+      {"Describe: a transform that mirrors",
+       Describe({frame_header({}, {-1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}), DPoints(box)}), kInvalid,
+       "reflection"},
+      {"Describe: a transform of 11 numbers",
+       Describe({frame_header({}, {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}), DPoints(box)}), kInvalid,
+       "11 numbers; expected 12"},
+      {"Describe: up of zero length", Describe({frame_header({0, 0, 0}, {}), DPoints(box)}),
+       kInvalid, "not a direction"},
+      {"Describe: up and a transform",
+       Describe({frame_header({0, 0, 1}, {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}), DPoints(box)}),
+       kInvalid, "not both"},
+
       // Describe
       {"Describe: points before the header", Describe({DPoints(box)}), kInvalid,
        "first message must be a DescribeHeader"},

@@ -240,6 +240,52 @@ TEST(CliDescribeTest, NonFinitePointsFailUnlessDropped) {
   EXPECT_EQ(Lines(dropped.out).size(), 1u);
 }
 
+TEST(CliDescribeTest, TheSensorFrameTurnsACameraCloudUpright) {
+  // The shape as a camera with y down sees it: its up (+z) is the camera's -y.
+  const std::vector<float> upright = Shape(1);
+  std::vector<float> camera;
+  for (size_t i = 0; i < upright.size(); i += 3) {
+    camera.insert(camera.end(), {upright[i], -upright[i + 2], upright[i + 1]});
+  }
+  const std::string upright_file = WriteTempFile("upright.pcd", BinaryPcd(upright, 300, 1));
+  const std::string camera_file = WriteTempFile("camera.pcd", BinaryPcd(camera, 300, 1));
+  const std::string spec = "dfsd:frame=upright";
+  const RunResult expected = Shapeid({"describe", "--local", "--spec", spec, upright_file});
+  ASSERT_EQ(expected.exit_code, 0) << expected.err;
+  const std::vector<float> want = TextValues(Lines(expected.out).at(0), upright_file);
+  for (const std::vector<std::string>& flags :
+       {std::vector<std::string>{"--sensor-up", "0,-1,0"},
+        {"--sensor-transform", "1,0,0,0, 0,0,1,0, 0,-1,0,0"}}) {
+    std::vector<std::string> args = {"describe", "--local", "--spec", spec};
+    args.insert(args.end(), flags.begin(), flags.end());
+    args.push_back(camera_file);
+    const RunResult run = Shapeid(args);
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    const std::vector<float> got = TextValues(Lines(run.out).at(0), camera_file);
+    ASSERT_EQ(got.size(), want.size());
+    for (size_t v = 0; v < got.size(); ++v) {
+      EXPECT_NEAR(got[v], want[v], 1e-3 * (1 + std::abs(want[v]))) << flags[0] << " value " << v;
+    }
+  }
+  const RunResult unturned = Shapeid({"describe", "--local", "--spec", spec, camera_file});
+  EXPECT_NE(TextValues(Lines(unturned.out).at(0), camera_file), want);
+  // Usage errors, before any file is read.
+  for (const std::vector<std::string>& flags :
+       {std::vector<std::string>{"--sensor-up", "0,0"},
+        {"--sensor-up", "0,0,0"},
+        {"--sensor-up", "0,up,0"},
+        {"--sensor-transform", "2,0,0,0,0,1,0,0,0,0,1,0"},
+        {"--sensor-up", "0,0,1", "--sensor-transform", "1,0,0,0,0,1,0,0,0,0,1,0"}}) {
+    std::vector<std::string> args = {"describe", "--local", "--spec", spec};
+    args.insert(args.end(), flags.begin(), flags.end());
+    args.push_back(camera_file);
+    const RunResult run = Shapeid(args);
+    EXPECT_EQ(run.exit_code, 2) << absl::StrJoin(flags, " ");
+    EXPECT_EQ(run.out, "");
+    EXPECT_THAT(run.err, HasSubstr("--sensor-")) << run.err;
+  }
+}
+
 TEST(CliDescribeTest, BadSpecExitsTwoBeforeReadingFiles) {
   const std::string good = WriteTempFile("good.pcd", BinaryPcd(Shape(1), 300, 1));
   for (const char* spec : {"rphsd:nosuchparam=1", "nosuchkind", "rphsd:bins"}) {

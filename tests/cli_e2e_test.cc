@@ -139,6 +139,35 @@ TEST_F(CliE2ETest, CreateTrainClassifyEvaluate) {
               AllOf(StartsWith("NAME,SPEC,"), HasSubstr("\r\ndemo,\"rphsd:refs=cross7,bins=10")));
 }
 
+TEST_F(CliE2ETest, TheSensorFrameReachesTheServer) {
+  ASSERT_EQ(Run({"gallery", "create", "framed", "--spec", "rphsd:refs=cross7,bins=10"}).exit_code,
+            0);
+  ASSERT_EQ(Run({"train", "--gallery", "framed", Data()}).exit_code, 0);
+  const auto distances = [&](const std::vector<std::string>& flags) {
+    std::vector<std::string> args = {"classify", "--gallery", "framed", "--format", "json"};
+    args.insert(args.end(), flags.begin(), flags.end());
+    args.push_back(Data("bar/test/view-000.pcd"));
+    const RunResult run = Run(args);
+    EXPECT_EQ(run.exit_code, 0) << run.err;
+    return Python(run.out, "[round(n['distance'], 5) for n in rows[0]['neighbors']]");
+  };
+  const std::string plain = distances({});
+  // A translation moves nothing a descriptor sees; turning the cloud on its side does.
+  EXPECT_EQ(distances({"--sensor-transform", "1,0,0,5, 0,1,0,-3, 0,0,1,2"}), plain);
+  EXPECT_NE(distances({"--sensor-up", "1,0,0"}), plain);
+  // Train takes the frame too: trained on its side, the same view matches only when turned.
+  ASSERT_EQ(Run({"gallery", "create", "sideways", "--spec", "rphsd:refs=cross7,bins=10"}).exit_code,
+            0);
+  ASSERT_EQ(Run({"train", "--gallery", "sideways", "--sensor-up", "1,0,0", "--label", "bar",
+                 Data("bar/test/view-000.pcd")})
+                .exit_code,
+            0);
+  const RunResult turned = Run({"classify", "--gallery", "sideways", "--format", "json",
+                                "--sensor-up", "1,0,0", Data("bar/test/view-000.pcd")});
+  ASSERT_EQ(turned.exit_code, 0) << turned.err;
+  EXPECT_EQ(Python(turned.out, "rows[0]['neighbors'][0]['distance'] < 1e-4"), "True");
+}
+
 TEST_F(CliE2ETest, ExitCodesAsDocumented) {
   ASSERT_EQ(Run({"gallery", "create", "g"}).exit_code, 0);
   ASSERT_EQ(Run({"train", "--gallery", "g", Data()}).exit_code, 0);

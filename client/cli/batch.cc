@@ -92,7 +92,9 @@ TrainOutcome TrainFiles(Client& client, const std::string& gallery,
   std::atomic<uint64_t> gallery_count{0};
 
   const auto send = [&](const std::vector<TrainSample>& samples) {
-    absl::StatusOr<v1::TrainResponse> response = client.Train(gallery, samples);
+    Client::TrainOptions train;
+    train.sensor_frame = options.sensor_frame;
+    absl::StatusOr<v1::TrainResponse> response = client.Train(gallery, samples, train);
     if (response.ok()) {
       trained += static_cast<uint64_t>(response->sample_ids_size());
       // Streams commit in any order; the largest count seen is the latest.

@@ -19,9 +19,10 @@
 namespace shapeid {
 
 struct BatchOptions {
-  int jobs = 4;             // parallel streams: reading and describing overlap the network
-  size_t train_batch = 32;  // samples per Train stream (all-or-nothing on the server)
-  ReadOptions read;         // how files become clouds (non-finite points, mesh sampling)
+  int jobs = 4;                  // parallel streams: reading and describing overlap the network
+  size_t train_batch = 32;       // samples per Train stream (all-or-nothing on the server)
+  ReadOptions read;              // how files become clouds (non-finite points, mesh sampling)
+  v1::SensorFrame sensor_frame;  // the sensor's frame for Train (Classify's is in its options)
 };
 
 // A file the batch could not use, with the reason ("a.pcd: line 3: ...").

@@ -13,8 +13,12 @@
 #include <utility>
 
 #include "absl/strings/ascii.h"
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/strings/str_split.h"
+#include "core/rigid_transform.h"
+#include "core/status_macros.h"
 
 namespace shapeid {
 
@@ -296,6 +300,46 @@ void ParallelFor(size_t n, int jobs, const std::function<void(size_t)>& body,
   for (size_t t = 1; t < threads; ++t) workers.emplace_back(work);
   work();
   for (std::thread& worker : workers) worker.join();
+}
+
+absl::StatusOr<v1::SensorFrame> ParseSensorFrame(const SensorFrameFlags& flags) {
+  v1::SensorFrame frame;
+  if (!flags.up.empty() && !flags.transform.empty()) {
+    return absl::InvalidArgumentError(
+        "--sensor-up and --sensor-transform: give one (a transform fixes up too)");
+  }
+  const auto numbers = [](absl::string_view flag, const std::string& text,
+                          size_t count) -> absl::StatusOr<std::vector<double>> {
+    std::vector<double> values;
+    for (absl::string_view word : absl::StrSplit(text, ',')) {
+      double value;
+      if (!absl::SimpleAtod(word, &value)) {
+        return absl::InvalidArgumentError(absl::StrCat(flag, ": \"", word, "\" is not a number"));
+      }
+      values.push_back(value);
+    }
+    if (values.size() != count) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(flag, ": ", values.size(), " numbers; expected ", count));
+    }
+    return values;
+  };
+  if (!flags.up.empty()) {
+    SHAPEID_ASSIGN_OR_RETURN(const std::vector<double> up, numbers("--sensor-up", flags.up, 3));
+    if (absl::Status s = RotationTakingUpTo(up, {0, 0, 1}).status(); !s.ok()) {
+      return absl::InvalidArgumentError(absl::StrCat("--sensor-up: ", s.message()));
+    }
+    frame.mutable_up()->Assign(up.begin(), up.end());
+  }
+  if (!flags.transform.empty()) {
+    SHAPEID_ASSIGN_OR_RETURN(const std::vector<double> rows,
+                             numbers("--sensor-transform", flags.transform, 12));
+    if (absl::Status s = RigidTransformFromRows(rows).status(); !s.ok()) {
+      return absl::InvalidArgumentError(absl::StrCat("--sensor-transform: ", s.message()));
+    }
+    frame.mutable_transform()->Assign(rows.begin(), rows.end());
+  }
+  return frame;
 }
 
 }  // namespace shapeid

@@ -155,6 +155,18 @@ class Progress {
 void ParallelFor(size_t n, int jobs, const std::function<void(size_t)>& body,
                  const std::function<bool()>& stop = nullptr);
 
+// The sensor-frame flags of describe, train and classify, as typed.
+struct SensorFrameFlags {
+  std::string up;         // --sensor-up X,Y,Z
+  std::string transform;  // --sensor-transform: 12 numbers, the rows of [R | t]
+};
+
+// The SensorFrame those flags ask for (empty when neither is given). InvalidArgument naming
+// the flag for a wrong count of numbers, a word that is not a number, both flags at once, an
+// up of zero length or a transform that is not rigid (checked here, as the server would, so
+// that it is a usage error before any file is read).
+absl::StatusOr<v1::SensorFrame> ParseSensorFrame(const SensorFrameFlags& flags);
+
 }  // namespace shapeid
 
 #endif  // SHAPEID_CLIENT_CLI_CLI_COMMON_H_

@@ -12,6 +12,7 @@
 #include "core/descriptor_registry.h"
 #include "core/io/point_cloud_reader.h"
 #include "core/json.h"
+#include "core/rigid_transform.h"
 #include "core/status_macros.h"
 
 namespace shapeid {
@@ -78,6 +79,7 @@ int RunDescribe(const DescribeOptions& options, const CliContext& context) {
   std::FILE* const out = context.out;
   std::FILE* const err = context.err;
   std::unique_ptr<Descriptor> local;
+  RigidTransform local_frame;
   std::unique_ptr<Client> client;
   std::string canonical_spec;
   if (options.local) {
@@ -94,6 +96,18 @@ int RunDescribe(const DescribeOptions& options, const CliContext& context) {
     }
     local = std::move(descriptor).value();
     canonical_spec = local->spec().ToString();
+    // The server's rule (server/proto_convert.h): the frame's up turns onto the descriptor's.
+    absl::StatusOr<RigidTransform> frame =
+        !options.sensor_frame.transform().empty()
+            ? RigidTransformFromRows(options.sensor_frame.transform())
+        : !options.sensor_frame.up().empty()
+            ? RotationTakingUpTo(options.sensor_frame.up(), local->up_direction())
+            : absl::StatusOr<RigidTransform>(RigidTransform());
+    if (!frame.ok()) {
+      PrintError(err, "describe", frame.status());
+      return kExitUsage;
+    }
+    local_frame = *frame;
   } else {
     // The server runs the same core: a spec this build cannot parse is a usage error, said
     // once, instead of the same refusal for every file.
@@ -127,10 +141,16 @@ int RunDescribe(const DescribeOptions& options, const CliContext& context) {
     if (!read.ok()) {
       status = read.status();
     } else if (local != nullptr) {
+      if (!local_frame.is_identity()) {
+        ApplyRigidTransform(local_frame, read->cloud.mutable_xyz().data(), read->cloud.size());
+      }
       status = local->Compute(read->cloud, &values);
     } else {
-      absl::StatusOr<v1::DescribeResponse> response =
-          client->Describe(read->cloud, options.spec, options.gallery);
+      Client::DescribeOptions call;
+      call.spec = options.spec;
+      call.gallery = options.gallery;
+      call.sensor_frame = options.sensor_frame;
+      absl::StatusOr<v1::DescribeResponse> response = client->Describe(read->cloud, call);
       if (!response.ok() && StopsBatch(response.status())) {
         progress.Finish();
         std::fflush(out);

@@ -23,6 +23,7 @@ struct DescribeOptions {
   std::string spec;
   std::string gallery;             // server mode: describe as this gallery would
   bool drop_non_finite = false;    // ReadOptions::drop_non_finite
+  v1::SensorFrame sensor_frame;    // the sensor's frame (ParseSensorFrame); locally too
   std::vector<std::string> files;  // files, or folders walked for point-cloud files
 };
 

@@ -72,6 +72,16 @@ void AddBatchFlags(CLI::App* command, shapeid::BatchOptions* batch) {
       ->capture_default_str();
 }
 
+// The sensor's frame of describe, train and classify (the proto's SensorFrame).
+void AddSensorFrameFlags(CLI::App* command, shapeid::SensorFrameFlags* flags) {
+  command->add_option("--sensor-up", flags->up,
+                      "Which way is up in the clouds' frame, X,Y,Z (a camera's optical frame: "
+                      "0,-1,0); the points are turned so that it is the gallery's up");
+  command->add_option("--sensor-transform", flags->transform,
+                      "A rigid transform from the clouds' frame to the gallery's (a sensor-to-"
+                      "base transform): 12 numbers, the rows of [R | t]");
+}
+
 void AddGalleryKnobs(CLI::App* command, shapeid::GalleryCreateOptions* create) {
   command->add_option("--spec", create->spec,
                       "Descriptor spec, KIND[:param=value,...] (default: the server's, dfsd)");
@@ -177,6 +187,8 @@ int main(int argc, char** argv) {
   describe_cmd->add_flag("--drop-nonfinite", describe.drop_non_finite,
                          "Remove points with NaN or infinite coordinates (organised PCD "
                          "clouds) instead of failing on them");
+  shapeid::SensorFrameFlags sensor_flags;  // one subcommand runs: they share it
+  AddSensorFrameFlags(describe_cmd, &sensor_flags);
   describe_cmd
       ->add_option("FILE", describe.files,
                    "Point-cloud files or folders: .pcd .ply .off .obj .xyz .txt .csv")
@@ -258,6 +270,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(size_t{1}, size_t{100000}))
       ->capture_default_str();
   AddBatchFlags(train_cmd, &train.batch);
+  AddSensorFrameFlags(train_cmd, &sensor_flags);
   train_cmd->add_option("PATH", train.paths, "Files or folders")->required()->type_name("");
 
   // classify
@@ -275,6 +288,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 100))
       ->capture_default_str();
   AddBatchFlags(classify_cmd, &classify.batch);
+  AddSensorFrameFlags(classify_cmd, &sensor_flags);
   classify_cmd->add_option("PATH", classify.paths, "Files or folders")->required()->type_name("");
 
   // eval
@@ -357,6 +371,16 @@ int main(int argc, char** argv) {
     context.client.api_key = *std::move(key);
   }
 
+  {
+    absl::StatusOr<shapeid::v1::SensorFrame> frame = shapeid::ParseSensorFrame(sensor_flags);
+    if (!frame.ok()) {
+      std::fprintf(stderr, "shapeid: %s\n", std::string(frame.status().message()).c_str());
+      return shapeid::kExitUsage;
+    }
+    describe.sensor_frame = *frame;
+    train.batch.sensor_frame = *frame;
+    classify.call.sensor_frame = *std::move(frame);
+  }
   if (*describe_cmd) return shapeid::RunDescribe(describe, context);
   if (*create_cmd) return shapeid::RunGalleryCreate(create, context);
   if (*list_cmd) return shapeid::RunGalleryList(context);
