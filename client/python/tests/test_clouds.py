@@ -268,6 +268,19 @@ def test_organised_point_cloud2_with_nans_refused_or_dropped():
     assert encoded.data == np.delete(XYZ, [26, 27, 490], axis=0).tobytes()
 
 
+@pytest.mark.parametrize("big_endian", [False, True], ids=["little", "big"])
+def test_forwarded_finiteness_check_is_exact(big_endian):
+    # The fast check sums x + y + z: a sum that overflows is no refusal, one inf is.
+    points = XYZ.copy()
+    points[5] = [3e38, 3e38, 3e38]
+    message = ros2_message(points, LAYOUTS["padded32"], big_endian)
+    assert forwarded(message) == points.tobytes()
+    points[9, 0] = -np.inf
+    with pytest.raises(ValueError, match=r"1 of 500 points have a NaN or infinite coordinate "
+                                         r"\(the first: point 9, \[-inf, "):
+        clouds.encode(ros2_message(points, LAYOUTS["padded32"], big_endian))
+
+
 def test_packed_point_cloud2_goes_without_a_layout():
     # x y z float32 little-endian, 12 bytes: the wire's default, nothing to declare
     message = ros2_message(XYZ, (12, ("x", 0, "f4"), ("y", 4, "f4"), ("z", 8, "f4")))
