@@ -10,8 +10,9 @@ points' bytes and the `Layout` they are in.
 - a PointCloud2's `data` goes as it is, with the layout its fields declare (proto
   PointLayout: point_step, x/y/z offset and FLOAT32/FLOAT64, is_bigendian, width/row_step
   of padded rows): the server decodes it into the same float32 x y z. The declaration is
-  checked here, and so are the coordinates (one strided pass): a cloud the client lets
-  through is one the server reads. `encode(..., forward_point_cloud2=False)` converts it
+  checked here with the same errors as before forwarding, and so are the coordinates (one
+  strided pass); the server's own checks remain (overlapping x, y, z: its
+  InvalidArgumentError). `encode(..., forward_point_cloud2=False)` converts it
   into PACKED_XYZ32 instead (Client.train does so for a stream mixing layouts).
 
 Errors are raised before anything is sent: TypeError for something that is not a cloud or
