@@ -7,14 +7,17 @@ gallery of --gallery-size synthetic 1,024-point clouds, then for each of --runs 
     the Python client and the C++ one (bench/client_bench.cc, the real shapeid::Client)
     taking turns against the same server;
   - throughput from --threads threads sharing one client for --seconds, both clients;
-and the conversion of a 1,000,000-point PointCloud2 (ROS 1 message class when Debian's
-python3-sensor-msgs is there) to the wire format. Prints the medians over the rounds as a
-markdown table, with the machine, and one JSON line.
+and what the client does to a 1,000,000-point PointCloud2 (ROS 1 message class when
+Debian's python3-sensor-msgs is there) before sending it: its layout checked and a strided
+finiteness pass, its data forwarded as it is (the default), and, for comparison, the
+conversion to packed float32 (forward_point_cloud2=False). Prints the medians over the
+rounds as a markdown table, with the machine, and one JSON line.
 
     cmake --preset release
     cmake --build --preset release --target shapeid_server client_bench shapeid_python_package
     bench/python_client_bench.py                  # ~1 min
     bench/python_client_bench.py --quick          # a few seconds, for the CI smoke
+    bench/python_client_bench.py --conversion-only  # the PointCloud2 figures, no server
 
 The server, both load generators and this script share the machine's cores: on 2 cores the
 throughput figures show the client's CPU cost as much as the server's.
@@ -136,15 +139,34 @@ def point_cloud2(n, layout):
                     for f, o, d in fields]), "a ROS 2-style object"
 
 
-def conversion_ms(shapeid, n, layout, repeats):
+def conversion_ms(shapeid, n, layout, repeats, forward=True):
     message, kind = point_cloud2(n, layout)
     times = []
     for _ in range(repeats):
         start = time.perf_counter()
-        encoded = shapeid.encode(message)
+        encoded = shapeid.encode(message, forward_point_cloud2=forward)
         times.append((time.perf_counter() - start) * 1e3)
     assert encoded.num_points == n
+    assert (encoded.layout == shapeid.clouds.PACKED_XYZ32) != forward
     return statistics.median(times), kind
+
+
+def conversion_figures(shapeid, repeats):
+    """{name: median ms} for 1,000,000 points: forwarded (layout + check) and converted."""
+    out = {}
+    for layout, name in (("xyzi32", "f32"), ("xyz64", "f64")):
+        out["check_ms_" + name], kind = conversion_ms(shapeid, 1_000_000, layout, repeats)
+        out["conversion_ms_" + name], _ = conversion_ms(shapeid, 1_000_000, layout, repeats,
+                                                        forward=False)
+    return out, kind
+
+
+def print_conversion(figures, kind, repeats):
+    print("PointCloud2 of 1,000,000 points (%s), median of %d: forwarded (layout + "
+          "finiteness check) %.1f ms float32 x y z in a 32-byte point, %.1f ms float64 x y z; "
+          "converted to packed float32 instead: %.1f ms, %.1f ms"
+          % (kind, repeats, figures["check_ms_f32"], figures["check_ms_f64"],
+             figures["conversion_ms_f32"], figures["conversion_ms_f64"]))
 
 
 def main():
@@ -163,7 +185,17 @@ def main():
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--quick", action="store_true", help="tiny numbers for a CI smoke")
+    parser.add_argument("--conversion-only", action="store_true",
+                        help="only the PointCloud2 figures (no server, no C++ client)")
     args = parser.parse_args()
+    repeats = 3 if args.quick else 20
+    if args.conversion_only:
+        sys.path.append(os.path.join(ROOT, "build/release/client/python/package"))
+        import shapeid
+        figures, kind = conversion_figures(shapeid, repeats)
+        print_conversion(figures, kind, repeats)
+        print("JSON " + json.dumps(figures))
+        return 0
     if args.quick:
         args.gallery_size, args.warmup, args.requests, args.blocks = 100, 10, 100, 2
         args.seconds, args.runs = 0.3, 1
@@ -228,8 +260,7 @@ def main():
         client.close()
     finally:
         server.stop()
-    conv32, kind = conversion_ms(shapeid, 1_000_000, "xyzi32", 3 if args.quick else 20)
-    conv64, _ = conversion_ms(shapeid, 1_000_000, "xyz64", 3 if args.quick else 20)
+    conversion, kind = conversion_figures(shapeid, repeats)
 
     med = {k: statistics.median(r[k] for r in rounds) for k in rounds[0]}
     # Each round's ratio, then their median: within a round the clients take turns, so its
@@ -255,12 +286,9 @@ def main():
     print("| %d threads, one client | %.0f / s | %.0f / s | %.2f |" % (
         args.threads, med["py_rate"], med["cpp_rate"], ratio["rate"]))
     print()
-    print("PointCloud2 of 1,000,000 points (%s) to the wire format, median of %d: "
-          "%.1f ms float32 x y z in a 32-byte point, %.1f ms float64 x y z"
-          % (kind, 3 if args.quick else 20, conv32, conv64))
+    print_conversion(conversion, kind, repeats)
     print("JSON " + json.dumps(dict(med, ratio_p50=ratio["p50"], ratio_p99=ratio["p99"],
-                                    ratio_rate=ratio["rate"], conversion_ms_f32=conv32,
-                                    conversion_ms_f64=conv64, runs=len(rounds))))
+                                    ratio_rate=ratio["rate"], runs=len(rounds), **conversion)))
     return 0
 
 

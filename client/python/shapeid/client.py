@@ -132,33 +132,48 @@ class Client:
     # -----------------------------------------------------------------------------------------
     # Clouds
 
-    def describe(self, cloud, *, spec="", gallery="", drop_non_finite=False, timeout=None):
+    def describe(self, cloud, *, spec="", gallery="", drop_non_finite=False, up=None,
+                 transform=None, timeout=None):
         """The descriptor of `cloud` as a DescribeResult (values: numpy float32). `spec` empty:
-        the spec of `gallery` if given, else the server's default ("dfsd")."""
+        the spec of `gallery` if given, else the server's default ("dfsd"). `up` or
+        `transform`: the sensor's frame (see classify)."""
+        frame = _sensor_frame(up, transform)
         encoded = _clouds.encode(cloud, drop_non_finite=drop_non_finite)
         header = _pb.DescribeHeader(descriptor_spec=spec, gallery=gallery,
                                     expected_points=encoded.num_points)
+        _set_format(header, encoded, drop_non_finite, frame)
         response = self._cloud_call(header, encoded, _pb.DescribeCloudRequest,
                                     _pb.DescribeRequest, self._stub.DescribeCloud,
                                     self._stub.Describe, timeout)
         return _results.DescribeResult.from_proto(response)
 
-    def classify(self, gallery, cloud, *, k=0, exact=False, drop_non_finite=False,
-                 timeout=None):
+    def classify(self, gallery, cloud, *, k=0, exact=False, drop_non_finite=False, up=None,
+                 transform=None, timeout=None):
         """Classifies `cloud` against `gallery` with `k` neighbours (0: the gallery's k) as a
         ClassifyResult. NotFoundError for an unknown gallery, FailedPreconditionError for an
         empty one. exact=True searches every stored vector even where the server searches
-        the gallery approximately."""
+        the gallery approximately.
+
+        The sensor's frame, at most one of (both: ValueError); neither: the points are in
+        the gallery's frame already. The server moves the points before describing them.
+        up: (x, y, z), which way is up in the sensor's frame; the points are turned by the
+          smallest rotation taking it onto the gallery's up (its descriptor's, +z unless the
+          spec says otherwise). A camera's optical frame (y down): up=(0, -1, 0).
+        transform: the sensor-to-gallery rigid transform [R | t] (p' = R p + t), 3 x 4 or
+          4 x 4 (last row 0 0 0 1), array-like: a tf lookup as a matrix. A transform that
+          is not rigid is the server's InvalidArgumentError."""
+        frame = _sensor_frame(up, transform)
         encoded = _clouds.encode(cloud, drop_non_finite=drop_non_finite)
         header = _pb.ClassifyHeader(gallery=gallery, k=k, exact=exact,
                                     expected_points=encoded.num_points)
+        _set_format(header, encoded, drop_non_finite, frame)
         response = self._cloud_call(header, encoded, _pb.ClassifyCloudRequest,
                                     _pb.ClassifyRequest, self._stub.ClassifyCloud,
                                     self._stub.Classify, timeout)
         return _results.ClassifyResult.from_proto(response)
 
     def train(self, gallery, clouds, labels, *, ids=None, augmentation=None,
-              drop_non_finite=False, timeout=None):
+              drop_non_finite=False, up=None, transform=None, timeout=None):
         """Adds labelled clouds to `gallery` in one stream: all of them or, on any error, none.
         Returns a TrainResult (the new sample ids, in order).
 
@@ -169,9 +184,13 @@ class Client:
           repeated stream cannot add a sample twice; an AlreadyExistsError after such a
           retry says that the first attempt may have committed.
         augmentation: a shapeid.Augmentation for this stream instead of the gallery's.
-        Every cloud is converted before anything is sent; a bad one raises TypeError or
-        ValueError naming its index.
+        up, transform: the sensor's frame of every cloud of the stream (see classify).
+        Every cloud is checked before anything is sent; a bad one raises TypeError or
+        ValueError naming its index. The stream declares one point layout: PointCloud2
+        messages of one layout go as they are, a mix of layouts (or with arrays) is
+        converted to packed float32 here.
         """
+        frame = _sensor_frame(up, transform)
         clouds = _as_cloud_list(clouds)
         if isinstance(labels, str):
             labels = [labels] * len(clouds)
@@ -186,13 +205,24 @@ class Client:
             raise ValueError("%d clouds but %d ids" % (len(clouds), len(ids)))
         if any(i < 0 or i >= 1 << 64 for i in ids):
             raise ValueError("sample ids are unsigned 64-bit integers (0: the server assigns)")
-        encoded = []
-        for i, cloud in enumerate(clouds):
-            try:
-                encoded.append(_clouds.encode(cloud, drop_non_finite=drop_non_finite))
-            except (TypeError, ValueError) as e:
-                raise type(e)("clouds[%d]: %s" % (i, e)) from None
+        def encode_all(forward):
+            encoded = []
+            for i, cloud in enumerate(clouds):
+                try:
+                    encoded.append(_clouds.encode(cloud, drop_non_finite=drop_non_finite,
+                                                  forward_point_cloud2=forward))
+                except (TypeError, ValueError) as e:
+                    raise type(e)("clouds[%d]: %s" % (i, e)) from None
+            return encoded
+
+        encoded = encode_all(True)
+        if len({cloud.layout for cloud in encoded}) > 1:
+            encoded = encode_all(False)  # one layout per stream: all packed float32
         header = _pb.TrainHeader(gallery=gallery)
+        if encoded:
+            _set_format(header, encoded[0], drop_non_finite, frame)
+        elif frame is not None:
+            header.sensor_frame.CopyFrom(frame)
         if augmentation is not None:
             augmentation.to_proto(header.augmentation)
 
@@ -418,6 +448,57 @@ class Client:
 
 def _identity(value):
     return value
+
+
+def _set_format(header, encoded, drop_non_finite, frame):
+    """Sets `header`'s layout (for a cloud not in the default packed float32) and sensor
+    frame (when given)."""
+    layout = encoded.layout
+    if layout != _clouds.PACKED_XYZ32:
+        out = header.layout
+        out.point_step = layout.point_step
+        for coordinate, offset, datatype in zip((out.x, out.y, out.z), layout.offsets,
+                                                layout.datatypes):
+            coordinate.offset = offset
+            coordinate.datatype = datatype
+        out.is_bigendian = layout.big_endian
+        out.width = layout.width
+        out.row_step = layout.row_step
+        out.drop_nonfinite = bool(drop_non_finite)
+    if frame is not None:
+        header.sensor_frame.CopyFrom(frame)
+
+
+def _sensor_frame(up, transform):
+    """A SensorFrame for `up` or `transform` (see Client.classify), None for neither;
+    ValueError for both or a wrong shape. Whether the numbers make a direction or a rigid
+    transform is the server's to say (InvalidArgumentError with its message)."""
+    if up is None and transform is None:
+        return None
+    if up is not None and transform is not None:
+        raise ValueError("give up or transform, not both (a transform fixes up too)")
+    if up is not None:
+        try:
+            values = np.asarray(up, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError("up must be 3 numbers (x, y, z), got %r" % (up,)) from None
+        if values.shape != (3,):
+            raise ValueError("up must be 3 numbers (x, y, z), got shape %s" % (values.shape,))
+        return _pb.SensorFrame(up=values.tolist())
+    try:
+        matrix = np.asarray(transform, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError("transform must be a 3 x 4 or 4 x 4 array of numbers, got %r"
+                         % (transform,)) from None
+    if matrix.shape == (4, 4):
+        if not np.array_equal(matrix[3], [0.0, 0.0, 0.0, 1.0]):
+            raise ValueError("transform is 4 x 4 but its last row is %s, not [0, 0, 0, 1]: "
+                             "not a rigid transform" % (matrix[3].tolist(),))
+        matrix = matrix[:3]
+    elif matrix.shape != (3, 4):
+        raise ValueError("transform must be 3 x 4 or 4 x 4 ([R | t]), got shape %s"
+                         % (matrix.shape,))
+    return _pb.SensorFrame(transform=matrix.reshape(-1).tolist())
 
 
 def _choice(value, table, what):

@@ -79,6 +79,134 @@ def test_nans_dropped_give_the_cloud_without_them(client):
     assert dropped.num_points == 1024
 
 
+def test_point_cloud2_streamed_and_trained_through_the_server_decoder(server, client, gallery):
+    """Forwarded PointCloud2 bytes in chunks of 700 x point_step (cut inside points' rows of
+    a padded organised cloud), in a train stream of one layout and one mixing layouts."""
+    points = shape(1, 42, 5000)
+    reference = client.describe(points).values
+    organised = ros2_message(points, LAYOUTS["padded32"], height=50, row_padding=12)
+    big_endian64 = ros1_message(points, LAYOUTS["xyz64"], True)
+    small = shapeid.Client(server.address, chunk_points=700)
+    try:
+        for message in (organised, big_endian64):
+            assert np.array_equal(small.describe(message).values, reference)
+        one_layout = small.train(gallery, [organised, organised], "ball")
+        mixed = small.train(gallery, [organised, big_endian64, points], "ball")
+        assert len(one_layout.sample_ids) == 2 and mixed.gallery_sample_count == 5
+        answer = client.classify(gallery, points, k=5)
+        assert [n.distance for n in answer.neighbors] == [0.0] * 5
+    finally:
+        small.close()
+
+
+def test_layout_the_client_lets_through_is_the_servers_invalid_argument(client, trained):
+    # Overlapping coordinates are declarable (each fits in point_step); the server refuses
+    # them, naming the field, as InvalidArgumentError (a ValueError).
+    message = ros2_message(QUERY, LAYOUTS["xyzi16"])
+    next(f for f in message.fields if f.name == "y").offset = 0  # reads x again
+    for call in (lambda: client.describe(message),
+                 lambda: client.classify(trained["name"], message)):
+        with pytest.raises(shapeid.InvalidArgumentError,
+                           match=r"point layout: x and y overlap \(offsets 0 and 0\)") as e:
+            call()
+        assert e.value.code == grpc.StatusCode.INVALID_ARGUMENT
+
+
+def test_non_finite_in_a_forwarded_point_cloud2_named_by_the_client(client):
+    points = QUERY.copy()
+    points[40, 1] = np.nan
+    message = ros1_message(points, LAYOUTS["xyzi16"], height=32)
+    with pytest.raises(ValueError, match=r"1 of 1024 points have a NaN or infinite coordinate "
+                                         r"\(the first: point 40 \(row 1, column 8\)"):
+        client.describe(message)
+    dropped = client.describe(message, drop_non_finite=True)  # dropped by the server
+    assert dropped.num_points == 1023
+    assert np.array_equal(dropped.values,
+                          client.describe(np.delete(QUERY, 40, axis=0)).values)
+
+
+# ---------------------------------------------------------------------------------------------
+# The sensor's frame
+
+def camera_optical(points):
+    """Upright points (z up) as a camera looking along +x sees them in its optical frame
+    (x right, y down, z forward): (-y, -z, x)."""
+    return np.stack([-points[:, 1], -points[:, 2], points[:, 0]], axis=1).astype(np.float32)
+
+
+def test_camera_optical_frame_with_up_gives_the_upright_label(client):
+    client.create_gallery("upright", spec="dfsd:frame=upright", k=1)
+    try:
+        clouds = [shape(kind, 300 + 10 * i + kind) for i in range(3) for kind in range(3)]
+        client.train("upright", clouds, [SHAPES[kind] for _ in range(3) for kind in range(3)])
+        for kind in range(3):
+            upright = shape(kind, 7000 + kind)
+            expected = client.classify("upright", upright).label
+            assert expected == SHAPES[kind]
+            camera = camera_optical(upright)
+            assert client.classify("upright", camera, up=(0, -1, 0)).label == expected
+            message = ros1_message(camera, LAYOUTS["xyzi16"])
+            assert client.classify("upright", message, up=[0, -1, 0]).label == expected
+        # the frame matters to this descriptor: the camera's points as they are differ
+        plate = shape(0, 7000)
+        upright = client.describe(plate, gallery="upright").values
+        assert not np.allclose(client.describe(camera_optical(plate), gallery="upright").values,
+                               upright, atol=1e-2)
+        assert np.allclose(client.describe(camera_optical(plate), gallery="upright",
+                                           up=(0, -1, 0)).values, upright, atol=1e-4)
+    finally:
+        client.delete_gallery("upright")
+
+
+def rotation(axis, degrees):
+    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    r = np.eye(3)
+    r[i, i], r[i, j], r[j, i], r[j, j] = c, -s, s, c
+    return r
+
+
+def test_rigid_transform_gives_the_descriptor_of_the_gallery_frame_cloud(client, gallery):
+    spec = "dfsd:frame=upright"
+    target = shape(0, 11).astype(np.float64)          # a plate, in the gallery's frame
+    r = rotation(0, 35) @ rotation(2, -70)
+    t = np.array([0.4, -2.0, 1.25])
+    sensor = ((target - t) @ r).astype(np.float32)  # R^T (p - t): so that R p' + t = p
+    tf = np.eye(4)
+    tf[:3, :3], tf[:3, 3] = r, t
+    reference = client.describe(target.astype(np.float32), spec=spec).values
+    for transform in (tf, tf[:3], tf.tolist()):
+        got = client.describe(sensor, spec=spec, transform=transform).values
+        assert np.allclose(got, reference, atol=1e-4), np.abs(got - reference).max()
+    assert not np.allclose(client.describe(sensor, spec=spec).values, reference, atol=1e-2)
+    client.train(gallery, sensor, "plate", transform=tf)  # train takes the frame too
+    assert client.classify(gallery, target.astype(np.float32)).neighbors[0].distance < 1e-3
+
+
+def test_sensor_frame_refusals(client, trained):
+    name = trained["name"]
+    scaled = np.hstack([2 * np.eye(3), np.zeros((3, 1))])
+    with pytest.raises(shapeid.InvalidArgumentError,
+                       match=r"sensor transform: R is not a rotation \(R R\^T differs from I "
+                             r"by 3; scaling and shear are not rigid\)") as e:
+        client.classify(name, QUERY, transform=scaled)
+    assert e.value.code == grpc.StatusCode.INVALID_ARGUMENT
+    with pytest.raises(shapeid.InvalidArgumentError, match=r"sensor up: \(0, 0, 0\) is not a "
+                                                            r"direction"):
+        client.describe(QUERY, up=(0, 0, 0))
+    # refused here, before anything is sent
+    with pytest.raises(ValueError, match="give up or transform, not both"):
+        client.classify(name, QUERY, up=(0, 0, 1), transform=np.eye(4))
+    not_affine = np.eye(4)
+    not_affine[3, 2] = 1
+    with pytest.raises(ValueError, match=r"last row is \[0.0, 0.0, 1.0, 1.0\]"):
+        client.describe(QUERY, transform=not_affine)
+    with pytest.raises(ValueError, match=r"3 x 4 or 4 x 4 \(\[R \| t\]\), got shape \(3, 3\)"):
+        client.train(name, QUERY, "ball", transform=np.eye(3))
+    with pytest.raises(ValueError, match=r"up must be 3 numbers"):
+        client.classify(name, QUERY, up=(0, 1))
+
+
 def test_train_classify_get_list_delete(client):
     created = client.create_gallery("lifecycle", spec="rphsd:bins=30", k=3,
                                     weighting="distance", scaling="zscore")

@@ -24,6 +24,35 @@ def wire(cloud, **kwargs):
     return encoded.data
 
 
+def decoded(encoded):
+    """The float32 x y z a server reads from `encoded` under its declared layout: a model of
+    the server's decoder (server/cloud_assembler.cc), for the tests without a server."""
+    layout = encoded.layout
+    raw = np.frombuffer(encoded.tobytes(), np.uint8)
+    if layout.row_step:
+        raw = raw.reshape(-1, layout.row_step)[:, :layout.width * layout.point_step]
+    points = raw.reshape(-1, layout.point_step)
+    out = np.empty((len(points), 3), np.float32)
+    order = ">" if layout.big_endian else "<"
+    for axis, (offset, datatype) in enumerate(zip(layout.offsets, layout.datatypes)):
+        size = {clouds.FLOAT32: 4, clouds.FLOAT64: 8}[datatype]
+        out[:, axis] = points[:, offset:offset + size].copy().view(
+            order + "f%d" % size).reshape(-1)
+    return out.tobytes()
+
+
+def forwarded(message, **kwargs):
+    """The float32 x y z the server reads from `message` forwarded as it is; checks that its
+    bytes went unchanged and that the conversion to packed float32 gives the same."""
+    encoded = clouds.encode(message, **kwargs)
+    assert encoded.layout != clouds.PACKED_XYZ32
+    assert encoded.num_points == message.height * message.width
+    assert encoded.data == bytes(message.data)
+    points = decoded(encoded)
+    assert wire(message, forward_point_cloud2=False, **kwargs) == points
+    return points
+
+
 # ---------------------------------------------------------------------------------------------
 # numpy arrays
 
@@ -199,21 +228,28 @@ LAYOUTS = {
 def test_point_cloud2_ros1_gives_the_float32_xyz_it_holds(layout, big_endian):
     message = ros1_message(XYZ, LAYOUTS[layout], big_endian)
     assert type(message).__module__.startswith("sensor_msgs")
-    assert wire(message) == REFERENCE
+    assert forwarded(message) == REFERENCE
+    declared = clouds.encode(message).layout
+    assert (declared.point_step, declared.big_endian, declared.width, declared.row_step) == (
+        LAYOUTS[layout][0], big_endian, 0, 0)
 
 
 @pytest.mark.parametrize("data_kind", ["array", "bytes", "bytearray", "memoryview", "list"])
 def test_point_cloud2_ros2_data_of_every_kind(data_kind):
     message = ros2_message(XYZ, LAYOUTS["xyzi16"], data_kind=data_kind)
-    assert wire(message) == REFERENCE
+    assert forwarded(message) == REFERENCE
 
 
 def test_organised_point_cloud2_with_row_padding():
     # 20 rows of 25 points, 8 bytes of padding after each row
     message = ros2_message(XYZ, LAYOUTS["padded32"], height=20, row_padding=8)
     assert message.row_step == 25 * 32 + 8
-    assert wire(message) == REFERENCE
-    assert wire(ros1_message(XYZ, LAYOUTS["xyz64"], True, height=20, row_padding=3)) == REFERENCE
+    assert forwarded(message) == REFERENCE
+    layout = clouds.encode(message).layout
+    assert (layout.point_step, layout.offsets, layout.width, layout.row_step) == (
+        32, (8, 12, 16), 25, 808)
+    assert forwarded(ros1_message(XYZ, LAYOUTS["xyz64"], True, height=20,
+                                  row_padding=3)) == REFERENCE
 
 
 def test_organised_point_cloud2_with_nans_refused_or_dropped():
@@ -224,9 +260,43 @@ def test_organised_point_cloud2_with_nans_refused_or_dropped():
                                          r"\(the first: point 26 \(row 1, column 1\), "
                                          r"\[nan, nan, nan\]\); pass drop_non_finite=True"):
         clouds.encode(message)
-    encoded = clouds.encode(message, drop_non_finite=True)
+    encoded = clouds.encode(message, drop_non_finite=True)  # forwarded: the server drops
+    assert encoded.dropped_non_finite == 3 and encoded.num_points == 500
+    assert encoded.data == message.data
+    encoded = clouds.encode(message, drop_non_finite=True, forward_point_cloud2=False)
     assert encoded.dropped_non_finite == 3
     assert encoded.data == np.delete(XYZ, [26, 27, 490], axis=0).tobytes()
+
+
+@pytest.mark.parametrize("big_endian", [False, True], ids=["little", "big"])
+def test_forwarded_finiteness_check_is_exact(big_endian):
+    # The fast check sums x + y + z: a sum that overflows is no refusal, one inf is.
+    points = XYZ.copy()
+    points[5] = [3e38, 3e38, 3e38]
+    message = ros2_message(points, LAYOUTS["padded32"], big_endian)
+    assert forwarded(message) == points.tobytes()
+    points[9, 0] = -np.inf
+    with pytest.raises(ValueError, match=r"1 of 500 points have a NaN or infinite coordinate "
+                                         r"\(the first: point 9, \[-inf, "):
+        clouds.encode(ros2_message(points, LAYOUTS["padded32"], big_endian))
+
+
+def test_packed_point_cloud2_goes_without_a_layout():
+    # x y z float32 little-endian, 12 bytes: the wire's default, nothing to declare
+    message = ros2_message(XYZ, (12, ("x", 0, "f4"), ("y", 4, "f4"), ("z", 8, "f4")))
+    assert clouds.encode(message).layout == clouds.PACKED_XYZ32
+    assert wire(message) == REFERENCE
+    points = XYZ.copy()
+    points[7] = np.inf  # dropped here then: the default layout is not told to drop
+    message = ros2_message(points, (12, ("x", 0, "f4"), ("y", 4, "f4"), ("z", 8, "f4")))
+    assert wire(message, drop_non_finite=True) == np.delete(XYZ, 7, axis=0).tobytes()
+
+
+def test_forwarded_chunks_cut_at_point_step_multiples():
+    message = ros2_message(XYZ, LAYOUTS["padded32"], height=20, row_padding=8)
+    chunks = list(clouds.encode(message).chunks(64))
+    assert [len(c) for c in chunks] == [64 * 32] * 7 + [20 * 808 - 7 * 64 * 32]
+    assert b"".join(chunks) == bytes(message.data)
 
 
 @pytest.mark.parametrize("layout", ["xyz64", "mixed"])
@@ -235,6 +305,8 @@ def test_point_cloud2_float64_beyond_float32_range_is_refused(layout):
     points[33, 2] = -3e200
     with pytest.raises(ValueError, match=r"PointCloud2: point 33: z = -3e\+200 does not fit"):
         clouds.encode(ros2_message(points, LAYOUTS[layout]))
+    with pytest.raises(ValueError, match=r"PointCloud2: point 33: z = -3e\+200 does not fit"):
+        clouds.encode(ros2_message(points, LAYOUTS[layout]), forward_point_cloud2=False)
 
 
 def test_empty_point_cloud2_is_no_points():
@@ -284,18 +356,20 @@ def field(message, name):
 def test_mis_declared_point_cloud2(change, error, message):
     with pytest.raises(error, match=message):
         clouds.encode(mis_declared(change))
+    with pytest.raises(error, match=message):
+        clouds.encode(mis_declared(change), forward_point_cloud2=False)
 
 
-def test_point_cloud2_of_a_million_points_converts_in_under_10_ms():
+def test_point_cloud2_of_a_million_points_checks_in_under_10_ms():
     n = 1_000_000
     points = np.random.default_rng(1).uniform(-5, 5, (n, 3)).astype(np.float32)
     message = ros1_message(points, LAYOUTS["padded32"])
     best = float("inf")
     for _ in range(5):
         start = time.perf_counter()
-        encoded = clouds.encode(message)
+        encoded = clouds.encode(message)  # the layout and the finiteness check
         best = min(best, time.perf_counter() - start)
-    assert encoded.data == points.tobytes()
+    assert encoded.data == message.data and encoded.layout.offsets == (8, 12, 16)
     # The goal is 10 ms (bench/python_client_bench.py measures it); the bound here leaves
     # room for a loaded CI machine running other tests at once.
     assert best < 0.025, "%.1f ms" % (best * 1e3)
