@@ -19,6 +19,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 
 namespace shapeid {
@@ -51,7 +52,17 @@ class PostgresInstance {
         !s.ok()) {
       return absl::UnavailableError(absl::StrCat("initdb failed: ", pg->ReadFile("initdb.log")));
     }
-    if (absl::Status s = pg->StartServer(); !s.ok()) return s;
+    for (int attempt = 1;; ++attempt) {
+      absl::Status started = pg->StartServer();
+      if (started.ok()) break;
+      // The port was free when chosen, but another process (a test running beside this one)
+      // bound it before PostgreSQL did: choose another.
+      if (attempt < 5 && absl::StrContains(started.message(), "Address already in use")) {
+        pg->port_ = FreePort();
+        continue;
+      }
+      return started;
+    }
     return pg;
   }
 
@@ -150,7 +161,7 @@ class PostgresInstance {
 
   const std::string bin_;
   const std::string dir_;
-  const int port_;
+  int port_;  // fixed once the server has started
   std::string as_user_;
 };
 
