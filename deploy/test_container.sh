@@ -329,7 +329,10 @@ launch_buildah() {
 # start_server RUN LAUNCHER: starts the server in the background; waits until it serves.
 start_server() {
   local log=$work/server-$1.log
-  "$2" >"$log" 2>&1 &
+  # Created here: the background job opens it later, and reading a missing file under
+  # `set -e -o pipefail` would end the test (a busy CI host lost that race).
+  : >"$log"
+  "$2" >>"$log" 2>&1 &
   server_runner=$!
   local i
   address=
