@@ -108,8 +108,9 @@ def first_hits(origin, directions, triangles):
     v0, e1, e2 = triangles[:, 0], triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]
     best = np.full(len(directions), np.inf)
     t_vec = origin - v0  # (T, 3): the same origin for every ray
-    for start in range(0, len(directions), 512):
-        d = directions[start:start + 512]  # (R, 3)
+    rays = max(1, 4_000_000 // len(triangles))  # bounds the (R, T, 3) arrays at ~100 MB
+    for start in range(0, len(directions), rays):
+        d = directions[start:start + rays]  # (R, 3)
         p = np.cross(d[:, None, :], e2[None, :, :])  # (R, T, 3)
         det = np.einsum("rtk,tk->rt", p, e1)
         ok = np.abs(det) > 1e-12
@@ -120,7 +121,7 @@ def first_hits(origin, directions, triangles):
         t = np.einsum("tk,tk->t", q, e2)[None, :] * inv
         hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 1e-9)
         t = np.where(hit, t, np.inf)
-        best[start:start + 512] = t.min(axis=1)
+        best[start:start + rays] = t.min(axis=1)
     return best
 
 

@@ -106,7 +106,7 @@ absl::Status ValidatePointLayout(const PointLayout& layout) {
   return absl::OkStatus();
 }
 
-absl::Status CloudAssembler::Start(uint64_t expected_points, const CloudFormat& format) {
+absl::Status CloudAssembler::Start(uint64_t expected_points, const WireCloudFormat& format) {
   SHAPEID_RETURN_IF_ERROR(ValidatePointLayout(format.layout));
   if (expected_points > max_points_) {
     return absl::ResourceExhaustedError(absl::StrCat("the cloud announces ", expected_points,

@@ -40,7 +40,7 @@ struct PointLayout {
 absl::Status ValidatePointLayout(const PointLayout& layout);
 
 // What a call's clouds are on the wire and how they are moved into the gallery's frame.
-struct CloudFormat {
+struct WireCloudFormat {
   PointLayout layout;
   RigidTransform frame;  // applied to every point as it is decoded
 };
@@ -62,7 +62,7 @@ class CloudAssembler {
   // `expected_points` (0: unknown; points sent, before any are dropped) is checked by Finish
   // and reserves memory; over the limit or the memory budget it is ResourceExhausted at once,
   // before any point arrives.
-  absl::Status Start(uint64_t expected_points, const CloudFormat& format = {});
+  absl::Status Start(uint64_t expected_points, const WireCloudFormat& format = {});
 
   // Appends one chunk. In the default layout InvalidArgument if its size is not a multiple of
   // 12 bytes; a declared layout's chunks may end inside a point or a row. ResourceExhausted
@@ -100,7 +100,7 @@ class CloudAssembler {
   MemoryBudget::Grant memory_;
   bool started_ = false;
   uint64_t expected_points_ = 0;
-  CloudFormat format_;
+  WireCloudFormat format_;
   size_t sent_ = 0;            // points sent in this cloud, dropped ones included
   std::string partial_point_;  // the bytes of a point cut by a chunk's end
   size_t row_offset_ = 0;      // bytes into the current row (padded rows only)

@@ -42,7 +42,7 @@ std::string Bytes(const PointLayout& layout) {
   return out;
 }
 
-void Assemble(benchmark::State& state, const CloudFormat& format) {
+void Assemble(benchmark::State& state, const WireCloudFormat& format) {
   const std::string bytes = Bytes(format.layout);
   // Chunks of whole points, as the clients cut them.
   const size_t chunk = kChunkBytes / format.layout.point_step * format.layout.point_step;
@@ -62,8 +62,8 @@ void Assemble(benchmark::State& state, const CloudFormat& format) {
   state.SetBytesProcessed(static_cast<int64_t>(state.iterations() * bytes.size()));
 }
 
-CloudFormat WithLayout(uint32_t step, PointLayout::Type type, bool big_endian) {
-  CloudFormat format;
+WireCloudFormat WithLayout(uint32_t step, PointLayout::Type type, bool big_endian) {
+  WireCloudFormat format;
   format.layout.point_step = step;
   const uint32_t size = type == PointLayout::Type::kFloat64 ? 8 : 4;
   for (uint32_t a = 0; a < 3; ++a) format.layout.xyz[a] = {a * size, type};
@@ -71,7 +71,7 @@ CloudFormat WithLayout(uint32_t step, PointLayout::Type type, bool big_endian) {
   return format;
 }
 
-void BM_PackedFloat32(benchmark::State& state) { Assemble(state, CloudFormat()); }
+void BM_PackedFloat32(benchmark::State& state) { Assemble(state, WireCloudFormat()); }
 void BM_PointCloud2XyzIntensity(benchmark::State& state) {
   Assemble(state, WithLayout(16, PointLayout::Type::kFloat32, false));
 }
@@ -79,12 +79,12 @@ void BM_Float64BigEndian(benchmark::State& state) {
   Assemble(state, WithLayout(32, PointLayout::Type::kFloat64, true));
 }
 void BM_PointCloud2DropNonFinite(benchmark::State& state) {
-  CloudFormat format = WithLayout(16, PointLayout::Type::kFloat32, false);
+  WireCloudFormat format = WithLayout(16, PointLayout::Type::kFloat32, false);
   format.layout.drop_nonfinite = true;
   Assemble(state, format);
 }
 void BM_PointCloud2WithFrame(benchmark::State& state) {
-  CloudFormat format = WithLayout(16, PointLayout::Type::kFloat32, false);
+  WireCloudFormat format = WithLayout(16, PointLayout::Type::kFloat32, false);
   format.frame = *RotationTakingUpTo(std::vector<double>{0, -1, 0}, {0, 0, 1});
   Assemble(state, format);
 }

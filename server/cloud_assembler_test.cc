@@ -112,7 +112,7 @@ std::string SensorBytes(const std::vector<float>& xyz, const PointLayout& layout
 }
 
 // Assembles `bytes` in `format`, sent in chunks of `chunk` bytes.
-absl::StatusOr<PointCloud> Assemble(const std::string& bytes, const CloudFormat& format,
+absl::StatusOr<PointCloud> Assemble(const std::string& bytes, const WireCloudFormat& format,
                                     size_t chunk, size_t max_points = 1000) {
   CloudAssembler assembler(max_points);
   if (absl::Status s = assembler.Start(0, format); !s.ok()) return s;
@@ -184,7 +184,7 @@ TEST(CloudAssemblerTest, NonFinitePointsAreDroppedOnlyWhenAsked) {
 }
 
 TEST(CloudAssemblerTest, TheFrameMovesEveryPoint) {
-  CloudFormat format;
+  WireCloudFormat format;
   // A quarter turn about z, then up by 10.
   format.frame = *RigidTransformFromRows(std::vector<double>{0, -1, 0, 0, 1, 0, 0, 0, 0, 0, 1, 10});
   const auto cloud = Assemble(Bytes({1, 2, 3, 4, 5, 6}), format, 12);

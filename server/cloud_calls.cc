@@ -27,15 +27,15 @@ namespace {
 
 // Points in a one-message call's bytes, for its report and cost (a partial point counts
 // nothing; the assembler refuses it).
-int64_t PointsIn(const std::string& bytes, const CloudFormat& format) {
+int64_t PointsIn(const std::string& bytes, const WireCloudFormat& format) {
   return static_cast<int64_t>(bytes.size() / format.layout.point_step);
 }
 
 // The format of the clouds a header announces: its point layout, and its sensor frame turned
 // towards the descriptor's up (+z without a descriptor: an incompatible gallery, refused later).
 template <typename Header>
-absl::StatusOr<CloudFormat> FormatOf(const Header& header, const Descriptor* descriptor) {
-  CloudFormat format;
+absl::StatusOr<WireCloudFormat> FormatOf(const Header& header, const Descriptor* descriptor) {
+  WireCloudFormat format;
   SHAPEID_ASSIGN_OR_RETURN(format.layout, FromProto(header.layout()));
   SHAPEID_ASSIGN_OR_RETURN(
       format.frame,
@@ -55,8 +55,8 @@ absl::Status RequireGalleryName(absl::string_view rpc, const std::string& name) 
 // chunk, so the same checks and the same messages. Its memory is the call's (RunUnary holds
 // the request's).
 absl::StatusOr<PointCloud> CloudInOneMessage(const ServiceRuntime& runtime,
-                                             uint64_t expected_points, const CloudFormat& format,
-                                             absl::string_view xyz) {
+                                             uint64_t expected_points,
+                                             const WireCloudFormat& format, absl::string_view xyz) {
   CloudAssembler assembler(runtime.registry->limits().max_points_per_cloud);
   SHAPEID_RETURN_IF_ERROR(assembler.Start(expected_points, format));
   SHAPEID_RETURN_IF_ERROR(assembler.Append(xyz));
@@ -170,7 +170,7 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest, v1::Desc
     }
     if (header.descriptor_spec().empty()) call().record().gallery = header.gallery();
     SHAPEID_ASSIGN_OR_RETURN(descriptor_, DescriptorToUse(header, runtime_));
-    SHAPEID_ASSIGN_OR_RETURN(const CloudFormat format, FormatOf(header, descriptor_.get()));
+    SHAPEID_ASSIGN_OR_RETURN(const WireCloudFormat format, FormatOf(header, descriptor_.get()));
     return assembler_.Start(header.expected_points(), format);
   }
 
@@ -318,7 +318,7 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainRespo
   std::shared_ptr<Gallery> gallery_;
   std::unique_ptr<TrainBatch> batch_;
   AugmentOptions augment_;
-  CloudFormat format_;
+  WireCloudFormat format_;
   v1::SampleHeader sample_;
   int64_t sample_headers_ = 0;
   int64_t samples_ = 0;
@@ -347,7 +347,7 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest, v1::Clas
         SHAPEID_ASSIGN_OR_RETURN(gallery_, GalleryToClassify(*runtime_.registry, request.header()));
         header_ = request.header();
         SHAPEID_ASSIGN_OR_RETURN(
-            const CloudFormat format,
+            const WireCloudFormat format,
             FormatOf(header_, gallery_->Snapshot()->shared_descriptor().get()));
         SHAPEID_RETURN_IF_ERROR(assembler_.Start(header_.expected_points(), format));
         return std::nullopt;
@@ -409,7 +409,7 @@ absl::StatusOr<Work> DescribeCloud(const ServiceRuntime& runtime,
   }
   SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<const Descriptor> descriptor,
                            DescriptorToUse(request.header(), runtime));
-  SHAPEID_ASSIGN_OR_RETURN(CloudFormat format, FormatOf(request.header(), descriptor.get()));
+  SHAPEID_ASSIGN_OR_RETURN(WireCloudFormat format, FormatOf(request.header(), descriptor.get()));
   call.record().points = PointsIn(request.points().xyz(), format);
   return DescribeWork(
       descriptor, static_cast<size_t>(call.record().points),
@@ -430,7 +430,7 @@ absl::StatusOr<Work> ClassifyCloud(const ServiceRuntime& runtime,
   SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
                            GalleryToClassify(*runtime.registry, request.header()));
   SHAPEID_ASSIGN_OR_RETURN(
-      CloudFormat format,
+      WireCloudFormat format,
       FormatOf(request.header(), gallery->Snapshot()->shared_descriptor().get()));
   call.record().points = PointsIn(request.points().xyz(), format);
   return ClassifyWork(
