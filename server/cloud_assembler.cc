@@ -14,6 +14,9 @@ namespace {
 
 constexpr bool kHostBigEndian = __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__;
 constexpr char kAxisNames[3] = {'x', 'y', 'z'};
+// A point cut by a chunk's end is held until it is whole: this bounds that buffer (real
+// sensors' points are tens of bytes).
+constexpr uint32_t kMaxPointStep = 1 << 16;
 
 size_t TypeBytes(PointLayout::Type type) { return type == PointLayout::Type::kFloat64 ? 8 : 4; }
 
@@ -72,8 +75,9 @@ bool PointLayout::is_packed_float32() const {
 }
 
 absl::Status ValidatePointLayout(const PointLayout& layout) {
-  if (layout.point_step == 0) {
-    return absl::InvalidArgumentError("point layout: point_step is 0");
+  if (layout.point_step == 0 || layout.point_step > kMaxPointStep) {
+    return absl::InvalidArgumentError(absl::StrCat("point layout: point_step ", layout.point_step,
+                                                   " is outside [1, ", kMaxPointStep, "] bytes"));
   }
   for (int a = 0; a < 3; ++a) {
     const uint64_t end = uint64_t{layout.xyz[a].offset} + TypeBytes(layout.xyz[a].type);

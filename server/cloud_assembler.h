@@ -35,8 +35,9 @@ struct PointLayout {
   bool is_packed_float32() const;
 };
 
-// InvalidArgument naming the field when the layout does not hold together: a zero point_step,
-// a coordinate past its point's end, coordinates that overlap, a row shorter than its points.
+// InvalidArgument naming the field when the layout does not hold together: a point_step of 0
+// or over 65,536 bytes, a coordinate past its point's end, coordinates that overlap, a row
+// shorter than its points.
 absl::Status ValidatePointLayout(const PointLayout& layout);
 
 // What a call's clouds are on the wire and how they are moved into the gallery's frame.

@@ -214,7 +214,10 @@ TEST(CloudAssemblerTest, LayoutsThatDoNotHoldTogetherAreRefused) {
   EXPECT_THAT(refused(half_row).message(), HasSubstr("go together"));
   PointLayout zero;
   zero.point_step = 0;
-  EXPECT_EQ(refused(zero).code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(refused(zero).message(), HasSubstr("point_step 0 is outside [1, 65536]"));
+  PointLayout huge;  // a cut point is buffered: its size is bounded
+  huge.point_step = 4'000'000'000u;
+  EXPECT_THAT(refused(huge).message(), HasSubstr("point_step 4000000000 is outside"));
 }
 
 TEST(CloudAssemblerTest, ADeclaredLayoutMustEndOnAPointAndCountsSentPointsAgainstTheLimit) {
