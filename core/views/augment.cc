@@ -1,10 +1,12 @@
 #include "core/views/augment.h"
 
 #include <cmath>
+#include <optional>
 #include <utility>
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_replace.h"
 #include "absl/strings/str_split.h"
 #include "core/status_macros.h"
 
@@ -38,7 +40,9 @@ std::string AugmentOptionsToString(const AugmentOptions& options) {
   const SensorViewOptions& s = options.sensor;
   return absl::StrCat("views=", options.views, ",noise=", s.noise_fraction,
                       ",points=", s.min_points, "-", s.max_points,
-                      ",pose=", s.random_pose ? "random" : "fixed", ",seed=", options.seed);
+                      ",pose=", s.random_pose ? "random" : "fixed", ",seed=", options.seed,
+                      options.mix == ViewMix::kCamera ? "" : ",mix=",
+                      options.mix == ViewMix::kCamera ? "" : NameOf(kViewMixNames, options.mix));
 }
 
 absl::StatusOr<AugmentOptions> ParseAugmentOptions(absl::string_view text) {
@@ -47,7 +51,8 @@ absl::StatusOr<AugmentOptions> ParseAugmentOptions(absl::string_view text) {
   const auto bad = [&](absl::string_view item) {
     return absl::InvalidArgumentError(absl::StrCat(
         "augmentation \"", text, "\": cannot read \"", item,
-        "\"; expected off or views=N,noise=F,points=MIN-MAX,pose=fixed|random,seed=S"));
+        "\"; expected off or views=N,noise=F,points=MIN-MAX,pose=fixed|random,seed=S,mix=",
+        absl::StrReplaceAll(NameList(kViewMixNames), {{", ", "|"}})));
   };
   for (absl::string_view item : absl::StrSplit(text, ',')) {
     const std::pair<absl::string_view, absl::string_view> kv = absl::StrSplit(item, '=');
@@ -67,6 +72,10 @@ absl::StatusOr<AugmentOptions> ParseAugmentOptions(absl::string_view text) {
     } else if (key == "pose") {
       if (value != "fixed" && value != "random") return bad(item);
       options.sensor.random_pose = value == "random";
+    } else if (key == "mix") {
+      const std::optional<ViewMix> mix = ValueNamed(kViewMixNames, value);
+      if (!mix) return bad(item);
+      options.mix = *mix;
     } else if (key == "seed") {
       if (!absl::SimpleAtoi(value, &options.seed)) return bad(item);
     } else {
@@ -84,9 +93,16 @@ absl::StatusOr<std::vector<PointCloud>> AugmentedViews(const PointCloud& cloud,
   std::vector<PointCloud> views;
   views.reserve(static_cast<size_t>(options.views));
   for (int i = 0; i < options.views; ++i) {
-    SHAPEID_ASSIGN_OR_RETURN(PointCloud view, SensorView(cloud, options.sensor,
-                                                         DeriveSeed(options.seed ^ cloud_seed,
-                                                                    absl::StrCat("view", i))));
+    const uint64_t seed = DeriveSeed(options.seed ^ cloud_seed, absl::StrCat("view", i));
+    SensorViewOptions sensor = options.sensor;
+    if (options.mix == ViewMix::kVaried) {
+      constexpr Visibility kTurns[] = {Visibility::kCamera, Visibility::kPlaneCut,
+                                       Visibility::kOccludedCamera};
+      sensor.visibility = kTurns[i % 3];
+      SplitMix64 noise_rng(DeriveSeed(seed, "noise"));
+      sensor.noise_fraction = 2 * options.sensor.noise_fraction * noise_rng.Uniform();
+    }
+    SHAPEID_ASSIGN_OR_RETURN(PointCloud view, SensorView(cloud, sensor, seed));
     views.push_back(std::move(view));
   }
   return views;

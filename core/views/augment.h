@@ -17,10 +17,27 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
+#include "core/enum_names.h"
 #include "core/point_cloud.h"
 #include "core/views/perturb.h"
 
 namespace shapeid {
+
+// How a gallery's synthetic views are made.
+enum class ViewMix {
+  // Every view by the depth-camera simulator (Visibility::kCamera) with the configured noise:
+  // issue 13's augmentation, what galleries stored before `mix` existed.
+  kCamera,
+  // More than one notion of "seen", so that the gallery does not learn one simulator's
+  // signature: views take turns between the camera, a plane cut and an occluded camera
+  // (view i: Visibility i mod 3), and each view's noise is drawn uniformly in [0, 2 x noise].
+  kVaried,
+};
+
+inline constexpr EnumNames<ViewMix, 2> kViewMixNames = {{
+    {ViewMix::kCamera, "camera"},
+    {ViewMix::kVaried, "varied"},
+}};
 
 struct AugmentOptions {
   // Most synthetic views per training cloud.
@@ -36,6 +53,8 @@ struct AugmentOptions {
     o.random_pose = false;
     return o;
   }();
+  // Which visibility and noise models make the views.
+  ViewMix mix = ViewMix::kCamera;
   // Mixed with each cloud's own seed (AugmentedViews), so two galleries with different seeds
   // get different views of the same cloud.
   uint64_t seed = 1;
@@ -48,7 +67,8 @@ struct AugmentOptions {
 absl::Status ValidateAugmentOptions(const AugmentOptions& options);
 
 // A short, stable text of the options ("off", or e.g. "views=8,noise=0.01,points=300-500,
-// pose=fixed,seed=1"): what a gallery reports and stores. The viewpoint band and camera
+// pose=fixed,seed=1", with ",mix=varied" when the mix is not the camera's): what a gallery
+// reports and stores. The viewpoint band and camera
 // distance are not part of it: galleries always use SensorViewOptions' defaults for them.
 std::string AugmentOptionsToString(const AugmentOptions& options);
 
@@ -57,7 +77,8 @@ std::string AugmentOptionsToString(const AugmentOptions& options);
 absl::StatusOr<AugmentOptions> ParseAugmentOptions(absl::string_view text);
 
 // The `options.views` synthetic views of `cloud`: view i is SensorView with the seed
-// DeriveSeed(options.seed ^ cloud_seed, "view<i>"). Give each training cloud its own
+// DeriveSeed(options.seed ^ cloud_seed, "view<i>") (ViewMix::kVaried: its visibility and, from
+// the same seed, its noise as ViewMix says). Give each training cloud its own
 // cloud_seed (a gallery uses the sample id) so its views differ from its neighbours'. A view
 // that cannot be made (PartialView refuses a degenerate cloud) fails the call with
 // SensorView's error; an empty vector when augmentation is off.

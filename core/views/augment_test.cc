@@ -69,6 +69,36 @@ TEST(AugmentTest, FixedPoseViewsStayInTheCloudsFrame) {
   }
 }
 
+TEST(AugmentTest, VariedMixTakesTurnsBetweenVisibilityModels) {
+  const PointCloud box = test_surfaces::BoxSurface({0, 0, 0}, {1, 0.5, 2}, 2000, 1);
+  AugmentOptions camera;
+  camera.views = 6;
+  AugmentOptions varied = camera;
+  varied.mix = ViewMix::kVaried;
+  const auto a = AugmentedViews(box, camera, 42);
+  const auto b = AugmentedViews(box, varied, 42);
+  const auto b_again = AugmentedViews(box, varied, 42);
+  ASSERT_TRUE(a.ok() && b.ok() && b_again.ok());
+  ASSERT_EQ(b->size(), 6u);
+  for (size_t i = 0; i < b->size(); ++i) {
+    EXPECT_TRUE(SameBits((*b)[i], (*b_again)[i])) << i;
+    EXPECT_GE((*b)[i].size(), 300u);
+    EXPECT_LE((*b)[i].size(), 500u);
+    // Views 1, 2, 4, 5 are cut or occluded, and their noise is redrawn: unlike the camera's.
+    if (i % 3 != 0) {
+      EXPECT_FALSE(SameBits((*a)[i], (*b)[i])) << i;
+    }
+  }
+  EXPECT_EQ(AugmentOptionsToString(varied),
+            "views=6,noise=0.01,points=300-500,pose=fixed,seed=1,mix=varied");
+  const auto parsed = ParseAugmentOptions(AugmentOptionsToString(varied));
+  ASSERT_TRUE(parsed.ok()) << parsed.status();
+  EXPECT_EQ(parsed->mix, ViewMix::kVaried);
+  EXPECT_EQ(ParseAugmentOptions("views=6")->mix, ViewMix::kCamera);  // stored before mix existed
+  EXPECT_THAT(ParseAugmentOptions("views=6,mix=blurry").status().message(),
+              HasSubstr("mix=camera|varied"));
+}
+
 TEST(AugmentTest, TextFormRoundTrips) {
   AugmentOptions options;
   options.views = 12;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <tuple>
 #include <utility>
 #include <vector>
@@ -320,6 +321,63 @@ absl::StatusOr<PointCloud> PartialView(const PointCloud& cloud, const PartialVie
   return InInputOrder(cloud, seen);
 }
 
+absl::StatusOr<PointCloud> PlaneCutView(const PointCloud& cloud, const PartialViewOptions& options,
+                                        double max_offset, uint64_t seed) {
+  if (!(max_offset >= 0 && max_offset <= 1)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("plane cut: offset ", max_offset, " must be in [0, 1] half box diagonals"));
+  }
+  if (cloud.empty()) return absl::InvalidArgumentError("plane cut: the cloud is empty");
+  SplitMix64 rng(seed);
+  const uint64_t direction_seed = rng.Next();
+  SHAPEID_ASSIGN_OR_RETURN(const Eigen::Vector3d normal,
+                           RandomViewDirection(options, direction_seed));
+  const double offset = (2 * rng.Uniform() - 1) * max_offset * 0.5 * CloudExtent(cloud);
+  const Eigen::Vector3d centroid = CloudCentroid(cloud);
+  const auto cut = [&](double at) {
+    PointCloud kept;
+    for (size_t i = 0; i < cloud.size(); ++i) {
+      const Eigen::Vector3d p = cloud.point(i).cast<double>();
+      if (Dot(p - centroid, normal) >= at) kept.Add(cloud.point(i));
+    }
+    return kept;
+  };
+  PointCloud kept = cut(offset);
+  if (kept.size() * 10 < cloud.size()) kept = cut(0.0);
+  if (kept.empty()) kept = cut(-std::numeric_limits<double>::infinity());  // rounding: keep all
+  return kept;
+}
+
+absl::StatusOr<PointCloud> OccludedView(const PointCloud& cloud, const PartialViewOptions& options,
+                                        uint64_t seed) {
+  SplitMix64 rng(seed);
+  const uint64_t view_seed = rng.Next();
+  SHAPEID_ASSIGN_OR_RETURN(PointCloud view, PartialView(cloud, options, view_seed));
+  SHAPEID_ASSIGN_OR_RETURN(const Eigen::Vector3d sight, RandomViewDirection(options, view_seed));
+  // A unit direction across the line of sight, at a random angle about it.
+  const Eigen::Vector3d helper =
+      std::abs(sight.z()) < 0.9 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitX();
+  const Eigen::Vector3d e1 = Unit(Cross(sight, helper));
+  const Eigen::Vector3d e2 = Cross(sight, e1);
+  const Eigen::Vector2d cs = UnitCircle(rng);
+  const Eigen::Vector3d across = cs.x() * e1 + cs.y() * e2;
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (size_t i = 0; i < view.size(); ++i) {
+    const double s = Dot(view.point(i).cast<double>(), across);
+    lo = std::min(lo, s);
+    hi = std::max(hi, s);
+  }
+  const double width = (0.1 + 0.2 * rng.Uniform()) * (hi - lo);
+  const double start = lo + (hi - lo - width) * rng.Uniform();
+  PointCloud kept;
+  for (size_t i = 0; i < view.size(); ++i) {
+    const double s = Dot(view.point(i).cast<double>(), across);
+    if (s < start || s > start + width) kept.Add(view.point(i));
+  }
+  if (kept.size() * 3 < view.size()) return view;
+  return kept;
+}
+
 absl::StatusOr<PointCloud> SensorView(const PointCloud& cloud, const SensorViewOptions& options,
                                       uint64_t seed) {
   if (!(std::isfinite(options.noise_fraction) && options.noise_fraction >= 0)) {
@@ -339,7 +397,21 @@ absl::StatusOr<PointCloud> SensorView(const PointCloud& cloud, const SensorViewO
   const size_t points =
       options.min_points +
       std::min(span - 1, static_cast<size_t>(rng.Uniform() * static_cast<double>(span)));
-  SHAPEID_ASSIGN_OR_RETURN(PointCloud view, PartialView(cloud, options.view, view_seed));
+  PointCloud view;
+  switch (options.visibility) {
+    case Visibility::kCamera: {
+      SHAPEID_ASSIGN_OR_RETURN(view, PartialView(cloud, options.view, view_seed));
+      break;
+    }
+    case Visibility::kPlaneCut: {
+      SHAPEID_ASSIGN_OR_RETURN(view, PlaneCutView(cloud, options.view, 0.3, view_seed));
+      break;
+    }
+    case Visibility::kOccludedCamera: {
+      SHAPEID_ASSIGN_OR_RETURN(view, OccludedView(cloud, options.view, view_seed));
+      break;
+    }
+  }
   // Noise relative to the whole object: the visible part's extent varies with the viewpoint.
   const double view_extent = CloudExtent(view);
   const double fraction =

@@ -106,12 +106,40 @@ absl::StatusOr<Eigen::Vector3d> RandomViewDirection(const PartialViewOptions& op
 absl::StatusOr<PointCloud> PartialView(const PointCloud& cloud, const PartialViewOptions& options,
                                        uint64_t seed);
 
+// The points on the camera's side of a plane, a crude partial view that owes nothing to
+// visibility (a table's edge, a depth cut-off, the near half of a wall of points): the plane's
+// normal d is drawn as RandomViewDirection(options, seed) and its offset uniformly in
+// [-max_offset, max_offset] half box diagonals from the centroid c; the points p with
+// (p - c) . d >= offset are kept, in input order. When that keeps fewer than a tenth of the
+// points (a thin object cut far out) the plane goes through the centroid instead, which keeps
+// at least one point. Errors (InvalidArgument): as RandomViewDirection; max_offset not in
+// [0, 1]; an empty cloud.
+absl::StatusOr<PointCloud> PlaneCutView(const PointCloud& cloud, const PartialViewOptions& options,
+                                        double max_offset, uint64_t seed);
+
+// PartialView, then an occluder between the camera and the object (a pole, another object's
+// edge): the visible points whose position across the line of sight, along a random direction
+// perpendicular to it, falls in a band as wide as 10 to 30 % of the view's extent, placed
+// uniformly within the view, are removed. The occlusion is skipped when it would leave fewer
+// than a third of the visible points. The errors of PartialView.
+absl::StatusOr<PointCloud> OccludedView(const PointCloud& cloud, const PartialViewOptions& options,
+                                        uint64_t seed);
+
+// How a SensorView decides what the sensor sees.
+enum class Visibility {
+  kCamera,          // PartialView: a depth camera's visible surface
+  kPlaneCut,        // PlaneCutView with max_offset 0.3
+  kOccludedCamera,  // OccludedView
+};
+
 // What one depth sensor on a robot sees of an object (the robot protocol of docs/accuracy.md,
 // and the views of training-time augmentation): the side facing one random viewpoint, with noise,
 // as sparse as a distant object, in any pose.
 struct SensorViewOptions {
   // Where the camera may be (PartialView).
   PartialViewOptions view;
+  // Which points the sensor sees from there.
+  Visibility visibility = Visibility::kCamera;
   // Gaussian noise, sigma as a fraction of the WHOLE object's extent (CloudExtent of the
   // input, not of the visible part): 0.01 is 1 % of the object's size.
   double noise_fraction = 0.01;
@@ -125,10 +153,10 @@ struct SensorViewOptions {
   bool random_pose = true;
 };
 
-// PartialView, then AddGaussianNoise, then RandomSubsample, then (random_pose)
-// RandomRotation, each with its own seed drawn from `seed`. InvalidArgument for options out
-// of range (noise_fraction finite and >= 0, 1 <= min_points <= max_points) and the errors of
-// PartialView.
+// The visibility model (PartialView, PlaneCutView or OccludedView), then AddGaussianNoise, then
+// RandomSubsample, then (random_pose) RandomRotation, each with its own seed drawn from `seed`.
+// InvalidArgument for options out of range (noise_fraction finite and >= 0, 1 <= min_points <=
+// max_points) and the errors of PartialView.
 absl::StatusOr<PointCloud> SensorView(const PointCloud& cloud, const SensorViewOptions& options,
                                       uint64_t seed);
 

@@ -216,6 +216,71 @@ TEST(PerturbTest, PartialViewOfASphereIsTheCapFacingTheCamera) {
   }
 }
 
+TEST(PerturbTest, PlaneCutKeepsOneSideOfAPlaneNearTheCentroid) {
+  const PointCloud sphere = test_surfaces::SphereSurface(4000, 1);
+  PartialViewOptions options;
+  for (uint64_t seed = 0; seed < 16; ++seed) {
+    const auto cut = PlaneCutView(sphere, options, 0.3, seed);
+    ASSERT_TRUE(cut.ok()) << cut.status();
+    EXPECT_TRUE(IsOrderedSubset(*cut, sphere));
+    // Some unit normal n and offset t in [-0.3, 0.3] half diagonals (sqrt 3 for the unit
+    // sphere's box) split the sphere: everything kept lies on one side, so the cap's share of
+    // the area, (1 - t) / 2, lies in [0.24, 0.76] give or take sampling.
+    const double kept = static_cast<double>(cut->size()) / sphere.size();
+    EXPECT_GT(kept, 0.2);
+    EXPECT_LT(kept, 0.8);
+    // The kept points' mean leans away from the centre, towards the camera's side.
+    EXPECT_GT(CloudCentroid(*cut).norm(), 0.2);
+  }
+  const auto whole = PlaneCutView(sphere, options, 0.0, 3);
+  ASSERT_TRUE(whole.ok());
+  EXPECT_NEAR(static_cast<double>(whole->size()) / sphere.size(), 0.5, 0.05);  // through centre
+  EXPECT_THAT(PlaneCutView(sphere, options, 1.5, 1).status().message(), HasSubstr("[0, 1]"));
+  EXPECT_FALSE(PlaneCutView(PointCloud(), options, 0.3, 1).ok());
+  // A single repeated point: the plane through the centroid keeps it.
+  const auto one = PlaneCutView(PointCloud{{1, 2, 3}, {1, 2, 3}}, options, 0.3, 5);
+  ASSERT_TRUE(one.ok());
+  EXPECT_EQ(one->size(), 2u);
+}
+
+TEST(PerturbTest, OccludedViewRemovesABandOfTheCamerasView) {
+  const PointCloud sphere = test_surfaces::SphereSurface(4000, 1);
+  PartialViewOptions options;
+  for (uint64_t seed = 0; seed < 8; ++seed) {
+    const auto seen = OccludedView(sphere, options, seed);
+    ASSERT_TRUE(seen.ok()) << seen.status();
+    // The first seed of OccludedView's generator is the camera's.
+    SplitMix64 rng(seed);
+    const auto camera = PartialView(sphere, options, rng.Next());
+    ASSERT_TRUE(camera.ok());
+    EXPECT_TRUE(IsOrderedSubset(*seen, *camera));
+    // A band of 10-30 % of the view's width is gone: between 5 and 40 % of its points.
+    const double kept = static_cast<double>(seen->size()) / camera->size();
+    EXPECT_GT(kept, 0.6) << seed;
+    EXPECT_LT(kept, 0.95) << seed;
+  }
+}
+
+TEST(PerturbTest, SensorViewTakesItsVisibilityModel) {
+  const PointCloud box = test_surfaces::BoxSurface({0, 0, 0}, {1, 0.5, 2}, 3000, 1);
+  SensorViewOptions options;
+  options.noise_fraction = 0;
+  options.random_pose = false;
+  options.min_points = options.max_points = 100000;  // keep all
+  SplitMix64 rng(9);
+  const uint64_t view_seed = rng.Next();
+  options.visibility = Visibility::kPlaneCut;
+  const auto cut = SensorView(box, options, 9);
+  const auto direct = PlaneCutView(box, options.view, 0.3, view_seed);
+  ASSERT_TRUE(cut.ok() && direct.ok());
+  EXPECT_TRUE(SameBits(*cut, *direct));
+  options.visibility = Visibility::kOccludedCamera;
+  const auto occluded = SensorView(box, options, 9);
+  const auto direct_occluded = OccludedView(box, options.view, view_seed);
+  ASSERT_TRUE(occluded.ok() && direct_occluded.ok());
+  EXPECT_TRUE(SameBits(*occluded, *direct_occluded));
+}
+
 TEST(PerturbTest, ViewDirectionsStayInTheirBand) {
   PartialViewOptions options;
   options.up = {0, 2, 0};
