@@ -355,6 +355,7 @@ TEST_F(GalleryServiceTest, AugmentedGalleriesStoreViewsAndCountEachObjectOnce) {
   EXPECT_DOUBLE_EQ(created.augmentation().noise(), 0.01);  // defaults filled
   EXPECT_EQ(created.augmentation().min_points(), 300u);
   EXPECT_EQ(created.augmentation().max_points(), 500u);
+  EXPECT_EQ(created.augmentation().mix(), v1::VIEW_MIX_CAMERA);  // unspecified: the camera's
 
   v1::TrainResponse trained;
   ASSERT_TRUE(Train("robot", TrainingSet(3, 40), &trained).ok());
@@ -368,13 +369,24 @@ TEST_F(GalleryServiceTest, AugmentedGalleriesStoreViewsAndCountEachObjectOnce) {
   const uint64_t before = gallery.vector_count();
   ASSERT_TRUE(Train("robot", {{"box", 0, Shape(0, 77)}}, &trained, 256, &off).ok());
   EXPECT_EQ(Get("robot").vector_count(), before + 1);
+  // ... or use varied views; an unknown mix is refused by name.
+  v1::ViewAugmentation varied;
+  varied.set_views(3);
+  varied.set_mix(v1::VIEW_MIX_VARIED);
+  ASSERT_TRUE(Train("robot", {{"box", 0, Shape(0, 79)}}, &trained, 256, &varied).ok());
+  EXPECT_GT(Get("robot").vector_count(), before + 2);  // the cloud and most of its 3 views
+  EXPECT_LE(Get("robot").vector_count(), before + 1 + 4);
+  varied.set_mix(static_cast<v1::ViewMix>(9));
+  const grpc::Status bad_mix = Train("robot", {{"box", 0, Shape(0, 80)}}, &trained, 256, &varied);
+  EXPECT_EQ(bad_mix.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(bad_mix.error_message(), HasSubstr("view mix 9"));
   // ... and an invalid setting fails the stream by name, adding nothing.
   v1::ViewAugmentation too_many;
   too_many.set_views(65);
   const grpc::Status refused = Train("robot", {{"box", 0, Shape(0, 78)}}, &trained, 256, &too_many);
   EXPECT_EQ(refused.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(refused.error_message(), HasSubstr("views 65"));
-  EXPECT_EQ(Get("robot").sample_count(), 10u);
+  EXPECT_EQ(Get("robot").sample_count(), 11u);
 
   // Three distinct objects answer, whichever views matched.
   v1::ClassifyResponse answer;

@@ -119,6 +119,18 @@ absl::StatusOr<AugmentOptions> FromProto(const v1::ViewAugmentation& augmentatio
   if (augmentation.max_points() != 0) out.sensor.max_points = augmentation.max_points();
   out.sensor.random_pose = augmentation.random_pose();
   if (augmentation.seed() != 0) out.seed = augmentation.seed();
+  switch (augmentation.mix()) {
+    case v1::VIEW_MIX_UNSPECIFIED:
+    case v1::VIEW_MIX_CAMERA:
+      out.mix = ViewMix::kCamera;
+      break;
+    case v1::VIEW_MIX_VARIED:
+      out.mix = ViewMix::kVaried;
+      break;
+    default:
+      return absl::InvalidArgumentError(
+          absl::StrCat("augmentation: unknown view mix ", static_cast<int>(augmentation.mix())));
+  }
   if (absl::Status s = ValidateAugmentOptions(out); !s.ok()) return s;
   return out;
 }
@@ -131,6 +143,7 @@ v1::ViewAugmentation ToProto(const AugmentOptions& augment) {
   out.set_max_points(static_cast<uint32_t>(augment.sensor.max_points));
   out.set_random_pose(augment.sensor.random_pose);
   out.set_seed(augment.seed);
+  out.set_mix(augment.mix == ViewMix::kVaried ? v1::VIEW_MIX_VARIED : v1::VIEW_MIX_CAMERA);
   return out;
 }
 

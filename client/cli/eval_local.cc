@@ -16,6 +16,7 @@
 #include "core/gallery/gallery_snapshot.h"
 #include "core/io/point_cloud_reader.h"
 #include "core/knn/knn_options.h"
+#include "core/views/augment.h"
 
 namespace shapeid {
 namespace {
@@ -66,6 +67,14 @@ absl::StatusOr<GalleryOptions> LocalGalleryOptions(const GalleryCreateOptions& c
   options.reject_distance = create.reject_distance;
   options.augment.views = static_cast<int>(std::min<uint32_t>(create.augment_views, 1 << 20));
   options.augment.sensor.random_pose = create.augment_random_pose;
+  if (!create.augment_mix.empty()) {
+    const std::optional<ViewMix> mix = ValueNamed(kViewMixNames, create.augment_mix);
+    if (!mix) {
+      return absl::InvalidArgumentError(absl::StrCat("--augment-mix \"", create.augment_mix,
+                                                     "\": use ", NameList(kViewMixNames)));
+    }
+    options.augment.mix = *mix;
+  }
   return options;
 }
 
@@ -97,6 +106,7 @@ class LocalEvalBackend final : public EvalBackend {
                  EvalRun& run) override {
     const Clock::time_point start = Clock::now();
     gallery_.reset();
+    sample_files_.clear();
     const std::shared_ptr<const GallerySnapshot> empty = empty_->Snapshot();
     const CloudLimits limits = empty_->limits().cloud_limits();
     StoredGallery stored = empty->ToStored();
@@ -128,6 +138,7 @@ class LocalEvalBackend final : public EvalBackend {
             return;
           }
           // The ids a server assigns to a gallery's first samples, in the same order.
+          sample_files_.push_back(train[i].path);
           stored.samples.push_back(
               {kFirstAssignedId + stored.samples.size(), train[i].label, std::move(d.features)});
           progress.Advance(1, 0);
@@ -181,6 +192,11 @@ class LocalEvalBackend final : public EvalBackend {
           p.confidence = c.answer.confidence;
           p.seconds = c.seconds;
           p.fold = round;
+          for (const Neighbor& n : c.answer.knn.neighbors) {
+            const uint64_t index = n.id - kFirstAssignedId;
+            p.neighbours.push_back({n.id, n.label, n.distance, static_cast<uint32_t>(n.view),
+                                    index < sample_files_.size() ? sample_files_[index] : ""});
+          }
           run.predictions.push_back(std::move(p));
           progress.Advance(1, 0);
         });
@@ -203,6 +219,8 @@ class LocalEvalBackend final : public EvalBackend {
   // gallery its canonical options and versions.
   const std::shared_ptr<Gallery> empty_;
   std::shared_ptr<Gallery> gallery_;  // the round's
+  // The round's training file of sample id kFirstAssignedId + i.
+  std::vector<std::string> sample_files_;
 };
 
 }  // namespace

@@ -23,6 +23,7 @@ using cli_testing::Captured;
 using cli_testing::WithoutTimes;
 using ::testing::AllOf;
 using ::testing::HasSubstr;
+using ::testing::MatchesRegex;
 using ::testing::Not;
 using ::testing::StartsWith;
 
@@ -67,6 +68,10 @@ TEST_F(EvalLocalTest, HoldOutInEveryFormatWithoutAServer) {
                           HasSubstr("\"k\":1,\"folds\":1,"), HasSubstr("\"tests\":9,"),
                           HasSubstr("\"train_samples\":18,"), HasSubstr("\"failed_files\":[]"),
                           HasSubstr("\"predictions\":[{\"file\":")));
+  // Each answer names its nearest training sample and the file it came from.
+  EXPECT_THAT(text, MatchesRegex(".*\"neighbours\":\\[\\{\"sample_id\":[0-9]+,\"label\":\"[a-z]+\","
+                                 "\"distance\":[-0-9.e]+,\"view\":0,\"file\":\"[^\"]*/train/[^\"]*"
+                                 "\\.pcd\"\\}\\].*"));
   // Times are measured: the predictions' own describe + classify, and both phases.
   EXPECT_THAT(text, Not(HasSubstr("\"median_call_seconds\":0,")));
   EXPECT_THAT(text, Not(HasSubstr("\"train_seconds\":0,")));

@@ -292,11 +292,20 @@ std::string FormatEvalJson(const EvalRun& run, const EvalMetrics& metrics, bool 
     out += ",\"predictions\":[";
     for (size_t i = 0; i < run.predictions.size(); ++i) {
       const EvalPrediction& p = run.predictions[i];
-      absl::StrAppend(&out, i == 0 ? "" : ",", "{\"file\":", JsonString(p.file),
-                      ",\"truth\":", JsonString(p.truth),
-                      ",\"predicted\":", JsonString(p.predicted),
-                      ",\"confidence\":", JsonNumber(p.confidence),
-                      ",\"seconds\":", JsonNumber(p.seconds), ",\"fold\":", p.fold, "}");
+      absl::StrAppend(
+          &out, i == 0 ? "" : ",", "{\"file\":", JsonString(p.file),
+          ",\"truth\":", JsonString(p.truth), ",\"predicted\":", JsonString(p.predicted),
+          ",\"confidence\":", JsonNumber(p.confidence), ",\"seconds\":", JsonNumber(p.seconds),
+          ",\"fold\":", p.fold, ",\"neighbours\":[");
+      for (size_t j = 0; j < p.neighbours.size(); ++j) {
+        const EvalNeighbour& n = p.neighbours[j];
+        absl::StrAppend(&out, j == 0 ? "" : ",", "{\"sample_id\":", n.sample_id,
+                        ",\"label\":", JsonString(n.label),
+                        ",\"distance\":", JsonNumber(n.distance), ",\"view\":", n.view);
+        if (!n.file.empty()) absl::StrAppend(&out, ",\"file\":", JsonString(n.file));
+        out += "}";
+      }
+      out += "]}";
     }
     out += "]";
   }

@@ -13,6 +13,15 @@
 namespace shapeid {
 
 // One classified test cloud.
+// One of a prediction's nearest samples, for tracing an answer to the training data.
+struct EvalNeighbour {
+  uint64_t sample_id = 0;
+  std::string label;
+  double distance = 0;  // descriptor distance, as Classify reports it
+  uint32_t view = 0;    // 0: the trained cloud; i >= 1: its i-th synthetic view
+  std::string file;     // the training file (eval --local); empty against a server's gallery
+};
+
 struct EvalPrediction {
   std::string file;
   std::string truth;      // the class the folder layout gives
@@ -20,6 +29,7 @@ struct EvalPrediction {
   double confidence = 0;  // vote share of the winning label, in [0, 1]
   double seconds = 0;     // wall time of the classification seen by the caller
   int fold = 0;           // 0-based fold (hold-out: always 0)
+  std::vector<EvalNeighbour> neighbours;  // nearest first, as many as k
 };
 
 // Everything one eval produced. The metrics below are computed from `predictions`.

@@ -240,6 +240,8 @@ TEST(EvalMetricsTest, JsonIsValidAndHasTheValues) {
   run.seed = 42;
   run.failed_files = {"we\"ird\\name\n.pcd"};
   run.predictions[0].fold = 1;
+  run.predictions[0].neighbours = {{1, "table", 0.25, 3, "train/table/7.pcd"},
+                                   {9, "bench", 0.5, 0, ""}};
   Add(run, "chair", "unknown", 1);
   const EvalMetrics m = ComputeEvalMetrics(run);
   const std::string json = FormatEvalJson(run, m, false);
@@ -255,7 +257,9 @@ TEST(EvalMetricsTest, JsonIsValidAndHasTheValues) {
       with_predictions,
       HasSubstr("\"predictions\":[{\"file\":\"table/0.pcd\",\"truth\":\"table\","
                 "\"predicted\":\"table\",\"confidence\":0.75,\"seconds\":0.050000000000000003,"
-                "\"fold\":1},"));
+                "\"fold\":1,\"neighbours\":[{\"sample_id\":1,\"label\":\"table\",\"distance\":0.25,"
+                "\"view\":3,\"file\":\"train/table/7.pcd\"},{\"sample_id\":9,\"label\":\"bench\","
+                "\"distance\":0.5,\"view\":0}]},"));
 
   if (!HavePython()) GTEST_SKIP() << "python3 not found; JSON checked by substrings only";
   EXPECT_TRUE(PythonCheck(json, R"py(
@@ -277,7 +281,9 @@ assert (d["train_samples"], d["train_seconds"], d["test_seconds"]) == (90, 2.5, 
   EXPECT_TRUE(PythonCheck(with_predictions, R"py(
 p = d["predictions"]
 assert len(p) == 11 and p[-1] == {"file": "chair/10.pcd", "truth": "chair",
-    "predicted": "unknown", "confidence": 0.75, "seconds": 0.05, "fold": 1}, p[-1]
+    "predicted": "unknown", "confidence": 0.75, "seconds": 0.05, "fold": 1,
+    "neighbours": []}, p[-1]
+assert p[0]["neighbours"][1] == {"sample_id": 9, "label": "bench", "distance": 0.5, "view": 0}
 )py"));
 }
 

@@ -99,6 +99,9 @@ class ServerEvalBackend final : public EvalBackend {
           p.confidence = response.confidence();
           p.seconds = seconds;
           p.fold = round;
+          for (const v1::Neighbor& n : response.neighbors()) {
+            p.neighbours.push_back({n.sample_id(), n.label(), n.distance(), n.view(), ""});
+          }
           run.predictions.push_back(std::move(p));
         },
         [&](size_t i, const absl::Status& status) {

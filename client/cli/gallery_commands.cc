@@ -73,7 +73,8 @@ int PrintGallery(const v1::Gallery& g, const CliContext& context) {
           ? absl::StrCat(g.augmentation().views(), " views per cloud (noise ",
                          Number(g.augmentation().noise()), ", ", g.augmentation().min_points(), "-",
                          g.augmentation().max_points(), " points, ",
-                         g.augmentation().random_pose() ? "random" : "fixed", " pose)")
+                         g.augmentation().random_pose() ? "random" : "fixed", " pose",
+                         g.augmentation().mix() == v1::VIEW_MIX_VARIED ? ", varied views" : "", ")")
           : std::string("off"),
       "\n", "samples     ", g.sample_count(), " in ", g.label_counts_size(), " labels (",
       g.vector_count(), " descriptors)\n", "search      ",
@@ -129,7 +130,8 @@ std::string GalleryJson(const v1::Gallery& g) {
       ",\"approximate_lists\":", g.approximate_lists(),
       ",\"augment_views\":", g.augmentation().views(),
       ",\"augment_random_pose\":", g.augmentation().random_pose() ? "true" : "false",
-      ",\"label_counts\":[", labels, "]",
+      ",\"augment_mix\":\"", g.augmentation().mix() == v1::VIEW_MIX_VARIED ? "varied" : "camera",
+      "\"", ",\"label_counts\":[", labels, "]",
       ",\"create_time\":", JsonString(Timestamp(g.create_time())),
       ",\"update_time\":", JsonString(Timestamp(g.update_time())), ",\"version\":", g.version(),
       ",\"descriptor_version\":", g.descriptor_version(),
@@ -164,9 +166,17 @@ absl::StatusOr<v1::CreateGalleryRequest> CreateGalleryRequestFor(
         absl::StrCat("--scaling \"", options.scaling, "\": use none, zscore or maxabs"));
   }
   request.set_reject_distance(options.reject_distance);
-  if (options.augment_views > 0 || options.augment_random_pose) {
+  if (options.augment_views > 0 || options.augment_random_pose || !options.augment_mix.empty()) {
     request.mutable_augmentation()->set_views(options.augment_views);
     request.mutable_augmentation()->set_random_pose(options.augment_random_pose);
+    if (options.augment_mix == "varied") {
+      request.mutable_augmentation()->set_mix(v1::VIEW_MIX_VARIED);
+    } else if (options.augment_mix == "camera") {
+      request.mutable_augmentation()->set_mix(v1::VIEW_MIX_CAMERA);
+    } else if (!options.augment_mix.empty()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--augment-mix \"", options.augment_mix, "\": use camera or varied"));
+    }
   }
   return request;
 }

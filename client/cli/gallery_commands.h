@@ -24,7 +24,8 @@ struct GalleryCreateOptions {
   // each is also turned to a random pose.
   uint32_t augment_views = 0;
   bool augment_random_pose = false;
-  bool exist_ok = false;  // an existing gallery is success (scripts re-run safely)
+  std::string augment_mix;  // "", "camera" or "varied"
+  bool exist_ok = false;    // an existing gallery is success (scripts re-run safely)
 };
 
 // The CreateGalleryRequest for `options`; InvalidArgument for an unknown weighting/scaling.

@@ -104,6 +104,11 @@ void AddGalleryKnobs(CLI::App* command, shapeid::GalleryCreateOptions* create) {
                    "noise, 300-500 points): for robots that see one side of objects trained "
                    "whole. Costs (1 + N) x memory and search time (0: off)")
       ->check(CLI::Range(0u, 64u));
+  command
+      ->add_option("--augment-mix", create->augment_mix,
+                   "How the synthetic views are made: camera (a depth camera's visible side) "
+                   "or varied (camera, plane cuts and occluded cameras in turn, noise 0 to 2 %)")
+      ->check(CLI::IsMember({"camera", "varied"}));
   command->add_flag("--augment-random-pose", create->augment_random_pose,
                     "Turn each synthetic view to a random 3D pose (for descriptors that are "
                     "not rotation invariant)");

@@ -18,6 +18,7 @@ __all__ = [
 
 WEIGHTINGS = {"uniform": 1, "distance": 2}
 SCALINGS = {"none": 1, "zscore": 2, "maxabs": 3}
+VIEW_MIXES = {"camera": 1, "varied": 2}
 
 
 def _name(table, value):
@@ -110,6 +111,9 @@ class Augmentation:
     max_points: int = 0         # 0: 500
     random_pose: bool = False
     seed: int = 0               # 0: 1
+    # "camera" (a depth camera's visible side) or "varied" (camera, plane cuts and occluded
+    # cameras in turn, noise drawn in [0, 2 x noise]); None: the server's, "camera".
+    mix: Optional[str] = None
 
     def to_proto(self, message):
         message.views = self.views
@@ -119,12 +123,17 @@ class Augmentation:
         message.max_points = self.max_points
         message.random_pose = self.random_pose
         message.seed = self.seed
+        if self.mix is not None:
+            if self.mix not in VIEW_MIXES:
+                raise ValueError(f"augmentation mix {self.mix!r}: expected one of "
+                                 f"{', '.join(VIEW_MIXES)}")
+            message.mix = VIEW_MIXES[self.mix]
 
     @classmethod
     def from_proto(cls, a):
         return cls(views=a.views, noise=a.noise if a.HasField("noise") else None,
                    min_points=a.min_points, max_points=a.max_points, random_pose=a.random_pose,
-                   seed=a.seed)
+                   seed=a.seed, mix=_name(VIEW_MIXES, a.mix) if a.mix else "camera")
 
 
 @dataclasses.dataclass(slots=True)

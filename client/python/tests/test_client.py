@@ -281,6 +281,13 @@ def test_augmentation_and_reject_distance(client):
     assert plain.gallery_sample_count == 3
     answer = client.classify("augmented", shape(1, 4))
     assert answer.unknown and answer.label == "unknown" and answer.confidence == 0
+    assert created.augmentation.mix == "camera"
+    varied = client.create_gallery("varied", augmentation=shapeid.Augmentation(views=3,
+                                                                                mix="varied"))
+    assert varied.augmentation.mix == "varied" and varied.augmentation.views == 3
+    with pytest.raises(ValueError, match="expected one of camera, varied"):
+        client.create_gallery("blurry", augmentation=shapeid.Augmentation(views=3, mix="blurry"))
+    client.delete_gallery("varied")
     client.delete_gallery("augmented")
 
 
