@@ -355,7 +355,7 @@ TEST_F(GalleryServiceTest, AugmentedGalleriesStoreViewsAndCountEachObjectOnce) {
   EXPECT_DOUBLE_EQ(created.augmentation().noise(), 0.01);  // defaults filled
   EXPECT_EQ(created.augmentation().min_points(), 300u);
   EXPECT_EQ(created.augmentation().max_points(), 500u);
-  EXPECT_EQ(created.augmentation().mix(), v1::VIEW_MIX_CAMERA);  // unspecified: the camera's
+  EXPECT_EQ(created.augmentation().mix(), v1::VIEW_MIX_UNSPECIFIED);  // the camera's, left unset
 
   v1::TrainResponse trained;
   ASSERT_TRUE(Train("robot", TrainingSet(3, 40), &trained).ok());

@@ -143,7 +143,8 @@ v1::ViewAugmentation ToProto(const AugmentOptions& augment) {
   out.set_max_points(static_cast<uint32_t>(augment.sensor.max_points));
   out.set_random_pose(augment.sensor.random_pose);
   out.set_seed(augment.seed);
-  out.set_mix(augment.mix == ViewMix::kVaried ? v1::VIEW_MIX_VARIED : v1::VIEW_MIX_CAMERA);
+  // The camera's mix stays unset: galleries and exports from before `mix` keep their bytes.
+  if (augment.mix == ViewMix::kVaried) out.set_mix(v1::VIEW_MIX_VARIED);
   return out;
 }
 
