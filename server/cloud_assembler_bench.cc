@@ -1,7 +1,7 @@
 // How fast the server turns a cloud's chunks into float32 points in each layout (Google
 // Benchmark): packed float32 (a copy) is the baseline; a PointCloud2's 16-byte x y z
 // intensity, float64 big-endian, dropping non-finite points and applying a sensor frame
-// are measured beside it on the same 1,000,000 points, in 64 KiB chunks as gRPC delivers them.
+// run beside it on the same 1,000,000 points, in 64 KiB chunks as gRPC delivers them.
 // docs/performance.md quotes the figures.
 
 #include <algorithm>

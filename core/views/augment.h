@@ -26,7 +26,7 @@ namespace shapeid {
 // How a gallery's synthetic views are made.
 enum class ViewMix {
   // Every view by the depth-camera simulator (Visibility::kCamera) with the configured noise:
-  // issue 13's augmentation, what galleries stored before `mix` existed.
+  // the default, and what a stored text without `mix` means.
   kCamera,
   // More than one notion of "seen", so that the gallery does not learn one simulator's
   // signature: views take turns between the camera, a plane cut and an occluded camera
