@@ -78,7 +78,31 @@ def fit(view, model, scale_to_candidate):
     moved = np.asarray(cloud.points) @ fine.transformation[:3, :3].T + fine.transformation[:3, 3]
     distances = np.sort([np.sqrt(model["tree"].search_knn_vector_3d(p, 1)[2][0]) for p in moved])
     return (float(distances[: int(0.8 * len(distances))].mean()), model["diagonal"],
-            view["diagonal"] * scale)
+            view["diagonal"] * scale, coverage(moved, model, tolerance))
+
+
+def coverage(moved, model, tolerance):
+    """Of the candidate's points that face the camera, the fraction the view covers.
+
+    The camera is taken to lie beyond the view's centroid as seen from the candidate's (a
+    view's points lean toward its camera); a point faces it when its outward normal (oriented
+    away from the centroid) points there. No visibility algorithm of the test views is used.
+    """
+    points = model["points"]
+    centre = points.mean(0)
+    towards = moved.mean(0) - centre
+    if np.linalg.norm(towards) < 1e-9:
+        return 1.0
+    towards /= np.linalg.norm(towards)
+    normals = np.asarray(model["cloud"].normals)
+    outward = np.where(((points - centre) * normals).sum(1, keepdims=True) < 0, -normals, normals)
+    facing = points[outward @ towards > 0.2]
+    if len(facing) == 0:
+        return 1.0
+    view_tree = o3d.geometry.KDTreeFlann(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(moved)))
+    covered = sum(view_tree.search_knn_vector_3d(p, 1)[2][0] <= (2 * tolerance) ** 2
+                  for p in facing)
+    return covered / len(facing)
 
 
 def knn_answer(neighbours, k=5):
@@ -96,6 +120,11 @@ RULES = {
     "best fit (absolute)": lambda c: min(c, key=lambda x: x[1][0])[2],
     "fit x descriptor distance": lambda c: min(c, key=lambda x: x[1][0] * x[3])[2],
     "fit x descriptor distance, first 3": lambda c: min(c[:3], key=lambda x: x[1][0] * x[3])[2],
+    "fit / diagonal / coverage": lambda c: min(c, key=lambda x: x[1][0] / x[1][1] / max(x[1][3], 0.05))[2],
+    "fit / coverage (absolute)": lambda c: min(c, key=lambda x: x[1][0] / max(x[1][3], 0.05))[2],
+    "best coverage": lambda c: max(c, key=lambda x: x[1][3])[2],
+    "descriptor distance / coverage": lambda c: min(c, key=lambda x: x[3] / max(x[1][3], 0.05))[2],
+    "fit x descriptor / coverage": lambda c: min(c, key=lambda x: x[1][0] * x[3] / max(x[1][3], 0.05))[2],
 }
 
 
