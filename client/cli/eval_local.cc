@@ -137,7 +137,8 @@ class LocalEvalBackend final : public EvalBackend {
             Fail(train[i].path, d.status, progress, run);
             return;
           }
-          // The ids a server assigns to a gallery's first samples, in the same order.
+          // The ids a new gallery gives its first id-0 samples, in training order; a server's
+          // gallery may give the same files other ids.
           sample_files_.push_back(train[i].path);
           stored.samples.push_back(
               {kFirstAssignedId + stored.samples.size(), train[i].label, std::move(d.features)});
