@@ -24,6 +24,8 @@ import subprocess
 import numpy as np
 import open3d as o3d
 
+from independent_views import read_cloud
+
 
 def knn_mean(points, k):
     """Each point replaced by the mean of its k nearest points (brute force: 1,024-point clouds)."""
@@ -61,7 +63,7 @@ def main():
             continue
         for path in files:
             label, split, name = path.split(os.sep)[-3:]
-            points = np.asarray(o3d.io.read_point_cloud(path).points, dtype=np.float64)
+            points = read_cloud(path)
             if split == "train":
                 write(os.path.join(args.out, f"knn{k}", "train", label, name), knn_mean(points, k))
                 continue

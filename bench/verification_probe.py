@@ -26,6 +26,8 @@ import json
 import numpy as np
 import open3d as o3d
 
+from independent_views import read_cloud
+
 reg = o3d.pipelines.registration
 
 
@@ -45,10 +47,7 @@ class Clouds:
 
     def get(self, path, n):
         if (path, n) not in self.cache:
-            if path.endswith(".xyz"):
-                points = np.loadtxt(path, usecols=(0, 1, 2)).reshape(-1, 3)
-            else:
-                points = np.asarray(o3d.io.read_point_cloud(path).points)
+            points = read_cloud(path)
             if len(points) > n:
                 points = points[np.random.default_rng(0).choice(len(points), n, replace=False)]
             diagonal = float(np.linalg.norm(points.max(0) - points.min(0)))
