@@ -53,12 +53,15 @@ def main():
     parser.add_argument("--spec", default="dfsd")
     parser.add_argument("--shapeid", default=os.path.join(root, "build/release/client/cli/shapeid"))
     args = parser.parse_args()
+    args.out = os.path.abspath(args.out)  # the eval folders link into it
 
     files = sorted(glob.glob(os.path.join(data, "modelnet10", "*", "*", "*.pcd")))
     if not files:
         raise SystemExit(f"noise_probe: no ModelNet10 clouds under {data}")
     for k in args.smooth:
-        done = os.path.join(args.out, f"knn{k}.done")
+        # One marker per smoothing and level set: a run with more levels writes them.
+        levels_key = "-".join(f"{level:g}" for level in args.levels)
+        done = os.path.join(args.out, f"knn{k}-{levels_key}.done")
         if os.path.exists(done):
             continue
         for path in files:

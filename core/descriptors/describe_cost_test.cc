@@ -69,6 +69,8 @@ TEST(DescribeCostTest, WorkingBytesBoundThePeakHeapOfEveryKind) {
       "dfsd:frame=pca,fields=anisotropic",
       "dfsd:frame=axes,grid=32,order=10",
       "dfsd:grid=4,order=3,fields=isotropic,size=0.15",
+      "dfsd:smooth=0.02",
+      "dfsd:frame=upright,smooth=0.25",
   };
   for (size_t n : {3, 100, 5000, 100000}) {
     const PointCloud cloud = dfsd_golden::MakeCloud("surface_rotated", n);
@@ -98,7 +100,7 @@ TEST(DescribeCostTest, DfsdWorkingBytesBoundDegenerateClouds) {
 // DFSD's working memory stops growing with the cloud: every per-point array is a chunk.
 TEST(DescribeCostTest, DfsdPeakHeapIsBounded) {
   if (!heap_meter::Available()) GTEST_SKIP() << kNoMeter;
-  for (const char* spec : {"dfsd", "dfsd:frame=upright", "dfsd:frame=axes"}) {
+  for (const char* spec : {"dfsd", "dfsd:frame=upright", "dfsd:frame=axes", "dfsd:smooth=0.02"}) {
     const std::unique_ptr<Descriptor> descriptor = Make(spec);
     ASSERT_NE(descriptor, nullptr);
     const int64_t small =
@@ -113,8 +115,9 @@ TEST(DescribeCostTest, DfsdPeakHeapIsBounded) {
 }
 
 TEST(DescribeCostTest, EstimatingAllocatesNothingAndGrowsWithTheCloud) {
-  for (const char* spec : {"rphsd", "comsd", "cnsd", "cnsd:downsample=random", "dfsd",
-                           "dfsd:frame=upright", "dfsd:frame=pca", "dfsd:frame=axes"}) {
+  for (const char* spec :
+       {"rphsd", "comsd", "cnsd", "cnsd:downsample=random", "dfsd", "dfsd:frame=upright",
+        "dfsd:frame=pca", "dfsd:frame=axes", "dfsd:smooth=0.02"}) {
     const std::unique_ptr<Descriptor> descriptor = Make(spec);
     ASSERT_NE(descriptor, nullptr);
     heap_meter::Start();

@@ -21,6 +21,7 @@
 #include "core/descriptors/cost_model.h"
 #include "core/descriptors/dfsd_frame.h"
 #include "core/descriptors/dfsd_kernels.h"
+#include "core/descriptors/point_smoothing.h"
 #include "core/enum_names.h"
 #include "core/simd.h"
 #include "core/status_macros.h"
@@ -39,6 +40,9 @@ constexpr double kMinRelativeExtent = 1e-6;
 // (slower queries) for no measurable gain, narrower ones miss right poses.
 constexpr double kAxisOrderTolerance = 0.2;
 constexpr double kSkewnessTolerance = 0.3;
+// Largest share of the cloud smoothing averages around each point: beyond it, points would
+// be drawn to the middle of the object rather than to its surface.
+constexpr double kMaxSmooth = 0.25;
 
 // The distance kernel takes at most this many points per pass (a multiple of kPointLanes).
 // See ComputeFramed.
@@ -120,7 +124,7 @@ class DfsdDescriptor : public Descriptor {
     // 5 million points) each slab is another pass. Constants: docs/performance.md,
     // "Describe cost".
     constexpr double kNsBase = 10000, kNsPerPoint = 5, kNsPerPointCell = 0.075,
-                     kNsPerPointRow = 0.3, kSlabbedPoints = 5e6;
+                     kNsPerPointRow = 0.3, kSlabbedPoints = 5e6, kNsPerSmoothedPoint = 300;
     // axes, pca, box, upright; the second for each kSlabbedPoints beyond the first.
     constexpr double kNsPerFramedPoint[] = {0, 25, 220, 75};
     constexpr double kNsPerSlabbedPoint[] = {0, 0, 225, 165};
@@ -134,9 +138,10 @@ class DfsdDescriptor : public Descriptor {
     const double frame_ns =
         kNsPerFramedPoint[frame] +
         kNsPerSlabbedPoint[frame] * std::max(0.0, static_cast<double>(n) / kSlabbedPoints - 1);
+    const double smooth_ns = options_.smooth > 0 ? kNsPerSmoothedPoint : 0;
     DescribeCost cost;
     cost.cpu = cost_model::Nanoseconds(
-        kNsBase + (kNsPerPoint + frame_ns) * static_cast<double>(n) +
+        kNsBase + (kNsPerPoint + frame_ns + smooth_ns) * static_cast<double>(n) +
         fields * (kNsPerPointCell * static_cast<double>(cells) * static_cast<double>(padded) +
                   kNsPerPointRow * 3 * g * static_cast<double>(n)));
     // The frame, the kernel's buffers and the pose variants come one after another.
@@ -149,7 +154,10 @@ class DfsdDescriptor : public Descriptor {
     const size_t variants = HasPoseVariants(options_.frame)
                                 ? cost_model::GrownBytes(poses_.size() * dimension(), sizeof(float))
                                 : 0;
-    cost.working_bytes = dimension() * sizeof(float) +
+    // The smoothed cloud lives through the frame and the kernel (its scratch is counted too:
+    // a bound, not a sum of what is alive at once).
+    const size_t smoothing = options_.smooth > 0 ? SmoothPointsBytes(n) : 0;
+    cost.working_bytes = dimension() * sizeof(float) + smoothing +
                          std::max({FrameBytes(n, options_.frame), kernel, variants}) +
                          cost_model::kHeapSlack;
     return cost;
@@ -158,20 +166,37 @@ class DfsdDescriptor : public Descriptor {
  protected:
   absl::Status ComputeValidated(const PointCloud& cloud, const CloudStats& stats,
                                 absl::Span<float> out) const override {
-    ComputeFramed(cloud, CloudFrame::Find(cloud, stats, options_), out);
-    return absl::OkStatus();
+    return ComputeValidatedWithPoseVariants(cloud, stats, out, nullptr);
   }
 
   absl::Status ComputeValidatedWithPoseVariants(const PointCloud& cloud, const CloudStats& stats,
                                                 absl::Span<float> out,
                                                 std::vector<float>* variants) const override {
-    const CloudFrame frame = CloudFrame::Find(cloud, stats, options_);
-    ComputeFramed(cloud, frame, out);
-    if (HasPoseVariants(options_.frame)) AppendPoseVariants(frame, out, variants);
+    if (options_.smooth > 0) {
+      const PointCloud smoothed = SmoothPoints(cloud, stats, options_.smooth);
+      const absl::StatusOr<CloudStats> smoothed_stats = ValidateCloud(smoothed);
+      // Only a cloud whose points all lie within reach of each other can collapse to one
+      // point; it is described as given.
+      if (smoothed_stats.ok()) {
+        ComputeFromStats(smoothed, *smoothed_stats, out, variants);
+        return absl::OkStatus();
+      }
+    }
+    ComputeFromStats(cloud, stats, out, variants);
     return absl::OkStatus();
   }
 
  private:
+  // The descriptor of a validated cloud, and its pose variants unless `variants` is null.
+  void ComputeFromStats(const PointCloud& cloud, const CloudStats& stats, absl::Span<float> out,
+                        std::vector<float>* variants) const {
+    const CloudFrame frame = CloudFrame::Find(cloud, stats, options_);
+    ComputeFramed(cloud, frame, out);
+    if (variants != nullptr && HasPoseVariants(options_.frame)) {
+      AppendPoseVariants(frame, out, variants);
+    }
+  }
+
   // A pose of the box frame other than the canonical one (see PoseMap).
   struct Pose {
     std::array<int, 3> axis_of;
@@ -360,6 +385,7 @@ absl::StatusOr<std::unique_ptr<Descriptor>> CreateFromSpec(const DescriptorSpec&
   SHAPEID_ASSIGN_OR_RETURN(options.fields, params.Choice("fields", kFieldsNames));
   SHAPEID_ASSIGN_OR_RETURN(options.size_weight, params.Double("size", 0.0, 1000.0));
   SHAPEID_ASSIGN_OR_RETURN(options.up, params.Choice("up", kUpNames));
+  SHAPEID_ASSIGN_OR_RETURN(options.smooth, params.Double("smooth", 0.0, kMaxSmooth));
   return CreateDfsd(options);
 }
 
@@ -437,6 +463,10 @@ absl::StatusOr<std::unique_ptr<Descriptor>> CreateDfsd(const DfsdOptions& option
     return absl::InvalidArgumentError(
         absl::StrCat("dfsd: size=", options.size_weight, " is outside [0, 1000]"));
   }
+  if (!(options.smooth >= 0 && options.smooth <= kMaxSmooth)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("dfsd: smooth=", options.smooth, " is outside [0, ", kMaxSmooth, "]"));
+  }
   if (options.up != DfsdOptions::Up::kPlusZ && options.frame != DfsdOptions::Frame::kUpright) {
     return absl::InvalidArgumentError(absl::StrCat(
         "dfsd: up=", UpName(options.up), " needs frame=upright (frame=", FrameName(options.frame),
@@ -453,6 +483,8 @@ absl::StatusOr<std::unique_ptr<Descriptor>> CreateDfsd(const DfsdOptions& option
   if (options.up != DfsdOptions::Up::kPlusZ) {
     canonical.params.emplace_back("up", std::string(UpName(options.up)));
   }
+  if (options.smooth != 0)
+    canonical.params.emplace_back("smooth", FormatSpecNumber(options.smooth));
   return std::unique_ptr<Descriptor>(
       std::make_unique<DfsdDescriptor>(std::move(canonical), options));
 }
@@ -481,6 +513,10 @@ DescriptorKind DfsdKind() {
            {"up", "z",
             "frame=upright only: the input axis that points up: z | y | x | -z | -y | -x "
             "(most meshes are y up; LiDAR and ROS are z up)",
+            /*omitted_at_default=*/true},
+           {"smooth", "0",
+            "before describing, move each point to the mean of its nearest points, this share "
+            "of the cloud; 0 = off; 0.015 for noisy sensors; in [0, 0.25]",
             /*omitted_at_default=*/true}},
           &dfsd_internal::CreateFromSpec};
 }

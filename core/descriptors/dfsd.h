@@ -22,8 +22,8 @@
 
 namespace shapeid {
 
-// Registry entry: kind "dfsd"; parameters grid, order, frame, fields, size (see the entry's
-// help lines). Canonical spec "dfsd:grid=12,order=8,frame=box,fields=both,size=0".
+// Registry entry: kind "dfsd"; parameters grid, order, frame, fields, size, up, smooth (see
+// the entry's help lines). Canonical spec "dfsd:grid=12,order=8,frame=box,fields=both,size=0".
 DescriptorKind DfsdKind();
 
 struct DfsdOptions {
@@ -76,6 +76,11 @@ struct DfsdOptions {
   // largest first, appended. 0 (default) leaves it out. Only meaningful when all clouds of
   // a gallery share a unit (metric sensors: LiDAR, depth cameras); there 0.15 is a good start.
   double size_weight = 0;
+  // Smoothing before describing: each point moved to the mean of its nearest points, this
+  // share of the cloud (SmoothPoints, core/descriptors/point_smoothing.h), and the frame and
+  // field taken of the moved points. 0 (default) leaves the points as they are. A gallery
+  // and its queries agree through the spec. Figures: docs/accuracy.md, "Noise".
+  double smooth = 0;
 };
 
 namespace dfsd_internal {

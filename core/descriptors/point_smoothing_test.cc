@@ -1,0 +1,129 @@
+#include "core/descriptors/point_smoothing.h"
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "Eigen/Geometry"
+#include "core/testing/test_clouds.h"
+#include "gtest/gtest.h"
+
+namespace shapeid {
+namespace {
+
+using testing_clouds::SphereCloud;
+
+CloudStats StatsOf(const PointCloud& cloud) {
+  const absl::StatusOr<CloudStats> stats = ValidateCloud(cloud);
+  EXPECT_TRUE(stats.ok()) << stats.status();
+  return stats.ok() ? *stats : CloudStats{};
+}
+
+// A unit square in z = 0 sampled on a jittered grid, with Gaussian noise of `sigma` in z.
+PointCloud NoisySquare(int side, float sigma, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> jitter(0.0f, 1.0f / side);
+  std::normal_distribution<float> noise(0.0f, sigma);
+  PointCloud cloud;
+  for (int i = 0; i < side; ++i) {
+    for (int j = 0; j < side; ++j) {
+      cloud.Add(static_cast<float>(i) / side + jitter(rng),
+                static_cast<float>(j) / side + jitter(rng), noise(rng));
+    }
+  }
+  return cloud;
+}
+
+// Root mean square z of the points at least `margin` inside the square's edges.
+double InnerRmsZ(const PointCloud& cloud, float margin) {
+  double sum = 0;
+  size_t count = 0;
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3f p = cloud.point(i);
+    if (p.x() < margin || p.x() > 1 - margin || p.y() < margin || p.y() > 1 - margin) continue;
+    sum += static_cast<double>(p.z()) * p.z();
+    ++count;
+  }
+  return std::sqrt(sum / static_cast<double>(count));
+}
+
+TEST(PointSmoothingTest, DrawsANoisySurfaceBackToItsMiddle) {
+  // Each point averages its 31 nearest: a disc of radius ~0.1.
+  const PointCloud noisy = NoisySquare(32, 0.02f, 5);
+  const PointCloud smoothed = SmoothPoints(noisy, StatsOf(noisy), 0.03);
+  ASSERT_EQ(smoothed.size(), noisy.size());
+  const double before = InnerRmsZ(noisy, 0.15f);
+  EXPECT_NEAR(before, 0.02, 0.003);
+  EXPECT_LT(InnerRmsZ(smoothed, 0.15f), before / 3);
+  // In the plane, inner points move little (the mean of a disc around a point is near it);
+  // points at the edges move inwards, by less than the disc's radius.
+  for (size_t i = 0; i < noisy.size(); ++i) {
+    const Eigen::Vector3f p = noisy.point(i);
+    const bool inner = p.x() > 0.15f && p.x() < 0.85f && p.y() > 0.15f && p.y() < 0.85f;
+    EXPECT_LT((smoothed.point(i) - p).head<2>().norm(), inner ? 0.04f : 0.15f) << i;
+  }
+}
+
+TEST(PointSmoothingTest, ALargeCloudIsReducedThenSmoothedAsFar) {
+  // 40,000 points: kSmoothingReferencePoints of them come back, smoothed over the same share
+  // of the square as the small cloud (and so more points).
+  const PointCloud noisy = NoisySquare(200, 0.02f, 5);
+  const PointCloud smoothed = SmoothPoints(noisy, StatsOf(noisy), 0.03);
+  EXPECT_EQ(smoothed.size(), kSmoothingReferencePoints);
+  EXPECT_LT(InnerRmsZ(smoothed, 0.15f), InnerRmsZ(noisy, 0.15f) / 4);
+  EXPECT_EQ(smoothed.xyz(), SmoothPoints(noisy, StatsOf(noisy), 0.03).xyz());
+}
+
+TEST(PointSmoothingTest, TurnsWithTheCloud) {
+  // Nearest points do not depend on the axes, so smoothing a turned cloud gives the turned
+  // smoothed cloud (to rounding).
+  const PointCloud cloud = SphereCloud(2000, 3);
+  const Eigen::Matrix3f turn =
+      Eigen::AngleAxisf(0.7f, Eigen::Vector3f(1, 2, 3).normalized()).toRotationMatrix();
+  PointCloud turned;
+  for (size_t i = 0; i < cloud.size(); ++i) turned.Add(turn * cloud.point(i));
+  const PointCloud a = SmoothPoints(cloud, StatsOf(cloud), 0.02);
+  const PointCloud b = SmoothPoints(turned, StatsOf(turned), 0.02);
+  size_t differing = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    // Two neighbours at nearly equal distances may swap ranks after rounding.
+    if ((turn * a.point(i) - b.point(i)).norm() > 1e-4f) ++differing;
+  }
+  EXPECT_LE(differing, a.size() / 100);
+  // Points on a sphere move inwards, towards the centre of the cap around them.
+  for (size_t i = 0; i < a.size(); ++i) EXPECT_LT(a.point(i).norm(), 1.0f);
+}
+
+TEST(PointSmoothingTest, EachPointAveragesItsNearestAndTinySharesChangeNothing) {
+  // Two pairs far apart: with k = 2 each point meets its partner only.
+  const PointCloud cloud = {{0, 0, 0}, {0.01f, 0, 0}, {10, 0, 0}, {10.01f, 0, 0}};
+  const PointCloud smoothed = SmoothPoints(cloud, StatsOf(cloud), 0.5);
+  EXPECT_FLOAT_EQ(smoothed.point(0).x(), 0.005f);
+  EXPECT_FLOAT_EQ(smoothed.point(1).x(), 0.005f);
+  EXPECT_FLOAT_EQ(smoothed.point(2).x(), 10.005f);
+  EXPECT_FLOAT_EQ(smoothed.point(3).x(), 10.005f);
+  // k = round(0.1 x 4) = 0: every point stays.
+  EXPECT_EQ(SmoothPoints(cloud, StatsOf(cloud), 0.1).xyz(), cloud.xyz());
+}
+
+TEST(PointSmoothingTest, AnOutlierIsPulledInAndCostsNoNeighbour) {
+  // One point 1e6 away stretches the box, so the grid's cells grow far wider than the
+  // neighbourhoods: the points of the square still find their nearest, and the outlier,
+  // whose nearest are all on the square, moves towards it.
+  PointCloud cloud = NoisySquare(32, 0.02f, 9);
+  cloud.Add(1e6f, 0, 0);
+  const PointCloud smoothed = SmoothPoints(cloud, StatsOf(cloud), 0.03);
+  EXPECT_LT(smoothed.point(cloud.size() - 1).x(), 1e6f / 20);
+  const PointCloud square = NoisySquare(32, 0.02f, 9);
+  EXPECT_LT(InnerRmsZ(smoothed, 0.15f), InnerRmsZ(square, 0.15f) / 3);
+}
+
+TEST(PointSmoothingTest, BytesStopGrowingPastTheReferencePoints) {
+  EXPECT_GE(SmoothPointsBytes(1000), 1000 * 3 * sizeof(float));
+  EXPECT_GT(SmoothPointsBytes(4000), SmoothPointsBytes(1000));
+  EXPECT_EQ(SmoothPointsBytes(100000), SmoothPointsBytes(100000000));
+  EXPECT_LT(SmoothPointsBytes(100000000), size_t{2} << 20);
+}
+
+}  // namespace
+}  // namespace shapeid
