@@ -41,6 +41,7 @@ const std::vector<std::string> kDefaultSpecs = {
     "dfsd:frame=axes",
     "dfsd:grid=16,order=10",
     "dfsd:grid=8,fields=isotropic",
+    "dfsd:smooth=0.015",
 };
 
 // CPU time of this thread: the estimate is for one core, and a shared machine's other work

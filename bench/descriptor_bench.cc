@@ -194,6 +194,11 @@ BENCHMARK_CAPTURE(DescribeBench, dfsd_box_100k, std::string("dfsd:frame=box"), 1
 BENCHMARK_CAPTURE(DescribeBench, dfsd_default_1m, std::string("dfsd"), 1000000)
     ->Unit(benchmark::kMillisecond)
     ->Iterations(3);
+// Smoothing reduces a large cloud to 4,096 points first, so it describes far fewer.
+BENCHMARK_CAPTURE(DescribeBench, dfsd_smooth_100k, std::string("dfsd:smooth=0.015"), 100000)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(DescribeBench, dfsd_smooth_1m, std::string("dfsd:smooth=0.015"), 1000000)
+    ->Unit(benchmark::kMillisecond);
 // Per-cloud time on real ModelNet10 clouds (1,024 points): the first 10 test files of each
 // class from ../shared/data, described in turn. Where the data is absent, synthetic
 // 1,024-point clouds stand in and the label says so.
@@ -244,6 +249,8 @@ BENCHMARK_CAPTURE(ModelNetCloudBench, cnsd, std::string("cnsd"))->Unit(benchmark
 BENCHMARK_CAPTURE(ModelNetCloudBench, dfsd, std::string("dfsd"))->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(ModelNetCloudBench, dfsd_pca, std::string("dfsd:frame=pca"))
     ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(ModelNetCloudBench, dfsd_smooth, std::string("dfsd:smooth=0.015"))
+    ->Unit(benchmark::kMicrosecond);
 
 // What a robot's Classify describes: DFSD in the box frame with its pose variants, on
 // single-view sensor scans (SensorView: one side, 1 % noise, 300-500 points, random pose) of
@@ -288,6 +295,8 @@ BENCHMARK_CAPTURE(ModelNetCloudBench, dfsd_box, std::string("dfsd:frame=box"))
 BENCHMARK_CAPTURE(RobotViewBench, dfsd_box, std::string("dfsd:frame=box"))
     ->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(RobotViewBench, dfsd_axes, std::string("dfsd"))->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(RobotViewBench, dfsd_box_smooth, std::string("dfsd:frame=box,smooth=0.015"))
+    ->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace shapeid

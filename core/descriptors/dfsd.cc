@@ -124,7 +124,10 @@ class DfsdDescriptor : public Descriptor {
     // 5 million points) each slab is another pass. Constants: docs/performance.md,
     // "Describe cost".
     constexpr double kNsBase = 10000, kNsPerPoint = 5, kNsPerPointCell = 0.075,
-                     kNsPerPointRow = 0.3, kSlabbedPoints = 5e6, kNsPerSmoothedPoint = 300;
+                     kNsPerPointRow = 0.3, kSlabbedPoints = 5e6;
+    // Smoothing: finding each kept point's k nearest (the candidates grow with k), and one
+    // pass to reduce a large cloud.
+    constexpr double kNsPerSmoothedPoint = 1000, kNsPerNeighbour = 50, kNsPerReducedPoint = 5;
     // axes, pca, box, upright; the second for each kSlabbedPoints beyond the first.
     constexpr double kNsPerFramedPoint[] = {0, 25, 220, 75};
     constexpr double kNsPerSlabbedPoint[] = {0, 0, 225, 165};
@@ -132,18 +135,29 @@ class DfsdDescriptor : public Descriptor {
     const size_t cells = static_cast<size_t>(g) * g * g;
     const int fields = NumFields(options_.fields);
     const size_t n = num_points;
-    const size_t chunk = KernelChunk(n);
-    const size_t padded = (n + chunk - 1) / std::max<size_t>(chunk, 1) * chunk;  // kernel's work
+    // Smoothing describes at most kSmoothingReferencePoints points. (Memory below is bounded
+    // for all n: a cloud whose smoothed points collapse is described as given.)
+    const bool smooth = options_.smooth > 0;
+    const size_t described = smooth ? std::min(n, kSmoothingReferencePoints) : n;
+    const size_t described_chunk = KernelChunk(described);
+    const size_t padded = (described + described_chunk - 1) / std::max<size_t>(described_chunk, 1) *
+                          described_chunk;  // kernel's work
     const int frame = static_cast<int>(options_.frame);
-    const double frame_ns =
-        kNsPerFramedPoint[frame] +
-        kNsPerSlabbedPoint[frame] * std::max(0.0, static_cast<double>(n) / kSlabbedPoints - 1);
-    const double smooth_ns = options_.smooth > 0 ? kNsPerSmoothedPoint : 0;
+    const double frame_ns = kNsPerFramedPoint[frame] +
+                            kNsPerSlabbedPoint[frame] *
+                                std::max(0.0, static_cast<double>(described) / kSlabbedPoints - 1);
+    const double neighbours = std::max(static_cast<double>(kMinSmoothingNeighbours),
+                                       options_.smooth * static_cast<double>(described));
+    const double smooth_ns = smooth ? (kNsPerSmoothedPoint + kNsPerNeighbour * neighbours) *
+                                              static_cast<double>(described) +
+                                          kNsPerReducedPoint * static_cast<double>(n)
+                                    : 0;
     DescribeCost cost;
     cost.cpu = cost_model::Nanoseconds(
-        kNsBase + (kNsPerPoint + frame_ns + smooth_ns) * static_cast<double>(n) +
+        kNsBase + smooth_ns + (kNsPerPoint + frame_ns) * static_cast<double>(described) +
         fields * (kNsPerPointCell * static_cast<double>(cells) * static_cast<double>(padded) +
-                  kNsPerPointRow * 3 * g * static_cast<double>(n)));
+                  kNsPerPointRow * 3 * g * static_cast<double>(described)));
+    const size_t chunk = KernelChunk(n);
     // The frame, the kernel's buffers and the pose variants come one after another.
     const size_t t = static_cast<size_t>(std::min(options_.order, g));
     const size_t kernel = 3 * static_cast<size_t>(g) * chunk * sizeof(float)  // tables
@@ -515,8 +529,9 @@ DescriptorKind DfsdKind() {
             "(most meshes are y up; LiDAR and ROS are z up)",
             /*omitted_at_default=*/true},
            {"smooth", "0",
-            "before describing, move each point to the mean of its nearest points, this share "
-            "of the cloud; 0 = off; 0.015 for noisy sensors; in [0, 0.25]",
+            "before describing, move each point to the mean of its nearest points (this share "
+            "of the cloud, at least 8); 0 = off; 0.015 for noisy scans of whole objects (not "
+            "partial views); in [0, 0.25]",
             /*omitted_at_default=*/true}},
           &dfsd_internal::CreateFromSpec};
 }

@@ -14,11 +14,15 @@ namespace shapeid {
 // Clouds up to this size are smoothed point by point; larger ones are first reduced to this
 // many of their points.
 inline constexpr size_t kSmoothingReferencePoints = 4096;
+// Fewest neighbours a point is averaged with when smoothing is on.
+inline constexpr size_t kMinSmoothingNeighbours = 8;
 
 // The cloud smoothed: each point replaced by the mean of its k nearest points (itself
-// included), k = share x the number of points, rounded; k <= 1 leaves the cloud as it is.
+// included), k = share x the number of points, rounded, but at least
+// kMinSmoothingNeighbours (and at most all of them); share 0 leaves the cloud as it is.
 // A share rather than a count or a radius, so that the neighbourhood covers the same part of
-// the object however densely it was sampled and whatever its units; nearest points rather
+// the object however densely it was sampled and whatever its units (the floor, because a
+// sparse object of 150 points has 2 in its share: too few to average noise); nearest points rather
 // than a ball, so that a point that noise threw off the surface is pulled back too (a ball
 // around it would hold nothing else). A cloud of more than kSmoothingReferencePoints points
 // is first reduced to that many of its points, chosen uniformly by a fixed seed

@@ -1,7 +1,9 @@
 #include "core/descriptors/point_smoothing.h"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "Eigen/Geometry"
@@ -64,6 +66,50 @@ TEST(PointSmoothingTest, DrawsANoisySurfaceBackToItsMiddle) {
   }
 }
 
+// Each point's k nearest by brute force, mean in double: the definition.
+PointCloud BruteForceSmoothed(const PointCloud& cloud, size_t k) {
+  PointCloud out;
+  std::vector<std::pair<float, size_t>> order(cloud.size());
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    for (size_t j = 0; j < cloud.size(); ++j) {
+      order[j] = {(cloud.point(j) - cloud.point(i)).squaredNorm(), j};
+    }
+    std::nth_element(order.begin(), order.begin() + (k - 1), order.end());
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (size_t c = 0; c < k; ++c) sum += cloud.point(order[c].second).cast<double>();
+    out.Add((sum / static_cast<double>(k)).cast<float>());
+  }
+  return out;
+}
+
+TEST(PointSmoothingTest, IsTheMeanOfTheTrueNearestPoints) {
+  // A sphere's surface (the grid's rings expand where a cap is sparse), a noisy square and a
+  // clustered cloud whose clusters are far apart (rings run to the whole grid).
+  PointCloud clusters;
+  for (int c = 0; c < 5; ++c) {
+    const PointCloud ball = SphereCloud(60, 20 + c);
+    for (size_t i = 0; i < ball.size(); ++i) {
+      clusters.Add(0.1f * ball.point(i) + Eigen::Vector3f(7.0f * c, 3.0f * (c % 2), 0));
+    }
+  }
+  for (const PointCloud& cloud : {SphereCloud(700, 4), NoisySquare(24, 0.02f, 6), clusters}) {
+    for (double share : {0.005, 0.03, 0.2}) {
+      const size_t k = std::max<size_t>(
+          kMinSmoothingNeighbours,
+          static_cast<size_t>(std::lround(share * static_cast<double>(cloud.size()))));
+      const PointCloud expected = BruteForceSmoothed(cloud, k);
+      const PointCloud smoothed = SmoothPoints(cloud, StatsOf(cloud), share);
+      ASSERT_EQ(smoothed.size(), expected.size());
+      size_t differing = 0;
+      for (size_t i = 0; i < cloud.size(); ++i) {
+        // Only an exact tie at the k-th distance may pick another point.
+        if ((smoothed.point(i) - expected.point(i)).norm() > 1e-5f) ++differing;
+      }
+      EXPECT_EQ(differing, 0u) << cloud.size() << " points, share " << share;
+    }
+  }
+}
+
 TEST(PointSmoothingTest, ALargeCloudIsReducedThenSmoothedAsFar) {
   // 40,000 points: kSmoothingReferencePoints of them come back, smoothed over the same share
   // of the square as the small cloud (and so more points).
@@ -94,16 +140,24 @@ TEST(PointSmoothingTest, TurnsWithTheCloud) {
   for (size_t i = 0; i < a.size(); ++i) EXPECT_LT(a.point(i).norm(), 1.0f);
 }
 
-TEST(PointSmoothingTest, EachPointAveragesItsNearestAndTinySharesChangeNothing) {
-  // Two pairs far apart: with k = 2 each point meets its partner only.
-  const PointCloud cloud = {{0, 0, 0}, {0.01f, 0, 0}, {10, 0, 0}, {10.01f, 0, 0}};
-  const PointCloud smoothed = SmoothPoints(cloud, StatsOf(cloud), 0.5);
-  EXPECT_FLOAT_EQ(smoothed.point(0).x(), 0.005f);
-  EXPECT_FLOAT_EQ(smoothed.point(1).x(), 0.005f);
-  EXPECT_FLOAT_EQ(smoothed.point(2).x(), 10.005f);
-  EXPECT_FLOAT_EQ(smoothed.point(3).x(), 10.005f);
-  // k = round(0.1 x 4) = 0: every point stays.
-  EXPECT_EQ(SmoothPoints(cloud, StatsOf(cloud), 0.1).xyz(), cloud.xyz());
+TEST(PointSmoothingTest, EachPointAveragesItsNearestAtLeastTheFloor) {
+  // Two clusters of kMinSmoothingNeighbours points, far apart: a small share still averages
+  // the floor's 8 points, which are exactly a point's own cluster.
+  PointCloud cloud;
+  for (size_t i = 0; i < kMinSmoothingNeighbours; ++i) {
+    cloud.Add(0.01f * static_cast<float>(i), 0, 0);
+    cloud.Add(10 + 0.01f * static_cast<float>(i), 0, 0);
+  }
+  const PointCloud smoothed = SmoothPoints(cloud, StatsOf(cloud), 0.01);
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    EXPECT_FLOAT_EQ(smoothed.point(i).x(), i % 2 == 0 ? 0.035f : 10.035f) << i;
+  }
+  // Fewer points than the floor: every point goes to the centroid.
+  const PointCloud three = {{0, 0, 0}, {3, 0, 0}, {0, 3, 0}};
+  const PointCloud centroid = SmoothPoints(three, StatsOf(three), 0.01);
+  for (size_t i = 0; i < 3; ++i) EXPECT_EQ(centroid.point(i), Eigen::Vector3f(1, 1, 0));
+  // Share 0: nothing moves.
+  EXPECT_EQ(SmoothPoints(cloud, StatsOf(cloud), 0).xyz(), cloud.xyz());
 }
 
 TEST(PointSmoothingTest, AnOutlierIsPulledInAndCostsNoNeighbour) {
