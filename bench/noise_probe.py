@@ -2,10 +2,11 @@
 """Issue 27's probe of noise: does smoothing the points before describing keep DFSD's accuracy?
 
 Writes ModelNet10's official split (or DALES Objects' five folds, --dataset dales-objects) as
-folders `shapeid eval --local` reads, one per smoothing and noise level: the training clouds clean, the test clouds with Gaussian noise of sigma =
-LEVEL x the cloud's bounding-box diagonal on every coordinate (numpy, seeded per file; shares
-no code with core/views' perturbations), both sides smoothed alike: each point replaced by the
-mean of its K nearest points (itself included). Then runs the CLI on each and prints a table.
+folders `shapeid eval --local` reads, one per smoothing and noise level: the training clouds
+clean, the test clouds with Gaussian noise of sigma = LEVEL x the cloud's bounding-box
+diagonal on every coordinate (numpy, seeded per file; shares no code with core/views'
+perturbations), both sides smoothed alike in numpy: each point replaced by the mean of its K
+nearest points (itself included). Then runs the CLI on each and prints a table.
 
   bench/noise_probe.py --out build/noise-probe            # smoothing none, knn16, knn32
   bench/noise_probe.py --smooth 8 16 --levels 0 0.02 --spec "dfsd:frame=axes"
@@ -31,12 +32,17 @@ from independent_views import dales_split, modelnet_split, read_cloud
 
 
 def knn_mean(points, k):
-    """Each point replaced by the mean of its k nearest points (brute force: 1,024-point clouds)."""
+    """Each point replaced by the mean of its k nearest points (brute force, 256 rows at a time:
+    DALES buildings have 28,000 points)."""
     if k <= 1:
         return points
-    squared = ((points[:, None, :] - points[None, :, :]) ** 2).sum(-1)
-    nearest = np.argpartition(squared, k - 1, axis=1)[:, :k]
-    return points[nearest].mean(1)
+    out = np.empty_like(points)
+    for first in range(0, len(points), 256):
+        rows = points[first:first + 256]
+        squared = ((rows[:, None, :] - points[None, :, :]) ** 2).sum(-1)
+        nearest = np.argpartition(squared, k - 1, axis=1)[:, :k]
+        out[first:first + 256] = points[nearest].mean(1)
+    return out
 
 
 def write(path, points):
@@ -119,14 +125,21 @@ def main():
                     os.makedirs(os.path.join(folder, label), exist_ok=True)
                     for split, source in (("train", "train"), ("test", f"test{level:g}")):
                         link = os.path.join(folder, label, split)
+                        target = os.path.join(base, f"knn{k}", source, label)
+                        if os.path.islink(link) and os.readlink(link) != target:
+                            os.remove(link)
                         if not os.path.islink(link):
-                            os.symlink(os.path.join(base, f"knn{k}", source, label), link)
-                result = json.loads(subprocess.run(
+                            os.symlink(target, link)
+                run = subprocess.run(
                     [args.shapeid, "eval", "--local", "--quiet", "--format", "json", "--jobs", "2",
-                     "--spec", *args.spec.split(), folder],
-                    check=True, capture_output=True, text=True).stdout)
+                     "--spec", *args.spec.split(), folder], capture_output=True, text=True)
+                if run.returncode != 0:
+                    raise SystemExit(f"noise_probe: shapeid eval failed on {folder}:\n{run.stderr}")
+                result = json.loads(run.stdout)
                 correct += result["correct"]
                 tests += result["tests"]
+            if tests == 0:
+                raise SystemExit(f"noise_probe: no test clouds for noise {level:g}")
             cells.append(f"{100 * correct / tests:.1f} %")
             lowest = min(lowest, 100 * correct / tests)
         print(f"| {'none' if k <= 1 else f'{k} nearest'} | {' | '.join(cells)} |", flush=True)

@@ -50,6 +50,7 @@
 #include "core/gallery/gallery_registry.h"
 #include "core/io/point_cloud_reader.h"
 #include "grpcpp/grpcpp.h"
+#include "server/process_stats.h"
 #include "server/server.h"
 #include "shapeid/v1/shapeid.grpc.pb.h"
 
@@ -700,6 +701,8 @@ int Run(int argc, char** argv) {
               std::chrono::duration<double>(Clock::now() - train_start).count());
 
   // The in-process twin: an identical gallery (same spec, same samples in the same order).
+  // Its growth in resident memory is what a trained sample costs (allocator slack included).
+  const absl::StatusOr<ProcessStats> before_twin = ReadProcessStats();
   GalleryRegistry registry(options.gallery_limits);
   GalleryOptions gallery_options;
   if (!spec.empty()) gallery_options.descriptor_spec = spec;
@@ -718,6 +721,15 @@ int Run(int argc, char** argv) {
       std::fprintf(stderr, "%s\n", trained.status().ToString().c_str());
       return 1;
     }
+  }
+  const absl::StatusOr<ProcessStats> after_twin = ReadProcessStats();
+  if (before_twin.ok() && after_twin.ok() && !data.train.empty()) {
+    std::printf(
+        "memory: %.0f bytes of resident memory per trained sample (%d stored views each; "
+        "the in-process gallery's growth over %zu samples)\n",
+        static_cast<double>(after_twin->resident_bytes - before_twin->resident_bytes) /
+            static_cast<double>(data.train.size()),
+        augment_views, data.train.size());
   }
 
   const std::vector<Query> queries = BuildQueries(data.test);

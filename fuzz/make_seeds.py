@@ -183,6 +183,7 @@ def spec_seeds():
         'dfsd:grid=12,order=8,frame=box,fields=both,size=0,up=z',
         'dfsd:grid=4,order=2,frame=pca,fields=isotropic,up=-y',
         'dfsd:frame=upright,fields=anisotropic,size=1.5,up=x',
+        'dfsd:frame=upright,smooth=0.25', 'dfsd:smooth=0.015',
     ]
     for i, spec in enumerate(specs):
         write('descriptor_spec_fuzzer', 'spec%02d' % i, spec)

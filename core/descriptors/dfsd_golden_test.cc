@@ -352,5 +352,87 @@ TEST(DfsdGoldenTest, LargeClouds) {
   }
 }
 
+// clang-format off
+const std::map<std::string, uint64_t>& SmoothedGolden() {
+  static const std::map<std::string, uint64_t> golden = {
+      {"surface/5", 0xb70ab6dd97f25203ULL},
+      {"surface/505", 0xe68c7ddfc5407189ULL},
+      {"surface/5000", 0x1725c400ca417f79ULL},
+      {"surface_rotated/5", 0x524dcea61e6e220fULL},
+      {"surface_rotated/505", 0x5ce970d61dcac729ULL},
+      {"surface_rotated/5000", 0x3ec94e28e5a3b51dULL},
+      {"offset/5", 0x3def693dbcf05fbfULL},
+      {"offset/505", 0x4b11153de8e559fdULL},
+      {"offset/5000", 0x8ca7ab61f2c03cf1ULL},
+      {"tiny/5", 0xa5af8e7c328511e7ULL},
+      {"tiny/505", 0x8b6610c7f7d49595ULL},
+      {"tiny/5000", 0x56e87c13e216baa9ULL},
+      {"uniform/5", 0xfc877589c7a49ac9ULL},
+      {"uniform/505", 0x3ec1a0a4c47eaffdULL},
+      {"uniform/5000", 0x3dc5e25ba115eb29ULL},
+      {"sphere/5", 0x4a2a09135f177b63ULL},
+      {"sphere/505", 0xa00f93bd19c8d65bULL},
+      {"sphere/5000", 0x205139f24016ce9bULL},
+      {"flat/5", 0x1818d3291fa417bfULL},
+      {"flat/505", 0xdb72b6aa4012584dULL},
+      {"flat/5000", 0xda992decbeac2e8dULL},
+      {"flat_rotated/5", 0x3844f88d43d5dce5ULL},
+      {"flat_rotated/505", 0x7f5a24872647a019ULL},
+      {"flat_rotated/5000", 0x853f32aa55658785ULL},
+      {"flat_grid/5", 0x9b802e9ed885aa9dULL},
+      {"flat_grid/505", 0xcfcb3d30bacc2b7dULL},
+      {"flat_grid/5000", 0x9ce7969f2b02fb89ULL},
+      {"straight/5", 0xaa8c2accfaea54e3ULL},
+      {"straight/505", 0x0df6319a584502f1ULL},
+      {"straight/5000", 0xf426cf31ba10c221ULL},
+      {"straight_noisy/5", 0xe883c48fdc66176cULL},
+      {"straight_noisy/505", 0x996f8793fded4c65ULL},
+      {"straight_noisy/5000", 0xff9093c1278cc4a9ULL},
+      {"symmetric/5", 0xb8236e7869253285ULL},
+      {"symmetric/505", 0x5d3c7458a8268e95ULL},
+      {"symmetric/5000", 0x6b8e8e413cae00edULL},
+      {"near_symmetric/5", 0xb8236e7869253285ULL},
+      {"near_symmetric/505", 0xd1565bbc5bb03019ULL},
+      {"near_symmetric/5000", 0xc914c95ca4a4e545ULL},
+      {"duplicates/5", 0x4a5881cf1c08a20aULL},
+      {"duplicates/505", 0xcd0b43efcbbcbcf9ULL},
+      {"duplicates/5000", 0x674c61ea2e6c6725ULL},
+      {"few_distinct/5", 0x55b65e03cccad8c2ULL},
+      {"few_distinct/505", 0x77b31202357460c5ULL},
+      {"few_distinct/5000", 0x7c1517b6f106c8d7ULL},
+      {"cube_lattice/5", 0xb8236e7869253285ULL},
+      {"cube_lattice/505", 0x2774520c186bac2fULL},
+      {"cube_lattice/5000", 0xae690f28bbb06e17ULL},
+      {"cylinder/5", 0xda00414b37cad7f2ULL},
+      {"cylinder/505", 0xa08e9c3e0205a391ULL},
+      {"cylinder/5000", 0x488ec6f3396d8a9dULL},
+      {"signed_zeros/5", 0x69d3081269557275ULL},
+      {"signed_zeros/505", 0x4a0f57c02249c215ULL},
+      {"signed_zeros/5000", 0xc9453d2dbd2e4061ULL},
+      {"square_prism/5", 0x2427a587ecfbf3f5ULL},
+      {"square_prism/505", 0xa0289fbada257e1dULL},
+      {"square_prism/5000", 0x360c97f749e099a1ULL},
+  };
+  return golden;
+}
+// clang-format on
+
+// Smoothing (step 0 of docs/descriptors.md section 5): its neighbours, ties, reduction seed
+// and floor shape stored vectors too. Below and past the 4,096 points it reduces to.
+TEST(DfsdGoldenTest, SmoothedClouds) {
+  if (EigenBlocking() != kRecordedBlocking) {
+    GTEST_SKIP() << "Eigen blocks this machine's products by " << EigenBlocking() << ", not "
+                 << kRecordedBlocking << " (another L1 cache size)";
+  }
+  const std::vector<std::string> specs = {"dfsd:smooth=0.015", "dfsd:frame=upright,smooth=0.05"};
+  for (const std::string& shape : Shapes()) {
+    for (size_t n : {5, 505, 5000}) {
+      Hash hash;
+      HashCloud(MakeCloud(shape, n), specs, /*check_compute=*/false, &hash);
+      Check(absl::StrCat(shape, "/", n), hash.value(), SmoothedGolden());
+    }
+  }
+}
+
 }  // namespace
 }  // namespace shapeid

@@ -501,6 +501,10 @@ TEST(DfsdTest, SmoothingIsInTheSpecOnlyWhenOn) {
             MustCompute(*MustCreate("dfsd"), cloud));
   EXPECT_NE(MustCompute(*MustCreate("dfsd:smooth=0.1"), cloud),
             MustCompute(*MustCreate("dfsd"), cloud));
+  // At most 8 points all average to one point: described as given.
+  const PointCloud few = {{0, 0, 0}, {1, 0, 0}, {0, 2, 0}, {0, 0, 3}, {1, 1, 1}};
+  EXPECT_EQ(MustCompute(*MustCreate("dfsd:smooth=0.02"), few),
+            MustCompute(*MustCreate("dfsd"), few));
 }
 
 TEST(DfsdTest, SmoothingBringsANoisyCloudsDescriptorBackTowardsTheCleanOne) {

@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
+#include "Eigen/Core"
 #include "absl/base/casts.h"
 #include "core/descriptors/cnsd_downsample.h"
 
@@ -16,8 +18,12 @@ namespace {
 // Seed of the reduction of large clouds; part of the descriptor's definition.
 constexpr uint64_t kReductionSeed = 0x5f3759df;
 
-// Cells per axis at most, so the grid's index stays small (33^3 counters) even when an
-// outlier stretches the box: cells then grow wider, which costs time, never a neighbour.
+// The grid spans the points' box cut to this many robust radii (the median distance from the
+// coordinate-wise median) around the median, so that a stray point far away neither
+// stretches the cells (which would put the object in a few and make every search scan it
+// all) nor the index. The few points beyond are searched by brute force.
+constexpr double kGridRobustRadii = 6;
+// Cells per axis at most, so the index stays small (33^3 counters).
 constexpr int kMaxCellsPerAxis = 32;
 // Candidates counted per block (see MeanOfNearest), and the padding that never counts.
 constexpr size_t kCountLanes = 8;
@@ -25,21 +31,26 @@ constexpr uint32_t kNeverBelow = 0x7fffffff;
 constexpr size_t kMaxCells =
     static_cast<size_t>(kMaxCellsPerAxis + 1) * (kMaxCellsPerAxis + 1) * (kMaxCellsPerAxis + 1);
 
-// The points sorted by grid cell, coordinates apart (x, y, z arrays) so the distance loop
-// over one cell reads three contiguous runs.
+// The points sorted by grid cell, in cell units ((coordinate - grid corner) / cell width, so
+// squared distances stay in float range whatever the cloud's scale), coordinates apart (x, y,
+// z arrays) so the distance loop over one cell reads three contiguous runs.
 class PointGrid {
  public:
-  PointGrid(const PointCloud& points, double cell) {
+  PointGrid(const PointCloud& points, const Eigen::Vector3d& centre, double radius, double cell)
+      : points_(points) {
     const size_t m = points.size();
     for (int a = 0; a < 3; ++a) {
-      lo_[a] = hi_[a] = points.data()[a];
+      double lo = points.data()[a], hi = lo;
       for (size_t i = 1; i < m; ++i) {
-        lo_[a] = std::min(lo_[a], static_cast<double>(points.data()[3 * i + a]));
-        hi_[a] = std::max(hi_[a], static_cast<double>(points.data()[3 * i + a]));
+        lo = std::min(lo, static_cast<double>(points.data()[3 * i + a]));
+        hi = std::max(hi, static_cast<double>(points.data()[3 * i + a]));
       }
+      lo_[a] = std::max(lo, centre[a] - kGridRobustRadii * radius);
+      hi_[a] = std::min(hi, centre[a] + kGridRobustRadii * radius);
     }
     const double widest = std::max({hi_[0] - lo_[0], hi_[1] - lo_[1], hi_[2] - lo_[2]});
     cell_ = std::max(cell, widest / kMaxCellsPerAxis);
+    if (!(cell_ > 0)) cell_ = 1;  // every point in one place (a reduced cloud may be)
     for (int a = 0; a < 3; ++a) {
       cells_[a] = static_cast<int>((hi_[a] - lo_[a]) / cell_) + 1;  // <= kMaxCellsPerAxis + 1
     }
@@ -53,28 +64,40 @@ class PointGrid {
     }
     for (size_t c = 1; c < start_.size(); ++c) start_[c] += start_[c - 1];
     for (int a = 0; a < 3; ++a) sorted_[a].resize(m);
+    order_.resize(m);
     std::vector<uint32_t> next(start_.begin(), start_.end() - 1);
     for (size_t i = 0; i < m; ++i) {
       const uint32_t slot = next[cell_of[i]]++;
-      for (int a = 0; a < 3; ++a) sorted_[a][slot] = points.data()[3 * i + a];
+      for (int a = 0; a < 3; ++a) sorted_[a][slot] = InCells(a, points.data()[3 * i + a]);
+      order_[slot] = static_cast<uint32_t>(i);
     }
   }
 
   // Scratch for MeanOfNearest, reused between calls: each candidate's squared distance as
-  // the bits of a non-negative float (which order as the floats do), and its sorted index.
+  // the bits of a non-negative float (which order as the floats do), and its sorted index;
+  // and (distance, sorted index) pairs for points outside the grid.
   struct Candidates {
     std::vector<uint32_t> squared_bits;
     std::vector<uint32_t> index;
+    std::vector<std::pair<double, uint32_t>> outside;
   };
 
-  // The mean of the k nearest points to p (k <= the number of points; p itself counts when
-  // it is one of them; ties at the k-th distance go to the first in cell order) into `mean`.
-  void MeanOfNearest(const float* p, size_t k, Candidates* candidates, float* mean) const {
+  // The mean of the k nearest points to point i (k <= the number of points; i itself among
+  // them) into `mean`. Ties at the k-th distance go to the first in sorted order.
+  void MeanOfNearest(size_t i, size_t k, Candidates* candidates, float* mean) const {
+    const float* const p = points_.data() + 3 * i;
+    float u[3];
     int centre[3];
-    for (int a = 0; a < 3; ++a) centre[a] = CellAlong(a, p[a]);
+    bool inside = true;
+    for (int a = 0; a < 3; ++a) {
+      u[a] = InCells(a, p[a]);
+      centre[a] = CellAlong(a, p[a]);
+      inside = inside && u[a] >= 0 && u[a] < static_cast<float>(cells_[a]);
+    }
+    if (!inside) return MeanOfNearestOutside(p, k, candidates, mean);
     // Rings of cells around p's own until the k-th nearest is nearer than any point outside
     // the cells searched can be: p lies in its cell, so a ring of r cells holds every point
-    // within r cell widths.
+    // within r cells (a point beyond the grid sits in a border cell, and is farther still).
     for (int ring = 1;; ++ring) {
       candidates->squared_bits.clear();
       candidates->index.clear();
@@ -85,13 +108,14 @@ class PointGrid {
         to[a] = std::min(centre[a] + ring, cells_[a] - 1);
         everything = everything && from[a] == 0 && to[a] == cells_[a] - 1;
       }
-      for (int i = from[0]; i <= to[0]; ++i) {
-        for (int j = from[1]; j <= to[1]; ++j) {
+      // Cells in index order, so candidates come in sorted order.
+      for (int ci = from[0]; ci <= to[0]; ++ci) {
+        for (int cj = from[1]; cj <= to[1]; ++cj) {
           // Cells along z are adjacent in the index: one run.
-          const uint32_t last = start_[Index(i, j, to[2]) + 1];
-          for (uint32_t q = start_[Index(i, j, from[2])]; q < last; ++q) {
-            const float dx = sorted_[0][q] - p[0], dy = sorted_[1][q] - p[1],
-                        dz = sorted_[2][q] - p[2];
+          const uint32_t last = start_[Index(ci, cj, to[2]) + 1];
+          for (uint32_t q = start_[Index(ci, cj, from[2])]; q < last; ++q) {
+            const float dx = sorted_[0][q] - u[0], dy = sorted_[1][q] - u[1],
+                        dz = sorted_[2][q] - u[2];
             candidates->squared_bits.push_back(
                 absl::bit_cast<uint32_t>(dx * dx + dy * dy + dz * dz));
             candidates->index.push_back(q);
@@ -104,7 +128,7 @@ class PointGrid {
       // The take-th smallest distance, bit by bit from the top: each step counts the
       // candidates below a bound, where a selection algorithm's data-dependent branches
       // would mispredict on every other candidate. Non-negative float bits compare as
-      // signed integers; padding to whole blocks of 8 with the largest (never below a bound)
+      // signed integers; padding to whole blocks with the largest (never below a bound)
       // lets the compiler count a block in vector lanes.
       while (candidates->squared_bits.size() % kCountLanes != 0) {
         candidates->squared_bits.push_back(kNeverBelow);
@@ -125,22 +149,19 @@ class PointGrid {
         for (size_t l = 0; l < kCountLanes; ++l) below += lanes[l];
         if (static_cast<size_t>(below) < take) kth = static_cast<uint32_t>(bound);
       }
+      if (!everything && absl::bit_cast<float>(kth) > static_cast<float>(ring * ring)) continue;
       const uint32_t* const bits = candidates->squared_bits.data();
-      const double reach = ring * cell_;
-      if (!everything && static_cast<double>(absl::bit_cast<float>(kth)) > reach * reach) continue;
       double sum[3] = {0, 0, 0};
       size_t taken = 0;
       for (size_t c = 0; c < count; ++c) {
         if (bits[c] < kth) {
-          const uint32_t q = candidates->index[c];
-          for (int a = 0; a < 3; ++a) sum[a] += sorted_[a][q];
+          Add(candidates->index[c], sum);
           ++taken;
         }
       }
       for (size_t c = 0; c < count && taken < take; ++c) {
         if (bits[c] == kth) {
-          const uint32_t q = candidates->index[c];
-          for (int a = 0; a < 3; ++a) sum[a] += sorted_[a][q];
+          Add(candidates->index[c], sum);
           ++taken;
         }
       }
@@ -150,6 +171,36 @@ class PointGrid {
   }
 
  private:
+  // A point beyond the grid: every point is a candidate, distances in double (a far point's
+  // cell coordinates could overflow float).
+  void MeanOfNearestOutside(const float* p, size_t k, Candidates* candidates, float* mean) const {
+    std::vector<std::pair<double, uint32_t>>& outside = candidates->outside;
+    outside.clear();
+    for (uint32_t q = 0; q < order_.size(); ++q) {
+      const float* o = points_.data() + 3 * static_cast<size_t>(order_[q]);
+      double d = 0;
+      for (int a = 0; a < 3; ++a) {
+        const double delta = static_cast<double>(o[a]) - p[a];
+        d += delta * delta;
+      }
+      outside.emplace_back(d, q);
+    }
+    std::nth_element(outside.begin(), outside.begin() + static_cast<std::ptrdiff_t>(k - 1),
+                     outside.end());
+    double sum[3] = {0, 0, 0};
+    for (size_t c = 0; c < k; ++c) Add(outside[c].second, sum);
+    for (int a = 0; a < 3; ++a) mean[a] = static_cast<float>(sum[a] / static_cast<double>(k));
+  }
+
+  // Adds the original coordinates of the point in sorted place q.
+  void Add(uint32_t q, double* sum) const {
+    const float* o = points_.data() + 3 * static_cast<size_t>(order_[q]);
+    for (int a = 0; a < 3; ++a) sum[a] += o[a];
+  }
+
+  float InCells(int a, float v) const {
+    return static_cast<float>((static_cast<double>(v) - lo_[a]) / cell_);
+  }
   // The cell along axis a of coordinate v, clamped to the grid.
   int CellAlong(int a, float v) const {
     const double q = std::floor((static_cast<double>(v) - lo_[a]) / cell_);
@@ -159,16 +210,18 @@ class PointGrid {
     return (static_cast<size_t>(i) * cells_[1] + j) * cells_[2] + k;
   }
 
+  const PointCloud& points_;
   double lo_[3], hi_[3];
   double cell_ = 0;
   int cells_[3] = {1, 1, 1};
   std::vector<uint32_t> start_;  // [cell] -> first sorted point; one past the end
   std::vector<float> sorted_[3];
+  std::vector<uint32_t> order_;  // [sorted place] -> index in the points
 };
 
 }  // namespace
 
-PointCloud SmoothPoints(const PointCloud& cloud, const CloudStats& stats, double share) {
+PointCloud SmoothPoints(const PointCloud& cloud, double share) {
   const size_t n = cloud.size();
   PointCloud reduced;
   if (n > kSmoothingReferencePoints) {
@@ -177,33 +230,40 @@ PointCloud SmoothPoints(const PointCloud& cloud, const CloudStats& stats, double
   const PointCloud& points = n > kSmoothingReferencePoints ? reduced : cloud;
   const size_t m = points.size();
   PointCloud smoothed(std::vector<float>(points.data(), points.data() + 3 * m));
-  if (!(share > 0)) return smoothed;
+  if (!(share > 0) || m == 0) return smoothed;
   const size_t k =
       std::min(m, std::max(kMinSmoothingNeighbours,
                            static_cast<size_t>(std::lround(share * static_cast<double>(m)))));
+  // A centre and radius that stray points cannot move: the coordinate-wise median, and the
+  // median distance from it.
+  std::vector<double> values(m);
+  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(m / 2);
+  Eigen::Vector3d centre;
+  for (int a = 0; a < 3; ++a) {
+    for (size_t i = 0; i < m; ++i) values[i] = points.data()[3 * i + a];
+    std::nth_element(values.begin(), middle, values.end());
+    centre[a] = *middle;
+  }
+  for (size_t i = 0; i < m; ++i) values[i] = (points.point(i).cast<double>() - centre).norm();
+  std::nth_element(values.begin(), middle, values.end());
+  const double radius = *middle;
   // Cells about as wide as the k nearest reach on a sphere's surface (pi r^2 = share x 4 pi
   // R^2), so one ring of cells mostly holds them.
-  double squares = 0;
-  for (size_t i = 0; i < m; ++i) {
-    squares += (points.point(i).cast<double>() - stats.centroid).squaredNorm();
-  }
-  const double rms_radius = std::sqrt(squares / static_cast<double>(m));
-  const PointGrid grid(points, 2 * rms_radius * std::sqrt(share));
+  const PointGrid grid(points, centre, radius, 2 * radius * std::sqrt(share));
   PointGrid::Candidates candidates;
-  candidates.squared_bits.reserve(m);
+  candidates.squared_bits.reserve(m + kCountLanes);
   candidates.index.reserve(m);
-  for (size_t i = 0; i < m; ++i) {
-    grid.MeanOfNearest(points.data() + 3 * i, k, &candidates, smoothed.data() + 3 * i);
-  }
+  for (size_t i = 0; i < m; ++i) grid.MeanOfNearest(i, k, &candidates, smoothed.data() + 3 * i);
   return smoothed;
 }
 
 size_t SmoothPointsBytes(size_t n) {
   const size_t m = std::min(n, kSmoothingReferencePoints);
-  size_t bytes = 3 * m * sizeof(float)                         // the smoothed cloud
-                 + 2 * (kMaxCells + 1) * sizeof(uint32_t)      // cell starts, next free slots
-                 + m * (sizeof(uint32_t) + 3 * sizeof(float))  // cells of, sorted points
-                 + 2 * (m + kCountLanes) * sizeof(uint32_t);   // candidates, padded
+  size_t bytes = 3 * m * sizeof(float)                             // the smoothed cloud
+                 + 2 * (kMaxCells + 1) * sizeof(uint32_t)          // cell starts, next free slots
+                 + m * (2 * sizeof(uint32_t) + 3 * sizeof(float))  // cells of, order, sorted
+                 + 2 * (m + kCountLanes) * sizeof(uint32_t)        // candidates, padded
+                 + m * sizeof(std::pair<double, uint32_t>);        // candidates beyond the grid
   if (n > kSmoothingReferencePoints) {
     bytes += cnsd_internal::RandomDownsampleBytes(n, kSmoothingReferencePoints);  // reduced
   }

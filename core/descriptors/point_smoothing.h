@@ -18,21 +18,13 @@ inline constexpr size_t kSmoothingReferencePoints = 4096;
 inline constexpr size_t kMinSmoothingNeighbours = 8;
 
 // The cloud smoothed: each point replaced by the mean of its k nearest points (itself
-// included), k = share x the number of points, rounded, but at least
-// kMinSmoothingNeighbours (and at most all of them); share 0 leaves the cloud as it is.
-// A share rather than a count or a radius, so that the neighbourhood covers the same part of
-// the object however densely it was sampled and whatever its units (the floor, because a
-// sparse object of 150 points has 2 in its share: too few to average noise); nearest points rather
-// than a ball, so that a point that noise threw off the surface is pulled back too (a ball
-// around it would hold nothing else). A cloud of more than kSmoothingReferencePoints points
-// is first reduced to that many of its points, chosen uniformly by a fixed seed
-// (cnsd_internal::RandomDownsample: the same places whatever the coordinates, so a turned
-// cloud keeps them), and those are smoothed and returned: at a descriptor's resolution they
-// are the same surface, and memory and time stay bounded whatever the cloud's size.
-// (Box-grid centroids would not do: a sparse cell off the surface counts as much as a full
-// one, so they amplify noise.) Needs `stats` from ValidateCloud(cloud), share in [0, 1].
-// Deterministic.
-PointCloud SmoothPoints(const PointCloud& cloud, const CloudStats& stats, double share);
+// included), k = round(share x points) but at least kMinSmoothingNeighbours and at most all;
+// share 0 leaves it as it is. A cloud over kSmoothingReferencePoints is first reduced to that
+// many of its points (cnsd_internal::RandomDownsample, fixed seed), which are smoothed and
+// returned, so memory and time stay bounded. Ties at the k-th distance go to a fixed order.
+// Deterministic. Why nearest points, a share and this reduction: docs/descriptors.md
+// section 5, step 0.
+PointCloud SmoothPoints(const PointCloud& cloud, double share);
 
 // The most heap SmoothPoints allocates for a cloud of n points, the returned cloud included.
 size_t SmoothPointsBytes(size_t n);

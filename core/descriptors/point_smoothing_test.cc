@@ -15,12 +15,6 @@ namespace {
 
 using testing_clouds::SphereCloud;
 
-CloudStats StatsOf(const PointCloud& cloud) {
-  const absl::StatusOr<CloudStats> stats = ValidateCloud(cloud);
-  EXPECT_TRUE(stats.ok()) << stats.status();
-  return stats.ok() ? *stats : CloudStats{};
-}
-
 // A unit square in z = 0 sampled on a jittered grid, with Gaussian noise of `sigma` in z.
 PointCloud NoisySquare(int side, float sigma, uint32_t seed) {
   std::mt19937 rng(seed);
@@ -52,7 +46,7 @@ double InnerRmsZ(const PointCloud& cloud, float margin) {
 TEST(PointSmoothingTest, DrawsANoisySurfaceBackToItsMiddle) {
   // Each point averages its 31 nearest: a disc of radius ~0.1.
   const PointCloud noisy = NoisySquare(32, 0.02f, 5);
-  const PointCloud smoothed = SmoothPoints(noisy, StatsOf(noisy), 0.03);
+  const PointCloud smoothed = SmoothPoints(noisy, 0.03);
   ASSERT_EQ(smoothed.size(), noisy.size());
   const double before = InnerRmsZ(noisy, 0.15f);
   EXPECT_NEAR(before, 0.02, 0.003);
@@ -83,8 +77,8 @@ PointCloud BruteForceSmoothed(const PointCloud& cloud, size_t k) {
 }
 
 TEST(PointSmoothingTest, IsTheMeanOfTheTrueNearestPoints) {
-  // A sphere's surface (the grid's rings expand where a cap is sparse), a noisy square and a
-  // clustered cloud whose clusters are far apart (rings run to the whole grid).
+  // A sphere's surface (the grid's rings expand where a cap is sparse), a noisy square, a
+  // clustered cloud whose clusters are far apart (rings run to the whole grid) and strays.
   PointCloud clusters;
   for (int c = 0; c < 5; ++c) {
     const PointCloud ball = SphereCloud(60, 20 + c);
@@ -92,13 +86,19 @@ TEST(PointSmoothingTest, IsTheMeanOfTheTrueNearestPoints) {
       clusters.Add(0.1f * ball.point(i) + Eigen::Vector3f(7.0f * c, 3.0f * (c % 2), 0));
     }
   }
-  for (const PointCloud& cloud : {SphereCloud(700, 4), NoisySquare(24, 0.02f, 6), clusters}) {
+  // A sphere with a few stray points far away (searched by brute force beyond the grid).
+  PointCloud strays = SphereCloud(600, 8);
+  strays.Add(40, 0, 0);
+  strays.Add(40, 0.5f, 0);
+  strays.Add(-3, -90, 7);
+  for (const PointCloud& cloud :
+       {SphereCloud(700, 4), NoisySquare(24, 0.02f, 6), clusters, strays}) {
     for (double share : {0.005, 0.03, 0.2}) {
       const size_t k = std::max<size_t>(
           kMinSmoothingNeighbours,
           static_cast<size_t>(std::lround(share * static_cast<double>(cloud.size()))));
       const PointCloud expected = BruteForceSmoothed(cloud, k);
-      const PointCloud smoothed = SmoothPoints(cloud, StatsOf(cloud), share);
+      const PointCloud smoothed = SmoothPoints(cloud, share);
       ASSERT_EQ(smoothed.size(), expected.size());
       size_t differing = 0;
       for (size_t i = 0; i < cloud.size(); ++i) {
@@ -110,14 +110,31 @@ TEST(PointSmoothingTest, IsTheMeanOfTheTrueNearestPoints) {
   }
 }
 
+TEST(PointSmoothingTest, AnyScaleGivesTheScaledResult) {
+  // Distances are taken in grid cells, so neither 1e25 (squares overflow float) nor 1e-25
+  // (squares underflow) changes which points are nearest.
+  const PointCloud cloud = SphereCloud(1500, 12);
+  const PointCloud reference = SmoothPoints(cloud, 0.02);
+  for (float scale : {1e25f, 1e-25f}) {
+    PointCloud scaled;
+    for (size_t i = 0; i < cloud.size(); ++i) scaled.Add(scale * cloud.point(i));
+    const PointCloud smoothed = SmoothPoints(scaled, 0.02);
+    size_t differing = 0;
+    for (size_t i = 0; i < cloud.size(); ++i) {
+      if ((smoothed.point(i) / scale - reference.point(i)).norm() > 1e-4f) ++differing;
+    }
+    EXPECT_LE(differing, cloud.size() / 100) << "scale " << scale;
+  }
+}
+
 TEST(PointSmoothingTest, ALargeCloudIsReducedThenSmoothedAsFar) {
   // 40,000 points: kSmoothingReferencePoints of them come back, smoothed over the same share
   // of the square as the small cloud (and so more points).
   const PointCloud noisy = NoisySquare(200, 0.02f, 5);
-  const PointCloud smoothed = SmoothPoints(noisy, StatsOf(noisy), 0.03);
+  const PointCloud smoothed = SmoothPoints(noisy, 0.03);
   EXPECT_EQ(smoothed.size(), kSmoothingReferencePoints);
   EXPECT_LT(InnerRmsZ(smoothed, 0.15f), InnerRmsZ(noisy, 0.15f) / 4);
-  EXPECT_EQ(smoothed.xyz(), SmoothPoints(noisy, StatsOf(noisy), 0.03).xyz());
+  EXPECT_EQ(smoothed.xyz(), SmoothPoints(noisy, 0.03).xyz());
 }
 
 TEST(PointSmoothingTest, TurnsWithTheCloud) {
@@ -128,8 +145,8 @@ TEST(PointSmoothingTest, TurnsWithTheCloud) {
       Eigen::AngleAxisf(0.7f, Eigen::Vector3f(1, 2, 3).normalized()).toRotationMatrix();
   PointCloud turned;
   for (size_t i = 0; i < cloud.size(); ++i) turned.Add(turn * cloud.point(i));
-  const PointCloud a = SmoothPoints(cloud, StatsOf(cloud), 0.02);
-  const PointCloud b = SmoothPoints(turned, StatsOf(turned), 0.02);
+  const PointCloud a = SmoothPoints(cloud, 0.02);
+  const PointCloud b = SmoothPoints(turned, 0.02);
   size_t differing = 0;
   for (size_t i = 0; i < a.size(); ++i) {
     // Two neighbours at nearly equal distances may swap ranks after rounding.
@@ -148,16 +165,16 @@ TEST(PointSmoothingTest, EachPointAveragesItsNearestAtLeastTheFloor) {
     cloud.Add(0.01f * static_cast<float>(i), 0, 0);
     cloud.Add(10 + 0.01f * static_cast<float>(i), 0, 0);
   }
-  const PointCloud smoothed = SmoothPoints(cloud, StatsOf(cloud), 0.01);
+  const PointCloud smoothed = SmoothPoints(cloud, 0.01);
   for (size_t i = 0; i < cloud.size(); ++i) {
     EXPECT_FLOAT_EQ(smoothed.point(i).x(), i % 2 == 0 ? 0.035f : 10.035f) << i;
   }
   // Fewer points than the floor: every point goes to the centroid.
   const PointCloud three = {{0, 0, 0}, {3, 0, 0}, {0, 3, 0}};
-  const PointCloud centroid = SmoothPoints(three, StatsOf(three), 0.01);
+  const PointCloud centroid = SmoothPoints(three, 0.01);
   for (size_t i = 0; i < 3; ++i) EXPECT_EQ(centroid.point(i), Eigen::Vector3f(1, 1, 0));
   // Share 0: nothing moves.
-  EXPECT_EQ(SmoothPoints(cloud, StatsOf(cloud), 0).xyz(), cloud.xyz());
+  EXPECT_EQ(SmoothPoints(cloud, 0).xyz(), cloud.xyz());
 }
 
 TEST(PointSmoothingTest, AnOutlierIsPulledInAndCostsNoNeighbour) {
@@ -166,7 +183,7 @@ TEST(PointSmoothingTest, AnOutlierIsPulledInAndCostsNoNeighbour) {
   // whose nearest are all on the square, moves towards it.
   PointCloud cloud = NoisySquare(32, 0.02f, 9);
   cloud.Add(1e6f, 0, 0);
-  const PointCloud smoothed = SmoothPoints(cloud, StatsOf(cloud), 0.03);
+  const PointCloud smoothed = SmoothPoints(cloud, 0.03);
   EXPECT_LT(smoothed.point(cloud.size() - 1).x(), 1e6f / 20);
   const PointCloud square = NoisySquare(32, 0.02f, 9);
   EXPECT_LT(InnerRmsZ(smoothed, 0.15f), InnerRmsZ(square, 0.15f) / 3);
