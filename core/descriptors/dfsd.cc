@@ -190,8 +190,8 @@ class DfsdDescriptor : public Descriptor {
     if (options_.smooth > 0) {
       const PointCloud smoothed = SmoothPoints(cloud, options_.smooth);
       const absl::StatusOr<CloudStats> smoothed_stats = ValidateCloud(smoothed);
-      // Only a cloud whose points all lie within reach of each other can collapse to one
-      // point; it is described as given.
+      // A cloud whose smoothed points all coincide (always so for 8 points or fewer) is
+      // described as given.
       if (smoothed_stats.ok()) {
         ComputeFromStats(smoothed, *smoothed_stats, out, variants);
         return absl::OkStatus();
