@@ -171,7 +171,7 @@ class DfsdDescriptor : public Descriptor {
                                 : 0;
     // The smoothed cloud lives through the frame and the kernel (its scratch is counted too:
     // a bound, not a sum of what is alive at once).
-    const size_t smoothing = options_.smooth > 0 ? SmoothPointsBytes(n) : 0;
+    const size_t smoothing = smooth ? SmoothPointsBytes(n) : 0;
     cost.working_bytes = dimension() * sizeof(float) + smoothing +
                          std::max({FrameBytes(n, options_.frame), kernel, variants}) +
                          cost_model::kHeapSlack;
