@@ -168,6 +168,25 @@ def xyz_seeds():
           ''.join('%.3f %.3f %.3f\n' % (527000 + q[0], 5410000 + q[1], 220 + q[2]) for q in p))
 
 
+def open3d_text_and_gzip_seeds():
+    # Open3D's and Leica's text formats, and gzip around a PCD and a text file (gzip_fuzzer)
+    import gzip
+    p = points(10)
+    write('xyz_fuzzer', 'leica_two_scans.pts',
+          '6\n' + ''.join('%.5f %.5f %.5f 12 200 100 50\n' % q for q in p[:6]) +
+          '4\n' + ''.join('%.5f %.5f %.5f 9 0 0 0\n' % q for q in p[6:]))
+    write('xyz_fuzzer', 'open3d_normals.xyzn', ''.join('%.10f %.10f %.10f 0 0 1\n' % q for q in p))
+    write('xyz_fuzzer', 'open3d_colours.xyzrgb',
+          ''.join('%.10f %.10f %.10f 0.5 0.25 1\n' % q for q in p))
+    text = ''.join('%.6f %.6f %.6f\n' % q for q in p).encode()
+    write('gzip_fuzzer', 'text_in_gzip.xyz.gz', gzip.compress(text, mtime=0))
+    body = b''.join(struct.pack('<3f', *q) for q in p)
+    pcd = pcd_header('xyz', [4, 4, 4], 'FFF', [1, 1, 1], len(p), 1, 'binary').encode() + body
+    write('gzip_fuzzer', 'binary_in_gzip.pcd.gz', gzip.compress(pcd, mtime=0))
+    write('gzip_fuzzer', 'two_members.xyz.gz',
+          gzip.compress(text[:40], mtime=0) + gzip.compress(text[40:], mtime=0))
+
+
 def spec_seeds():
     # as users type them (core/descriptor_spec.h), every kind and parameter at least once
     specs = [
@@ -196,3 +215,4 @@ if __name__ == '__main__':
     off_seeds()
     obj_seeds()
     xyz_seeds()
+    open3d_text_and_gzip_seeds()

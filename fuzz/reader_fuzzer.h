@@ -33,10 +33,9 @@ inline void FuzzReader(CloudFormat format, const uint8_t* data, size_t size) {
   ReadOptions options[2];
   options[1].drop_non_finite = true;
   options[1].recenter = false;
-  options[1].sample_faces = 64;
   options[1].sample_points = 64;
   options[1].sample_seed = size;
-  options[0].sample_points = 0;  // OFF / OBJ: the vertices
+  options[0].sample_points = 0;  // meshes: the vertices
   for (const ReadOptions& o : options) {
     absl::StatusOr<ReadResult> read = ParsePointCloud(contents, format, "fuzz-input", o);
     if (!read.ok()) {

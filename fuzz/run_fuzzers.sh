@@ -21,8 +21,8 @@ seconds=${2:-60}
 shift $(( $# > 2 ? 2 : $# ))
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-  targets=(pcd_fuzzer ply_fuzzer off_fuzzer obj_fuzzer xyz_fuzzer descriptor_spec_fuzzer
-           service_fuzzer)
+  targets=(pcd_fuzzer ply_fuzzer off_fuzzer obj_fuzzer xyz_fuzzer las_fuzzer npy_fuzzer vtk_fuzzer
+           stl_fuzzer gzip_fuzzer descriptor_spec_fuzzer service_fuzzer)
 fi
 cache=${SHAPEID_FUZZ_CACHE:-/var/tmp/shapeid-fuzz}
 out=$build/fuzz-run
@@ -42,7 +42,13 @@ real_seeds() {  # TARGET -> prints a directory (maybe empty)
       ply_fuzzer) cp "$from"/*.ply "$dir"/ 2>/dev/null || true ;;
       off_fuzzer) cp "$from"/*.off "$dir"/ 2>/dev/null || true ;;
       obj_fuzzer) cp "$from"/*.obj "$dir"/ 2>/dev/null || true ;;
-      xyz_fuzzer) cp "$from"/*.xyz "$from"/*.txt "$from"/*.csv "$dir"/ 2>/dev/null || true ;;
+      xyz_fuzzer) cp "$from"/*.xyz "$from"/*.txt "$from"/*.csv "$from"/*.pts "$from"/*.xyzn \
+                    "$from"/*.xyzrgb "$dir"/ 2>/dev/null || true ;;
+      las_fuzzer) cp "$from"/*.las "$dir"/ 2>/dev/null || true ;;
+      npy_fuzzer) cp "$from"/*.npy "$from"/*.npz "$dir"/ 2>/dev/null || true ;;
+      vtk_fuzzer) cp "$from"/*.vtk "$dir"/ 2>/dev/null || true ;;
+      stl_fuzzer) cp "$from"/*.stl "$dir"/ 2>/dev/null || true ;;
+      gzip_fuzzer) cp "$from"/*.gz "$dir"/ 2>/dev/null || true ;;
     esac
   done
   case $1 in

@@ -1165,6 +1165,10 @@ void BadInputTest::MakeScratchFiles() {
   fs::create_directories(scratch_ / "folder_named.pcd");
   fs::create_directories(scratch_ / "folder_with_notes");
   std::ofstream(scratch_ / "folder_with_notes/notes.md") << "no clouds here\n";
+  fs::create_directories(scratch_ / "folder_with_notes_and_a_cloud");
+  std::ofstream(scratch_ / "folder_with_notes_and_a_cloud/notes.md") << "one cloud here\n";
+  fs::copy_file(fs::path(SHAPEID_SOURCE_DIR) / "tests/fuzz_seeds/testdata/binary_xyz.pcd",
+                scratch_ / "folder_with_notes_and_a_cloud/cloud.pcd");
   fs::create_directories(scratch_ / "folder_with_one_bad_file/sub");
   fs::copy_file(fs::path(SHAPEID_SOURCE_DIR) / "tests/bad_input/testdata/xyz_two_columns.xyz",
                 scratch_ / "folder_with_one_bad_file/sub/two_columns.xyz");
@@ -1213,8 +1217,9 @@ std::vector<FileCase> BadInputTest::FileTable() {
       {"ply_ascii_extra_value.ply", kDescribe, 1, "line 9: extra value \"7\""},
       {"ply_binary_truncated.ply", kTrain, 1, "byte offset 156: the binary data is truncated"},
       {"ply_binary_list_count_huge.ply", kClassify, 1, "byte offset 220: the binary data is"},
-      // The CLI reads a PLY's vertices; only `views` samples its faces and so reads the indices.
-      {"ply_face_index_out_of_range.ply", kViews, 1, "line 13: vertex index 7 is not an integer"},
+      // A PLY with faces is a mesh, sampled like OFF and OBJ, so every command reads the indices.
+      {"ply_face_index_out_of_range.ply", kViews | kDescribe, 1,
+       "line 13: vertex index 7 is not an integer"},
       // An element without properties has zero-byte instances: skipped whatever its count (a count
       // of 2^64 - 1 once made the reader spin for ever); the vertices are read.
       {"ply_element_without_properties.ply", kDescribe, 0, ""},
@@ -1253,14 +1258,79 @@ std::vector<FileCase> BadInputTest::FileTable() {
       {"csv_not_a_number.csv", kDescribe, 1, "line 4: z value \"oops\" is not a number"},
       {"csv_wrong_column_count.csv", kTrain, 1, "line 3: expected x y z, found 2 values"},
       {"empty.csv", kClassify, 1, "cloud has 0 points"},
+      // LAS
+      {"las_bad_signature.las", kDescribe, 1,
+       "byte offset 0: not a LAS file: expected the signature"},
+      {"las_laz_compressed.las", kClassify, 1,
+       "byte offset 104: point data format byte 0x83 has bit 7"},
+      {"las_offset_to_points_in_header.las", kTrain, 1,
+       "byte offset 96: offset to point data 100 lies inside the"},
+      {"las_point_count_huge.las", kDescribe, 1,
+       "byte offset 375: point data is truncated: expected"},
+      {"las_points_truncated.las", kClassify, 1,
+       "byte offset 227: point data is truncated: expected 204"},
+      {"las_record_length_too_small.las", kTrain, 1,
+       "byte offset 105: point record length 33 is below the 34"},
+      {"las_scale_zero.las", kDescribe, 1,
+       "byte offset 139: y scale factor is 0; it must be finite"},
+      {"las_version_2_0.las", kClassify, 1,
+       "byte offset 24: LAS version 2.0 is not supported; shapeid"},
+      // NumPy
+      {"npy_data_truncated.npy", kTrain, 1,
+       "byte offset 128: the data is 20 bytes, but shape (2, 3)"},
+      {"npy_header_unclosed_dict.npy", kDescribe, 1,
+       "byte offset 128: array header \"{'descr': '<f4',"},
+      {"npy_object_dtype.npy", kClassify, 1,
+       "byte offset 20: pickled object arrays are not read (dtype"},
+      {"npy_shape_huge.npy", kTrain, 1, "byte offset 128: the data is 24 bytes, but shape"},
+      {"npy_structured_no_z.npy", kDescribe, 1,
+       "byte offset 20: the structured dtype has no 'z' field"},
+      {"npz_central_directory_past_end.npz", kClassify, 1,
+       "byte offset 284: the central directory (56 bytes at"},
+      {"npz_crc_mismatch.npz", kTrain, 1,
+       "byte offset 232: member \"points.npy\": its data's CRC-32"},
+      {"npz_uncompressed_size_huge.npz", kDescribe, 1,
+       "byte offset 183: member \"points.npy\" claims 4000000000"},
+      // STL
+      {"stl_ascii_facet_two_vertices.stl", kClassify, 1,
+       "line 6: the facet on line 2 has 2 vertices; STL facets"},
+      {"stl_ascii_no_endsolid.stl", kTrain, 1, "line 8: the file ends inside a solid, before its"},
+      {"stl_ascii_vertex_not_a_number.stl", kDescribe, 1,
+       "line 5: vertex y value \"zero\" is not a number"},
+      {"stl_binary_count_huge.stl", kClassify, 1,
+       "byte offset 80: neither ascii STL (which starts with"},
+      {"stl_binary_truncated.stl", kTrain, 1,
+       "byte offset 80: starts with \"solid\" but holds NUL bytes,"},
+      {"stl_neither_ascii_nor_binary.stl", kDescribe, 1,
+       "byte offset 0: neither ascii STL (which starts with"},
+      // legacy VTK
+      {"vtk_binary_points_truncated.vtk", kClassify, 1,
+       "byte offset 70: POINTS announces 9 float values (36"},
+      {"vtk_no_points_section.vtk", kTrain, 1, "line 5: the dataset has no POINTS section"},
+      {"vtk_offsets_not_rising.vtk", kDescribe, 1,
+       "line 9: OFFSETS value 2 is 2; offsets rise from 0 to"},
+      {"vtk_points_count_huge.vtk", kClassify, 1,
+       "line 5: POINTS announces 3000000000000 values but only 7"},
+      {"vtk_polygon_index_out_of_range.vtk", kTrain, 1,
+       "line 8: POLYGONS point index 3 is not in [0, 3)"},
+      {"vtk_structured_points.vtk", kDescribe, 1,
+       "line 4: DATASET STRUCTURED_POINTS has no POINTS (its"},
+      {"vtk_unknown_point_type.vtk", kClassify, 1,
+       "line 5: unknown POINTS data type \"float16\"; expected"},
       // Names and folders
-      {"unknown_extension.stl", kTrain, 1, "unknown extension \".stl\""},
+      {"unknown_extension.e57", kTrain, 1, "unknown extension \".e57\""},
+      {"las_compressed.laz", kClassify, 1, "LAZ (compressed LAS) is not read; decompress it"},
+      {"gzip_truncated.pcd.gz", kDescribe, 1, "gzip data ends early"},
       {"no_extension", kClassify, 1, "no file extension"},
       {"$scratch/missing.pcd", kClassify | kTrain, 1, "cannot open: No such file or directory"},
       {"$scratch/empty_folder", kAll, 2, "directory holds no point-cloud file"},
       {"$scratch/folder_with_notes", kClassify, 2, "directory holds no point-cloud file"},
       {"$scratch/folder_named.pcd", kDescribe, 2, "directory holds no point-cloud file"},
       {"$scratch/folder_with_one_bad_file", kTrain, 1, "two_columns.xyz: line 2: expected x y z"},
+      // A folder's other files are not skipped without a word (issue 28): the cloud is read,
+      // the notes are named, and the exit status says that not everything was processed.
+      {"$scratch/folder_with_notes_and_a_cloud", kDescribe | kClassify, 1,
+       "1 file is in no format shapeid reads and was not processed"},
       // Gallery exports
       {"$scratch/cut_in_half.shapeid", kImport, 4, "is truncated"},
       {"$scratch/cut_before_trailer.shapeid", kImport, 4, "export truncated: 6 of 6 samples"},

@@ -6,6 +6,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <sstream>
@@ -24,6 +25,8 @@
 
 namespace shapeid {
 namespace {
+
+namespace fs = std::filesystem;
 
 using ::testing::HasSubstr;
 using ::testing::StartsWith;
@@ -234,10 +237,53 @@ TEST(CliDescribeTest, NonFinitePointsFailUnlessDropped) {
   EXPECT_EQ(kept.exit_code, 1);
   EXPECT_EQ(kept.out, "");
   EXPECT_THAT(kept.err, StartsWith("shapeid: " + organised + ": "));
+  EXPECT_THAT(kept.err,
+              HasSubstr("point 10 has a non-finite coordinate (x is nan); 1 of 300 points"));
+  EXPECT_THAT(kept.err, HasSubstr("--drop-nonfinite removes them"));
   const RunResult dropped =
       Shapeid({"describe", "--local", "--spec", kSpec, "--drop-nonfinite", organised});
   EXPECT_EQ(dropped.exit_code, 0) << dropped.err;
   EXPECT_EQ(Lines(dropped.out).size(), 1u);
+}
+
+TEST(CliDescribeTest, StandardInputWithAnInputFormat) {
+  const std::string pcd = WriteTempFile("piped.pcd", BinaryPcd(Shape(1), 300, 1));
+  const RunResult file = Shapeid({"describe", "--local", "--spec", kSpec, pcd});
+  ASSERT_EQ(file.exit_code, 0) << file.err;
+  const RunResult piped =
+      Shapeid({"describe", "--local", "--spec", kSpec, "--input-format", "pcd", "-"}, pcd);
+  ASSERT_EQ(piped.exit_code, 0) << piped.err;
+  EXPECT_EQ(TextValues(Lines(piped.out).at(0), "-"), TextValues(Lines(file.out).at(0), pcd));
+  // Without the format, one clear line naming the flag.
+  const RunResult unnamed = Shapeid({"describe", "--local", "--spec", kSpec, "-"}, pcd);
+  EXPECT_EQ(unnamed.exit_code, 1);
+  EXPECT_THAT(unnamed.err, HasSubstr("--input-format (pcd, ply,"));
+  const RunResult unknown =
+      Shapeid({"describe", "--local", "--spec", kSpec, "--input-format", "e57", "-"}, pcd);
+  EXPECT_EQ(unknown.exit_code, 2);
+}
+
+TEST(CliDescribeTest, AFoldersOtherFilesAreListedAndFailTheRunUnlessSkipped) {
+  const std::string pcd = WriteTempFile("mixed_dir_shape.pcd", BinaryPcd(Shape(1), 300, 1));
+  const fs::path dir = fs::path(testing::TempDir()) / "shapeid_cli_mixed_folder";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  fs::copy_file(pcd, dir / "shape.pcd");
+  std::ofstream(dir / "notes.md") << "# notes\n";
+  std::ofstream(dir / "tile.laz") << "LASF";
+  const RunResult listed = Shapeid({"describe", "--local", "--spec", kSpec, dir.string()});
+  EXPECT_EQ(listed.exit_code, 1);
+  EXPECT_EQ(Lines(listed.out).size(), 1u) << listed.out;
+  EXPECT_THAT(listed.err,
+              HasSubstr("2 files are in no format shapeid reads and were not "
+                        "processed: " +
+                        (dir / "notes.md").string() + ", " + (dir / "tile.laz").string()));
+  EXPECT_THAT(listed.err, HasSubstr("--skip-unsupported"));
+  const RunResult skipped =
+      Shapeid({"describe", "--local", "--spec", kSpec, "--skip-unsupported", dir.string()});
+  EXPECT_EQ(skipped.exit_code, 0) << skipped.err;
+  EXPECT_EQ(skipped.err, "");
+  EXPECT_EQ(Lines(skipped.out).size(), 1u);
 }
 
 TEST(CliDescribeTest, TheSensorFrameTurnsACameraCloudUpright) {

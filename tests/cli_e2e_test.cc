@@ -104,6 +104,24 @@ TEST_F(CliE2ETest, ViewsMakeALabelledTrainTestLayout) {
   }
 }
 
+TEST_F(CliE2ETest, TrainJsonGivesEachFilesSampleIdSoANeighbourTracesBackToItsFile) {
+  ASSERT_EQ(Run({"gallery", "create", "traced", "--spec", "rphsd:refs=cross7,bins=10"}).exit_code,
+            0);
+  const RunResult trained = Run({"train", "--gallery", "traced", "--format", "json", Data()});
+  ASSERT_EQ(trained.exit_code, 0) << trained.err;
+  EXPECT_EQ(Python(trained.out,
+                   "len(rows[0]['samples']), len({s['sample_id'] for s in rows[0]['samples']}), "
+                   "sorted(rows[0]['samples'], key=lambda s: s['file']) == rows[0]['samples']"),
+            "(24, 24, True)");
+  const std::string file = Data("cube/train/view-007.pcd");
+  const std::string id = Python(
+      trained.out, absl::StrCat("[s['sample_id'] for s in rows[0]['samples'] if s['file'] == '",
+                                file, "' and s['label'] == 'cube'][0]"));
+  const RunResult classified = Run({"classify", "--gallery", "traced", "--format", "json", file});
+  ASSERT_EQ(classified.exit_code, 0) << classified.err;
+  EXPECT_EQ(Python(classified.out, "rows[0]['neighbors'][0]['sample_id']"), id);
+}
+
 TEST_F(CliE2ETest, CreateTrainClassifyEvaluate) {
   RunResult created = Run({"gallery", "create", "demo", "--spec", "rphsd:refs=cross7,bins=10"});
   ASSERT_EQ(created.exit_code, 0) << created.err;

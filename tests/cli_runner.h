@@ -35,13 +35,15 @@ inline std::string Slurp(const std::string& path) {
   return text.str();
 }
 
-// Runs the built `shapeid` with `args` through the shell, capturing both streams.
-inline RunResult Shapeid(const std::vector<std::string>& args) {
+// Runs the built `shapeid` with `args` through the shell, capturing both streams; standard
+// input is `stdin_path` when given.
+inline RunResult Shapeid(const std::vector<std::string>& args, const std::string& stdin_path = "") {
   const std::string out_path = WriteTempFile("stdout", "");
   const std::string err_path = WriteTempFile("stderr", "");
   std::string command = ShellQuote(SHAPEID_CLI_PATH);
   for (const std::string& arg : args) absl::StrAppend(&command, " ", ShellQuote(arg));
   absl::StrAppend(&command, " >", ShellQuote(out_path), " 2>", ShellQuote(err_path));
+  if (!stdin_path.empty()) absl::StrAppend(&command, " <", ShellQuote(stdin_path));
   const int status = std::system(command.c_str());
   RunResult run;
   run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;

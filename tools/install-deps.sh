@@ -13,7 +13,7 @@ packages=(
   libeigen3-dev libnanoflann-dev libabsl-dev
   # RPC stack (server, client library)
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
-  zlib1g-dev  # CRC-32 of gallery exports (server/gallery_export.cc); gRPC pulls it in too
+  zlib1g-dev  # CRC-32 of gallery exports; gzipped clouds and .npz members (core/io/gzip.cc)
   # CLI argument parsing: subcommands with typed options and generated --help
   libcli11-dev
   # LZF decompression of PCD DATA binary_compressed (core/io/pcd_reader.cc)
@@ -51,6 +51,10 @@ packages=(
   # the Python package's tests (pytest) and the clouds robots hold: Open3D point clouds, ROS 1
   # sensor_msgs PointCloud2 messages (Debian's message classes import without a ROS master)
   python3-pytest python3-open3d python3-sensor-msgs
+  # files as other tools write them, for the readers' tests: PCL's converters (VTK, PLY, PCD,
+  # OBJ; tests/formats/cross_tool_formats.py, core/io/vtk_reader_test.cc), VTK's own writer
+  # and numpy-stl (core/io/vtk_reader_test.cc, core/io/stl_reader_test.cc)
+  pcl-tools python3-vtk9 python3-stl
 )
 
 sudo_if_needed() { if [ "$(id -u)" -eq 0 ]; then "$@"; else sudo "$@"; fi; }

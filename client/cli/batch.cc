@@ -10,6 +10,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "client/cli/describe_command.h"
+#include "client/cli/input_files.h"
 #include "core/io/point_cloud_reader.h"
 
 namespace shapeid {
@@ -90,6 +91,12 @@ TrainOutcome TrainFiles(Client& client, const std::string& gallery,
   BatchState state(progress, err);
   std::atomic<uint64_t> trained{0};
   std::atomic<uint64_t> gallery_count{0};
+  std::mutex trained_mu;
+  std::vector<std::pair<size_t, uint64_t>> trained_ids;  // (index into `files`, sample id)
+  const auto record = [&](size_t file, uint64_t id) {
+    std::lock_guard<std::mutex> lock(trained_mu);
+    trained_ids.emplace_back(file, id);
+  };
 
   const auto send = [&](const std::vector<TrainSample>& samples) {
     Client::TrainOptions train;
@@ -116,7 +123,7 @@ TrainOutcome TrainFiles(Client& client, const std::string& gallery,
         clouds.reserve(end - begin);
         size_t read_failures = 0;
         for (size_t i = begin; i < end; ++i) {
-          absl::StatusOr<ReadResult> read = ReadPointCloud(files[i].path, options.read);
+          absl::StatusOr<ReadResult> read = ReadInputCloud(files[i].path, options.read);
           if (!read.ok()) {
             state.Fail(files[i].path, read.status());
             ++read_failures;
@@ -132,7 +139,9 @@ TrainOutcome TrainFiles(Client& client, const std::string& gallery,
         size_t failures = read_failures;
         if (!samples.empty()) {
           const absl::Status status = send(samples);
-          if (!status.ok() && StopsBatch(status)) {
+          if (status.ok()) {
+            for (size_t j = 0; j < samples.size(); ++j) record(owners[j], samples[j].sample_id);
+          } else if (StopsBatch(status)) {
             state.Stop(status);
           } else if (!status.ok() && samples.size() == 1) {
             state.Fail(files[owners[0]].path, status);
@@ -141,7 +150,10 @@ TrainOutcome TrainFiles(Client& client, const std::string& gallery,
             // One bad cloud refuses the whole stream; find it by sending one per stream.
             for (size_t j = 0; j < samples.size() && !state.stopped(); ++j) {
               const absl::Status single = send({samples[j]});
-              if (single.ok()) continue;
+              if (single.ok()) {
+                record(owners[j], samples[j].sample_id);
+                continue;
+              }
               if (StopsBatch(single)) {
                 state.Stop(single);
               } else {
@@ -156,6 +168,10 @@ TrainOutcome TrainFiles(Client& client, const std::string& gallery,
       [&] { return state.stopped(); });
 
   TrainOutcome outcome;
+  std::sort(trained_ids.begin(), trained_ids.end());
+  for (const auto& [file, id] : trained_ids) {
+    outcome.files.push_back({files[file].path, files[file].label, id});
+  }
   outcome.trained = trained.load();
   outcome.gallery_sample_count = gallery_count.load();
   outcome.failed = state.TakeFailed();
@@ -189,7 +205,7 @@ ClassifyOutcome ClassifyFiles(
       paths.size(), options.jobs,
       [&](size_t i) {
         Slot slot;
-        absl::StatusOr<ReadResult> read = ReadPointCloud(paths[i], options.read);
+        absl::StatusOr<ReadResult> read = ReadInputCloud(paths[i], options.read);
         if (read.ok()) {
           const Clock::time_point call_start = Clock::now();
           absl::StatusOr<v1::ClassifyResponse> response =

@@ -19,10 +19,11 @@
 namespace shapeid {
 
 struct BatchOptions {
-  int jobs = 4;                  // parallel streams: reading and describing overlap the network
-  size_t train_batch = 32;       // samples per Train stream (all-or-nothing on the server)
-  ReadOptions read;              // how files become clouds (non-finite points, mesh sampling)
-  v1::SensorFrame sensor_frame;  // the sensor's frame for Train (Classify's is in its options)
+  int jobs = 4;                   // parallel streams: reading and describing overlap the network
+  size_t train_batch = 32;        // samples per Train stream (all-or-nothing on the server)
+  ReadOptions read;               // how files become clouds (non-finite points, mesh sampling)
+  bool skip_unsupported = false;  // folders' files of other formats: ignored, not reported
+  v1::SensorFrame sensor_frame;   // the sensor's frame for Train (Classify's is in its options)
 };
 
 // A file the batch could not use, with the reason ("a.pcd: line 3: ...").
@@ -31,8 +32,17 @@ struct FailedInput {
   absl::Status status;
 };
 
+// A file trained into the gallery, and the sample id it was given (client-chosen, so known
+// before the server answers): what traces a neighbour in a later Classify back to its file.
+struct TrainedFile {
+  std::string path;
+  std::string label;
+  uint64_t sample_id = 0;
+};
+
 struct TrainOutcome {
   uint64_t trained = 0;               // samples added
+  std::vector<TrainedFile> files;     // the trained files, in input order
   std::vector<FailedInput> failed;    // skipped files
   absl::Status stopped;               // non-OK when the batch stopped early (StopsBatch)
   uint64_t gallery_sample_count = 0;  // after the last successful stream

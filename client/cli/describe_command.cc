@@ -123,21 +123,24 @@ int RunDescribe(const DescribeOptions& options, const CliContext& context) {
     if (client == nullptr) return kExitUsage;
   }
 
-  absl::StatusOr<std::vector<std::string>> files = ExpandInputs(options.files);
+  std::vector<std::string> unsupported;
+  absl::StatusOr<std::vector<std::string>> files = ExpandInputs(options.files, &unsupported);
   if (!files.ok()) {
     PrintError(err, "describe", files.status());
     return kExitUsage;
   }
-  ReadOptions read_options;
-  read_options.drop_non_finite = options.drop_non_finite;
   bool failed = false;
+  if (!unsupported.empty() && !options.skip_unsupported) {
+    WriteAll(err, absl::StrCat("shapeid: describe: ", UnsupportedFilesMessage(unsupported), "\n"));
+    failed = true;
+  }
   bool header_written = false;
   std::vector<float> values;
   std::string line;
   Progress progress(err, context.progress, "describe", files->size());
   for (const std::string& file : *files) {
     absl::Status status;
-    absl::StatusOr<ReadResult> read = ReadPointCloud(file, read_options);
+    absl::StatusOr<ReadResult> read = ReadInputCloud(file, options.read);
     if (!read.ok()) {
       status = read.status();
     } else if (local != nullptr) {
@@ -207,9 +210,13 @@ std::string DescribeHelpFooter() {
       DescribeRegistry(),
       "\n"
       "Files: .pcd (PCD v0.7: ascii, binary, binary_compressed), .ply (ascii, binary little or\n"
-      "big endian; vertices), .off and .obj (meshes, sampled to 2,048 points, area-weighted,\n"
-      "seeded), .xyz / .txt (x y z per line, blank- or comma-separated), .csv (comma or\n"
-      "semicolon). Folders are walked for these files.\n"
+      "big endian), .off, .obj, .stl, .vtk (legacy polydata), .las (1.0-1.4), .npy / .npz\n"
+      "(N x 3 or more columns, or x/y/z fields), .xyz / .txt / .xyzn / .xyzrgb / .pts (x y z\n"
+      "first on each line, blank- or comma-separated), .csv (comma or semicolon); any of them\n"
+      "gzipped (.gz). Meshes (files with faces) are sampled to --mesh-points points (2,048),\n"
+      "area-weighted and seeded. FILE - reads standard input (with --input-format). Folders\n"
+      "are walked for these files; their other files are listed and make the exit status 1\n"
+      "unless --skip-unsupported.\n"
       "Coordinates are recentred on the bounding box before conversion to float; every\n"
       "descriptor is translation invariant.\n"
       "\n"

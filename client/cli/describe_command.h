@@ -10,6 +10,7 @@
 #include "absl/types/span.h"
 #include "client/cli/cli_common.h"
 #include "core/descriptor_registry.h"
+#include "core/io/read_options.h"
 
 namespace shapeid {
 
@@ -22,7 +23,8 @@ struct DescribeOptions {
   // (kDefaultDescriptorSpec). Registry defaults fill omitted parameters.
   std::string spec;
   std::string gallery;             // server mode: describe as this gallery would
-  bool drop_non_finite = false;    // ReadOptions::drop_non_finite
+  ReadOptions read;                // non-finite points, mesh sampling, an explicit format
+  bool skip_unsupported = false;   // folders' other files: ignored instead of reported
   v1::SensorFrame sensor_frame;    // the sensor's frame (ParseSensorFrame); locally too
   std::vector<std::string> files;  // files, or folders walked for point-cloud files
 };

@@ -67,6 +67,11 @@ int RunEval(const EvalOptions& options, const CliContext& context) {
   absl::StatusOr<EvalPlan> plan =
       PlanEval(options.dataset, !options.gallery.empty(), options.folds, options.seed);
   if (!plan.ok()) return usage(plan.status());
+  const bool unsupported_failed = !plan->unsupported.empty() && !options.batch.skip_unsupported;
+  if (unsupported_failed) {
+    WriteAll(context.err,
+             absl::StrCat("shapeid: eval: ", UnsupportedFilesMessage(plan->unsupported), "\n"));
+  }
   absl::StatusOr<v1::CreateGalleryRequest> request = CreateGalleryRequestFor(options.create);
   if (!request.ok()) return usage(request.status());
 
@@ -116,7 +121,8 @@ int RunEval(const EvalOptions& options, const CliContext& context) {
     if (!step.ok()) return stopped(step);
   }
   backend.reset();  // temporary galleries go before the results are printed
-  return WriteEvalResults(run, options, context);
+  const int code = WriteEvalResults(run, options, context);
+  return code == kExitOk && unsupported_failed ? kExitSomeInputsFailed : code;
 }
 
 }  // namespace shapeid

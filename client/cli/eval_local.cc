@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "client/cli/describe_command.h"
+#include "client/cli/input_files.h"
 #include "core/gallery/gallery.h"
 #include "core/gallery/gallery_options.h"
 #include "core/gallery/gallery_snapshot.h"
@@ -117,7 +118,7 @@ class LocalEvalBackend final : public EvalBackend {
           // A server refuses such a sample (e.g. a folder named "unknown") the same way.
           d.status = ValidateLabel(train[i].label);
           if (!d.status.ok()) return d;
-          absl::StatusOr<ReadResult> read = ReadPointCloud(train[i].path, options_.batch.read);
+          absl::StatusOr<ReadResult> read = ReadInputCloud(train[i].path, options_.batch.read);
           if (!read.ok()) {
             d.status = read.status();
             return d;
@@ -166,7 +167,7 @@ class LocalEvalBackend final : public EvalBackend {
         test.size(), options_.batch.jobs,
         [&](size_t i) {
           Classified c;
-          absl::StatusOr<ReadResult> read = ReadPointCloud(test[i].path, options_.batch.read);
+          absl::StatusOr<ReadResult> read = ReadInputCloud(test[i].path, options_.batch.read);
           if (!read.ok()) {
             c.status = read.status();
             return c;

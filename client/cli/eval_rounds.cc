@@ -34,16 +34,18 @@ absl::StatusOr<EvalPlan> PlanEval(const std::string& dataset, bool against_galle
   if (against_gallery) {
     plan.mode = "gallery";
     absl::StatusOr<std::vector<LabelledFile>> test =
-        LabelledFiles(dataset, split_layout ? Split::kTest : Split::kAll);
+        LabelledFiles(dataset, split_layout ? Split::kTest : Split::kAll, &plan.unsupported);
     if (!test.ok()) return test.status();
     plan.rounds.push_back({{}, std::move(test).value()});
     return plan;
   }
   if (folds == 0 && split_layout) {
     plan.mode = "holdout";
-    absl::StatusOr<std::vector<LabelledFile>> train = LabelledFiles(dataset, Split::kTrain);
+    absl::StatusOr<std::vector<LabelledFile>> train =
+        LabelledFiles(dataset, Split::kTrain, &plan.unsupported);
     if (!train.ok()) return train.status();
-    absl::StatusOr<std::vector<LabelledFile>> test = LabelledFiles(dataset, Split::kTest);
+    absl::StatusOr<std::vector<LabelledFile>> test =
+        LabelledFiles(dataset, Split::kTest, &plan.unsupported);
     if (!test.ok()) return test.status();
     plan.rounds.push_back({std::move(train).value(), std::move(test).value()});
     return plan;
@@ -51,7 +53,8 @@ absl::StatusOr<EvalPlan> PlanEval(const std::string& dataset, bool against_galle
   plan.mode = "kfold";
   const int k = folds == 0 ? 5 : folds;
   if (k < 2) return absl::InvalidArgumentError("--folds must be at least 2");
-  absl::StatusOr<std::vector<LabelledFile>> files = LabelledFiles(dataset, Split::kAll);
+  absl::StatusOr<std::vector<LabelledFile>> files =
+      LabelledFiles(dataset, Split::kAll, &plan.unsupported);
   if (!files.ok()) return files.status();
   if (files->size() < static_cast<size_t>(k)) {
     return absl::InvalidArgumentError(

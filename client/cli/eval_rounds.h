@@ -23,6 +23,7 @@ struct EvalPlan {
   std::string mode;  // "gallery", "holdout" or "kfold" (EvalRun::mode)
   int folds = 1;     // K for kfold, else 1
   std::vector<EvalRound> rounds;
+  std::vector<std::string> unsupported;  // the dataset's files in no format shapeid reads
 };
 
 // The rounds for a labelled folder (input_files.h):

@@ -1,11 +1,13 @@
 #include "client/cli/input_files.h"
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <system_error>
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "core/io/point_cloud_reader.h"
 
 namespace shapeid {
@@ -18,8 +20,10 @@ bool IsHidden(const fs::path& path) {
   return !name.empty() && name[0] == '.';
 }
 
-// Appends every point-cloud file under `dir` (recursively, hidden entries skipped).
-absl::Status Walk(const fs::path& dir, std::vector<std::string>* files) {
+// Appends every point-cloud file under `dir` (recursively, hidden entries skipped) to `files`,
+// and every other regular file to `unsupported`.
+absl::Status Walk(const fs::path& dir, std::vector<std::string>* files,
+                  std::vector<std::string>* unsupported) {
   std::error_code ec;
   fs::recursive_directory_iterator it(dir, fs::directory_options::follow_directory_symlink, ec);
   if (ec) return absl::UnknownError(absl::StrCat(dir.string(), ": ", ec.message()));
@@ -29,9 +33,8 @@ absl::Status Walk(const fs::path& dir, std::vector<std::string>* files) {
       if (it->is_directory(ec)) it.disable_recursion_pending();
       continue;
     }
-    if (it->is_regular_file(ec) && IsPointCloudFile(it->path().string())) {
-      files->push_back(it->path().string());
-    }
+    if (!it->is_regular_file(ec)) continue;
+    (IsPointCloudFile(it->path().string()) ? files : unsupported)->push_back(it->path().string());
   }
   if (ec) return absl::UnknownError(absl::StrCat(dir.string(), ": ", ec.message()));
   return absl::OkStatus();
@@ -52,7 +55,45 @@ std::vector<fs::path> LabelFolders(const fs::path& dir, std::error_code& ec) {
 
 bool IsPointCloudFile(absl::string_view path) { return CloudFormatForPath(path).ok(); }
 
-absl::StatusOr<std::vector<std::string>> ExpandInputs(const std::vector<std::string>& paths) {
+std::string UnsupportedFilesMessage(const std::vector<std::string>& unsupported) {
+  if (unsupported.empty()) return "";
+  constexpr size_t kNamed = 3;
+  std::vector<std::string> first(unsupported.begin(),
+                                 unsupported.begin() + std::min(kNamed, unsupported.size()));
+  std::string more;
+  if (unsupported.size() > kNamed)
+    more = absl::StrCat(" and ", unsupported.size() - kNamed, " more");
+  return absl::StrCat(unsupported.size(), unsupported.size() == 1 ? " file is" : " files are",
+                      " in no format shapeid reads and ", unsupported.size() == 1 ? "was" : "were",
+                      " not processed: ", absl::StrJoin(first, ", "), more, " (shapeid reads ",
+                      SupportedExtensions(), "; --skip-unsupported ignores other files)");
+}
+
+absl::StatusOr<ReadResult> ReadInputCloud(const std::string& path, const ReadOptions& options) {
+  absl::StatusOr<ReadResult> read = ReadPointCloud(path, options);
+  if (!read.ok() || options.drop_non_finite) return read;
+  const float* xyz = read->cloud.data();
+  const size_t n = read->cloud.size();
+  size_t first = n;
+  size_t bad = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const bool finite =
+        std::isfinite(xyz[3 * i]) && std::isfinite(xyz[3 * i + 1]) && std::isfinite(xyz[3 * i + 2]);
+    if (finite) continue;
+    if (bad++ == 0) first = i;
+  }
+  if (bad == 0) return read;
+  int axis = 0;
+  while (axis < 2 && std::isfinite(xyz[3 * first + axis])) ++axis;
+  return absl::InvalidArgumentError(absl::StrCat(
+      path == "-" ? "standard input" : path, ": point ", first, " has a non-finite coordinate (",
+      std::string(1, "xyz"[axis]), " is ", xyz[3 * first + axis], "); ", bad, " of ", n,
+      " points are non-finite, as an organised depth-camera cloud marks missing pixels; "
+      "--drop-nonfinite removes them"));
+}
+
+absl::StatusOr<std::vector<std::string>> ExpandInputs(const std::vector<std::string>& paths,
+                                                      std::vector<std::string>* unsupported) {
   std::vector<std::string> files;
   for (const std::string& path : paths) {
     std::error_code ec;
@@ -62,20 +103,24 @@ absl::StatusOr<std::vector<std::string>> ExpandInputs(const std::vector<std::str
       continue;
     }
     std::vector<std::string> found;
-    if (absl::Status walked = Walk(path, &found); !walked.ok()) return walked;
+    std::vector<std::string> others;
+    if (absl::Status walked = Walk(path, &found, &others); !walked.ok()) return walked;
+    std::sort(others.begin(), others.end());
     if (found.empty()) {
       return absl::InvalidArgumentError(
-          absl::StrCat(path,
-                       ": directory holds no point-cloud file (.pcd .ply .off .obj .xyz "
-                       ".txt .csv)"));
+          absl::StrCat(path, ": directory holds no point-cloud file (", SupportedExtensions(), ")",
+                       others.empty() ? "" : absl::StrCat("; ", UnsupportedFilesMessage(others))));
     }
     std::sort(found.begin(), found.end());
     files.insert(files.end(), found.begin(), found.end());
+    if (unsupported != nullptr)
+      unsupported->insert(unsupported->end(), others.begin(), others.end());
   }
   return files;
 }
 
-absl::StatusOr<std::vector<LabelledFile>> LabelledFiles(const std::string& dir, Split split) {
+absl::StatusOr<std::vector<LabelledFile>> LabelledFiles(const std::string& dir, Split split,
+                                                        std::vector<std::string>* unsupported) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) {
     if (!fs::exists(dir, ec)) {
@@ -87,6 +132,7 @@ absl::StatusOr<std::vector<LabelledFile>> LabelledFiles(const std::string& dir, 
   const std::vector<fs::path> labels = LabelFolders(dir, ec);
   if (ec) return absl::UnknownError(absl::StrCat(dir, ": ", ec.message()));
   std::vector<LabelledFile> files;
+  std::vector<std::string> others;
   for (const fs::path& label_dir : labels) {
     fs::path root = label_dir;
     if (split == Split::kTrain && fs::is_directory(label_dir / "train", ec)) {
@@ -96,17 +142,20 @@ absl::StatusOr<std::vector<LabelledFile>> LabelledFiles(const std::string& dir, 
       if (!fs::is_directory(root, ec)) continue;
     }
     std::vector<std::string> found;
-    if (absl::Status walked = Walk(root, &found); !walked.ok()) return walked;
+    if (absl::Status walked = Walk(root, &found, &others); !walked.ok()) return walked;
     std::sort(found.begin(), found.end());
     const std::string label = label_dir.filename().string();
     for (std::string& path : found) files.push_back({std::move(path), label});
   }
+  std::sort(others.begin(), others.end());
   if (files.empty()) {
     const char* layout = split == Split::kTest ? "<label>/test/<files>" : "<label>/<files>";
     return absl::InvalidArgumentError(
         absl::StrCat(dir, ": no labelled point-cloud file found; expected the layout ", dir, "/",
-                     layout, " (one sub-folder per label)"));
+                     layout, " (one sub-folder per label)",
+                     others.empty() ? "" : absl::StrCat("; ", UnsupportedFilesMessage(others))));
   }
+  if (unsupported != nullptr) unsupported->insert(unsupported->end(), others.begin(), others.end());
   return files;
 }
 

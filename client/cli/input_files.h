@@ -9,17 +9,29 @@
 
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
+#include "core/io/read_options.h"
 
 namespace shapeid {
 
-// True for an extension ReadPointCloud knows (.pcd .ply .off .obj .xyz .txt .csv, any case).
+// True for an extension ReadPointCloud knows (core/io/read_options.h's CloudFormat, any case).
 bool IsPointCloudFile(absl::string_view path);
 
 // Files as given stay, whatever their extension and even when missing: the reader reports
-// each as one failed input, and a batch goes on. A directory is walked recursively for
-// point-cloud files, sorted by path, hidden entries skipped; InvalidArgument for a directory
-// with no point-cloud file.
-absl::StatusOr<std::vector<std::string>> ExpandInputs(const std::vector<std::string>& paths);
+// each as one failed input, and a batch goes on; "-" is standard input. A directory is walked
+// recursively for point-cloud files, sorted by path, hidden entries skipped; its other files
+// are appended to `unsupported` (when given) for the command to report. InvalidArgument for a
+// directory with no point-cloud file, naming what it holds instead.
+absl::StatusOr<std::vector<std::string>> ExpandInputs(
+    const std::vector<std::string>& paths, std::vector<std::string>* unsupported = nullptr);
+
+// The one stderr line that reports a walk's unsupported files: how many, the first few names,
+// the extensions shapeid reads, and the flag that ignores them. Empty when there are none.
+std::string UnsupportedFilesMessage(const std::vector<std::string>& unsupported);
+
+// ReadPointCloud for the commands: as it, and a cloud with non-finite points (an organised
+// cloud's missing pixels) is refused here, before any server sees it, with the count and
+// the flag that removes them (--drop-nonfinite), unless options.drop_non_finite.
+absl::StatusOr<ReadResult> ReadInputCloud(const std::string& path, const ReadOptions& options);
 
 struct LabelledFile {
   std::string path;
@@ -37,8 +49,10 @@ enum class Split {
 // and holds its clouds, at any depth. Sorted by label, then path. InvalidArgument when `dir`
 // has no sub-folder or no file at all (with the layout expected in the message), NotFound
 // when it does not exist. A label folder without files for `split` is skipped silently; the
-// caller sees it missing from the result.
-absl::StatusOr<std::vector<LabelledFile>> LabelledFiles(const std::string& dir, Split split);
+// caller sees it missing from the result. Files in formats no reader knows go to
+// `unsupported` (when given), as for ExpandInputs.
+absl::StatusOr<std::vector<LabelledFile>> LabelledFiles(
+    const std::string& dir, Split split, std::vector<std::string>* unsupported = nullptr);
 
 // True when every label folder of `dir` has both a train/ and a test/ sub-folder (hold-out
 // layout, as ../shared/data/modelnet10); false for a flat <label>/ layout.

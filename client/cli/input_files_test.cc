@@ -33,10 +33,12 @@ class InputFilesTest : public ::testing::Test {
 };
 
 TEST_F(InputFilesTest, RecognisesPointCloudExtensions) {
-  for (const char* name : {"a.pcd", "b.PLY", "c.off", "d.obj", "e.xyz", "f.txt", "g.csv"}) {
+  for (const char* name :
+       {"a.pcd", "b.PLY", "c.off", "d.obj", "e.xyz", "f.txt", "g.csv", "h.stl", "i.vtk", "j.las",
+        "k.npy", "l.npz", "m.pts", "n.xyzn", "o.xyzrgb", "p.pcd.gz"}) {
     EXPECT_TRUE(IsPointCloudFile(name)) << name;
   }
-  for (const char* name : {"readme.md", "noext", "x.pcd.bak"}) {
+  for (const char* name : {"readme.md", "noext", "x.pcd.bak", "t.laz", "u.gz"}) {
     EXPECT_FALSE(IsPointCloudFile(name)) << name;
   }
 }
@@ -49,10 +51,52 @@ TEST_F(InputFilesTest, ExpandsFoldersRecursivelySortedSkippingHiddenAndOtherFile
   Touch("scans/.hidden/d.pcd");
   Touch("scans/.e.pcd");
   Touch("single.ply");
-  const auto files = ExpandInputs({P("single.ply"), P("scans")});
+  Touch("scans/tile.laz");
+  std::vector<std::string> unsupported;
+  const auto files = ExpandInputs({P("single.ply"), P("scans")}, &unsupported);
   ASSERT_TRUE(files.ok()) << files.status();
   EXPECT_THAT(*files, ElementsAre(P("single.ply"), P("scans/a.pcd"), P("scans/b.pcd"),
                                   P("scans/sub/c.xyz")));
+  // The other files are not dropped without a word: the command reports them.
+  EXPECT_THAT(unsupported, ElementsAre(P("scans/notes.md"), P("scans/tile.laz")));
+}
+
+TEST_F(InputFilesTest, UnsupportedFilesMessageCountsNamesAndGivesTheFlag) {
+  EXPECT_EQ(UnsupportedFilesMessage({}), "");
+  const std::string one = UnsupportedFilesMessage({"d/a.md"});
+  EXPECT_THAT(one, HasSubstr("1 file is in no format shapeid reads and was not processed"));
+  const std::string five = UnsupportedFilesMessage({"a.md", "b.md", "c.md", "d.md", "e.md"});
+  EXPECT_THAT(five, HasSubstr("5 files are in no format shapeid reads and were not processed: "
+                              "a.md, b.md, c.md and 2 more"));
+  EXPECT_THAT(five, HasSubstr(".las"));
+  EXPECT_THAT(five, HasSubstr("--skip-unsupported"));
+  // A folder of nothing readable says what it holds.
+  Touch("mix/a.e57");
+  const auto none = ExpandInputs({P("mix")});
+  EXPECT_TRUE(absl::IsInvalidArgument(none.status()));
+  EXPECT_THAT(none.status().message(), HasSubstr("a.e57"));
+  Touch("labelled/chair/a.e57");
+  const auto labelled = LabelledFiles(P("labelled"), Split::kAll);
+  EXPECT_TRUE(absl::IsInvalidArgument(labelled.status()));
+  EXPECT_THAT(labelled.status().message(),
+              HasSubstr("1 file is in no format shapeid reads and was not processed"));
+}
+
+TEST_F(InputFilesTest, NonFinitePointsNameTheFlagThatDropsThem) {
+  const fs::path path = root_ / "organised.xyz";
+  std::ofstream(path) << "1 2 3\nnan nan nan\n4 5 6\n7 8 9\nnan 0 0\n";
+  const absl::StatusOr<ReadResult> refused = ReadInputCloud(path.string(), ReadOptions());
+  ASSERT_FALSE(refused.ok());
+  EXPECT_TRUE(absl::IsInvalidArgument(refused.status()));
+  EXPECT_THAT(refused.status().message(), HasSubstr("point 1 has a non-finite coordinate"));
+  EXPECT_THAT(refused.status().message(), HasSubstr("2 of 5 points are non-finite"));
+  EXPECT_THAT(refused.status().message(), HasSubstr("--drop-nonfinite"));
+  ReadOptions drop;
+  drop.drop_non_finite = true;
+  const absl::StatusOr<ReadResult> dropped = ReadInputCloud(path.string(), drop);
+  ASSERT_TRUE(dropped.ok()) << dropped.status();
+  EXPECT_EQ(dropped->cloud.size(), 3u);
+  EXPECT_EQ(dropped->dropped_non_finite, 2u);
 }
 
 TEST_F(InputFilesTest, ExpandKeepsMissingFilesAndRejectsEmptyFolders) {

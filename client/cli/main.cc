@@ -14,6 +14,7 @@
 #include "client/cli/operations_commands.h"
 #include "client/cli/train_classify_commands.h"
 #include "client/cli/views_command.h"
+#include "core/io/point_cloud_reader.h"
 
 namespace {
 
@@ -57,19 +58,37 @@ constexpr char kMainFooter[] =
     "  shapeid stats                                     # the server's calls, latency, memory\n"
     "Run 'shapeid COMMAND --help' for each command's flags.\n";
 
+// How the commands that read files read them.
+void AddReadFlags(CLI::App* command, shapeid::ReadOptions* read, bool* skip_unsupported) {
+  command->add_flag("--drop-nonfinite", read->drop_non_finite,
+                    "Remove points with NaN or infinite coordinates (organised PCD clouds) "
+                    "instead of failing on them");
+  command
+      ->add_option("--mesh-points", read->sample_points,
+                   "Points sampled on each mesh's faces (.ply with faces, .off, .obj, .stl, "
+                   ".vtk with polygons); 0 reads the vertices")
+      ->check(CLI::Range(size_t{0}, size_t{10000000}))
+      ->capture_default_str();
+  command
+      ->add_option_function<std::string>(
+          "--input-format",
+          [read](const std::string& name) {
+            read->input_format = *shapeid::CloudFormatForName(name);
+          },
+          "Read every input as this format whatever its extension; needed for standard input "
+          "(FILE \"-\")")
+      ->check(CLI::IsMember(shapeid::CloudFormatNames()));
+  command->add_flag("--skip-unsupported", *skip_unsupported,
+                    "Ignore files of other formats inside folders (by default they are listed "
+                    "and the exit status is 1)");
+}
+
 // Flags shared by the batch commands.
 void AddBatchFlags(CLI::App* command, shapeid::BatchOptions* batch) {
   command->add_option("--jobs,-j", batch->jobs, "Parallel streams to the server")
       ->check(CLI::Range(1, 256))
       ->capture_default_str();
-  command->add_flag("--drop-nonfinite", batch->read.drop_non_finite,
-                    "Remove points with NaN or infinite coordinates (organised PCD clouds) "
-                    "instead of failing on them");
-  command
-      ->add_option("--mesh-points", batch->read.sample_points,
-                   "Points sampled on each mesh file (.off, .obj)")
-      ->check(CLI::Range(size_t{1}, size_t{10000000}))
-      ->capture_default_str();
+  AddReadFlags(command, &batch->read, &batch->skip_unsupported);
 }
 
 // The sensor's frame of describe, train and classify (the proto's SensorFrame).
@@ -189,14 +208,13 @@ int main(int argc, char** argv) {
                            "Descriptor spec: KIND[:param=value,...] (default dfsd)");
   describe_cmd->add_option("--gallery", describe.gallery,
                            "Describe with this gallery's spec (server only)");
-  describe_cmd->add_flag("--drop-nonfinite", describe.drop_non_finite,
-                         "Remove points with NaN or infinite coordinates (organised PCD "
-                         "clouds) instead of failing on them");
+  AddReadFlags(describe_cmd, &describe.read, &describe.skip_unsupported);
   shapeid::SensorFrameFlags sensor_flags;  // one subcommand runs: they share it
   AddSensorFrameFlags(describe_cmd, &sensor_flags);
   describe_cmd
       ->add_option("FILE", describe.files,
-                   "Point-cloud files or folders: .pcd .ply .off .obj .xyz .txt .csv")
+                   "Point-cloud files or folders (- reads standard input): " +
+                       shapeid::SupportedExtensions())
       ->required()
       ->type_name("");
   describe_cmd->footer(shapeid::DescribeHelpFooter());

@@ -21,6 +21,18 @@ std::string FailedJson(const std::vector<FailedInput>& failed) {
   return out + "]";
 }
 
+// [{"file":...,"label":...,"sample_id":N}, ...]: which sample each trained file became.
+std::string TrainedJson(const std::vector<TrainedFile>& files) {
+  std::string out = "[";
+  for (size_t i = 0; i < files.size(); ++i) {
+    if (i > 0) out += ',';
+    absl::StrAppend(&out, "{\"file\":", JsonString(files[i].path),
+                    ",\"label\":", JsonString(files[i].label),
+                    ",\"sample_id\":", files[i].sample_id, "}");
+  }
+  return out + "]";
+}
+
 // Exit code of a batch: the stop reason first, then any failed file.
 int BatchExitCode(const absl::Status& stopped, size_t failed, const CliContext& context,
                   absl::string_view what) {
@@ -37,12 +49,23 @@ std::string Pad(absl::string_view text, size_t width) {
   return out;
 }
 
+// Reports a walk's files of other formats once, before the batch; true when they count as
+// failed inputs (no --skip-unsupported).
+bool ReportUnsupported(const std::vector<std::string>& unsupported, const BatchOptions& batch,
+                       const CliContext& context, absl::string_view command) {
+  if (unsupported.empty() || batch.skip_unsupported) return false;
+  WriteAll(context.err,
+           absl::StrCat("shapeid: ", command, ": ", UnsupportedFilesMessage(unsupported), "\n"));
+  return true;
+}
+
 }  // namespace
 
 int RunTrain(const TrainOptions& options, const CliContext& context) {
   std::vector<LabelledFile> files;
+  std::vector<std::string> unsupported;
   if (!options.label.empty()) {
-    absl::StatusOr<std::vector<std::string>> paths = ExpandInputs(options.paths);
+    absl::StatusOr<std::vector<std::string>> paths = ExpandInputs(options.paths, &unsupported);
     if (!paths.ok()) {
       PrintError(context.err, "train", paths.status());
       return kExitUsage;
@@ -50,7 +73,8 @@ int RunTrain(const TrainOptions& options, const CliContext& context) {
     for (std::string& path : *paths) files.push_back({std::move(path), options.label});
   } else {
     for (const std::string& dir : options.paths) {
-      absl::StatusOr<std::vector<LabelledFile>> found = LabelledFiles(dir, Split::kTrain);
+      absl::StatusOr<std::vector<LabelledFile>> found =
+          LabelledFiles(dir, Split::kTrain, &unsupported);
       if (!found.ok()) {
         PrintError(context.err, "train",
                    absl::Status(found.status().code(),
@@ -63,6 +87,7 @@ int RunTrain(const TrainOptions& options, const CliContext& context) {
   }
   std::unique_ptr<Client> client = ConnectOrReport(context);
   if (client == nullptr) return kExitUsage;
+  const bool unsupported_failed = ReportUnsupported(unsupported, options.batch, context, "train");
 
   TrainOutcome outcome;
   {
@@ -73,12 +98,13 @@ int RunTrain(const TrainOptions& options, const CliContext& context) {
   std::string text;
   switch (context.format) {
     case OutputFormat::kJson:
-      text =
-          absl::StrCat("{\"gallery\":", JsonString(options.gallery), ",\"files\":", files.size(),
-                       ",\"trained\":", outcome.trained, ",\"failed\":", FailedJson(outcome.failed),
-                       ",\"gallery_sample_count\":", outcome.gallery_sample_count,
-                       ",\"seconds\":", JsonNumber(outcome.seconds),
-                       ",\"stopped\":", JsonString(outcome.stopped.message()), "}\n");
+      text = absl::StrCat("{\"gallery\":", JsonString(options.gallery), ",\"files\":", files.size(),
+                          ",\"trained\":", outcome.trained,
+                          ",\"samples\":", TrainedJson(outcome.files),
+                          ",\"failed\":", FailedJson(outcome.failed),
+                          ",\"gallery_sample_count\":", outcome.gallery_sample_count,
+                          ",\"seconds\":", JsonNumber(outcome.seconds),
+                          ",\"stopped\":", JsonString(outcome.stopped.message()), "}\n");
       break;
     case OutputFormat::kCsv:
       text = RenderCsv(
@@ -102,7 +128,7 @@ int RunTrain(const TrainOptions& options, const CliContext& context) {
   }
   WriteAll(context.out, text);
   std::fflush(context.out);
-  return BatchExitCode(outcome.stopped, outcome.failed.size(), context,
+  return BatchExitCode(outcome.stopped, outcome.failed.size() + unsupported_failed, context,
                        absl::StrCat("train ", options.gallery));
 }
 
@@ -133,7 +159,8 @@ std::string ClassifyJsonLine(const std::string& file, const v1::ClassifyResponse
 }
 
 int RunClassify(const ClassifyOptions& options, const CliContext& context) {
-  absl::StatusOr<std::vector<std::string>> paths = ExpandInputs(options.paths);
+  std::vector<std::string> unsupported;
+  absl::StatusOr<std::vector<std::string>> paths = ExpandInputs(options.paths, &unsupported);
   if (!paths.ok()) {
     PrintError(context.err, "classify", paths.status());
     return kExitUsage;
@@ -146,6 +173,8 @@ int RunClassify(const ClassifyOptions& options, const CliContext& context) {
     PrintCallError(context, absl::StrCat("classify ", options.gallery), gallery.status());
     return ExitCodeForStatus(gallery.status());
   }
+  const bool unsupported_failed =
+      ReportUnsupported(unsupported, options.batch, context, "classify");
   size_t file_width = 4, label_width = 7;  // "unknown"
   for (const std::string& path : *paths) file_width = std::max(file_width, path.size());
   for (const v1::LabelCount& lc : gallery->label_counts()) {
@@ -224,7 +253,7 @@ int RunClassify(const ClassifyOptions& options, const CliContext& context) {
             outcome.seconds > 0 ? outcome.classified / outcome.seconds : 0.0,
             outcome.failed.empty() ? "" : absl::StrCat(", ", outcome.failed.size(), " failed")));
   }
-  return BatchExitCode(outcome.stopped, outcome.failed.size(), context,
+  return BatchExitCode(outcome.stopped, outcome.failed.size() + unsupported_failed, context,
                        absl::StrCat("classify ", options.gallery));
 }
 

@@ -6,6 +6,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "client/cli/describe_command.h"
+#include "client/cli/input_files.h"
 #include "core/io/pcd_writer.h"
 #include "core/io/point_cloud_reader.h"
 #include "core/json.h"
@@ -112,7 +113,6 @@ int RunViews(const ViewsOptions& options, const CliContext& context) {
   }
   ReadOptions read;
   read.sample_points = options.surface_points;
-  read.sample_faces = options.surface_points;  // PLY meshes; a PLY without faces fails clearly
   read.sample_seed = options.seed;
   bool failed = false;
   Table table{{"MODEL", "TRAIN VIEWS", "TEST VIEWS", "POINTS/VIEW"}, {}, {false, true, true, true}};
@@ -120,7 +120,7 @@ int RunViews(const ViewsOptions& options, const CliContext& context) {
   for (size_t m = 0; m < options.models.size(); ++m) {
     const std::string& model = options.models[m];
     const std::string label = fs::path(model).stem().string();
-    absl::StatusOr<ReadResult> read_result = ReadPointCloud(model, read);
+    absl::StatusOr<ReadResult> read_result = ReadInputCloud(model, read);
     size_t points = 0;
     absl::Status status = read_result.status();
     if (status.ok()) {

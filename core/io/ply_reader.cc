@@ -303,13 +303,10 @@ absl::StatusOr<ReadResult> ParsePly(absl::string_view contents, absl::string_vie
                                     "\" property"));
     }
   }
-  const bool sample = options.sample_faces > 0;
+  // A mesh is sampled like every other mesh format; a cloud saved as PLY has no faces.
+  const bool sample = options.sample_points > 0 && face != nullptr && face->count > 0;
   int indices_property = -1;
   if (sample) {
-    if (face == nullptr) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          name, ": sampling faces was asked for, but the PLY header has no face element"));
-    }
     for (size_t i = 0; i < face->properties.size(); ++i) {
       const Property& p = face->properties[i];
       if (p.is_list && (p.name == "vertex_indices" || p.name == "vertex_index")) {
@@ -383,7 +380,7 @@ absl::StatusOr<ReadResult> ParsePly(absl::string_view contents, absl::string_vie
         name, ": ", reader.Where(), ": more data than the header's element counts describe"));
   }
   if (sample) {
-    SHAPEID_RETURN_IF_ERROR(mesh.Sample(options.sample_faces, options.sample_seed, name,
+    SHAPEID_RETURN_IF_ERROR(mesh.Sample(options.sample_points, options.sample_seed, name,
                                         ascii ? "line" : "byte offset", &cloud));
   }
   return std::move(cloud).Finish(options);

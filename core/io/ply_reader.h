@@ -12,12 +12,14 @@ namespace shapeid {
 // whatever its type (char/int8, uchar/uint8, short/int16, ushort/uint16, int/int32,
 // uint/uint32, float/float32, double/float64) or list type, so unknown elements (edges,
 // materials) and properties (normals, colours) are skipped. The "vertex" element must have
-// scalar x, y and z properties. With ReadOptions::sample_faces = 0 the vertices are the cloud;
-// with N > 0, N points are sampled on the "face" element's polygons (list property
-// vertex_indices or vertex_index), area-weighted and seeded with sample_seed.
+// scalar x, y and z properties. A file with faces (a "face" element of at least one instance)
+// is a mesh: ReadOptions::sample_points points are sampled on its polygons (list property
+// vertex_indices or vertex_index), area-weighted and seeded with sample_seed, as for OFF and
+// OBJ; sample_points 0, or a file without faces, gives the vertices.
 // InvalidArgument, naming `name` and the header line, data line (ascii) or byte offset
 // (binary), for malformed contents: a bad header, missing x / y / z, truncated or extra data,
-// non-numeric values, out-of-range vertex indices, faces to sample that are absent.
+// non-numeric values, out-of-range vertex indices, a face element to sample without a
+// vertex_indices list, a mesh without a face of positive area.
 absl::StatusOr<ReadResult> ParsePly(absl::string_view contents, absl::string_view name,
                                     const ReadOptions& options = {});
 

@@ -77,7 +77,7 @@ std::string BinaryFile(bool big) {
 
 ReadOptions Faces(size_t n, uint64_t seed = 0) {
   ReadOptions options = Raw();
-  options.sample_faces = n;
+  options.sample_points = n;
   options.sample_seed = seed;
   return options;
 }
@@ -85,7 +85,7 @@ ReadOptions Faces(size_t n, uint64_t seed = 0) {
 TEST(PlyReaderTest, VerticesInEveryEncoding) {
   for (const std::string& file : {AsciiFile(), BinaryFile(false), BinaryFile(true)}) {
     const std::string path = WriteTempFile("v.ply", file);
-    const absl::StatusOr<ReadResult> r = ReadPointCloud(path, Raw());
+    const absl::StatusOr<ReadResult> r = ReadPointCloud(path, Faces(0));
     ASSERT_TRUE(r.ok()) << r.status();
     ASSERT_EQ(r->cloud.size(), 5u);
     EXPECT_EQ(r->cloud.point(1), Eigen::Vector3f(1, 0, 0));
@@ -111,15 +111,29 @@ TEST(PlyReaderTest, FacesSampledInEveryEncoding) {
   }
 }
 
-TEST(PlyReaderTest, SamplingWithoutFacesIsAnError) {
+TEST(PlyReaderTest, MeshesAreSampledByDefaultLikeEveryMeshFormat) {
+  const absl::StatusOr<ReadResult> r = ParsePly(AsciiFile(), "m.ply", Raw());
+  ASSERT_TRUE(r.ok()) << r.status();
+  EXPECT_EQ(r->cloud.size(), ReadOptions().sample_points);
+}
+
+TEST(PlyReaderTest, ACloudWithoutFacesGivesItsVerticesWhateverTheSampling) {
   const std::string file =
       "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
       "property float y\nproperty float z\nend_header\n1 2 3\n";
-  const absl::StatusOr<ReadResult> vertices = ParsePly(file, "p.ply", Raw());
-  ASSERT_TRUE(vertices.ok()) << vertices.status();
-  EXPECT_EQ(vertices->cloud.size(), 1u);
-  ExpectError(ParsePly(file, "p.ply", Faces(10)), absl::StatusCode::kInvalidArgument, "p.ply",
-              "no face element");
+  for (const size_t n : {size_t{0}, size_t{10}}) {
+    const absl::StatusOr<ReadResult> vertices = ParsePly(file, "p.ply", Faces(n));
+    ASSERT_TRUE(vertices.ok()) << vertices.status();
+    EXPECT_EQ(vertices->cloud.size(), 1u);
+  }
+  // An empty face element is no mesh either.
+  const std::string no_faces =
+      "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+      "property float z\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n"
+      "1 2 3\n";
+  const absl::StatusOr<ReadResult> empty = ParsePly(no_faces, "e.ply", Faces(10));
+  ASSERT_TRUE(empty.ok()) << empty.status();
+  EXPECT_EQ(empty->cloud.size(), 1u);
 }
 
 TEST(PlyReaderTest, MalformedHeaderNamesTheLine) {

@@ -9,12 +9,20 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "absl/strings/strip.h"
 #include "core/io/errno_status.h"
+#include "core/io/gzip.h"
+#include "core/io/las_reader.h"
+#include "core/io/npy_reader.h"
 #include "core/io/obj_reader.h"
 #include "core/io/off_reader.h"
 #include "core/io/pcd_reader.h"
 #include "core/io/ply_reader.h"
+#include "core/io/stl_reader.h"
+#include "core/io/vtk_reader.h"
 #include "core/io/xyz_reader.h"
 #include "core/status_macros.h"
 
@@ -33,24 +41,58 @@ class FdCloser {
   int fd_;
 };
 
+// A gzipped file inflating past this is refused (a decompression bomb, or a file that would
+// not fit in memory anyway): 64 GiB, above any cloud a machine describes in one piece.
+constexpr size_t kMaxInflatedBytes = size_t{64} << 30;
+
 }  // namespace
+
+const std::vector<std::string>& CloudFormatNames() {
+  static const auto* names = new std::vector<std::string>{"pcd", "ply", "off", "obj", "stl", "vtk",
+                                                          "las", "npy", "npz", "xyz", "pts", "csv"};
+  return *names;
+}
+
+absl::StatusOr<CloudFormat> CloudFormatForName(absl::string_view name) {
+  std::string lower = absl::AsciiStrToLower(absl::StripPrefix(name, "."));
+  // The text formats' other extensions are names too: their files read as xyz.
+  if (lower == "txt" || lower == "xyzn" || lower == "xyzrgb") lower = "xyz";
+  const std::vector<std::string>& names = CloudFormatNames();
+  for (size_t i = 0; i < names.size(); ++i) {
+    if (names[i] == lower) return static_cast<CloudFormat>(i);
+  }
+  return absl::InvalidArgumentError(
+      absl::StrCat("unknown input format \"", name, "\"; known: ", absl::StrJoin(names, ", ")));
+}
+
+const std::string& SupportedExtensions() {
+  static const auto* extensions = new std::string(
+      ".pcd .ply .off .obj .stl .vtk .las .npy .npz .xyz .txt .xyzn .xyzrgb .pts .csv "
+      "(any of them .gz)");
+  return *extensions;
+}
 
 absl::StatusOr<CloudFormat> CloudFormatForPath(absl::string_view path) {
   const size_t slash = path.rfind('/');
-  const absl::string_view base = slash == absl::string_view::npos ? path : path.substr(slash + 1);
+  absl::string_view base = slash == absl::string_view::npos ? path : path.substr(slash + 1);
+  if (base.size() > 3 && absl::EndsWithIgnoreCase(base, ".gz")) base.remove_suffix(3);
   const size_t dot = base.rfind('.');
   const std::string ext =
       dot == absl::string_view::npos ? "" : absl::AsciiStrToLower(base.substr(dot));
-  if (ext == ".pcd") return CloudFormat::kPcd;
-  if (ext == ".ply") return CloudFormat::kPly;
-  if (ext == ".off") return CloudFormat::kOff;
-  if (ext == ".obj") return CloudFormat::kObj;
-  if (ext == ".xyz" || ext == ".txt") return CloudFormat::kXyz;
-  if (ext == ".csv") return CloudFormat::kCsv;
+  if (ext == ".laz") {  // a valid format this reader does not handle, as the LAS reader says
+    return absl::UnimplementedError(absl::StrCat(
+        path,
+        ": LAZ (compressed LAS) is not read; decompress it to LAS first, e.g. `laszip -i in.laz ",
+        "-o out.las` (LAStools) or `pdal translate in.laz out.las` (PDAL)"));
+  }
+  if (ext.size() > 1) {
+    absl::StatusOr<CloudFormat> format = CloudFormatForName(ext);
+    if (format.ok()) return format;
+  }
   return absl::InvalidArgumentError(absl::StrCat(
       path, ": ",
       ext.empty() ? "no file extension" : absl::StrCat("unknown extension \"", ext, "\""),
-      "; supported: .pcd, .ply, .off, .obj, .xyz, .txt, .csv"));
+      "; supported: ", SupportedExtensions()));
 }
 
 absl::StatusOr<std::string> ReadFileContents(const std::string& path) {
@@ -93,6 +135,13 @@ absl::StatusOr<std::string> ReadFileContents(const std::string& path) {
 
 absl::StatusOr<ReadResult> ParsePointCloud(absl::string_view contents, CloudFormat format,
                                            absl::string_view name, const ReadOptions& options) {
+  if (IsGzip(contents)) {
+    SHAPEID_ASSIGN_OR_RETURN(const std::string inflated, Gunzip(contents, name, kMaxInflatedBytes));
+    if (IsGzip(inflated)) {
+      return absl::InvalidArgumentError(absl::StrCat(name, ": gzip inside gzip"));
+    }
+    return ParsePointCloud(inflated, format, name, options);
+  }
   switch (format) {
     case CloudFormat::kPcd:
       return ParsePcd(contents, name, options);
@@ -102,8 +151,20 @@ absl::StatusOr<ReadResult> ParsePointCloud(absl::string_view contents, CloudForm
       return ParseOff(contents, name, options);
     case CloudFormat::kObj:
       return ParseObj(contents, name, options);
+    case CloudFormat::kStl:
+      return ParseStl(contents, name, options);
+    case CloudFormat::kVtk:
+      return ParseVtk(contents, name, options);
+    case CloudFormat::kLas:
+      return ParseLas(contents, name, options);
+    case CloudFormat::kNpy:
+      return ParseNpy(contents, name, options);
+    case CloudFormat::kNpz:
+      return ParseNpz(contents, name, options);
     case CloudFormat::kXyz:
       return ParseXyz(contents, name, TextDialect::kXyz, options);
+    case CloudFormat::kPts:
+      return ParseXyz(contents, name, TextDialect::kPts, options);
     case CloudFormat::kCsv:
       return ParseXyz(contents, name, TextDialect::kCsv, options);
   }
@@ -111,7 +172,22 @@ absl::StatusOr<ReadResult> ParsePointCloud(absl::string_view contents, CloudForm
 }
 
 absl::StatusOr<ReadResult> ReadPointCloud(const std::string& path, const ReadOptions& options) {
-  SHAPEID_ASSIGN_OR_RETURN(const CloudFormat format, CloudFormatForPath(path));
+  if (path == "-") {
+    if (!options.input_format.has_value()) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "standard input (\"-\") has no extension to choose a reader by; give its format with "
+          "--input-format (",
+          absl::StrJoin(CloudFormatNames(), ", "), ")"));
+    }
+    SHAPEID_ASSIGN_OR_RETURN(const std::string contents, ReadFileContents("/dev/stdin"));
+    return ParsePointCloud(contents, *options.input_format, "standard input", options);
+  }
+  CloudFormat format;
+  if (options.input_format.has_value()) {
+    format = *options.input_format;
+  } else {
+    SHAPEID_ASSIGN_OR_RETURN(format, CloudFormatForPath(path));
+  }
   SHAPEID_ASSIGN_OR_RETURN(const std::string contents, ReadFileContents(path));
   return ParsePointCloud(contents, format, path, options);
 }

@@ -28,22 +28,79 @@ TEST(PointCloudReaderTest, ChoosesReaderByExtension) {
   EXPECT_EQ(*CloudFormatForPath("mesh.ply"), CloudFormat::kPly);
   EXPECT_EQ(*CloudFormatForPath("chair_0001.OFF"), CloudFormat::kOff);
   EXPECT_EQ(*CloudFormatForPath("models/pawn.Obj"), CloudFormat::kObj);
-  for (const char* bad : {"mesh.stl", "noext", "dir.pcd/file", "trailing."}) {
+  EXPECT_EQ(*CloudFormatForPath("part.STL"), CloudFormat::kStl);
+  EXPECT_EQ(*CloudFormatForPath("cloud.vtk"), CloudFormat::kVtk);
+  EXPECT_EQ(*CloudFormatForPath("tile.las"), CloudFormat::kLas);
+  EXPECT_EQ(*CloudFormatForPath("a.npy"), CloudFormat::kNpy);
+  EXPECT_EQ(*CloudFormatForPath("a.npz"), CloudFormat::kNpz);
+  EXPECT_EQ(*CloudFormatForPath("o3d.xyzn"), CloudFormat::kXyz);
+  EXPECT_EQ(*CloudFormatForPath("o3d.xyzrgb"), CloudFormat::kXyz);
+  EXPECT_EQ(*CloudFormatForPath("leica.pts"), CloudFormat::kPts);
+  // A final .gz is looked through; the format is the one before it.
+  EXPECT_EQ(*CloudFormatForPath("scan.pcd.gz"), CloudFormat::kPcd);
+  EXPECT_EQ(*CloudFormatForPath("scan.XYZ.GZ"), CloudFormat::kXyz);
+  for (const char* bad : {"mesh.3ds", "noext", "dir.pcd/file", "trailing.", "a.gz", ".gz"}) {
     const absl::StatusOr<CloudFormat> f = CloudFormatForPath(bad);
     ASSERT_FALSE(f.ok()) << bad;
     EXPECT_EQ(f.status().code(), absl::StatusCode::kInvalidArgument);
     EXPECT_THAT(std::string(f.status().message()), HasSubstr(bad));
-    EXPECT_THAT(std::string(f.status().message()),
-                HasSubstr(".pcd, .ply, .off, .obj, .xyz, .txt, .csv"));
+    EXPECT_THAT(std::string(f.status().message()), HasSubstr(SupportedExtensions()));
   }
+  // LAZ is named, with the way to decompress it.
+  const absl::StatusOr<CloudFormat> laz = CloudFormatForPath("tile.LAZ");
+  ASSERT_FALSE(laz.ok());
+  EXPECT_THAT(std::string(laz.status().message()), HasSubstr("laszip -i in.laz -o out.las"));
+}
+
+TEST(PointCloudReaderTest, FormatNamesRoundTrip) {
+  const std::vector<std::string>& names = CloudFormatNames();
+  for (size_t i = 0; i < names.size(); ++i) {
+    EXPECT_EQ(*CloudFormatForName(names[i]), static_cast<CloudFormat>(i)) << names[i];
+    EXPECT_EQ(*CloudFormatForPath("f." + names[i]), static_cast<CloudFormat>(i)) << names[i];
+  }
+  EXPECT_EQ(*CloudFormatForName(".PCD"), CloudFormat::kPcd);
+  EXPECT_EQ(*CloudFormatForName("txt"), CloudFormat::kXyz);
+  const absl::StatusOr<CloudFormat> bad = CloudFormatForName("e57");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_THAT(std::string(bad.status().message()), HasSubstr("pcd, ply, off"));
 }
 
 TEST(PointCloudReaderTest, UnknownExtensionFailsBeforeReading) {
-  const std::string path = WriteTempFile("cloud.stl", "1 2 3\n");
+  const std::string path = WriteTempFile("cloud.e57", "1 2 3\n");
   const absl::StatusOr<ReadResult> r = ReadPointCloud(path);
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_THAT(std::string(r.status().message()), HasSubstr("\".stl\""));
+  EXPECT_THAT(std::string(r.status().message()), HasSubstr("\".e57\""));
+}
+
+TEST(PointCloudReaderTest, AnInputFormatOverridesTheExtension) {
+  const std::string path = WriteTempFile("scan.dat", "1 2 3\n4 5 6\n7 8 10\n");
+  ReadOptions options = Raw();
+  options.input_format = CloudFormat::kXyz;
+  const absl::StatusOr<ReadResult> r = ReadPointCloud(path, options);
+  ASSERT_TRUE(r.ok()) << r.status();
+  EXPECT_EQ(r->cloud.point(2), Eigen::Vector3f(7, 8, 10));
+  // Standard input has no name to choose by: the error says which flag gives the format.
+  const absl::StatusOr<ReadResult> stdin_read = ReadPointCloud("-", Raw());
+  ASSERT_FALSE(stdin_read.ok());
+  EXPECT_THAT(std::string(stdin_read.status().message()), HasSubstr("--input-format"));
+}
+
+TEST(PointCloudReaderTest, PtsSkipsCountLinesAndOpen3dTextFormatsReadTheirFirstColumns) {
+  const std::string pts = WriteTempFile("s.pts",
+                                        "2\n1 2 3 10 255 0 0\n4 5 6 11 0 255 0\n"
+                                        "1\n7 8 9 12 0 0 255\n");
+  const absl::StatusOr<ReadResult> r = ReadPointCloud(pts, Raw());
+  ASSERT_TRUE(r.ok()) << r.status();
+  ASSERT_EQ(r->cloud.size(), 3u);
+  EXPECT_EQ(r->cloud.point(2), Eigen::Vector3f(7, 8, 9));
+  // In .xyz a lone number is still an error (a damaged line, not a count).
+  const std::string xyz = WriteTempFile("s.xyz", "1 2 3\n2\n4 5 6\n");
+  ExpectError(ReadPointCloud(xyz, Raw()), absl::StatusCode::kInvalidArgument, xyz, "line 2");
+  const std::string xyzn = WriteTempFile("n.xyzn", "1 2 3 0 0 1\n4 5 6 0 1 0\n");
+  const absl::StatusOr<ReadResult> n = ReadPointCloud(xyzn, Raw());
+  ASSERT_TRUE(n.ok()) << n.status();
+  EXPECT_EQ(n->cloud.point(1), Eigen::Vector3f(4, 5, 6));
 }
 
 TEST(PointCloudReaderTest, MissingFileAndDirectory) {

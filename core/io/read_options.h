@@ -3,14 +3,38 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 
 #include "Eigen/Core"
 #include "core/point_cloud.h"
 
 namespace shapeid {
 
+// The file formats ReadPointCloud (core/io/point_cloud_reader.h) knows, by extension
+// (case-insensitive). Meshes (PLY with faces, OFF, OBJ with faces, STL, VTK with polygons) are
+// sampled on their surface to ReadOptions::sample_points points; 0 reads their vertices.
+//   .pcd               PCD v0.7, DATA ascii, binary or binary_compressed (core/io/pcd_reader.h)
+//   .ply               PLY ascii / binary little or big endian (core/io/ply_reader.h)
+//   .off               OFF mesh (core/io/off_reader.h)
+//   .obj               Wavefront OBJ; an OBJ without faces gives its vertices
+//   .stl               STL mesh, ascii or binary (core/io/stl_reader.h)
+//   .vtk               legacy VTK polydata, ascii or binary (core/io/vtk_reader.h)
+//   .las               LAS 1.0-1.4, every point format (core/io/las_reader.h); .laz is refused
+//                      with the command that decompresses it
+//   .npy .npz          NumPy arrays (core/io/npy_reader.h): float or integer, (N, 3+) or an
+//                      organised (H, W, 3+), C or Fortran order, or structured with x, y, z
+//                      fields; .npz as np.savez / np.savez_compressed write it
+//   .xyz .txt .xyzn .xyzrgb
+//                      text, blank- or comma-separated, x y z first (core/io/xyz_reader.h)
+//   .pts               text as .xyz, whose lines holding a single integer (point counts) are
+//                      skipped
+//   .csv               text, comma- or semicolon-separated
+// Any of them may be gzip-compressed (FILE.EXT.gz); contents starting with gzip's magic bytes
+// are inflated before parsing, whatever the name.
+enum class CloudFormat { kPcd, kPly, kOff, kObj, kStl, kVtk, kLas, kNpy, kNpz, kXyz, kPts, kCsv };
+
 // How the point-cloud readers turn a file into a PointCloud. Every reader honours
-// drop_non_finite and recenter; the sample_* fields concern the mesh formats (PLY, OFF, OBJ).
+// drop_non_finite and recenter; the sample_* fields concern the mesh formats.
 struct ReadOptions {
   // Organised PCD clouds (from depth cameras) mark missing pixels with NaN points. Default
   // false: they are kept, so that describing the cloud fails and says so, rather than
@@ -26,19 +50,21 @@ struct ReadOptions {
   // keeps the file's coordinates (rounded to float), e.g. for viewing alongside other data.
   bool recenter = true;
 
-  // Meshes (PLY with faces, OFF, OBJ) can be sampled to points on their surface, area-weighted:
+  // Meshes can be sampled to points on their surface, area-weighted:
   // each point picks a triangle (polygons are split into fans) with probability proportional
   // to its area, then a uniform point in it. The PRNG is splitmix64 seeded with sample_seed,
   // so the same file, count and seed give the same points everywhere.
 
-  // PLY: 0 (default) reads the vertex element as the cloud; N > 0 samples N points on the
-  // faces instead (an error if the file has no face element).
-  size_t sample_faces = 0;
-  // OFF and OBJ: the number of points sampled on the mesh; 0 reads the vertices as the cloud.
-  // An OBJ without faces (a point cloud saved as OBJ) gives its vertices whatever the value.
+  // The number of points sampled on a mesh's faces (PLY with a face element, OFF, OBJ, STL,
+  // VTK with polygons or strips); 0 reads the vertices as the cloud. A file without faces (a
+  // point cloud saved as PLY, OBJ or VTK) gives its vertices whatever the value.
   size_t sample_points = 2048;
-  // Seed for both kinds of sampling.
+  // Seed for the sampling.
   uint64_t sample_seed = 0;
+
+  // When set, every input is parsed as this format whatever its name says; standard input
+  // ("-") needs it, having no name.
+  std::optional<CloudFormat> input_format;
 };
 
 // A cloud as read, and what reading did to it.

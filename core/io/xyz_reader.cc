@@ -41,6 +41,10 @@ absl::StatusOr<ReadResult> ParseXyz(absl::string_view contents, absl::string_vie
       first = false;
       if (numbers == 0) continue;  // a header line
     }
+    uint64_t count;
+    if (dialect == TextDialect::kPts && found == 1 && absl::SimpleAtoi(token[0], &count)) {
+      continue;  // a scan's point count
+    }
     if (found < 3) {
       return absl::InvalidArgumentError(absl::StrCat(name, ": line ", ln,
                                                      ": expected x y z, found ", found,
