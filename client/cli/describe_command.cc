@@ -57,8 +57,10 @@ std::string FormatJsonLine(absl::string_view file, absl::string_view spec,
 
 std::string FileErrorLine(absl::string_view file, const absl::Status& status) {
   absl::string_view message = status.message();
-  if (absl::StartsWith(message, absl::StrCat(file, ": "))) message.remove_prefix(file.size() + 2);
-  return absl::StrCat("shapeid: ", file, ": ", message, "\n");
+  // The readers name standard input ("-") so.
+  const absl::string_view named = file == "-" ? "standard input" : file;
+  if (absl::StartsWith(message, absl::StrCat(named, ": "))) message.remove_prefix(named.size() + 2);
+  return absl::StrCat("shapeid: ", named, ": ", message, "\n");
 }
 
 namespace {

@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "CLI/CLI.hpp"
+#include "absl/strings/str_join.h"
 #include "client/cli/cli_common.h"
 #include "client/cli/describe_command.h"
 #include "client/cli/eval_command.h"
@@ -73,11 +74,15 @@ void AddReadFlags(CLI::App* command, shapeid::ReadOptions* read, bool* skip_unsu
       ->add_option_function<std::string>(
           "--input-format",
           [read](const std::string& name) {
-            read->input_format = *shapeid::CloudFormatForName(name);
+            read->input_format = shapeid::CloudFormatForName(name).value();  // checked below
           },
           "Read every input as this format whatever its extension; needed for standard input "
-          "(FILE \"-\")")
-      ->check(CLI::IsMember(shapeid::CloudFormatNames()));
+          "(FILE \"-\"): " +
+              absl::StrJoin(shapeid::CloudFormatNames(), ", "))
+      ->check([](const std::string& name) {
+        const absl::StatusOr<shapeid::CloudFormat> format = shapeid::CloudFormatForName(name);
+        return format.ok() ? std::string() : std::string(format.status().message());
+      });
   command->add_flag("--skip-unsupported", *skip_unsupported,
                     "Ignore files of other formats inside folders (by default they are listed "
                     "and the exit status is 1)");

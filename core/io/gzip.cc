@@ -3,7 +3,6 @@
 #include <zlib.h>
 
 #include <algorithm>
-#include <limits>
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
@@ -30,111 +29,118 @@ class Inflater {
   bool ok_ = false;
 };
 
-// zlib counts in uInt: feed and drain at most this many bytes per call.
-constexpr size_t kChunk = size_t{1} << 30;
+// Output is produced this much at a time and appended, so memory grows with the data that
+// really arrives, never with a size a header claims.
+constexpr size_t kOutChunk = size_t{1} << 20;
+// zlib counts input in uInt: at most this many bytes per call.
+constexpr size_t kInChunk = size_t{1} << 30;
 
-absl::Status Corrupt(absl::string_view name, absl::string_view what, const z_stream& stream) {
-  return absl::InvalidArgumentError(absl::StrCat(name, ": ", what, " at compressed byte offset ",
-                                                 stream.total_in, stream.msg != nullptr ? ": " : "",
-                                                 stream.msg != nullptr ? stream.msg : ""));
+// Inflates one stream (a gzip member or a raw deflate stream) from the start of `in`,
+// appending to `out`; `consumed` gets the compressed bytes it used. `base` is the stream's
+// offset in the file, for messages. Stops, setting `*over` and returning OK, when `out` would
+// pass `max_out` bytes.
+absl::Status InflateStream(int window_bits, absl::string_view in, uint64_t base,
+                           absl::string_view name, absl::string_view kind, size_t max_out,
+                           std::string* out, size_t* consumed, bool* over) {
+  *over = false;
+  Inflater inflater(window_bits);
+  if (!inflater.ok()) {
+    return absl::ResourceExhaustedError(absl::StrCat(name, ": zlib cannot start inflating"));
+  }
+  z_stream& z = inflater.stream();
+  z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(in.data()));
+  size_t fed = std::min(in.size(), kInChunk);
+  z.avail_in = static_cast<uInt>(fed);
+  std::string buffer;
+  buffer.resize(kOutChunk);
+  int rc = Z_OK;
+  while (rc != Z_STREAM_END) {
+    if (z.avail_in == 0 && fed < in.size()) {
+      const size_t more = std::min(in.size() - fed, kInChunk);
+      z.avail_in = static_cast<uInt>(more);
+      fed += more;
+    }
+    z.next_out = reinterpret_cast<Bytef*>(buffer.data());
+    z.avail_out = static_cast<uInt>(buffer.size());
+    rc = inflate(&z, Z_NO_FLUSH);
+    const size_t produced = buffer.size() - z.avail_out;
+    if (produced > max_out - std::min(max_out, out->size())) {
+      *over = true;
+      return absl::OkStatus();
+    }
+    out->append(buffer.data(), produced);
+    const uint64_t where = base + z.total_in;
+    if (rc == Z_MEM_ERROR) {
+      return absl::ResourceExhaustedError(absl::StrCat(name, ": zlib ran out of memory"));
+    }
+    if (rc == Z_BUF_ERROR && produced == 0 && z.avail_in == 0 && fed == in.size()) {
+      return absl::InvalidArgumentError(absl::StrCat(name, ": byte offset ", where, ": ", kind,
+                                                     " ends early (the file is truncated)"));
+    }
+    if (rc != Z_OK && rc != Z_STREAM_END && rc != Z_BUF_ERROR) {
+      return absl::InvalidArgumentError(absl::StrCat(name, ": byte offset ", where, ": corrupt ",
+                                                     kind, z.msg != nullptr ? ": " : "",
+                                                     z.msg != nullptr ? z.msg : ""));
+    }
+  }
+  *consumed = z.total_in;
+  return absl::OkStatus();
 }
 
 }  // namespace
 
 bool IsGzip(absl::string_view contents) {
-  return contents.size() >= 2 && static_cast<unsigned char>(contents[0]) == 0x1f &&
-         static_cast<unsigned char>(contents[1]) == 0x8b;
+  // The magic, then compression method 8 (deflate), the only one gzip defines.
+  return contents.size() >= 3 && static_cast<unsigned char>(contents[0]) == 0x1f &&
+         static_cast<unsigned char>(contents[1]) == 0x8b &&
+         static_cast<unsigned char>(contents[2]) == 0x08;
 }
 
 absl::StatusOr<std::string> Gunzip(absl::string_view contents, absl::string_view name,
                                    size_t max_bytes) {
   std::string out;
-  // A guess at the size (gzip's trailer holds it modulo 2^32): grows as needed.
-  out.resize(std::min(max_bytes, std::max<size_t>(contents.size() * 4, 4096)));
-  size_t used = 0;
-  size_t consumed = 0;
-  while (consumed < contents.size()) {
-    Inflater inflater(16 + MAX_WBITS);
-    if (!inflater.ok()) return absl::ResourceExhaustedError("zlib: cannot start inflating");
-    z_stream& z = inflater.stream();
-    const absl::string_view member = contents.substr(consumed);
-    z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(member.data()));
-    size_t fed = std::min(member.size(), kChunk);
-    z.avail_in = static_cast<uInt>(fed);
-    int rc = Z_OK;
-    while (rc != Z_STREAM_END) {
-      if (used == out.size()) {
-        if (out.size() >= max_bytes) {
-          return absl::InvalidArgumentError(
-              absl::StrCat(name, ": decompresses to more than ", max_bytes, " bytes"));
-        }
-        out.resize(std::min(max_bytes, out.size() * 2));
-      }
-      z.next_out = reinterpret_cast<Bytef*>(&out[used]);
-      const size_t room = std::min(out.size() - used, kChunk);
-      z.avail_out = static_cast<uInt>(room);
-      if (z.avail_in == 0 && fed < member.size()) {
-        const size_t more = std::min(member.size() - fed, kChunk);
-        z.avail_in = static_cast<uInt>(more);
-        fed += more;
-      }
-      rc = inflate(&z, Z_NO_FLUSH);
-      used += room - z.avail_out;
-      if (rc == Z_BUF_ERROR && z.avail_in == 0 && fed == member.size()) {
-        return Corrupt(name, "gzip data ends early", z);
-      }
-      if (rc != Z_OK && rc != Z_STREAM_END && rc != Z_BUF_ERROR) {
-        return Corrupt(name, "corrupt gzip data", z);
-      }
+  size_t offset = 0;
+  while (offset < contents.size()) {
+    size_t consumed = 0;
+    bool over = false;
+    const absl::Status member = InflateStream(16 + MAX_WBITS, contents.substr(offset), offset, name,
+                                              "gzip data", max_bytes, &out, &consumed, &over);
+    if (!member.ok()) return member;
+    if (over) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(name, ": gzip data decompresses to more than ", max_bytes, " bytes"));
     }
-    consumed += z.total_in;
-    // Padding after the last member (some tools write zeros) ends the stream, as for gunzip.
-    if (consumed < contents.size() && !IsGzip(contents.substr(consumed))) break;
+    offset += consumed;
+    if (offset == contents.size() || IsGzip(contents.substr(offset))) continue;
+    // After the last member only zero padding is allowed (tape blocks, some tools' output);
+    // anything else is a damaged next member, and reading on would drop the rest unsaid.
+    const absl::string_view tail = contents.substr(offset);
+    if (tail.find_first_not_of('\0') != absl::string_view::npos) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          name, ": byte offset ", offset,
+          ": data after the gzip stream is neither another gzip member nor zero padding"));
+    }
+    break;
   }
-  out.resize(used);
   return out;
 }
 
 absl::StatusOr<std::string> InflateRaw(absl::string_view contents, size_t size,
                                        absl::string_view name) {
-  Inflater inflater(-MAX_WBITS);
-  if (!inflater.ok()) return absl::ResourceExhaustedError("zlib: cannot start inflating");
-  z_stream& z = inflater.stream();
-  std::string out(size, '\0');
-  z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(contents.data()));
-  size_t fed = std::min(contents.size(), kChunk);
-  z.avail_in = static_cast<uInt>(fed);
-  size_t used = 0;
-  int rc = Z_OK;
-  while (rc != Z_STREAM_END) {
-    if (z.avail_in == 0 && fed < contents.size()) {
-      const size_t more = std::min(contents.size() - fed, kChunk);
-      z.avail_in = static_cast<uInt>(more);
-      fed += more;
-    }
-    // One spare byte of room shows a stream longer than promised.
-    char spare;
-    const bool spare_room = used == size;
-    z.next_out = reinterpret_cast<Bytef*>(spare_room ? &spare : &out[used]);
-    const size_t room = spare_room ? 1 : std::min(size - used, kChunk);
-    z.avail_out = static_cast<uInt>(room);
-    rc = inflate(&z, Z_NO_FLUSH);
-    const size_t produced = room - z.avail_out;
-    if (spare_room && produced > 0) {
-      return absl::InvalidArgumentError(
-          absl::StrCat(name, ": deflated data is longer than its stated size of ", size, " bytes"));
-    }
-    used += produced;
-    if (rc == Z_BUF_ERROR && z.avail_in == 0 && fed == contents.size()) {
-      return Corrupt(name, "deflated data ends early", z);
-    }
-    if (rc != Z_OK && rc != Z_STREAM_END && rc != Z_BUF_ERROR) {
-      return Corrupt(name, "corrupt deflated data", z);
-    }
-  }
-  if (used != size) {
+  std::string out;
+  out.reserve(std::min(size, size_t{64} << 20));
+  size_t consumed = 0;
+  bool over = false;
+  const absl::Status status =
+      InflateStream(-MAX_WBITS, contents, 0, name, "deflated data", size, &out, &consumed, &over);
+  if (!status.ok()) return status;
+  if (over) {
     return absl::InvalidArgumentError(
-        absl::StrCat(name, ": deflated data is ", used, " bytes, not its stated size of ", size));
+        absl::StrCat(name, ": deflated data is longer than its stated size of ", size, " bytes"));
+  }
+  if (out.size() != size) {
+    return absl::InvalidArgumentError(absl::StrCat(name, ": deflated data is ", out.size(),
+                                                   " bytes, not its stated size of ", size));
   }
   return out;
 }

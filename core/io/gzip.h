@@ -8,17 +8,19 @@
 
 namespace shapeid {
 
-// True when `contents` starts with the gzip magic bytes (1f 8b).
+// True when `contents` starts with the gzip magic bytes and deflate method (1f 8b 08).
 bool IsGzip(absl::string_view contents);
 
 // The decompressed bytes of a gzip stream (RFC 1952; several concatenated members are read as
-// one, as gunzip does). InvalidArgument naming `name` for a corrupt or truncated stream, or
-// one whose data inflates past `max_bytes` (a decompression bomb).
+// one, as gunzip does; zero padding after the last is ignored). Memory grows with the output
+// actually produced. InvalidArgument naming `name` (and the byte offset) for a corrupt or
+// truncated stream, other data after it, or output past `max_bytes` (a decompression bomb).
 absl::StatusOr<std::string> Gunzip(absl::string_view contents, absl::string_view name,
                                    size_t max_bytes);
 
 // Inflates a raw deflate stream (RFC 1951, no header), as zip archives store members, whose
-// uncompressed size is known to be `size`. InvalidArgument naming `name` otherwise.
+// uncompressed size is stated to be `size`; memory grows with the output actually produced,
+// never with the stated size. InvalidArgument naming `name` when the output is not `size` bytes.
 absl::StatusOr<std::string> InflateRaw(absl::string_view contents, size_t size,
                                        absl::string_view name);
 

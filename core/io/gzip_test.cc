@@ -53,7 +53,8 @@ TEST(GzipTest, TruncatedCorruptAndBombAreRefusedNamingTheFile) {
   const absl::StatusOr<std::string> cut = Gunzip(gz.substr(0, gz.size() / 2), "c.gz", 1 << 30);
   ASSERT_FALSE(cut.ok());
   EXPECT_EQ(cut.status().code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_THAT(std::string(cut.status().message()), HasSubstr("c.gz: gzip data ends early"));
+  EXPECT_THAT(std::string(cut.status().message()), HasSubstr("c.gz: byte offset "));
+  EXPECT_THAT(std::string(cut.status().message()), HasSubstr("gzip data ends early"));
   std::string corrupt = gz;
   corrupt[gz.size() / 2] ^= 0x55;
   corrupt[gz.size() / 2 + 1] ^= 0x55;
@@ -65,6 +66,22 @@ TEST(GzipTest, TruncatedCorruptAndBombAreRefusedNamingTheFile) {
   EXPECT_THAT(std::string(bomb.status().message()), HasSubstr("more than 4096 bytes"));
 }
 
+TEST(GzipTest, ADamagedSecondMemberIsAnErrorAndZeroPaddingIsNot) {
+  const std::string a = ManyPoints(100);
+  const std::string b = ManyPoints(50);
+  std::string damaged = Gzip(a) + Gzip(b);
+  damaged[Gzip(a).size()] = 'X';  // the second member's magic
+  const absl::StatusOr<std::string> refused = Gunzip(damaged, "m.gz", 1 << 30);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_THAT(std::string(refused.status().message()),
+              HasSubstr(absl::StrCat("m.gz: byte offset ", Gzip(a).size(),
+                                     ": data after the gzip stream")));
+  const absl::StatusOr<std::string> padded =
+      Gunzip(Gzip(a) + std::string(512, '\0'), "p.gz", 1 << 30);
+  ASSERT_TRUE(padded.ok()) << padded.status();
+  EXPECT_EQ(*padded, a);
+}
+
 TEST(GzipTest, RawDeflateMustMatchItsStatedSize) {
   const std::string text = ManyPoints(100);
   const std::string raw = Compress(text, -MAX_WBITS);
@@ -74,6 +91,10 @@ TEST(GzipTest, RawDeflateMustMatchItsStatedSize) {
   EXPECT_FALSE(InflateRaw(raw, text.size() - 1, "m.npy").ok());
   EXPECT_FALSE(InflateRaw(raw, text.size() + 1, "m.npy").ok());
   EXPECT_FALSE(InflateRaw(raw.substr(0, raw.size() - 4), text.size(), "m.npy").ok());
+  // A stated size far above the data costs nothing up front: memory follows the output.
+  const absl::StatusOr<std::string> claimed = InflateRaw(raw, size_t{1} << 40, "m.npy");
+  ASSERT_FALSE(claimed.ok());
+  EXPECT_THAT(std::string(claimed.status().message()), HasSubstr("not its stated size"));
 }
 
 TEST(GzipTest, EveryFormatReadsGzippedByNameOrByContents) {

@@ -12,9 +12,9 @@
 
 namespace shapeid {
 
-// Internal to core/io: the mesh readers (PLY, OFF) collect vertices and triangles here, then
-// sample points on the surface, area-weighted, with a seeded PRNG of our own (splitmix64), so
-// the same file and seed give the same points with every standard library.
+// Internal to core/io: the mesh readers (PLY, OFF, OBJ, STL, VTK) collect vertices and triangles
+// here, then sample points on the surface, area-weighted, with a seeded PRNG of our own
+// (splitmix64), so the same file and seed give the same points with every standard library.
 class TriangleMesh {
  public:
   void AddVertex(double x, double y, double z);

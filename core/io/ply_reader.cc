@@ -304,19 +304,18 @@ absl::StatusOr<ReadResult> ParsePly(absl::string_view contents, absl::string_vie
     }
   }
   // A mesh is sampled like every other mesh format; a cloud saved as PLY has no faces.
-  const bool sample = options.sample_points > 0 && face != nullptr && face->count > 0;
+  // A face element without a vertex_indices list holds nothing to sample: its vertices are read.
   int indices_property = -1;
-  if (sample) {
+  if (face != nullptr) {
     for (size_t i = 0; i < face->properties.size(); ++i) {
       const Property& p = face->properties[i];
       if (p.is_list && (p.name == "vertex_indices" || p.name == "vertex_index")) {
         indices_property = static_cast<int>(i);
       }
     }
-    if (indices_property < 0) {
-      return LineError(name, face->line, "the face element has no vertex_indices list");
-    }
   }
+  const bool sample =
+      options.sample_points > 0 && face != nullptr && face->count > 0 && indices_property >= 0;
 
   const bool ascii = h.format == Format::kAscii;
   CloudAccumulator cloud(name, ascii ? "line" : "byte offset");

@@ -18,8 +18,8 @@ namespace shapeid {
 // OBJ; sample_points 0, or a file without faces, gives the vertices.
 // InvalidArgument, naming `name` and the header line, data line (ascii) or byte offset
 // (binary), for malformed contents: a bad header, missing x / y / z, truncated or extra data,
-// non-numeric values, out-of-range vertex indices, a face element to sample without a
-// vertex_indices list, a mesh without a face of positive area.
+// non-numeric values, out-of-range vertex indices, a mesh without a face of positive area. A
+// face element without a vertex_indices list is no mesh: the vertices are read.
 absl::StatusOr<ReadResult> ParsePly(absl::string_view contents, absl::string_view name,
                                     const ReadOptions& options = {});
 

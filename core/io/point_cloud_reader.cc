@@ -41,10 +41,6 @@ class FdCloser {
   int fd_;
 };
 
-// A gzipped file inflating past this is refused (a decompression bomb, or a file that would
-// not fit in memory anyway): 64 GiB, above any cloud a machine describes in one piece.
-constexpr size_t kMaxInflatedBytes = size_t{64} << 30;
-
 }  // namespace
 
 const std::vector<std::string>& CloudFormatNames() {
@@ -136,7 +132,8 @@ absl::StatusOr<std::string> ReadFileContents(const std::string& path) {
 absl::StatusOr<ReadResult> ParsePointCloud(absl::string_view contents, CloudFormat format,
                                            absl::string_view name, const ReadOptions& options) {
   if (IsGzip(contents)) {
-    SHAPEID_ASSIGN_OR_RETURN(const std::string inflated, Gunzip(contents, name, kMaxInflatedBytes));
+    SHAPEID_ASSIGN_OR_RETURN(const std::string inflated,
+                             Gunzip(contents, name, options.max_inflated_bytes));
     if (IsGzip(inflated)) {
       return absl::InvalidArgumentError(absl::StrCat(name, ": gzip inside gzip"));
     }

@@ -20,7 +20,7 @@ const std::vector<std::string>& CloudFormatNames();
 absl::StatusOr<CloudFormat> CloudFormatForName(absl::string_view name);
 
 // The format for `path`'s extension, looking through a final ".gz". InvalidArgument listing
-// the supported extensions; for .laz, InvalidArgument naming the commands that decompress it.
+// the supported extensions; for .laz, Unimplemented naming the commands that decompress it.
 absl::StatusOr<CloudFormat> CloudFormatForPath(absl::string_view path);
 
 // The extensions CloudFormatForPath accepts, for messages: ".pcd .ply ... .csv".

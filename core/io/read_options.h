@@ -62,6 +62,10 @@ struct ReadOptions {
   // Seed for the sampling.
   uint64_t sample_seed = 0;
 
+  // A gzipped input inflating past this many bytes is refused (a decompression bomb would
+  // otherwise take all memory): 8 GiB by default, about 700 million binary PCD points.
+  size_t max_inflated_bytes = size_t{8} << 30;
+
   // When set, every input is parsed as this format whatever its name says; standard input
   // ("-") needs it, having no name.
   std::optional<CloudFormat> input_format;

@@ -224,6 +224,16 @@ absl::StatusOr<ReadResult> ParseStl(absl::string_view contents, absl::string_vie
   const bool solid = absl::StartsWithIgnoreCase(contents.substr(start), "solid");
   const bool text = contents.find('\0') == absl::string_view::npos;
   if (solid && text) return AsciiParser(contents, name, options).Parse();
+  // Binary files from real exporters break the count rule both ways (as VTK's reader notes):
+  // trailing bytes after the records, or a count of 0 or garbage. Read the records the count
+  // promises when the file holds them, else every whole record the file holds.
+  if (contents.size() >= kHeaderBytes && count > 0 && binary_size <= contents.size()) {
+    return ParseBinary(contents.substr(0, binary_size), name, count, options);
+  }
+  if (contents.size() > kHeaderBytes && (contents.size() - kHeaderBytes) % kRecordBytes == 0) {
+    const uint64_t records = (contents.size() - kHeaderBytes) / kRecordBytes;
+    return ParseBinary(contents, name, static_cast<uint32_t>(records), options);
+  }
 
   const std::string size = absl::StrCat("the file has ", contents.size(), " bytes");
   if (contents.size() < kHeaderBytes) {

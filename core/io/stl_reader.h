@@ -11,10 +11,13 @@ namespace shapeid {
 //  - binary when the size is exactly 84 + 50 * count (an 80-byte header, the uint32 triangle
 //    count, then per triangle a normal and 3 vertices as little-endian float32 and a uint16
 //    attribute), whatever the header says: many binary files (SolidWorks) start with "solid";
+//    also, when the file is not ascii, the first `count` records of a longer file, or every
+//    record of a file whose size is 84 plus whole records but whose count is wrong (exporters
+//    write both);
 //  - otherwise ascii when it starts, after blanks, with "solid" and holds no NUL byte: one or
 //    more "solid [name]" ... "endsolid [name]" blocks of "facet normal nx ny nz", "outer loop",
-//    three "vertex x y z", "endloop", "endfacet"; keywords are case-insensitive and may be
-//    split across lines in any way.
+//    three "vertex x y z", "endloop", "endfacet"; keywords are case-insensitive; the rest of
+//    the "solid" line is its name.
 // The mesh is sampled to ReadOptions::sample_points points, area-weighted and seeded with
 // sample_seed, as for every mesh format; sample_points 0 gives the vertices, 3 per triangle in
 // file order (shared corners are not merged). Normals and attributes are ignored.

@@ -167,12 +167,13 @@ TEST(StlReaderTest, SameSeedSamePointsAndDefaults) {
 }
 
 TEST(StlReaderTest, NeitherAsciiNorBinaryGivesTheExpectedSize) {
-  std::string five = Binary(Cube());  // announces 12 triangles, holds 2
-  five.resize(84 + 100);
+  std::string five = Binary(Cube());  // announces 12 triangles, holds 2 and a half
+  five.resize(84 + 125);
   std::string solid_binary = Binary(Cube(), "solid from SolidWorks");
   solid_binary.resize(solid_binary.size() - 1);
   std::string huge = Binary({});
   huge.replace(80, 4, "\xff\xff\xff\xff");
+  huge += "partial";
   const struct {
     std::string contents;
     const char* message;
@@ -183,17 +184,29 @@ TEST(StlReaderTest, NeitherAsciiNorBinaryGivesTheExpectedSize) {
       {"ply\nformat ascii 1.0\n", "byte offset 0: neither ascii STL"},
       {five,
        "byte offset 80: neither ascii STL (which starts with \"solid\") nor binary STL: its header "
-       "announces 12 triangles, which need 84 + 50 * 12 = 684 bytes, but the file has 184 bytes"},
+       "announces 12 triangles, which need 84 + 50 * 12 = 684 bytes, but the file has 209 bytes"},
       {solid_binary,
        "byte offset 80: starts with \"solid\" but holds NUL bytes, so it is not ascii STL; as "
        "binary STL, its header announces 12 triangles, which need 84 + 50 * 12 = 684 bytes, but "
        "the file has 683 bytes"},
-      {huge, "which need 84 + 50 * 4294967295 = 214748364834 bytes, but the file has 84 bytes"},
+      {huge, "which need 84 + 50 * 4294967295 = 214748364834 bytes, but the file has 91 bytes"},
   };
   for (const auto& c : cases) {
     const std::string path = WriteTempFile("neither.stl", c.contents);
     ExpectError(ReadPointCloud(path, Sampled(10)), absl::StatusCode::kInvalidArgument, path,
                 c.message);
+  }
+}
+
+TEST(StlReaderTest, BinaryWithABogusCountOrTrailingBytesReadsItsRecords) {
+  // Exporters write a count of 0, or pad the file: the records are read as VTK's reader does.
+  std::string zero_count = Binary(Cube());
+  zero_count.replace(80, 4, std::string(4, '\0'));
+  std::string padded = Binary(Cube()) + std::string(17, '\0');
+  for (const std::string& file : {zero_count, padded}) {
+    const absl::StatusOr<ReadResult> r = ParseStl(file, "lenient.stl", Sampled(0));
+    ASSERT_TRUE(r.ok()) << r.status();
+    EXPECT_EQ(r->cloud.size(), 3 * Cube().size());
   }
 }
 
@@ -309,7 +322,7 @@ TEST(StlReaderTest, CheckedInFiles) {
       {"stl_binary_count_huge.stl",
        "byte offset 80: neither ascii STL (which starts with \"solid\") nor binary STL: its "
        "header announces 4294967295 triangles, which need 84 + 50 * 4294967295 = 214748364834 "
-       "bytes, but the file has 184 bytes"},
+       "bytes, but the file has 190 bytes"},
       {"stl_binary_truncated.stl",
        "byte offset 80: starts with \"solid\" but holds NUL bytes, so it is not ascii STL; as "
        "binary STL, its header announces 3 triangles, which need 84 + 50 * 3 = 234 bytes, but "
