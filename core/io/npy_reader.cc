@@ -1,7 +1,5 @@
 #include "core/io/npy_reader.h"
 
-#include <zlib.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -17,8 +15,9 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "core/io/cloud_accumulator.h"
-#include "core/io/gzip.h"
+#include "core/io/npy_header.h"
 #include "core/io/text_lines.h"
+#include "core/io/zip_archive.h"
 #include "core/status_macros.h"
 
 namespace shapeid {
@@ -54,292 +53,11 @@ uint64_t Le(const char* p, int n) {
   return v;
 }
 
-// ---- The header: a Python literal ----
-
-// A Python literal, as much of the language as .npy headers use.
-struct Literal {
-  enum class Type { kString, kInt, kBool, kNone, kTuple, kList, kDict };
-  Type type = Type::kNone;
-  size_t pos = 0;              // where it starts in the header
-  std::string text;            // kString
-  uint64_t magnitude = 0;      // kInt: |value|, saturated
-  bool negative = false;       // kInt
-  bool too_big = false;        // kInt: |value| >= 2^64
-  bool truth = false;          // kBool
-  std::vector<Literal> items;  // kTuple, kList; kDict: key, value, key, value...
-};
-
-bool IsSpace(char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\r' || c == '\f'; }
-bool IsDigit(char c) { return c >= '0' && c <= '9'; }
-bool IsWordChar(char c) {
-  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_' || IsDigit(c);
-}
-int HexValue(char c) {
-  if (IsDigit(c)) return c - '0';
-  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-  return -1;
-}
-
-void AppendUtf8(uint32_t code, std::string* out) {
-  if (code < 0x80) {
-    out->push_back(static_cast<char>(code));
-  } else if (code < 0x800) {
-    out->push_back(static_cast<char>(0xc0 | (code >> 6)));
-    out->push_back(static_cast<char>(0x80 | (code & 0x3f)));
-  } else if (code < 0x10000) {
-    out->push_back(static_cast<char>(0xe0 | (code >> 12)));
-    out->push_back(static_cast<char>(0x80 | ((code >> 6) & 0x3f)));
-    out->push_back(static_cast<char>(0x80 | (code & 0x3f)));
-  } else {
-    out->push_back(static_cast<char>(0xf0 | (code >> 18)));
-    out->push_back(static_cast<char>(0x80 | ((code >> 12) & 0x3f)));
-    out->push_back(static_cast<char>(0x80 | ((code >> 6) & 0x3f)));
-    out->push_back(static_cast<char>(0x80 | (code & 0x3f)));
-  }
-}
-
-// Header text for messages: its first 40 bytes, quotes left as they are.
-std::string Quote(absl::string_view text) {
-  constexpr size_t kMax = 40;
-  std::string out = "\"";
-  for (const char c : text.substr(0, kMax)) {
-    if (c == '"' || c == '\\' || c < ' ' || c > '~') {
-      absl::StrAppend(&out, absl::CHexEscape(absl::string_view(&c, 1)));
-    } else {
-      out.push_back(c);
-    }
-  }
-  return absl::StrCat(out, text.size() > kMax ? "...\"" : "\"");
-}
-
-// Parses the header's dict literal: strings (either quote, u/b/r prefixes, escapes),
-// integers (Python 2's "3L" when long_ints), True, False, None, tuples, lists and dicts.
-class LiteralParser {
- public:
-  // `base` is the header's byte offset in the file, for messages.
-  LiteralParser(absl::string_view header, uint64_t base, absl::string_view name, bool long_ints)
-      : text_(header), base_(base), name_(name), long_ints_(long_ints) {}
-
-  // One value, then only whitespace (numpy pads the header with spaces and a '\n').
-  absl::StatusOr<Literal> Parse() {
-    Literal value;
-    SHAPEID_RETURN_IF_ERROR(Value(&value, 0));
-    SkipSpace();
-    if (pos_ < text_.size()) return SyntaxError("expected the end of the header");
-    return value;
-  }
-
-  // An error about the header at `pos`.
-  absl::Status Error(size_t pos, absl::string_view what) const {
-    return Invalid(name_, base_ + pos, absl::StrCat("array header ", Quote(text_), ": ", what));
-  }
-
- private:
-  static constexpr int kMaxDepth = 32;
-
-  // A syntax error at pos_, saying what is there.
-  absl::Status SyntaxError(absl::string_view what) const {
-    return Error(pos_,
-                 absl::StrCat(what, ", found ",
-                              AtEnd() ? "the end of the header" : Quote(text_.substr(pos_, 1))));
-  }
-
-  bool AtEnd() const { return pos_ >= text_.size(); }
-  char Peek() const { return AtEnd() ? '\0' : text_[pos_]; }
-  void SkipSpace() {
-    while (!AtEnd() && IsSpace(text_[pos_])) ++pos_;
-  }
-
-  absl::Status Value(Literal* out, int depth) {
-    if (depth > kMaxDepth) return SyntaxError("values nest deeper than 32 levels");
-    SkipSpace();
-    out->pos = pos_;
-    const char c = Peek();
-    if (c == '{') return Dict(out, depth);
-    if (c == '(') return Sequence(')', out, depth);
-    if (c == '[') return Sequence(']', out, depth);
-    if (c == '\'' || c == '"') return String(false, out);
-    if (IsDigit(c) || c == '-' || c == '+') return Int(out);
-    if (!AtEnd() && IsWordChar(c)) {
-      const size_t start = pos_;
-      while (!AtEnd() && IsWordChar(text_[pos_])) ++pos_;
-      const absl::string_view word = text_.substr(start, pos_ - start);
-      if ((Peek() == '\'' || Peek() == '"') && word.size() == 1 &&
-          absl::string_view("uUbBrR").find(word[0]) != absl::string_view::npos) {
-        return String(word[0] == 'r' || word[0] == 'R', out);
-      }
-      if (word == "True" || word == "False") {
-        out->type = Literal::Type::kBool;
-        out->truth = word == "True";
-        return absl::OkStatus();
-      }
-      if (word == "None") {
-        out->type = Literal::Type::kNone;
-        return absl::OkStatus();
-      }
-      return Error(start, absl::StrCat("unknown name ", Quote(word)));
-    }
-    return SyntaxError("expected a value");
-  }
-
-  absl::Status Int(Literal* out) {
-    out->type = Literal::Type::kInt;
-    if (Peek() == '-' || Peek() == '+') {
-      out->negative = Peek() == '-';
-      ++pos_;
-      SkipSpace();
-    }
-    if (!IsDigit(Peek())) return SyntaxError("expected digits");
-    while (IsDigit(Peek())) {
-      const uint64_t digit = static_cast<uint64_t>(text_[pos_++] - '0');
-      if (out->magnitude > (std::numeric_limits<uint64_t>::max() - digit) / 10) {
-        out->too_big = true;
-        out->magnitude = std::numeric_limits<uint64_t>::max();
-      } else if (!out->too_big) {
-        out->magnitude = out->magnitude * 10 + digit;
-      }
-    }
-    if (long_ints_ && (Peek() == 'L' || Peek() == 'l')) ++pos_;
-    return absl::OkStatus();
-  }
-
-  // Reads `digits` hex digits into *code.
-  absl::Status Hex(int digits, uint32_t* code) {
-    *code = 0;
-    for (int i = 0; i < digits; ++i) {
-      const int v = HexValue(Peek());
-      if (v < 0) return SyntaxError("expected a hexadecimal digit in an escape");
-      *code = (*code << 4) | static_cast<uint32_t>(v);
-      ++pos_;
-    }
-    return absl::OkStatus();
-  }
-
-  absl::Status String(bool raw, Literal* out) {
-    out->type = Literal::Type::kString;
-    const char quote = text_[pos_++];
-    while (true) {
-      if (AtEnd() || Peek() == '\n') return SyntaxError("a string is not closed");
-      const char c = text_[pos_++];
-      if (c == quote) return absl::OkStatus();
-      if (c != '\\') {
-        out->text.push_back(c);
-        continue;
-      }
-      if (AtEnd()) return SyntaxError("a string is not closed");
-      const char e = text_[pos_++];
-      if (raw) {
-        out->text.push_back('\\');
-        out->text.push_back(e);
-        continue;
-      }
-      uint32_t code = 0;
-      switch (e) {
-        case '\n':
-          break;
-        case 'n':
-          out->text.push_back('\n');
-          break;
-        case 't':
-          out->text.push_back('\t');
-          break;
-        case 'r':
-          out->text.push_back('\r');
-          break;
-        case 'x':
-        case 'u':
-        case 'U':
-          SHAPEID_RETURN_IF_ERROR(Hex(e == 'x' ? 2 : e == 'u' ? 4 : 8, &code));
-          if (code > 0x10ffff) return SyntaxError("a \\U escape beyond U+10FFFF");
-          AppendUtf8(code, &out->text);
-          break;
-        default:
-          if (e >= '0' && e <= '7') {  // octal, up to three digits
-            code = static_cast<uint32_t>(e - '0');
-            for (int i = 0; i < 2 && Peek() >= '0' && Peek() <= '7'; ++i) {
-              code = code * 8 + static_cast<uint32_t>(text_[pos_++] - '0');
-            }
-            AppendUtf8(code, &out->text);
-          } else if (e == '\\' || e == '\'' || e == '"') {
-            out->text.push_back(e);
-          } else {  // Python keeps unknown escapes as written
-            out->text.push_back('\\');
-            out->text.push_back(e);
-          }
-      }
-    }
-  }
-
-  // A tuple or list; "(x)" without a comma is x itself, as in Python.
-  absl::Status Sequence(char close, Literal* out, int depth) {
-    out->type = close == ')' ? Literal::Type::kTuple : Literal::Type::kList;
-    ++pos_;
-    bool comma = false;
-    SkipSpace();
-    if (Peek() == close) {
-      ++pos_;
-      return absl::OkStatus();
-    }
-    while (true) {
-      Literal item;
-      SHAPEID_RETURN_IF_ERROR(Value(&item, depth + 1));
-      out->items.push_back(std::move(item));
-      SkipSpace();
-      if (Peek() == ',') {
-        ++pos_;
-        comma = true;
-        SkipSpace();
-        if (Peek() == close) break;
-      } else if (Peek() != close) {
-        return SyntaxError(absl::StrCat("expected ',' or '", std::string(1, close), "'"));
-      }
-      if (Peek() == close) break;
-    }
-    ++pos_;
-    if (close == ')' && !comma) {
-      Literal inner = std::move(out->items[0]);
-      *out = std::move(inner);
-    }
-    return absl::OkStatus();
-  }
-
-  absl::Status Dict(Literal* out, int depth) {
-    out->type = Literal::Type::kDict;
-    ++pos_;
-    SkipSpace();
-    if (Peek() == '}') {
-      ++pos_;
-      return absl::OkStatus();
-    }
-    while (true) {
-      Literal key, value;
-      SHAPEID_RETURN_IF_ERROR(Value(&key, depth + 1));
-      SkipSpace();
-      if (Peek() != ':') return SyntaxError("expected ':' after a dict key");
-      ++pos_;
-      SHAPEID_RETURN_IF_ERROR(Value(&value, depth + 1));
-      out->items.push_back(std::move(key));
-      out->items.push_back(std::move(value));
-      SkipSpace();
-      if (Peek() == ',') {
-        ++pos_;
-        SkipSpace();
-      } else if (Peek() != '}') {
-        return SyntaxError("expected ',' or '}'");
-      }
-      if (Peek() == '}') break;
-    }
-    ++pos_;
-    return absl::OkStatus();
-  }
-
-  absl::string_view text_;
-  uint64_t base_;
-  absl::string_view name_;
-  bool long_ints_;
-  size_t pos_ = 0;
-};
+// The header's Python literal (core/io/npy_header.h).
+using npy_internal::IsDigit;
+using npy_internal::Literal;
+using npy_internal::LiteralParser;
+using npy_internal::Quote;
 
 // ---- dtypes ----
 
@@ -790,266 +508,30 @@ absl::StatusOr<ReadResult> ParseNpyArray(absl::string_view contents, absl::strin
   return std::move(cloud).Finish(options);
 }
 
-// ---- .npz: a zip archive ----
+// ---- .npz: the member holding the points ----
 
-constexpr uint32_t kEndSignature = 0x06054b50;
-constexpr uint32_t kZip64LocatorSignature = 0x07064b50;
-constexpr uint32_t kZip64EndSignature = 0x06064b50;
-constexpr uint32_t kCentralSignature = 0x02014b50;
-constexpr uint32_t kLocalSignature = 0x04034b50;
-constexpr uint64_t kEndSize = 22;
-constexpr uint64_t kCentralSize = 46;
-constexpr uint64_t kLocalSize = 30;
-// Deflate emits at most 258 bytes per 2 bits: no stream inflates by more than this.
-constexpr uint64_t kMaxDeflateRatio = 1032;
-
-bool IsZip(absl::string_view contents) {
-  return contents.substr(0, 4) == absl::string_view("PK\x03\x04", 4) ||
-         contents.substr(0, 4) == absl::string_view("PK\x05\x06", 4);
-}
-
-struct ZipEntry {
-  std::string name;
-  uint64_t record = 0;  // where its central directory record starts
-  uint32_t flags = 0;
-  uint32_t method = 0;
-  uint32_t crc = 0;
-  uint64_t compressed = 0;
-  uint64_t uncompressed = 0;
-  uint64_t local = 0;  // its local header's offset
-};
-
-std::string MemberText(absl::string_view member) {
-  return absl::StrCat("member \"", absl::CHexEscape(member), "\"");
-}
-
-// Fills the ZIP64 values of `e` (those stored as 0xFFFFFFFF) from its extra field.
-absl::Status ReadZip64Extra(absl::string_view extra, uint64_t extra_at, absl::string_view name,
-                            ZipEntry* e) {
-  uint64_t* wanted[3] = {nullptr, nullptr, nullptr};
-  int n = 0;
-  for (uint64_t* v : {&e->uncompressed, &e->compressed, &e->local}) {
-    if (*v == 0xffffffffu) wanted[n++] = v;
-  }
-  if (n == 0) return absl::OkStatus();
-  for (size_t i = 0; i + 4 <= extra.size();) {
-    const uint64_t id = Le(extra.data() + i, 2);
-    const uint64_t size = Le(extra.data() + i + 2, 2);
-    if (size > extra.size() - i - 4) break;
-    if (id == 1) {
-      if (size < 8 * static_cast<uint64_t>(n)) {
-        return Invalid(name, extra_at + i,
-                       absl::StrCat(MemberText(e->name), ": its ZIP64 extra field has ", size,
-                                    " bytes, too few for its ", n, " 64-bit sizes"));
-      }
-      for (int k = 0; k < n; ++k) *wanted[k] = Le(extra.data() + i + 4 + 8 * k, 8);
-      return absl::OkStatus();
-    }
-    i += 4 + size;
-  }
-  return Invalid(name, extra_at,
-                 absl::StrCat(MemberText(e->name),
-                              ": sizes or offset of 0xFFFFFFFF but no ZIP64 extra field"));
-}
-
-// Locates the central directory (through the ZIP64 records when present) and reads it.
-absl::StatusOr<std::vector<ZipEntry>> ReadCentralDirectory(absl::string_view contents,
-                                                           absl::string_view name) {
-  const uint64_t n = contents.size();
-  const char* d = contents.data();
-  const uint64_t lowest = n < kEndSize ? 0 : n - kEndSize - std::min<uint64_t>(n - kEndSize, 65535);
-  uint64_t end = n;
-  for (uint64_t i = n < kEndSize ? 0 : n - kEndSize + 1; i-- > lowest;) {
-    if (Le(d + i, 4) == kEndSignature && i + kEndSize + Le(d + i + 20, 2) <= n) {
-      end = i;
-      break;
-    }
-  }
-  if (end == n) {
-    return Invalid(name, lowest,
-                   absl::StrCat("not a zip archive: no end-of-central-directory record ",
-                                "(PK\\5\\6) in its last ", n - lowest,
-                                " bytes; a .npz file is a zip of .npy arrays"));
-  }
-  uint64_t disk = Le(d + end + 4, 2), directory_disk = Le(d + end + 6, 2);
-  uint64_t count = Le(d + end + 10, 2);
-  uint64_t directory_size = Le(d + end + 12, 4), directory_offset = Le(d + end + 16, 4);
-  uint64_t count_at = end + 10, directory_at = end + 12;
-  if (end >= 20 && Le(d + end - 20, 4) == kZip64LocatorSignature) {
-    const uint64_t locator = end - 20;
-    const uint64_t z = Le(d + locator + 8, 8);
-    if (Le(d + locator + 16, 4) > 1) {
-      return Unimplemented(name, locator + 16,
-                           "split (multi-disk) zip archives are not read; join them first");
-    }
-    if (z > n || n - z < 56) {
-      return Invalid(name, locator + 8,
-                     absl::StrCat("the ZIP64 locator points to offset ", z,
-                                  ", past the end of the archive (", n, " bytes)"));
-    }
-    if (Le(d + z, 4) != kZip64EndSignature) {
-      return Invalid(name, z,
-                     absl::StrCat("expected the ZIP64 end-of-central-directory record ",
-                                  "(PK\\6\\6), found ", QuoteForMessage(contents.substr(z, 4))));
-    }
-    disk = Le(d + z + 16, 4);
-    directory_disk = Le(d + z + 20, 4);
-    count = Le(d + z + 32, 8);
-    directory_size = Le(d + z + 40, 8);
-    directory_offset = Le(d + z + 48, 8);
-    count_at = z + 32;
-    directory_at = z + 40;
-  }
-  if (disk != 0 || directory_disk != 0) {
-    return Unimplemented(name, end + 4,
-                         "split (multi-disk) zip archives are not read; join them first");
-  }
-  if (directory_offset > n || directory_size > n - directory_offset) {
-    return Invalid(
-        name, directory_at,
-        absl::StrCat("the central directory (", directory_size, " bytes at offset ",
-                     directory_offset, ") runs past the end of the archive (", n, " bytes)"));
-  }
-  if (count == 0) {
-    return Invalid(name, count_at, "the archive is empty; a .npz file holds .npy arrays");
-  }
-  std::vector<ZipEntry> entries;
-  uint64_t pos = directory_offset;
-  const uint64_t directory_end = directory_offset + directory_size;
-  for (uint64_t i = 0; i < count; ++i) {
-    if (directory_end - pos < kCentralSize) {
-      return Invalid(
-          name, pos,
-          absl::StrCat("the central directory ends after ", i, " of its ", count, " entries"));
-    }
-    if (Le(d + pos, 4) != kCentralSignature) {
-      return Invalid(name, pos,
-                     absl::StrCat("expected a central directory entry (PK\\1\\2), found ",
-                                  QuoteForMessage(contents.substr(pos, 4))));
-    }
-    ZipEntry e;
-    e.record = pos;
-    e.flags = static_cast<uint32_t>(Le(d + pos + 8, 2));
-    e.method = static_cast<uint32_t>(Le(d + pos + 10, 2));
-    e.crc = static_cast<uint32_t>(Le(d + pos + 16, 4));
-    e.compressed = Le(d + pos + 20, 4);
-    e.uncompressed = Le(d + pos + 24, 4);
-    e.local = Le(d + pos + 42, 4);
-    const uint64_t name_length = Le(d + pos + 28, 2);
-    const uint64_t extra_length = Le(d + pos + 30, 2);
-    const uint64_t comment_length = Le(d + pos + 32, 2);
-    const uint64_t record_size = kCentralSize + name_length + extra_length + comment_length;
-    if (record_size > directory_end - pos) {
-      return Invalid(name, pos + 28,
-                     absl::StrCat("central directory entry ", i, "'s name, extra field and ",
-                                  "comment run past the end of the central directory"));
-    }
-    e.name = std::string(contents.substr(pos + kCentralSize, name_length));
-    const uint64_t extra_at = pos + kCentralSize + name_length;
-    SHAPEID_RETURN_IF_ERROR(
-        ReadZip64Extra(contents.substr(extra_at, extra_length), extra_at, name, &e));
-    entries.push_back(std::move(e));
-    pos += record_size;
-  }
-  return entries;
-}
+constexpr ZipHints kNpzHints{"a .npz file is a zip of .npy arrays",
+                             "a .npz file holds .npy arrays"};
 
 // The member holding the points, by name (see ParseNpz).
-absl::StatusOr<const ZipEntry*> ChooseMember(const std::vector<ZipEntry>& entries,
-                                             absl::string_view name) {
+absl::StatusOr<const ZipMember*> ChooseMember(const std::vector<ZipMember>& members,
+                                              absl::string_view name) {
   for (absl::string_view wanted : {"points.npy", "xyz.npy", "pcd.npy", "cloud.npy", "arr_0.npy"}) {
-    for (const ZipEntry& e : entries) {
-      if (e.name == wanted) return &e;
+    for (const ZipMember& m : members) {
+      if (m.name == wanted) return &m;
     }
   }
-  if (entries.size() == 1) return &entries[0];
+  if (members.size() == 1) return &members[0];
   std::string names;
-  for (size_t i = 0; i < entries.size() && i < 12; ++i) {
-    absl::StrAppend(&names, i > 0 ? ", " : "", "\"", absl::CHexEscape(entries[i].name), "\"");
+  for (size_t i = 0; i < members.size() && i < 12; ++i) {
+    absl::StrAppend(&names, i > 0 ? ", " : "", "\"", absl::CHexEscape(members[i].name), "\"");
   }
-  if (entries.size() > 12) absl::StrAppend(&names, ", ...");
-  return Invalid(name, entries[0].record,
-                 absl::StrCat("the archive holds ", entries.size(), " arrays (", names,
+  if (members.size() > 12) absl::StrAppend(&names, ", ...");
+  return Invalid(name, members[0].record,
+                 absl::StrCat("the archive holds ", members.size(), " arrays (", names,
                               ") and none is named points.npy, xyz.npy, pcd.npy, cloud.npy or "
                               "arr_0.npy, the names looked for; save the points under one of "
                               "them, e.g. np.savez(file, points=array)"));
-}
-
-absl::StatusOr<ReadResult> ReadMember(absl::string_view contents, absl::string_view name,
-                                      const ZipEntry& e, const ReadOptions& options) {
-  const uint64_t n = contents.size();
-  const std::string member = MemberText(e.name);
-  if ((e.flags & 1) != 0) {
-    return Unimplemented(name, e.record + 8,
-                         absl::StrCat(member, " is encrypted; encrypted archives are not read"));
-  }
-  if (e.method != 0 && e.method != 8) {
-    const char* method = e.method == 9    ? " (deflate64)"
-                         : e.method == 12 ? " (bzip2)"
-                         : e.method == 14 ? " (LZMA)"
-                         : e.method == 93 ? " (zstd)"
-                         : e.method == 95 ? " (xz)"
-                                          : "";
-    return Unimplemented(name, e.record + 10,
-                         absl::StrCat(member, " is compressed with method ", e.method, method,
-                                      "; stored (0) and deflate (8), as numpy writes, are read"));
-  }
-  if (e.local > n || n - e.local < kLocalSize) {
-    return Invalid(name, e.record + 42,
-                   absl::StrCat(member, ": its local header offset ", e.local,
-                                " is past the end of the archive (", n, " bytes)"));
-  }
-  const char* local = contents.data() + e.local;
-  if (Le(local, 4) != kLocalSignature) {
-    return Invalid(name, e.local,
-                   absl::StrCat(member, ": expected a local file header (PK\\3\\4), found ",
-                                QuoteForMessage(contents.substr(e.local, 4))));
-  }
-  const uint64_t name_length = Le(local + 26, 2);
-  const uint64_t data_start = e.local + kLocalSize + name_length + Le(local + 28, 2);
-  if (data_start > n) {
-    return Invalid(name, e.local + 26,
-                   absl::StrCat(member, ": its local header runs past the end of the archive"));
-  }
-  if (contents.substr(e.local + kLocalSize, name_length) != e.name) {
-    return Invalid(
-        name, e.local + kLocalSize,
-        absl::StrCat(member, ": its local header names it ",
-                     QuoteForMessage(contents.substr(e.local + kLocalSize, name_length))));
-  }
-  if (e.compressed > n - data_start) {
-    return Invalid(name, e.record + 20,
-                   absl::StrCat(member, ": its ", e.compressed, " bytes at offset ", data_start,
-                                " run past the end of the archive (", n, " bytes)"));
-  }
-  const absl::string_view raw = contents.substr(data_start, e.compressed);
-  const std::string label = absl::StrCat(name, ":", absl::CHexEscape(e.name));
-  std::string inflated;
-  absl::string_view bytes = raw;
-  if (e.method == 0) {
-    if (e.uncompressed != e.compressed) {
-      return Invalid(name, e.record + 20,
-                     absl::StrCat(member, " is stored, yet its sizes differ (", e.compressed,
-                                  " bytes stored, ", e.uncompressed, " bytes uncompressed)"));
-    }
-  } else {
-    if (e.uncompressed > e.compressed * kMaxDeflateRatio + kMaxDeflateRatio) {
-      return Invalid(name, e.record + 24,
-                     absl::StrCat(member, " claims ", e.uncompressed, " bytes from ", e.compressed,
-                                  " deflated bytes, more than deflate can ", "reach (1032:1)"));
-    }
-    SHAPEID_ASSIGN_OR_RETURN(inflated, InflateRaw(raw, e.uncompressed, label));
-    bytes = inflated;
-  }
-  const uint32_t crc =
-      static_cast<uint32_t>(crc32_z(0, reinterpret_cast<const Bytef*>(bytes.data()), bytes.size()));
-  if (crc != e.crc) {
-    return Invalid(name, e.record + 16,
-                   absl::StrCat(member, ": its data's CRC-32 is 0x",
-                                absl::Hex(crc, absl::kZeroPad8), ", the archive records 0x",
-                                absl::Hex(e.crc, absl::kZeroPad8), " (the archive is corrupt)"));
-  }
-  return ParseNpyArray(bytes, label, options);
 }
 
 }  // namespace
@@ -1065,10 +547,13 @@ absl::StatusOr<ReadResult> ParseNpz(absl::string_view contents, absl::string_vie
   if (contents.substr(0, kNpyMagic.size()) == kNpyMagic) {
     return ParseNpyArray(contents, name, options);
   }
-  SHAPEID_ASSIGN_OR_RETURN(const std::vector<ZipEntry> entries,
-                           ReadCentralDirectory(contents, name));
-  SHAPEID_ASSIGN_OR_RETURN(const ZipEntry* member, ChooseMember(entries, name));
-  return ReadMember(contents, name, *member, options);
+  SHAPEID_ASSIGN_OR_RETURN(const std::vector<ZipMember> members,
+                           ListZipMembers(contents, name, kNpzHints));
+  SHAPEID_ASSIGN_OR_RETURN(const ZipMember* member, ChooseMember(members, name));
+  std::string inflated;
+  SHAPEID_ASSIGN_OR_RETURN(const absl::string_view bytes,
+                           ReadZipMember(contents, *member, name, &inflated));
+  return ParseNpyArray(bytes, ZipMemberLabel(name, *member), options);
 }
 
 }  // namespace shapeid
