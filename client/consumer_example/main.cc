@@ -29,7 +29,7 @@ int main() {
     return 1;
   }
   auto result = (*client)->Describe(read->cloud);
-  std::cout << "read " << read->cloud.size() << " points; Describe without a server: "
-            << result.status() << "\n";
+  std::cout << "read " << read->cloud.size()
+            << " points; Describe without a server: " << result.status() << "\n";
   return absl::IsUnavailable(result.status()) ? 0 : 1;
 }
