@@ -56,6 +56,19 @@ inline void ExpectError(const absl::StatusOr<ReadResult>& result, absl::StatusCo
   EXPECT_THAT(std::string(result.status().message()), ::testing::HasSubstr(where));
 }
 
+// Parses every prefix of `file` (the file cut at each byte, the whole file too) and checks that
+// every rejection names `name`. `parse(contents)` returns absl::StatusOr<ReadResult>; as for
+// ExpectCorruptionsNameTheFile, never crashing is the other half of the check.
+template <typename Parse>
+void ExpectPrefixesNameTheFile(const std::string& file, const std::string& name, Parse parse) {
+  for (size_t n = 0; n <= file.size(); ++n) {
+    const absl::StatusOr<ReadResult> r = parse(file.substr(0, n));
+    if (!r.ok()) {
+      EXPECT_THAT(std::string(r.status().message()), ::testing::HasSubstr(name)) << "prefix " << n;
+    }
+  }
+}
+
 // Parses `trials` copies of `file`, each with 3 bytes replaced by characters drawn from
 // `replacements` (a seeded LCG whose state carries across calls), and checks that every
 // rejection names `name`. `parse(contents)` returns absl::StatusOr<ReadResult>. Never
