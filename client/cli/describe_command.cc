@@ -131,11 +131,7 @@ int RunDescribe(const DescribeOptions& options, const CliContext& context) {
     PrintError(err, "describe", files.status());
     return kExitUsage;
   }
-  bool failed = false;
-  if (!unsupported.empty() && !options.skip_unsupported) {
-    WriteAll(err, absl::StrCat("shapeid: describe: ", UnsupportedFilesMessage(unsupported), "\n"));
-    failed = true;
-  }
+  bool failed = ReportUnsupportedFiles(err, "describe", unsupported, options.skip_unsupported);
   bool header_written = false;
   std::vector<float> values;
   std::string line;

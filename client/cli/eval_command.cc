@@ -67,11 +67,8 @@ int RunEval(const EvalOptions& options, const CliContext& context) {
   absl::StatusOr<EvalPlan> plan =
       PlanEval(options.dataset, !options.gallery.empty(), options.folds, options.seed);
   if (!plan.ok()) return usage(plan.status());
-  const bool unsupported_failed = !plan->unsupported.empty() && !options.batch.skip_unsupported;
-  if (unsupported_failed) {
-    WriteAll(context.err,
-             absl::StrCat("shapeid: eval: ", UnsupportedFilesMessage(plan->unsupported), "\n"));
-  }
+  const bool unsupported_failed = ReportUnsupportedFiles(context.err, "eval", plan->unsupported,
+                                                         options.batch.skip_unsupported);
   absl::StatusOr<v1::CreateGalleryRequest> request = CreateGalleryRequestFor(options.create);
   if (!request.ok()) return usage(request.status());
 

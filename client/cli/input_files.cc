@@ -69,6 +69,15 @@ std::string UnsupportedFilesMessage(const std::vector<std::string>& unsupported)
                       SupportedExtensions(), "; --skip-unsupported ignores other files)");
 }
 
+bool ReportUnsupportedFiles(std::FILE* err, absl::string_view command,
+                            const std::vector<std::string>& unsupported, bool skip) {
+  if (unsupported.empty() || skip) return false;
+  const std::string line =
+      absl::StrCat("shapeid: ", command, ": ", UnsupportedFilesMessage(unsupported), "\n");
+  std::fwrite(line.data(), 1, line.size(), err);
+  return true;
+}
+
 absl::StatusOr<ReadResult> ReadInputCloud(const std::string& path, const ReadOptions& options) {
   absl::StatusOr<ReadResult> read = ReadPointCloud(path, options);
   if (!read.ok() || options.drop_non_finite) return read;

@@ -4,6 +4,7 @@
 // Turning the paths on a command line into the files a batch works on: plain lists, and
 // labelled folders (one sub-folder per class, the layout of ModelNet and of most datasets).
 
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -27,6 +28,12 @@ absl::StatusOr<std::vector<std::string>> ExpandInputs(
 // The one stderr line that reports a walk's unsupported files: how many, the first few names,
 // the extensions shapeid reads, and the flag that ignores them. Empty when there are none.
 std::string UnsupportedFilesMessage(const std::vector<std::string>& unsupported);
+
+// What every command does with a walk's unsupported files, once, before its work: unless
+// `skip` (--skip-unsupported) or there are none, writes "shapeid: COMMAND: " and the message
+// to `err` and returns true: they count as failed inputs for the exit status.
+bool ReportUnsupportedFiles(std::FILE* err, absl::string_view command,
+                            const std::vector<std::string>& unsupported, bool skip);
 
 // ReadPointCloud for the commands: as it, and a cloud with non-finite points (an organised
 // cloud's missing pixels) is refused here, before any server sees it, with the count and

@@ -49,16 +49,6 @@ std::string Pad(absl::string_view text, size_t width) {
   return out;
 }
 
-// Reports a walk's files of other formats once, before the batch; true when they count as
-// failed inputs (no --skip-unsupported).
-bool ReportUnsupported(const std::vector<std::string>& unsupported, const BatchOptions& batch,
-                       const CliContext& context, absl::string_view command) {
-  if (unsupported.empty() || batch.skip_unsupported) return false;
-  WriteAll(context.err,
-           absl::StrCat("shapeid: ", command, ": ", UnsupportedFilesMessage(unsupported), "\n"));
-  return true;
-}
-
 }  // namespace
 
 int RunTrain(const TrainOptions& options, const CliContext& context) {
@@ -87,7 +77,8 @@ int RunTrain(const TrainOptions& options, const CliContext& context) {
   }
   std::unique_ptr<Client> client = ConnectOrReport(context);
   if (client == nullptr) return kExitUsage;
-  const bool unsupported_failed = ReportUnsupported(unsupported, options.batch, context, "train");
+  const bool unsupported_failed =
+      ReportUnsupportedFiles(context.err, "train", unsupported, options.batch.skip_unsupported);
 
   TrainOutcome outcome;
   {
@@ -174,7 +165,7 @@ int RunClassify(const ClassifyOptions& options, const CliContext& context) {
     return ExitCodeForStatus(gallery.status());
   }
   const bool unsupported_failed =
-      ReportUnsupported(unsupported, options.batch, context, "classify");
+      ReportUnsupportedFiles(context.err, "classify", unsupported, options.batch.skip_unsupported);
   size_t file_width = 4, label_width = 7;  // "unknown"
   for (const std::string& path : *paths) file_width = std::max(file_width, path.size());
   for (const v1::LabelCount& lc : gallery->label_counts()) {
