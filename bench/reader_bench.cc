@@ -108,12 +108,47 @@ std::string Npy(const PointCloud& cloud) {
   return out;
 }
 
-std::string PlyBinary(const PointCloud& cloud) {
+std::string PlyBinary(const PointCloud& cloud, bool big) {
   std::string out = absl::StrFormat(
-      "ply\nformat binary_little_endian 1.0\nelement vertex %d\nproperty float x\n"
+      "ply\nformat binary_%s_endian 1.0\nelement vertex %d\nproperty float x\n"
       "property float y\nproperty float z\nend_header\n",
-      cloud.size());
-  out.append(reinterpret_cast<const char*>(cloud.data()), 12 * cloud.size());
+      big ? "big" : "little", cloud.size());
+  if (!big) {
+    out.append(reinterpret_cast<const char*>(cloud.data()), 12 * cloud.size());
+    return out;
+  }
+  for (float v : cloud.xyz()) {
+    uint32_t bits;
+    std::memcpy(&bits, &v, 4);
+    Put<uint32_t>(&out, __builtin_bswap32(bits));
+  }
+  return out;
+}
+
+// PCL's PointXYZRGB layout: x y z and a packed colour, 16-byte records.
+std::string PcdXyzRgb(const PointCloud& cloud) {
+  std::string out = absl::StrFormat(
+      "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\n"
+      "WIDTH %d\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS %d\nDATA binary\n",
+      cloud.size(), cloud.size());
+  out.reserve(out.size() + 16 * cloud.size());
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    out.append(reinterpret_cast<const char*>(cloud.data() + 3 * i), 12);
+    Put<uint32_t>(&out, 0x00ff8040u);
+  }
+  return out;
+}
+
+std::string NpyDouble(const PointCloud& cloud) {
+  std::string dict =
+      absl::StrFormat("{'descr': '<f8', 'fortran_order': False, 'shape': (%d, 3), }", cloud.size());
+  dict.append(64 - (10 + dict.size() + 1) % 64, ' ');
+  dict += '\n';
+  std::string out = "\x93NUMPY\x01";
+  out += '\0';
+  Put<uint16_t>(&out, static_cast<uint16_t>(dict.size()));
+  out += dict;
+  for (float v : cloud.xyz()) Put<double>(&out, v);
   return out;
 }
 
@@ -154,9 +189,12 @@ int main(int argc, char** argv) {
     formats.push_back({name, dir + "/" + file});
   };
   add("PCD binary", "cloud.pcd", EncodePcd(cloud, PcdEncoding::kBinary));
-  add("PLY binary", "cloud.ply", PlyBinary(cloud));
+  add("PCD binary x y z rgb", "cloud_rgb.pcd", PcdXyzRgb(cloud));
+  add("PLY binary", "cloud.ply", PlyBinary(cloud, false));
+  add("PLY binary big-endian", "cloud_big.ply", PlyBinary(cloud, true));
   add("LAS 1.2 format 0", "cloud.las", Las(cloud));
   add("NumPy .npy <f4", "cloud.npy", Npy(cloud));
+  add("NumPy .npy <f8", "cloud_f8.npy", NpyDouble(cloud));
   add("XYZ text (%.6f)", "cloud.xyz", Xyz(cloud));
   add("PCD ascii", "cloud_ascii.pcd", EncodePcd(cloud, PcdEncoding::kAscii));
 

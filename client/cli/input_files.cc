@@ -80,23 +80,16 @@ bool ReportUnsupportedFiles(std::FILE* err, absl::string_view command,
 
 absl::StatusOr<ReadResult> ReadInputCloud(const std::string& path, const ReadOptions& options) {
   absl::StatusOr<ReadResult> read = ReadPointCloud(path, options);
-  if (!read.ok() || options.drop_non_finite) return read;
-  const float* xyz = read->cloud.data();
-  const size_t n = read->cloud.size();
-  size_t first = n;
-  size_t bad = 0;
-  for (size_t i = 0; i < n; ++i) {
-    const bool finite =
-        std::isfinite(xyz[3 * i]) && std::isfinite(xyz[3 * i + 1]) && std::isfinite(xyz[3 * i + 2]);
-    if (finite) continue;
-    if (bad++ == 0) first = i;
-  }
-  if (bad == 0) return read;
+  // The reader counted the non-finite points; without dropping, the first is in the cloud.
+  if (!read.ok() || options.drop_non_finite || read->non_finite_points == 0) return read;
+  const size_t first = read->first_non_finite;
+  const float* p = read->cloud.data() + 3 * first;
   int axis = 0;
-  while (axis < 2 && std::isfinite(xyz[3 * first + axis])) ++axis;
+  while (axis < 2 && std::isfinite(p[axis])) ++axis;
   return absl::InvalidArgumentError(absl::StrCat(
       path == "-" ? "standard input" : path, ": point ", first, " has a non-finite coordinate (",
-      std::string(1, "xyz"[axis]), " is ", xyz[3 * first + axis], "); ", bad, " of ", n,
+      std::string(1, "xyz"[axis]), " is ", p[axis], "); ", read->non_finite_points, " of ",
+      read->cloud.size(),
       " points are non-finite, as an organised depth-camera cloud marks missing pixels; "
       "--drop-nonfinite removes them"));
 }

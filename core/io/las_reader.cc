@@ -187,18 +187,20 @@ absl::StatusOr<ReadResult> ParseLas(absl::string_view contents, absl::string_vie
                      h.count_at, "), found ", available));
   }
 
-  CloudAccumulator cloud(name, "byte offset");
-  cloud.Reserve(h.count);
   const double sx = h.scale[0], sy = h.scale[1], sz = h.scale[2];
   const double ox = h.offset[0], oy = h.offset[1], oz = h.offset[2];
-  const char* record = contents.data() + h.data_offset;
-  uint64_t at = h.data_offset;
-  for (uint64_t i = 0; i < h.count; ++i, record += h.record_length, at += h.record_length) {
-    int32_t xyz[3];
-    std::memcpy(xyz, record, sizeof(xyz));
-    cloud.Add(xyz[0] * sx + ox, xyz[1] * sy + oy, xyz[2] * sz + oz, at);
-  }
-  return std::move(cloud).Finish(options);
+  const char* data = contents.data() + h.data_offset;
+  const uint64_t record = h.record_length, first = h.data_offset;
+  return ReadPointsTwice(
+      h.count,
+      [&](size_t i, double* p) {
+        int32_t xyz[3];
+        std::memcpy(xyz, data + i * record, sizeof(xyz));
+        p[0] = xyz[0] * sx + ox;
+        p[1] = xyz[1] * sy + oy;
+        p[2] = xyz[2] * sz + oz;
+      },
+      [&](size_t i) { return first + i * record; }, name, "byte offset", options);
 }
 
 }  // namespace shapeid

@@ -496,16 +496,46 @@ absl::StatusOr<ReadResult> ParseNpyArray(absl::string_view contents, absl::strin
     }
   }
   if (!layout.structured && !fortran->truth) record_size = dims.back() * layout.itemsize;
-  cloud.Reserve(points);
   const char* base = data.data();
-  for (uint64_t p = 0; p < points; ++p) {
-    // Points go in C order; a Fortran-ordered (H, W) grid stores (h, w) at h + w * H.
-    const uint64_t record = fortran_grid ? p / cols + (p % cols) * rows : p;
-    const uint64_t at = record * record_size;
-    cloud.Add(layout.load[0](base + at + offset[0]), layout.load[1](base + at + offset[1]),
-              layout.load[2](base + at + offset[2]), data_offset + at + offset[0]);
+  const Loader little_float = &Load<float, false>, big_float = &Load<float, true>;
+  for (const Loader f32 : {little_float, big_float}) {
+    if (fortran_grid || layout.load[0] != f32 || layout.load[1] != f32 || layout.load[2] != f32) {
+      continue;
+    }
+    FloatColumns columns;
+    for (int a = 0; a < 3; ++a) {
+      columns.axis[a] = base + offset[a];
+      columns.stride[a] = record_size;
+    }
+    columns.byte_swapped = (f32 == big_float) == (__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__);
+    columns.where = data_offset + offset[0];
+    columns.where_step = record_size;
+    return ReadFloatColumns(columns, points, "byte offset", options);
   }
-  return std::move(cloud).Finish(options);
+  const Loader little_double = &Load<double, false>;
+  if (!fortran_grid && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__ &&
+      layout.load[0] == little_double && layout.load[1] == little_double &&
+      layout.load[2] == little_double) {  // '<f8', loaded inline rather than through `load`
+    return ReadPointsTwice(
+        points,
+        [&](size_t p, double* xyz) {
+          for (int a = 0; a < 3; ++a) std::memcpy(&xyz[a], base + p * record_size + offset[a], 8);
+        },
+        [&](size_t p) { return data_offset + p * record_size + offset[0]; }, name, "byte offset",
+        options);
+  }
+  // Points go in C order; a Fortran-ordered (H, W) grid stores (h, w) at h + w * H.
+  const auto at = [&](size_t p) {
+    const uint64_t record = fortran_grid ? p / cols + (p % cols) * rows : p;
+    return record * record_size;
+  };
+  return ReadPointsTwice(
+      points,
+      [&](size_t p, double* xyz) {
+        const char* point = base + at(p);
+        for (int a = 0; a < 3; ++a) xyz[a] = layout.load[a](point + offset[a]);
+      },
+      [&](size_t p) { return data_offset + at(p) + offset[0]; }, name, "byte offset", options);
 }
 
 // ---- .npz: the member holding the points ----

@@ -88,7 +88,7 @@ absl::StatusOr<ReadResult> ParseOff(absl::string_view contents, absl::string_vie
         return LineError(name, lines.line_number(),
                          absl::StrCat("a vertex needs x y z, found ", a, " values"));
       }
-      if (!absl::SimpleAtod(token, &v[a])) {
+      if (!ParseDouble(token, &v[a])) {
         return LineError(name, lines.line_number(),
                          absl::StrCat(std::string(1, "xyz"[a]), " value ", QuoteForMessage(token),
                                       " is not a number"));

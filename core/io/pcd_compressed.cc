@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <cstring>
+#include <memory>
 #include <string>
 #include <utility>
 
@@ -60,30 +61,39 @@ absl::StatusOr<ReadResult> DecodeCompressed(absl::string_view contents, absl::st
                                                    compressed, " compressed bytes cannot hold ",
                                                    uncompressed, " bytes; the data is corrupt"));
   }
-  std::string data(uncompressed, '\0');
+  // Not zero-filled: lzf_decompress writes every byte or the block is refused below.
+  const std::unique_ptr<char[]> data(new char[uncompressed]);
   const unsigned int got = lzf_decompress(sizes + 8, static_cast<unsigned int>(compressed),
-                                          data.data(), static_cast<unsigned int>(uncompressed));
+                                          data.get(), static_cast<unsigned int>(uncompressed));
   if (got != uncompressed) {
     return absl::InvalidArgumentError(absl::StrCat(name, ": byte offset ", block,
                                                    ": the LZF block is corrupt (decompressed ", got,
                                                    " of ", uncompressed, " bytes)"));
   }
-  CloudAccumulator cloud(name, "byte offset");
-  cloud.Reserve(h.points);
   const char* field[3];
   uint64_t step[3];
   for (int a = 0; a < 3; ++a) {
     // Fields before this one take byte_offset bytes per point; x, y and z have COUNT 1.
-    field[a] = data.data() + layout.byte_offset[a] * h.points;
+    field[a] = data.get() + layout.byte_offset[a] * h.points;
     step[a] = layout.is_double[a] ? 8 : 4;
   }
-  for (uint64_t i = 0; i < h.points; ++i) {
-    // Coordinates have no place of their own in the file: report the LZF block.
-    cloud.Add(LoadCoordinate(field[0] + i * step[0], layout.is_double[0]),
-              LoadCoordinate(field[1] + i * step[1], layout.is_double[1]),
-              LoadCoordinate(field[2] + i * step[2], layout.is_double[2]), block);
+  if (!layout.is_double[0] && !layout.is_double[1] && !layout.is_double[2]) {
+    FloatColumns columns;
+    for (int a = 0; a < 3; ++a) {
+      columns.axis[a] = field[a];
+      columns.stride[a] = 4;
+    }
+    columns.where = block;  // coordinates have no place of their own in the file
+    return ReadFloatColumns(columns, h.points, "byte offset", options);
   }
-  return std::move(cloud).Finish(options);
+  return ReadPointsTwice(
+      h.points,
+      [&](size_t i, double* p) {
+        for (int a = 0; a < 3; ++a) {
+          p[a] = LoadCoordinate(field[a] + i * step[a], layout.is_double[a]);
+        }
+      },
+      [&](size_t) { return block; }, name, "byte offset", options);
 }
 
 }  // namespace pcd_internal

@@ -124,7 +124,7 @@ absl::StatusOr<Header> ParseHeader(absl::string_view contents, absl::string_view
       // A sensor pose (translation, quaternion). PCL does not apply it to the points either.
       double unused = 0;
       for (absl::string_view v : values) {
-        if (!absl::SimpleAtod(v, &unused)) {
+        if (!ParseDouble(v, &unused)) {
           return LineError(
               name, ln, absl::StrCat("VIEWPOINT value ", QuoteForMessage(v), " is not a number"));
         }
@@ -262,17 +262,27 @@ absl::StatusOr<ReadResult> DecodeBinary(absl::string_view contents, absl::string
                      overflow ? std::string("over 2^64") : absl::StrCat(expected), " bytes (",
                      h.points, " points of ", layout.point_bytes, " bytes), found ", available));
   }
-  CloudAccumulator cloud(name, "byte offset");
-  cloud.Reserve(h.points);
   const char* data = contents.data() + h.data_offset;
-  for (uint64_t i = 0; i < h.points; ++i) {
-    const char* point = data + i * layout.point_bytes;
-    cloud.Add(LoadCoordinate(point + layout.byte_offset[0], layout.is_double[0]),
-              LoadCoordinate(point + layout.byte_offset[1], layout.is_double[1]),
-              LoadCoordinate(point + layout.byte_offset[2], layout.is_double[2]),
-              h.data_offset + i * layout.point_bytes);
+  if (!layout.is_double[0] && !layout.is_double[1] && !layout.is_double[2]) {
+    FloatColumns columns;
+    for (int a = 0; a < 3; ++a) {
+      columns.axis[a] = data + layout.byte_offset[a];
+      columns.stride[a] = layout.point_bytes;
+    }
+    columns.where = h.data_offset;
+    columns.where_step = layout.point_bytes;
+    return ReadFloatColumns(columns, h.points, "byte offset", options);
   }
-  return std::move(cloud).Finish(options);
+  return ReadPointsTwice(
+      h.points,
+      [&](size_t i, double* p) {
+        const char* point = data + i * layout.point_bytes;
+        for (int a = 0; a < 3; ++a) {
+          p[a] = LoadCoordinate(point + layout.byte_offset[a], layout.is_double[a]);
+        }
+      },
+      [&](size_t i) { return h.data_offset + i * layout.point_bytes; }, name, "byte offset",
+      options);
 }
 
 absl::StatusOr<ReadResult> DecodeAscii(absl::string_view contents, absl::string_view name,
@@ -308,7 +318,7 @@ absl::StatusOr<ReadResult> DecodeAscii(absl::string_view contents, absl::string_
     }
     double v[3];
     for (int a = 0; a < 3; ++a) {
-      if (!absl::SimpleAtod(coord[a], &v[a])) {
+      if (!ParseDouble(coord[a], &v[a])) {
         return LineError(name, ln,
                          absl::StrCat(std::string(1, "xyz"[a]), " value ",
                                       QuoteForMessage(coord[a]), " is not a number"));

@@ -139,6 +139,25 @@ TEST(PcdReaderTest, OrganisedCloudKeepsNaNPointsByDefault) {
   ExpectPoint(dropped->cloud, 2, 0, 1, 0);
   ExpectPoint(dropped->cloud, 3, 0, 0, 1);
   EXPECT_TRUE(ValidateCloud(dropped->cloud).ok());
+  // Both report what they found, so that no caller scans the cloud again: the first NaN point
+  // is the second record, 12 bytes after the data starts.
+  const size_t data = file.find("DATA binary\n") + 12;
+  for (const ReadResult* r : {&*kept, &*dropped}) {
+    EXPECT_EQ(r->non_finite_points, 2u);
+    EXPECT_EQ(r->first_non_finite, 1u);
+    EXPECT_EQ(r->first_non_finite_location, absl::StrCat("byte offset ", data + 12));
+  }
+}
+
+TEST(PcdReaderTest, DoubleCoordinatesThatDoNotFitAFloatNameTheirByteOffset) {
+  std::string file =
+      "VERSION 0.7\nFIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nCOUNT 1 1 1\n"
+      "WIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA binary\n";
+  const size_t data = file.size();
+  for (double v : {0.0, 0.0, 0.0, 1e300, 0.0, 0.0}) AppendBytes(&file, v);
+  const absl::StatusOr<ReadResult> r = ParsePcd(file, "far.pcd", Raw());
+  ExpectError(r, absl::StatusCode::kInvalidArgument, "far.pcd",
+              absl::StrCat("byte offset ", data + 24, ": x = 1e+300 does not fit in a float"));
 }
 
 TEST(PcdReaderTest, NoPointsIsAnEmptyCloud) {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -205,7 +206,7 @@ class ValueReader {
         return absl::InvalidArgumentError(absl::StrCat(name_, ": line ", lines_.line_number(),
                                                        ": too few values for the element"));
       }
-      if (!absl::SimpleAtod(token, value)) {
+      if (!ParseDouble(token, value)) {
         return absl::InvalidArgumentError(absl::StrCat(name_, ": line ", lines_.line_number(),
                                                        ": value ", QuoteForMessage(token),
                                                        " is not a number"));
@@ -231,6 +232,10 @@ class ValueReader {
     return format_ == Format::kAscii ? absl::StrCat("line ", lines_.line_number())
                                      : absl::StrCat("byte offset ", pos_);
   }
+  // Binary only: the byte offset of the next value, and a jump over bytes known to be there.
+  size_t pos() const { return pos_; }
+  void Skip(size_t bytes) { pos_ += bytes; }
+
   // Whether nothing but blank lines follows the ascii data.
   bool AtEnd() {
     if (format_ != Format::kAscii) return true;  // trailing bytes (padding) are ignored
@@ -271,6 +276,27 @@ class ValueReader {
   LineReader lines_;
   Tokenizer tokens_;
 };
+
+// The bytes of one instance of `e` when they are fixed (binary, no list property) and x, y and
+// z are float32, so that its coordinates can be read as columns; 0 otherwise.
+uint64_t FloatVertexRecordBytes(const Element& e, const size_t coord[3]) {
+  uint64_t bytes = 0;
+  for (const Property& p : e.properties) {
+    if (p.is_list) return 0;
+    bytes += static_cast<uint64_t>(p.type.size);
+  }
+  for (int a = 0; a < 3; ++a) {
+    const Type t = e.properties[coord[a]].type;
+    if (t.kind != Kind::kFloat || t.size != 4) return 0;
+  }
+  return bytes;
+}
+
+uint64_t PropertyOffset(const Element& e, size_t property) {
+  uint64_t bytes = 0;
+  for (size_t i = 0; i < property; ++i) bytes += static_cast<uint64_t>(e.properties[i].type.size);
+  return bytes;
+}
 
 int FindScalar(const Element& e, absl::string_view property) {
   for (size_t i = 0; i < e.properties.size(); ++i) {
@@ -327,9 +353,28 @@ absl::StatusOr<ReadResult> ParsePly(absl::string_view contents, absl::string_vie
   ValueReader reader(contents, name, h);
   std::vector<double> values;
   std::vector<uint64_t> polygon;
+  // Binary vertices with float32 x, y, z in fixed records are read as columns, in one go.
+  const uint64_t record = ascii || sample ? 0 : FloatVertexRecordBytes(*vertex, coord);
+  std::optional<ReadResult> columns_read;
   for (const Element& e : h.elements) {
     const bool is_vertex = &e == vertex;
     const bool is_face = &e == face && sample;
+    uint64_t vertex_bytes = 0;
+    if (is_vertex && record > 0 && !__builtin_mul_overflow(e.count, record, &vertex_bytes) &&
+        vertex_bytes <= contents.size() - reader.pos()) {
+      FloatColumns columns;
+      for (int a = 0; a < 3; ++a) {
+        columns.axis[a] = contents.data() + reader.pos() + PropertyOffset(e, coord[a]);
+        columns.stride[a] = record;
+      }
+      columns.byte_swapped =
+          (h.format == Format::kBig) == (__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__);
+      columns.where = reader.pos();
+      columns.where_step = record;
+      columns_read = ReadFloatColumns(columns, e.count, "byte offset", options);
+      reader.Skip(vertex_bytes);
+      continue;
+    }
     values.assign(e.properties.size(), 0.0);
     // A binary element without properties has instances of zero bytes: nothing to read,
     // however many the header announces (counting to 2^64 - 1 would hang the reader).
@@ -378,6 +423,7 @@ absl::StatusOr<ReadResult> ParsePly(absl::string_view contents, absl::string_vie
     return absl::InvalidArgumentError(absl::StrCat(
         name, ": ", reader.Where(), ": more data than the header's element counts describe"));
   }
+  if (columns_read.has_value()) return std::move(columns_read).value();
   if (sample) {
     SHAPEID_RETURN_IF_ERROR(mesh.Sample(options.sample_points, options.sample_seed, name,
                                         ascii ? "line" : "byte offset", &cloud));

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <string>
 
 #include "absl/strings/str_cat.h"
@@ -228,6 +229,81 @@ TEST(PlyReaderTest, TruncationsAndCorruptionsAreHandled) {
         file, "corrupt.ply", absl::string_view(replacements, sizeof replacements - 1), &state,
         [](const std::string& contents) { return ParsePly(contents, "corrupt.ply", Faces(8, 1)); });
   }
+}
+
+// A vertex element whose x, y, z are float32 in fixed records is read as columns; one with a
+// list property goes through the per-value reader. Both must give the same cloud, bit for bit.
+std::string FloatVertexFile(bool big, bool with_list) {
+  std::string s = absl::StrCat(
+      "ply\nformat binary_", big ? "big" : "little", "_endian 1.0\n",
+      "element header_junk 2\nproperty short j\n",
+      "element vertex 4\nproperty uchar tag\nproperty float y\nproperty float x\n",
+      "property double w\nproperty float z\n", with_list ? "property list uchar int l\n" : "",
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n");
+  Put<int16_t>(&s, 7, big);
+  Put<int16_t>(&s, 8, big);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float v[4][3] = {{1.5f, -2, 1e30f}, {-0.f, 3, 4}, {nan, 0, 1}, {2, 2.25f, -1e30f}};
+  for (const auto& p : v) {
+    s += 'T';
+    Put<float>(&s, p[1], big);
+    Put<float>(&s, p[0], big);
+    Put<double>(&s, 0.5, big);
+    Put<float>(&s, p[2], big);
+    if (with_list) {
+      s += '\1';
+      Put<int32_t>(&s, 9, big);
+    }
+  }
+  s += '\3';
+  for (int32_t i : {0, 1, 3}) Put<int32_t>(&s, i, big);
+  return s;
+}
+
+TEST(PlyReaderTest, FloatVertexColumnsMatchThePerValueReader) {
+  for (const bool big : {false, true}) {
+    for (const bool drop : {false, true}) {
+      for (const bool recenter : {false, true}) {
+        ReadOptions options;
+        options.sample_points = 0;
+        options.drop_non_finite = drop;
+        options.recenter = recenter;
+        const absl::StatusOr<ReadResult> columns =
+            ParsePly(FloatVertexFile(big, false), "c.ply", options);
+        const absl::StatusOr<ReadResult> values =
+            ParsePly(FloatVertexFile(big, true), "v.ply", options);
+        ASSERT_TRUE(columns.ok()) << columns.status();
+        ASSERT_TRUE(values.ok()) << values.status();
+        ASSERT_EQ(columns->cloud.size(), drop ? 3u : 4u);
+        ASSERT_EQ(values->cloud.size(), columns->cloud.size());
+        EXPECT_EQ(std::memcmp(columns->cloud.data(), values->cloud.data(),
+                              4 * columns->cloud.xyz().size()),
+                  0);
+        EXPECT_EQ(columns->offset, values->offset);
+        EXPECT_EQ(columns->non_finite_points, 1u);
+        EXPECT_EQ(values->non_finite_points, 1u);
+        EXPECT_EQ(columns->first_non_finite, 2u);
+        // Records of 21 bytes after the 4 bytes of header_junk.
+        const size_t header = FloatVertexFile(big, false).find("end_header\n") + 11;
+        EXPECT_EQ(columns->first_non_finite_location,
+                  absl::StrCat("byte offset ", header + 4 + 42));
+        if (!recenter) {
+          EXPECT_EQ(columns->cloud.point(0), Eigen::Vector3f(1.5f, -2, 1e30f));
+          EXPECT_TRUE(std::signbit(columns->cloud.point(1).x()));
+        }
+      }
+    }
+  }
+}
+
+TEST(PlyReaderTest, TruncatedFloatVerticesNameTheByteOffset) {
+  std::string file = FloatVertexFile(false, false);
+  const size_t vertices = file.find("end_header\n") + 11 + 4;
+  file.resize(vertices + 30);  // one record and a half
+  ReadOptions options;
+  options.sample_points = 0;
+  ExpectError(ParsePly(file, "t.ply", options), absl::StatusCode::kInvalidArgument, "t.ply",
+              "byte offset");
 }
 
 }  // namespace

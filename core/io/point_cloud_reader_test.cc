@@ -103,6 +103,21 @@ TEST(PointCloudReaderTest, PtsSkipsCountLinesAndOpen3dTextFormatsReadTheirFirstC
   EXPECT_EQ(n->cloud.point(1), Eigen::Vector3f(4, 5, 6));
 }
 
+// Regular files are mapped, empty ones read: both paths give what the parser gives.
+TEST(PointCloudReaderTest, MappedAndEmptyFilesReadLikeContentsInMemory) {
+  const std::string text = "1 2 3\n4 5 6.5\n";
+  const absl::StatusOr<ReadResult> mapped = ReadPointCloud(WriteTempFile("m.xyz", text), Raw());
+  ASSERT_TRUE(mapped.ok()) << mapped.status();
+  ASSERT_EQ(mapped->cloud.size(), 2u);
+  EXPECT_EQ(mapped->cloud.point(1), Eigen::Vector3f(4, 5, 6.5f));
+
+  const absl::StatusOr<ReadResult> empty = ReadPointCloud(WriteTempFile("e.xyz", ""), Raw());
+  ASSERT_TRUE(empty.ok()) << empty.status();
+  EXPECT_TRUE(empty->cloud.empty());
+  const absl::StatusOr<ReadResult> empty_pcd = ReadPointCloud(WriteTempFile("e.pcd", ""));
+  ExpectError(empty_pcd, absl::StatusCode::kInvalidArgument, "e.pcd", "no DATA line");
+}
+
 TEST(PointCloudReaderTest, MissingFileAndDirectory) {
   const std::string missing = testing::TempDir() + "shapeid_no_such_file.xyz";
   const absl::StatusOr<ReadResult> r = ReadPointCloud(missing);

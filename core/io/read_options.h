@@ -4,6 +4,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <optional>
+#include <string>
 
 #include "Eigen/Core"
 #include "core/point_cloud.h"
@@ -79,6 +80,13 @@ struct ReadResult {
   Eigen::Vector3d offset = Eigen::Vector3d::Zero();
   // Points removed by ReadOptions::drop_non_finite; always 0 when it is false.
   size_t dropped_non_finite = 0;
+  // Points with a non-finite coordinate, dropped or not, found while reading, so that no caller
+  // scans the cloud again for them. When there is one, the first one's index among the points
+  // read (its index in `cloud` unless dropped) and where it is in the file ("line 12",
+  // "byte offset 4096"; a mesh's sampled points have their face's place).
+  size_t non_finite_points = 0;
+  size_t first_non_finite = 0;
+  std::string first_non_finite_location;
 };
 
 }  // namespace shapeid

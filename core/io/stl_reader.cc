@@ -37,6 +37,18 @@ double LoadFloat(const char* p) {
 absl::StatusOr<ReadResult> ParseBinary(absl::string_view contents, absl::string_view name,
                                        uint32_t count, const ReadOptions& options) {
   const bool sample = options.sample_points > 0;
+  if (!sample) {  // the vertices, three per record
+    const auto at = [](size_t v) {
+      return kHeaderBytes + v / 3 * kRecordBytes + 12 + 12 * (v % 3);
+    };
+    return ReadPointsTwice(
+        size_t{3} * count,
+        [&](size_t v, double* p) {
+          const char* xyz = contents.data() + at(v);
+          for (int a = 0; a < 3; ++a) p[a] = LoadFloat(xyz + 4 * a);
+        },
+        at, name, "byte offset", options);
+  }
   CloudAccumulator cloud(name, "byte offset");
   TriangleMesh mesh;
   if (!sample) cloud.Reserve(size_t{3} * count);  // the size was checked against the count
@@ -141,7 +153,7 @@ class AsciiParser {
       if (!tokens_.Next(&token)) {
         return Error(absl::StrCat("the file ends inside a ", what, " (x y z)"));
       }
-      if (!absl::SimpleAtod(token, &v[a])) {
+      if (!ParseDouble(token, &v[a])) {
         return Error(absl::StrCat(what, " ", std::string(1, "xyz"[a]), " value ",
                                   QuoteForMessage(token), " is not a number"));
       }

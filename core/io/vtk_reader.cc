@@ -148,7 +148,7 @@ class Scanner {
     if (!binary_) {
       absl::string_view token;
       if (!Token(&token)) return Error(absl::StrCat("the file ends inside ", what));
-      if (!absl::SimpleAtod(token, value)) {
+      if (!ParseDouble(token, value)) {
         return Error(absl::StrCat(what, " value ", QuoteForMessage(token), " is not a number"));
       }
       return absl::OkStatus();
@@ -608,13 +608,11 @@ absl::StatusOr<ReadResult> ParseVtk(absl::string_view contents, absl::string_vie
       g.mesh.AddVertex(g.xyz[3 * i], g.xyz[3 * i + 1], g.xyz[3 * i + 2]);
     SHAPEID_RETURN_IF_ERROR(g.mesh.Sample(options.sample_points, options.sample_seed, name,
                                           s.binary() ? "byte offset" : "line", &cloud));
-  } else {
-    cloud.Reserve(n);
-    for (size_t i = 0; i < n; ++i) {
-      cloud.Add(g.xyz[3 * i], g.xyz[3 * i + 1], g.xyz[3 * i + 2], g.where[i]);
-    }
+    return std::move(cloud).Finish(options);
   }
-  return std::move(cloud).Finish(options);
+  return ReadPointsTwice(
+      n, [&](size_t i, double* p) { std::memcpy(p, &g.xyz[3 * i], 3 * sizeof(double)); },
+      [&](size_t i) { return g.where[i]; }, name, s.binary() ? "byte offset" : "line", options);
 }
 
 }  // namespace shapeid

@@ -34,7 +34,7 @@ absl::StatusOr<ReadResult> ParseXyz(absl::string_view contents, absl::string_vie
     int found = 0;
     int numbers = 0;
     for (; found < 3 && tokens.Next(&token[found]); ++found) {
-      numeric[found] = absl::SimpleAtod(token[found], &v[found]);
+      numeric[found] = ParseDouble(token[found], &v[found]);
       numbers += numeric[found];
     }
     if (first) {

@@ -1,10 +1,13 @@
 #include "core/io/xyz_reader.h"
 
 #include <cmath>
+#include <cstring>
 #include <string>
 
+#include "absl/strings/numbers.h"
 #include "core/io/point_cloud_reader.h"
 #include "core/io/test_files.h"
+#include "core/io/text_lines.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 
@@ -103,6 +106,27 @@ TEST(XyzReaderTest, CoordinateBeyondFloatRangeNamesItsLine) {
   const std::string path = WriteTempFile("big.xyz", "0 0 0\n1 1e39 1\n2 2 2\n");
   ExpectError(ReadPointCloud(path, Raw()), absl::StatusCode::kInvalidArgument, path, "line 2");
   ExpectError(ReadPointCloud(path), absl::StatusCode::kInvalidArgument, path, "line 2");
+}
+
+// The text readers' number parser accepts what absl::SimpleAtod accepts, with the same bits.
+TEST(XyzReaderTest, NumbersParseAsSimpleAtodParsesThem) {
+  for (const char* text : {"0",         "-0",     "+1.5",   "1e5",      "1E-5",
+                           ".5",        "5.",     "-.5e+3", "0.1",      "123456789012345678901234",
+                           "1e400",     "-1e400", "1e-400", "4.9e-324", "inf",
+                           "-Infinity", "nan",    "NaN",    "+-1",      "--1",
+                           "0x1p3",     "1.5.5",  "1e",     "e5",       "",
+                           " 1",        "1 ",     "1,5",    "abc",      "+",
+                           "-",         "."}) {
+    double fast = -7, reference = -7;
+    const bool ok = ParseDouble(text, &fast);
+    EXPECT_EQ(ok, absl::SimpleAtod(text, &reference)) << text;
+    if (ok && !std::isnan(reference)) {
+      EXPECT_EQ(std::memcmp(&fast, &reference, sizeof fast), 0) << text;
+    }
+    if (ok && std::isnan(reference)) {
+      EXPECT_TRUE(std::isnan(fast)) << text;
+    }
+  }
 }
 
 TEST(XyzReaderTest, EmptyFileIsAnEmptyCloud) {
