@@ -401,7 +401,8 @@ absl::StatusOr<v1::TrainResponse> Client::Train(const std::string& gallery,
     if (samples[i].cloud == nullptr) {
       return absl::InvalidArgumentError(absl::StrCat("Train: sample ", i, " has no cloud"));
     }
-    wire.push_back({&samples[i].label, samples[i].sample_id, Packed(*samples[i].cloud)});
+    wire.push_back({&samples[i].label, samples[i].sample_id, Packed(*samples[i].cloud),
+                    &samples[i].source, &samples[i].metadata});
   }
   return TrainWire(gallery, v1::PointLayout(), wire, options);
 }
@@ -413,7 +414,8 @@ absl::StatusOr<v1::TrainResponse> Client::Train(const std::string& gallery,
   std::vector<WireSample> wire;
   wire.reserve(samples.size());
   for (const SensorTrainSample& sample : samples) {
-    wire.push_back({&sample.label, sample.sample_id, SensorCloud{sample.data, layout}});
+    wire.push_back({&sample.label, sample.sample_id, SensorCloud{sample.data, layout},
+                    &sample.source, &sample.metadata});
   }
   return TrainWire(gallery, layout, wire, options);
 }
@@ -441,6 +443,9 @@ absl::StatusOr<v1::TrainResponse> Client::TrainWire(const std::string& gallery,
       start.mutable_sample()->set_label(*sample.label);
       start.mutable_sample()->set_sample_id(sample.sample_id);
       start.mutable_sample()->set_expected_points(PointsIn(sample.cloud.data, layout));
+      start.mutable_sample()->set_source(*sample.source);
+      start.mutable_sample()->mutable_metadata()->insert(sample.metadata->begin(),
+                                                         sample.metadata->end());
       stream.Push(std::move(start), /*buffer=*/true);
       PushCloud(stream, sample.cloud, options_.chunk_points);
     }
@@ -509,6 +514,15 @@ absl::StatusOr<v1::RemoveSamplesResponse> Client::RemoveSamples(
   v1::RemoveSamplesResponse response;
   absl::Status status = Call(false, false, [&](grpc::ClientContext& context) {
     return stub_->RemoveSamples(&context, request, &response);
+  });
+  if (!status.ok()) return status;
+  return response;
+}
+
+absl::StatusOr<v1::ListSamplesResponse> Client::ListSamples(const v1::ListSamplesRequest& request) {
+  v1::ListSamplesResponse response;
+  absl::Status status = Call(true, false, [&](grpc::ClientContext& context) {
+    return stub_->ListSamples(&context, request, &response);
   });
   if (!status.ok()) return status;
   return response;

@@ -21,6 +21,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -43,6 +44,11 @@ struct TrainSample {
   // Client-chosen id, unique in the gallery; 0 lets the server choose (and disables retries).
   uint64_t sample_id = 0;
   const PointCloud* cloud = nullptr;
+  // Optional provenance, returned with the sample as a neighbour and by ListSamples: where
+  // the cloud came from (a file path, a URI) and small key/value pairs (SampleHeader's
+  // limits: 4,096 bytes of source, 64 pairs, 4,096 bytes of keys and values).
+  std::string source = {};
+  std::map<std::string, std::string> metadata = {};
 };
 
 // One labelled cloud for Train in a sensor's own layout (given once per call): its bytes,
@@ -51,6 +57,8 @@ struct SensorTrainSample {
   std::string label;
   uint64_t sample_id = 0;  // as in TrainSample
   absl::string_view data;
+  std::string source = {};  // as in TrainSample
+  std::map<std::string, std::string> metadata = {};
 };
 
 // A cloud in a sensor's own byte layout (the `data` of a sensor_msgs/PointCloud2 with the
@@ -159,6 +167,10 @@ class Client {
                                                           absl::Span<const uint64_t> sample_ids,
                                                           absl::Span<const std::string> labels);
   absl::StatusOr<std::vector<v1::DescriptorKind>> ListDescriptors();
+  // One page of a gallery's samples with their provenance (ids, labels, views, sources,
+  // metadata), in id order; pass the response's next_page_token in the next request until
+  // it comes back empty.
+  absl::StatusOr<v1::ListSamplesResponse> ListSamples(const v1::ListSamplesRequest& request);
 
   // Streams gallery `name` out of the server: `sink` receives every chunk in order (the
   // header, runs of samples, the trailer; see GalleryExportChunk in the proto) and returns
@@ -216,6 +228,8 @@ class Client {
     const std::string* label;
     uint64_t sample_id;
     SensorCloud cloud;
+    const std::string* source;
+    const std::map<std::string, std::string>* metadata;
   };
   absl::StatusOr<v1::TrainResponse> TrainWire(const std::string& gallery,
                                               const v1::PointLayout& layout,

@@ -21,6 +21,7 @@ constexpr MethodScope kMethodScopes[] = {
     {"/shapeid.v1.ShapeId/ClassifyCloud", Scope::kRead},
     {"/shapeid.v1.ShapeId/GetGallery", Scope::kRead},
     {"/shapeid.v1.ShapeId/ListGalleries", Scope::kRead},
+    {"/shapeid.v1.ShapeId/ListSamples", Scope::kRead},
     {"/shapeid.v1.ShapeId/ListDescriptors", Scope::kRead},
     {"/shapeid.v1.ShapeId/GetServerStats", Scope::kRead},
     {"/shapeid.v1.ShapeId/Train", Scope::kWrite},

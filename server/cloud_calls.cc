@@ -278,7 +278,8 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainRespo
                             absl::StrCat("sample ", samples_, ": ", cloud.status().message()));
       }
       const absl::Time start = absl::Now();
-      SHAPEID_RETURN_IF_ERROR(batch_->AddSample(sample_.sample_id(), sample_.label(), *cloud));
+      SHAPEID_RETURN_IF_ERROR(batch_->AddSample(sample_.sample_id(), sample_.label(), *cloud,
+                                                ProvenanceFromProto(sample_)));
       const absl::Duration elapsed = absl::Now() - start;
       if (descriptor != nullptr) {
         call().observer().Described(call().record(), descriptor->spec().kind, elapsed);

@@ -7,6 +7,7 @@
 #include <limits>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "absl/strings/str_cat.h"
 #include "core/status_macros.h"
@@ -49,19 +50,31 @@ uint32_t ExportCrc(uint32_t crc, uint64_t id, absl::string_view label,
   return SampleCrc32(crc, id, label, features);
 }
 
+uint32_t ExportProvenanceCrc(uint32_t crc, uint64_t id, const SampleProvenance& provenance) {
+  if (provenance.empty()) return crc;
+  // Without the encoding's own trailing CRC: a CRC over data followed by its CRC is the same
+  // for any data, so it would hide every change.
+  const std::string encoded = EncodeProvenance(provenance);
+  return SampleCrc32(crc, id, absl::string_view(encoded).substr(0, encoded.size() - 4), {});
+}
+
 // ---------------------------------------------------------------------------------------------
 // Export
 
 GalleryExporter::GalleryExporter(std::shared_ptr<const GallerySnapshot> snapshot,
                                  size_t chunk_bytes)
     : header_(HeaderFor(snapshot->metadata(), snapshot->num_samples())),
-      append_([index = &snapshot->index()](int64_t slot, v1::ExportedSamples* out) {
-        AppendTo(out, index->IdAt(slot), index->LabelAt(slot));
-        const int features = index->ViewsAt(slot) * index->dimension();
-        const int old_size = out->features_size();
-        out->mutable_features()->Resize(old_size + features, 0.0f);
-        index->CopyFeatures(slot, out->mutable_features()->mutable_data() + old_size);
-      }),
+      append_(
+          [s = snapshot.get()](int64_t slot, v1::ExportedSamples* out) -> const SampleProvenance* {
+            const KnnIndex& index = s->index();
+            AppendTo(out, index.IdAt(slot), index.LabelAt(slot));
+            const int features = index.ViewsAt(slot) * index.dimension();
+            const int old_size = out->features_size();
+            out->mutable_features()->Resize(old_size + features, 0.0f);
+            index.CopyFeatures(slot, out->mutable_features()->mutable_data() + old_size);
+            // The snapshot's table holds the provenance as long as keep_alive_ holds the snapshot.
+            return s->Provenance(index.IdAt(slot)).get();
+          }),
       multi_view_(snapshot->index().num_rows() > snapshot->num_samples()),
       chunk_bytes_(chunk_bytes),
       keep_alive_(std::move(snapshot)) {}
@@ -71,10 +84,12 @@ GalleryExporter::GalleryExporter(StoredGallery gallery, size_t chunk_bytes)
 
 GalleryExporter::GalleryExporter(std::shared_ptr<const StoredGallery> gallery, size_t chunk_bytes)
     : header_(HeaderFor(*gallery, static_cast<int64_t>(gallery->samples.size()))),
-      append_([samples = &gallery->samples](int64_t slot, v1::ExportedSamples* out) {
+      append_([samples = &gallery->samples](int64_t slot,
+                                            v1::ExportedSamples* out) -> const SampleProvenance* {
         const StoredSample& sample = (*samples)[static_cast<size_t>(slot)];
         AppendTo(out, sample.id, sample.label);
         out->mutable_features()->Add(sample.features.begin(), sample.features.end());
+        return sample.provenance.empty() ? nullptr : &sample.provenance;
       }),
       multi_view_(std::any_of(gallery->samples.begin(), gallery->samples.end(),
                               [d = static_cast<size_t>(gallery->dimension)](const StoredSample& s) {
@@ -98,6 +113,7 @@ bool GalleryExporter::Next(v1::GalleryExportChunk* chunk) {
     case Stage::kTrailer:
       chunk->mutable_trailer()->set_sample_count(header_.sample_count());
       chunk->mutable_trailer()->set_crc32(crc_);
+      chunk->mutable_trailer()->set_provenance_crc32(provenance_crc_);
       stage_ = Stage::kDone;
       return true;
     case Stage::kDone:
@@ -110,9 +126,14 @@ void GalleryExporter::FillSamples(v1::ExportedSamples* out) {
   const auto num_samples = static_cast<int64_t>(header_.sample_count());
   const int dimension = static_cast<int>(header_.dimension());
   size_t bytes = 0;
+  // The run's provenance, one per sample, exported only if one of them has some: a gallery
+  // without provenance exports what it always did.
+  std::vector<const SampleProvenance*> provenance;
+  bool any_provenance = false;
   while (next_slot_ < num_samples && bytes < chunk_bytes_) {
     const int first = out->features_size();
-    append_(next_slot_, out);
+    const SampleProvenance* sample_provenance = append_(next_slot_, out);
+    provenance.push_back(sample_provenance);
     const int i = out->sample_ids_size() - 1;
     const absl::Span<const float> features(out->features().data() + first,
                                            static_cast<size_t>(out->features_size() - first));
@@ -121,7 +142,27 @@ void GalleryExporter::FillSamples(v1::ExportedSamples* out) {
     if (multi_view_) out->add_view_counts(static_cast<uint32_t>(features.size() / dimension));
     crc_ = ExportCrc(crc_, out->sample_ids(i), out->labels(i), features);
     bytes += SampleBytes(out->labels(i).size(), features.size());
+    if (sample_provenance != nullptr) {
+      any_provenance = true;
+      provenance_crc_ =
+          ExportProvenanceCrc(provenance_crc_, out->sample_ids(i), *sample_provenance);
+      bytes += sample_provenance->source.size() + 8;
+      for (const auto& [key, value] : sample_provenance->metadata) {
+        bytes += key.size() + value.size() + 8;
+      }
+    }
     ++next_slot_;
+  }
+  if (!any_provenance) return;
+  for (const SampleProvenance* p : provenance) {
+    v1::SampleMetadata* metadata = out->add_metadata();
+    out->add_sources(p == nullptr ? "" : p->source);
+    if (p == nullptr) continue;
+    for (const auto& [key, value] : p->metadata) {
+      v1::SampleMetadata::Entry* entry = metadata->add_entries();
+      entry->set_key(key);
+      entry->set_value(value);
+    }
   }
 }
 
@@ -224,6 +265,13 @@ absl::Status GalleryImportAssembler::AddSamples(const v1::ExportedSamples& sampl
         absl::StrCat(n, " samples with ", vectors, " views of dimension ", dimension, " need ",
                      vectors * dimension, " features, got ", samples.features_size()));
   }
+  const bool with_provenance = samples.sources_size() > 0 || samples.metadata_size() > 0;
+  if (with_provenance && (static_cast<uint64_t>(samples.sources_size()) != n ||
+                          static_cast<uint64_t>(samples.metadata_size()) != n)) {
+    return absl::InvalidArgumentError(absl::StrCat(n, " sample ids but ", samples.sources_size(),
+                                                   " sources and ", samples.metadata_size(),
+                                                   " metadata"));
+  }
   const auto received = static_cast<uint64_t>(gallery_.samples.size());
   if (received + n > announced_) {
     return absl::InvalidArgumentError(absl::StrCat("more samples than the header announced (",
@@ -238,6 +286,14 @@ absl::Status GalleryImportAssembler::AddSamples(const v1::ExportedSamples& sampl
     sample.features.assign(next, next + count);
     next += count;
     crc_ = ExportCrc(crc_, sample.id, sample.label, sample.features);
+    if (with_provenance) {
+      sample.provenance.source = samples.sources(static_cast<int>(i));
+      // As exported (sorted, keys unique); GalleryRegistry::Import checks it.
+      for (const auto& entry : samples.metadata(static_cast<int>(i)).entries()) {
+        sample.provenance.metadata.emplace_back(entry.key(), entry.value());
+      }
+      provenance_crc_ = ExportProvenanceCrc(provenance_crc_, sample.id, sample.provenance);
+    }
   }
   return absl::OkStatus();
 }
@@ -256,6 +312,11 @@ absl::Status GalleryImportAssembler::AddTrailer(const v1::GalleryExportTrailer& 
     return absl::DataLossError(absl::StrCat("export damaged: checksum mismatch over the ", received,
                                             " samples (the trailer says ", trailer.crc32(),
                                             ", the samples give ", crc_, ")"));
+  }
+  if (trailer.provenance_crc32() != provenance_crc_) {
+    return absl::DataLossError(absl::StrCat(
+        "export damaged: checksum mismatch over the samples' provenance (the trailer says ",
+        trailer.provenance_crc32(), ", the samples give ", provenance_crc_, ")"));
   }
   have_trailer_ = true;
   return absl::OkStatus();

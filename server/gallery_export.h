@@ -34,6 +34,9 @@ inline constexpr size_t kExportChunkBytes = size_t{1} << 20;
 // float32 little-endian.
 uint32_t ExportCrc(uint32_t crc, uint64_t id, absl::string_view label,
                    absl::Span<const float> features);
+// The same for GalleryExportTrailer.provenance_crc32 (EncodeProvenance's bytes without their
+// own trailing CRC): a sample without provenance leaves `crc` as it is.
+uint32_t ExportProvenanceCrc(uint32_t crc, uint64_t id, const SampleProvenance& provenance);
 
 // Cuts one gallery into chunks: the header, then samples in training order, at most about
 // `chunk_bytes` per chunk (a chunk always holds at least one sample, so a single sample
@@ -60,8 +63,10 @@ class GalleryExporter {
   bool done() const { return stage_ == Stage::kDone; }
 
  private:
-  // Appends the sample at `slot` (training order) to `out`.
-  using AppendSample = std::function<void(int64_t slot, v1::ExportedSamples* out)>;
+  // Appends the sample at `slot` (training order) to `out` but its provenance, which it
+  // returns (null: none; valid while keep_alive_ is).
+  using AppendSample =
+      std::function<const SampleProvenance*(int64_t slot, v1::ExportedSamples* out)>;
 
   GalleryExporter(std::shared_ptr<const StoredGallery> gallery, size_t chunk_bytes);
   void FillSamples(v1::ExportedSamples* out);
@@ -77,6 +82,7 @@ class GalleryExporter {
   Stage stage_ = Stage::kHeader;
   int64_t next_slot_ = 0;
   uint32_t crc_ = 0;
+  uint32_t provenance_crc_ = 0;
 };
 
 // Rebuilds a StoredGallery from the chunks of an export, as they arrive, checking it on the
@@ -91,8 +97,10 @@ class GalleryExporter {
 //  - FailedPrecondition: a format_version other than kGalleryExportFormatVersion;
 //  - ResourceExhausted: a header announcing more than `max_samples` samples (checked before
 //    anything is allocated for them);
-//  - DataLoss: the trailer's count or checksum disagrees with what arrived ("export damaged:
+//  - DataLoss: the trailer's count or checksums disagree with what arrived ("export damaged:
 //    ..."), or Finish without a trailer ("export truncated: ...").
+// Provenance (ExportedSamples.sources and .metadata, absent in exports of galleries without
+// any) is checked by GalleryRegistry::Import like the labels; here only its counts.
 // The first error poisons the assembler: every later call returns it. Names, labels, ids
 // and feature values (finite, within +-KnnIndex::kMaxFeatureMagnitude) are checked by
 // GalleryRegistry::Import, not here: that one check also guards stores' loads and replicas.
@@ -124,6 +132,7 @@ class GalleryImportAssembler {
   uint64_t announced_ = 0;  // header.sample_count
   int64_t chunks_ = 0;      // chunks added so far
   uint32_t crc_ = 0;
+  uint32_t provenance_crc_ = 0;
   absl::Status error_;
 };
 

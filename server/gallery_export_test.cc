@@ -37,7 +37,7 @@ using ::testing::HasSubstr;
 
 // A gallery with awkward values everywhere a copy could lose them: float bit patterns
 // (negative zero, subnormals, the largest a gallery holds), ids above 2^63, multi-byte labels,
-// nanosecond times.
+// nanosecond times, provenance of every shape.
 StoredGallery OddGallery(int num_samples, int dimension = 21) {
   StoredGallery g;
   g.name = "odd.gallery-1";
@@ -61,6 +61,11 @@ StoredGallery OddGallery(int num_samples, int dimension = 21) {
                          : (i % 3 == 1 ? "box" : "a-long-label-for-a-chair");
     for (int j = 0; j < dimension; ++j)
       s.features.push_back(odd[(i + j) % 5] / static_cast<float>(1 + i));
+    // Provenance on some: a source alone, metadata alone, both (multi-byte included).
+    if (i % 4 == 1) s.provenance.source = absl::StrCat("/data/scans/", i, ".pcd");
+    if (i % 4 == 2)
+      s.provenance.metadata = {{"camera", "d435"}, {"op\xC3\xA9rateur", "zo\xC3\xAB"}};
+    if (i % 4 == 3) s.provenance = {"s3://bucket/x.ply", {{"k", ""}}};
     g.samples.push_back(std::move(s));
   }
   return g;
@@ -106,10 +111,10 @@ TEST(GalleryExportTest, RoundTripKeepsEveryBitAndTheOrder) {
 }
 
 TEST(GalleryExportTest, DefaultChunksStayFarBelowTheGrpcLimit) {
-  const StoredGallery big = OddGallery(20'000, 81);  // 6.5 MB of features
+  const StoredGallery big = OddGallery(20'000, 81);  // 6.5 MB of features, 0.5 MB provenance
   GalleryExporter exporter(big);
   const std::vector<v1::GalleryExportChunk> chunks = Export(exporter);
-  EXPECT_EQ(chunks.size(), 2u + 7u);  // header, 7 runs of ~1 MiB, trailer
+  EXPECT_EQ(chunks.size(), 2u + 8u);  // header, 8 runs of ~1 MiB, trailer
   for (const auto& chunk : chunks) EXPECT_LT(chunk.ByteSizeLong(), kExportChunkBytes + 1024);
   absl::StatusOr<StoredGallery> imported = Assemble(chunks);
   ASSERT_TRUE(imported.ok()) << imported.status();
@@ -271,6 +276,42 @@ TEST(GalleryExportTest, CrcIsZlibsOverIdLabelAndFeaturesLittleEndian) {
             crc32(0, reinterpret_cast<const Bytef*>("\1\0\0\0\0\0\0\0a\2\0\0\0\0\0\0\0b"), 18));
 }
 
+TEST(GalleryExportTest, ProvenanceIsExportedOnlyWhereARunHasSome) {
+  StoredGallery g = OddGallery(8);
+  for (size_t i = 0; i < 4; ++i) g.samples[i].provenance = {};
+  GalleryExporter exporter(g, /*chunk_bytes=*/1);  // one sample per run
+  const auto chunks = Export(exporter);
+  ASSERT_EQ(chunks.size(), 10u);
+  for (size_t i = 1; i <= 8; ++i) {
+    const v1::ExportedSamples& run = chunks[i].samples();
+    const StoredSample& sample = g.samples[i - 1];
+    if (sample.provenance.empty()) {
+      EXPECT_EQ(run.sources_size(), 0) << i;
+      EXPECT_EQ(run.metadata_size(), 0) << i;
+      continue;
+    }
+    ASSERT_EQ(run.sources_size(), 1) << i;
+    EXPECT_EQ(run.sources(0), sample.provenance.source);
+    ASSERT_EQ(run.metadata(0).entries_size(), static_cast<int>(sample.provenance.metadata.size()));
+  }
+  // The provenance CRC is zlib's over (id, EncodeProvenance but its CRC) of each sample with
+  // some.
+  uint32_t expected = 0;
+  for (const StoredSample& s : g.samples) {
+    if (s.provenance.empty()) continue;
+    std::string bytes(8, '\0');
+    for (int b = 0; b < 8; ++b) bytes[b] = static_cast<char>(s.id >> (8 * b));
+    const std::string encoded = EncodeProvenance(s.provenance);
+    bytes += encoded.substr(0, encoded.size() - 4);  // its own CRC left out
+    expected = static_cast<uint32_t>(
+        crc32(expected, reinterpret_cast<const Bytef*>(bytes.data()), bytes.size()));
+  }
+  EXPECT_EQ(chunks.back().trailer().provenance_crc32(), expected);
+  absl::StatusOr<StoredGallery> imported = Assemble(chunks);
+  ASSERT_TRUE(imported.ok()) << imported.status();
+  ExpectSameStoredGallery(g, *imported);
+}
+
 // An export whose checksum is right but which repeats an id (written by hand or by another
 // tool) is malformed, not a name clash: INVALID_ARGUMENT rather than the index's
 // ALREADY_EXISTS (found by the bad-input corpus, tests/bad_input_test.cc).
@@ -430,6 +471,44 @@ TEST_F(AssemblerErrorTest, TheFirstErrorSticksAndFinishRunsOnce) {
   EXPECT_EQ(ok.num_samples(), 12);
   ASSERT_TRUE(ok.Finish().ok());
   EXPECT_EQ(ok.Finish().status().code(), absl::StatusCode::kFailedPrecondition);
+}
+
+TEST_F(AssemblerErrorTest, ProvenanceDamageAndCounts) {
+  size_t run = 0;
+  for (size_t i = 1; i + 1 < chunks_.size() && run == 0; ++i) {
+    if (chunks_[i].samples().sources_size() > 0) run = i;
+  }
+  ASSERT_GT(run, 0u);
+  auto changed = chunks_;
+  // The metadata's first value of the run's sample that has some (sample 2: "d435").
+  bool flipped = false;
+  for (auto& metadata : *changed[run].mutable_samples()->mutable_metadata()) {
+    if (metadata.entries_size() > 0 && !flipped) {
+      metadata.mutable_entries(0)->set_value("d436");
+      flipped = true;
+    }
+  }
+  ASSERT_TRUE(flipped);
+  absl::Status s = Error(changed);
+  EXPECT_EQ(s.code(), absl::StatusCode::kDataLoss);
+  EXPECT_THAT(std::string(s.message()),
+              HasSubstr("checksum mismatch over the samples' provenance"));
+
+  auto short_sources = chunks_;
+  short_sources[run].mutable_samples()->mutable_sources()->RemoveLast();
+  s = Error(short_sources);
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(s.message()), HasSubstr("sources and"));
+
+  // An export without any provenance (an earlier release's) needs no provenance CRC.
+  auto stripped = chunks_;
+  for (auto& chunk : stripped) {
+    if (!chunk.has_samples()) continue;
+    chunk.mutable_samples()->clear_sources();
+    chunk.mutable_samples()->clear_metadata();
+  }
+  stripped.back().mutable_trailer()->clear_provenance_crc32();
+  EXPECT_TRUE(Error(stripped).ok()) << Error(stripped);
 }
 
 }  // namespace

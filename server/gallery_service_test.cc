@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <map>
 #include <random>
 #include <string>
 #include <thread>
@@ -80,6 +81,8 @@ class GalleryServiceTest : public ::testing::Test {
     std::string label;
     uint64_t id = 0;
     PointCloud cloud;
+    std::string source = {};
+    std::map<std::string, std::string> metadata = {};
   };
 
   // One Train stream carrying `samples`, each split into chunks of `chunk` points.
@@ -96,6 +99,8 @@ class GalleryServiceTest : public ::testing::Test {
       v1::TrainRequest start;
       start.mutable_sample()->set_label(s.label);
       start.mutable_sample()->set_sample_id(s.id);
+      start.mutable_sample()->set_source(s.source);
+      start.mutable_sample()->mutable_metadata()->insert(s.metadata.begin(), s.metadata.end());
       open = open && writer->Write(start);
       for (size_t i = 0; open && i < s.cloud.size(); i += chunk) {
         v1::TrainRequest points;
@@ -754,6 +759,105 @@ TEST_F(GalleryServiceTest, AnExportDuringTrainingIsOneConsistentSnapshot) {
   }
   trainer.join();
   EXPECT_TRUE(std::is_sorted(counts.begin(), counts.end()));
+}
+
+// Provenance goes in with Train, comes back with every neighbour and from ListSamples (paged
+// by id, by label), and survives an export and import.
+TEST_F(GalleryServiceTest, ProvenanceTravelsWithItsSamples) {
+  ASSERT_TRUE(Create("traced").ok());
+  std::vector<Sample> samples;
+  for (uint64_t i = 0; i < 9; ++i) {
+    const int kind = static_cast<int>(i % 3);
+    Sample s{kShapeNames[kind], 100 - i, Shape(kind, static_cast<uint32_t>(i))};
+    if (i % 2 == 0) s.source = absl::StrCat("/scans/", i, ".pcd");
+    if (i == 4) s.metadata = {{"camera", "d435"}, {"session", "7"}};
+    samples.push_back(std::move(s));
+  }
+  v1::TrainResponse trained;
+  ASSERT_TRUE(Train("traced", samples, &trained).ok());
+
+  v1::ClassifyResponse answer;
+  ASSERT_TRUE(Classify("traced", Shape(1, 50), &answer, 9).ok());
+  ASSERT_EQ(answer.neighbors_size(), 9);
+  for (const v1::Neighbor& n : answer.neighbors()) {
+    const uint64_t i = 100 - n.sample_id();
+    EXPECT_EQ(n.source(), i % 2 == 0 ? absl::StrCat("/scans/", i, ".pcd") : "") << i;
+    EXPECT_EQ(n.metadata_size(), i == 4 ? 2 : 0) << i;
+    if (i == 4) {
+      EXPECT_EQ(n.metadata().at("session"), "7");
+    }
+  }
+
+  const auto list = [&](v1::ListSamplesRequest request, v1::ListSamplesResponse* response) {
+    grpc::ClientContext context;
+    return stub_->ListSamples(&context, request, response);
+  };
+  v1::ListSamplesRequest request;
+  request.set_gallery("traced");
+  request.set_page_size(4);
+  std::vector<uint64_t> ids;
+  int pages = 0;
+  for (;;) {
+    v1::ListSamplesResponse page;
+    ASSERT_TRUE(list(request, &page).ok());
+    ++pages;
+    EXPECT_EQ(page.gallery_version(), 1u);
+    for (const v1::SampleInfo& s : page.samples()) {
+      ids.push_back(s.sample_id());
+      const uint64_t i = 100 - s.sample_id();
+      EXPECT_EQ(s.label(), kShapeNames[i % 3]);
+      EXPECT_EQ(s.views(), 1u);
+      EXPECT_EQ(s.source(), i % 2 == 0 ? absl::StrCat("/scans/", i, ".pcd") : "");
+    }
+    if (page.next_page_token().empty()) break;
+    request.set_page_token(page.next_page_token());
+  }
+  EXPECT_EQ(pages, 3);
+  EXPECT_EQ(ids, (std::vector<uint64_t>{92, 93, 94, 95, 96, 97, 98, 99, 100}));
+
+  v1::ListSamplesRequest by_label;
+  by_label.set_gallery("traced");
+  by_label.set_label(kShapeNames[0]);
+  v1::ListSamplesResponse page;
+  ASSERT_TRUE(list(by_label, &page).ok());
+  EXPECT_EQ(page.samples_size(), 3);
+  EXPECT_TRUE(page.next_page_token().empty());
+
+  // Errors: a token of another gallery or none at all, a page too large, no such gallery.
+  ASSERT_TRUE(Create("other").ok());
+  v1::ListSamplesRequest bad = request;
+  bad.set_gallery("other");
+  grpc::Status status = list(bad, &page);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(), HasSubstr("was not given by this gallery"));
+  bad.set_page_token("garbage");
+  EXPECT_EQ(list(bad, &page).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  bad = by_label;
+  bad.set_page_size(10001);
+  status = list(bad, &page);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(), HasSubstr("page_size 10001 is over 10000"));
+  bad = by_label;
+  bad.set_gallery("nosuch");
+  EXPECT_EQ(list(bad, &page).error_code(), grpc::StatusCode::NOT_FOUND);
+
+  // Too much provenance fails the sample, naming it.
+  Sample big{"box", 5, Shape(0, 60)};
+  big.source = std::string(4097, 's');
+  status = Train("traced", {big}, &trained);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(), HasSubstr("sample 0: source"));
+
+  // Export and import keep it.
+  std::vector<v1::GalleryExportChunk> chunks;
+  ASSERT_TRUE(Export("traced", &chunks).ok());
+  ASSERT_TRUE(Import(*stub_, chunks, "traced-copy").ok());
+  by_label.set_gallery("traced-copy");
+  by_label.clear_label();
+  ASSERT_TRUE(list(by_label, &page).ok());
+  ASSERT_EQ(page.samples_size(), 9);
+  EXPECT_EQ(page.samples(4).source(), "/scans/4.pcd");  // id 96
+  EXPECT_EQ(page.samples(4).metadata().at("camera"), "d435");
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 #include "server/proto_convert.h"
 
+#include <algorithm>
 #include <memory>
 
 #include "absl/strings/str_cat.h"
@@ -163,6 +164,25 @@ absl::StatusOr<GalleryOptions> GalleryOptionsFromProto(const v1::CreateGalleryRe
   return options;
 }
 
+SampleProvenance ProvenanceFromProto(const v1::SampleHeader& sample) {
+  SampleProvenance provenance;
+  provenance.source = sample.source();
+  for (const auto& [key, value] : sample.metadata()) provenance.metadata.emplace_back(key, value);
+  std::sort(provenance.metadata.begin(), provenance.metadata.end());
+  return provenance;
+}
+
+void ToProto(const SampleInfo& sample, v1::SampleInfo* out) {
+  out->set_sample_id(sample.id);
+  out->set_label(sample.label);
+  out->set_views(static_cast<uint32_t>(sample.views));
+  if (sample.provenance == nullptr) return;
+  out->set_source(sample.provenance->source);
+  for (const auto& [key, value] : sample.provenance->metadata) {
+    (*out->mutable_metadata())[key] = value;
+  }
+}
+
 void ToProto(absl::Duration d, google::protobuf::Duration* out) {
   const int64_t nanos = absl::ToInt64Nanoseconds(d);
   out->set_seconds(nanos / 1'000'000'000);
@@ -242,12 +262,19 @@ void ToProto(const GalleryClassification& answer, size_t num_points, v1::Classif
   out->set_label(answer.label);
   out->set_unknown(answer.unknown);
   out->set_confidence(answer.confidence);
-  for (const Neighbor& n : answer.knn.neighbors) {
+  for (size_t i = 0; i < answer.knn.neighbors.size(); ++i) {
+    const Neighbor& n = answer.knn.neighbors[i];
     v1::Neighbor* neighbor = out->add_neighbors();
     neighbor->set_sample_id(n.id);
     neighbor->set_label(n.label);
     neighbor->set_distance(n.distance);
     neighbor->set_view(static_cast<uint32_t>(n.view));
+    if (i < answer.provenance.size() && answer.provenance[i] != nullptr) {
+      neighbor->set_source(answer.provenance[i]->source);
+      for (const auto& [key, value] : answer.provenance[i]->metadata) {
+        (*neighbor->mutable_metadata())[key] = value;
+      }
+    }
   }
   for (const ClassVote& v : answer.knn.votes) {
     v1::ClassVote* vote = out->add_votes();

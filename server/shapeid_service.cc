@@ -5,7 +5,10 @@
 #include <utility>
 #include <vector>
 
+#include "absl/strings/escaping.h"
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
 #include "core/descriptor_registry.h"
 #include "core/gallery/gallery.h"
 #include "core/status_macros.h"
@@ -191,6 +194,73 @@ grpc::ServerUnaryReactor* ShapeIdService::RemoveSamples(grpc::CallbackServerCont
           response->set_remaining(static_cast<uint64_t>(gallery->Snapshot()->num_samples()));
           return absl::OkStatus();
         });
+      });
+}
+
+namespace {
+
+constexpr uint32_t kDefaultPageSize = 1000;
+constexpr uint32_t kMaxPageSize = 10000;
+
+// A ListSamples page token: the gallery's incarnation and the last id returned, so that a
+// token from another gallery (or an earlier one of the same name) is refused, not misread.
+std::string PageToken(uint64_t incarnation, uint64_t last_id) {
+  return absl::StrCat(incarnation, ".", last_id);
+}
+
+absl::StatusOr<uint64_t> LastIdOfToken(absl::string_view token, uint64_t incarnation) {
+  const std::vector<absl::string_view> parts = absl::StrSplit(token, '.');
+  uint64_t token_incarnation = 0, last_id = 0;
+  if (parts.size() != 2 || !absl::SimpleAtoi(parts[0], &token_incarnation) ||
+      !absl::SimpleAtoi(parts[1], &last_id) || token_incarnation != incarnation) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("ListSamples: page_token \"", absl::CHexEscape(token.substr(0, 64)),
+                     "\" was not given by this gallery; start again with an empty token"));
+  }
+  return last_id;
+}
+
+}  // namespace
+
+grpc::ServerUnaryReactor* ShapeIdService::ListSamples(grpc::CallbackServerContext* context,
+                                                      const grpc::ByteBuffer* raw_request,
+                                                      grpc::ByteBuffer* raw_response) {
+  return RunUnary<v1::ListSamplesRequest, v1::ListSamplesResponse>(
+      context, runtime_, SHAPEID_METHOD(ListSamples), CallGate::Kind::kUnary, raw_request,
+      raw_response,
+      [this](const v1::ListSamplesRequest& request, v1::ListSamplesResponse* response,
+             AdmittedCall& call) -> absl::StatusOr<Work> {
+        call.record().gallery = request.gallery();
+        SHAPEID_RETURN_IF_ERROR(RequireGalleryName("ListSamples", request.gallery()));
+        if (request.page_size() > kMaxPageSize) {
+          return absl::InvalidArgumentError(absl::StrCat(
+              "ListSamples: page_size ", request.page_size(), " is over ", kMaxPageSize));
+        }
+        SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
+                                 registry_->Get(request.gallery()));
+        std::shared_ptr<const GallerySnapshot> snapshot = gallery->Snapshot();
+        uint64_t after = 0;
+        if (!request.page_token().empty()) {
+          SHAPEID_ASSIGN_OR_RETURN(after,
+                                   LastIdOfToken(request.page_token(), snapshot->incarnation()));
+        }
+        // A scan of the gallery's ids: priced like a removal's pass over its rows.
+        const absl::Duration cost = EstimateRemove(*snapshot);
+        return Work::Compute(
+            cost, 0, [&request, response, &call, after, snapshot = std::move(snapshot)] {
+              const uint32_t page_size =
+                  request.page_size() == 0 ? kDefaultPageSize : request.page_size();
+              const SamplePage page = snapshot->ListSamples(request.label(), after, page_size);
+              for (const SampleInfo& sample : page.samples)
+                ToProto(sample, response->add_samples());
+              if (page.more) {
+                response->set_next_page_token(
+                    PageToken(snapshot->incarnation(), page.samples.back().id));
+              }
+              response->set_gallery_version(snapshot->version());
+              call.record().samples = static_cast<int64_t>(page.samples.size());
+              return absl::OkStatus();
+            });
       });
 }
 

@@ -31,11 +31,12 @@ using ShapeIdRawService =
                         v1::ShapeId::WithRawCallbackMethod_ListGalleries<
                             v1::ShapeId::WithRawCallbackMethod_DeleteGallery<
                                 v1::ShapeId::WithRawCallbackMethod_RemoveSamples<
-                                    v1::ShapeId::WithRawCallbackMethod_ImportGallery<
-                                        v1::ShapeId::WithRawCallbackMethod_ListDescriptors<
-                                            v1::ShapeId::WithRawCallbackMethod_GetServerStats<
-                                                v1::ShapeId::WithRawCallbackMethod_SetLogLevel<
-                                                    v1::ShapeId::CallbackService>>>>>>>>>>>>>>;
+                                    v1::ShapeId::WithRawCallbackMethod_ListSamples<
+                                        v1::ShapeId::WithRawCallbackMethod_ImportGallery<
+                                            v1::ShapeId::WithRawCallbackMethod_ListDescriptors<
+                                                v1::ShapeId::WithRawCallbackMethod_GetServerStats<
+                                                    v1::ShapeId::WithRawCallbackMethod_SetLogLevel<
+                                                        v1::ShapeId::CallbackService>>>>>>>>>>>>>>>;
 
 // The gRPC edge of shapeid: each method turns its messages into calls on core/ (descriptors,
 // the gallery registry) and the result into one status (server/grpc_status.h). All state
@@ -92,6 +93,9 @@ class ShapeIdService final : public ShapeIdRawService {
   grpc::ServerUnaryReactor* RemoveSamples(grpc::CallbackServerContext* context,
                                           const grpc::ByteBuffer* raw_request,
                                           grpc::ByteBuffer* raw_response) override;
+  grpc::ServerUnaryReactor* ListSamples(grpc::CallbackServerContext* context,
+                                        const grpc::ByteBuffer* raw_request,
+                                        grpc::ByteBuffer* raw_response) override;
   // server/transfer_calls.h.
   grpc::ServerWriteReactor<v1::GalleryExportChunk>* ExportGallery(
       grpc::CallbackServerContext* context, const v1::ExportGalleryRequest* request) override;

@@ -32,6 +32,7 @@
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "core/gallery/sample_provenance.h"
 #include "core/point_cloud.h"
 #include "core/testing/test_clouds.h"
 #include "grpcpp/generic/generic_stub.h"
@@ -170,7 +171,7 @@ using Export = std::vector<v1::GalleryExportChunk>;
 // id as 8 bytes little-endian, label bytes, features as float32 little-endian), so that only
 // the change under test is wrong with a forged export.
 void Reseal(Export& chunks) {
-  uLong crc = 0;
+  uLong crc = 0, provenance_crc = 0;
   for (const v1::GalleryExportChunk& chunk : chunks) {
     const v1::ExportedSamples& s = chunk.samples();
     const size_t dimension = s.sample_ids_size() == 0 ? 0 : s.features_size() / s.sample_ids_size();
@@ -181,10 +182,25 @@ void Reseal(Export& chunks) {
       crc = crc32_z(crc, reinterpret_cast<const Bytef*>(s.labels(i).data()), s.labels(i).size());
       crc = crc32_z(crc, reinterpret_cast<const Bytef*>(s.features().data() + i * dimension),
                     dimension * sizeof(float));
+      if (i < s.sources_size() && i < s.metadata_size()) {
+        SampleProvenance provenance;
+        provenance.source = s.sources(i);
+        for (const auto& entry : s.metadata(i).entries()) {
+          provenance.metadata.emplace_back(entry.key(), entry.value());
+        }
+        if (!provenance.empty()) {
+          const std::string encoded = EncodeProvenance(provenance);
+          provenance_crc = crc32_z(provenance_crc, id, 8);
+          provenance_crc = crc32_z(provenance_crc, reinterpret_cast<const Bytef*>(encoded.data()),
+                                   encoded.size() - 4);  // without its own CRC
+        }
+      }
     }
   }
   for (v1::GalleryExportChunk& chunk : chunks) {
-    if (chunk.has_trailer()) chunk.mutable_trailer()->set_crc32(static_cast<uint32_t>(crc));
+    if (!chunk.has_trailer()) continue;
+    chunk.mutable_trailer()->set_crc32(static_cast<uint32_t>(crc));
+    chunk.mutable_trailer()->set_provenance_crc32(static_cast<uint32_t>(provenance_crc));
   }
 }
 
@@ -347,6 +363,13 @@ class BadInputTest : public ::testing::Test {
     for (uint64_t id : ids) r.add_sample_ids(id);
     for (const std::string& label : labels) r.add_labels(label);
     return Unary(&Stub::RemoveSamples, r);
+  }
+  Call ListSamples(const std::string& gallery, const std::string& token, uint32_t page_size = 0) {
+    v1::ListSamplesRequest r;
+    r.set_gallery(gallery);
+    r.set_page_token(token);
+    r.set_page_size(page_size);
+    return Unary(&Stub::ListSamples, r);
   }
   // ImportGallery of `chunks`, under `name` (empty: the header's).
   Call Import(const Export& chunks, const std::string& name = "copy") {
@@ -787,6 +810,15 @@ std::vector<RpcCase> BadInputTest::RequestTable() {
       {"Train: a sample id the server reserves",
        Train({THeader(kGallery), TSample("box", kFirstServerId), TPoints(box)}), kInvalid,
        "is reserved"},
+      {"Train: an empty metadata key",
+       Train({THeader(kGallery),
+              [] {
+                v1::TrainRequest r = TSample("box", 8);
+                (*r.mutable_sample()->mutable_metadata())[""] = "v";
+                return r;
+              }(),
+              TPoints(box)}),
+       kInvalid, "sample 0: a metadata key is empty"},
       {"Train: one id twice in a stream",
        Train({THeader(kGallery), TSample("box", 7), TPoints(box), TSample("box", 7), TPoints(box)}),
        kExists, "sample id 7 appears twice"},
@@ -950,6 +982,14 @@ std::vector<RpcCase> BadInputTest::RequestTable() {
       {"ExportGallery: empty name", ExportGallery(""), kInvalid, "empty"},
       {"ExportGallery: unknown", ExportGallery("nope"), kNotFound, "no gallery named 'nope'"},
       {"ExportGallery: ../g", ExportGallery("../g"), kInvalid, "does not match"},
+      {"ListSamples: a page token not from this gallery", ListSamples(kGallery, "12.34"), kInvalid,
+       "was not given by this gallery"},
+      {"ListSamples: a page token that is not one", ListSamples(kGallery, "1.2.3"), kInvalid,
+       "start again with an empty token"},
+      {"ListSamples: page_size over 10000", ListSamples(kGallery, "", 10001), kInvalid,
+       "page_size 10001 is over 10000"},
+      {"ListSamples: an unknown gallery", ListSamples("nope", ""), kNotFound,
+       "no gallery named 'nope'"},
       {"RemoveSamples: neither ids nor labels", RemoveSamples(kGallery, {}), kInvalid,
        "give sample_ids, labels or both"},
       {"RemoveSamples: an unknown id", RemoveSamples(kGallery, {12345}), kNotFound,
@@ -1050,6 +1090,20 @@ std::vector<RpcCase> BadInputTest::RequestTable() {
        ImportChanged([](Export& e) { e[1].mutable_samples()->set_sample_ids(1, kFirstTrainedId); },
                      true),
        kInvalid, "appears more than once"},
+      {"ImportGallery: a source over 4096 bytes, resealed",
+       ImportChanged(
+           [](Export& e) {
+             auto* run = e[1].mutable_samples();
+             for (int i = 0; i < run->sample_ids_size(); ++i) {
+               run->add_sources(i == 1 ? std::string(4097, 's') : "");
+               run->add_metadata();
+             }
+           },
+           true),
+       kInvalid, "4097 bytes, more than the limit of 4096"},
+      {"ImportGallery: fewer sources than samples",
+       ImportChanged([](Export& e) { e[1].mutable_samples()->add_sources("/a.pcd"); }, true),
+       kInvalid, "sources and"},
       {"ImportGallery: sample id 0, resealed",
        ImportChanged([](Export& e) { e[1].mutable_samples()->set_sample_ids(1, 0); }, true),
        kDataLoss, "a sample has id 0"},

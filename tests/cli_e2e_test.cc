@@ -5,6 +5,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -120,6 +121,38 @@ TEST_F(CliE2ETest, TrainJsonGivesEachFilesSampleIdSoANeighbourTracesBackToItsFil
   const RunResult classified = Run({"classify", "--gallery", "traced", "--format", "json", file});
   ASSERT_EQ(classified.exit_code, 0) << classified.err;
   EXPECT_EQ(Python(classified.out, "rows[0]['neighbors'][0]['sample_id']"), id);
+  // The server itself says which file: the source train sent, an absolute path.
+  EXPECT_EQ(Python(classified.out, "rows[0]['neighbors'][0]['source']"),
+            fs::absolute(file).lexically_normal().string());
+
+  // --metadata goes with every sample of the call; `gallery samples` lists them all, by id.
+  const std::string extra = Data("bar/test/view-000.pcd");
+  const RunResult tagged = Run({"train", "--gallery", "traced", "--label", "bar", "--metadata",
+                                "camera=d435", "--metadata", "session=7", extra});
+  ASSERT_EQ(tagged.exit_code, 0) << tagged.err;
+  const RunResult listed = Run({"gallery", "samples", "traced", "--format", "json"});
+  ASSERT_EQ(listed.exit_code, 0) << listed.err;
+  EXPECT_EQ(
+      Python(listed.out,
+             "len(rows), [r['sample_id'] for r in rows] == sorted(r['sample_id'] for r in "
+             "rows), all(r['source'].startswith('/') for r in rows), "
+             "[r['metadata'] for r in rows if r['source'].endswith('bar/test/view-000.pcd')]"),
+      "(25, True, True, [{'camera': 'd435', 'session': '7'}])");
+  const RunResult bars = Run({"gallery", "samples", "traced", "--label", "bar", "--limit", "3"});
+  ASSERT_EQ(bars.exit_code, 0) << bars.err;
+  EXPECT_THAT(bars.out, AllOf(StartsWith("ID"), HasSubstr("SOURCE"), HasSubstr("bar")));
+  EXPECT_EQ(std::count(bars.out.begin(), bars.out.end(), '\n'), 4);  // header and 3 samples
+  const RunResult csv = Run({"gallery", "samples", "traced", "--format", "csv"});
+  ASSERT_EQ(csv.exit_code, 0) << csv.err;
+  EXPECT_THAT(csv.out, StartsWith("sample_id,label,views,source,metadata\r\n"));
+
+  const RunResult bad =
+      Run({"train", "--gallery", "traced", "--label", "bar", "--metadata", "no-equals", extra});
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_THAT(bad.err, HasSubstr("--metadata no-equals: expected KEY=VALUE"));
+  const RunResult missing = Run({"gallery", "samples", "nosuch"});
+  EXPECT_EQ(missing.exit_code, 4);
+  EXPECT_THAT(missing.err, HasSubstr("no gallery named 'nosuch'"));
 }
 
 TEST_F(CliE2ETest, CreateTrainClassifyEvaluate) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <filesystem>
 #include <mutex>
 #include <optional>
 #include <random>
@@ -20,6 +21,15 @@ using Clock = std::chrono::steady_clock;
 
 double SecondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// A trained file's source: its absolute path, so that it names the file from any directory
+// (standard input has none).
+std::string SourceOf(const std::string& path) {
+  if (path == "-") return "";
+  std::error_code error;
+  const std::filesystem::path absolute = std::filesystem::absolute(path, error);
+  return error ? path : absolute.lexically_normal().string();
 }
 
 // Shared state of one batch: the first batch-stopping error, and failures in arrival order.
@@ -134,7 +144,8 @@ TrainOutcome TrainFiles(Client& client, const std::string& gallery,
         }
         std::vector<TrainSample> samples;
         for (size_t j = 0; j < clouds.size(); ++j) {
-          samples.push_back({files[owners[j]].label, RandomSampleId(), &clouds[j]});
+          samples.push_back({files[owners[j]].label, RandomSampleId(), &clouds[j],
+                             SourceOf(files[owners[j]].path), options.metadata});
         }
         size_t failures = read_failures;
         if (!samples.empty()) {

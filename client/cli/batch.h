@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -23,7 +24,10 @@ struct BatchOptions {
   size_t train_batch = 32;        // samples per Train stream (all-or-nothing on the server)
   ReadOptions read;               // how files become clouds (non-finite points, mesh sampling)
   bool skip_unsupported = false;  // folders' files of other formats: ignored, not reported
-  v1::SensorFrame sensor_frame;   // the sensor's frame for Train (Classify's is in its options)
+  // Train: key/value provenance given to every sample (its source is always its file's
+  // absolute path).
+  std::map<std::string, std::string> metadata;
+  v1::SensorFrame sensor_frame;  // the sensor's frame for Train (Classify's is in its options)
 };
 
 // A file the batch could not use, with the reason ("a.pcd: line 3: ...").
@@ -49,9 +53,11 @@ struct TrainOutcome {
   double seconds = 0;
 };
 
-// Adds `files` to `gallery`, train_batch samples per stream, `jobs` streams at once. A
-// stream refused for one bad sample is resent one sample per stream so that only the bad
-// file is skipped. Errors go to `err` as they happen (through `progress`).
+// Adds `files` to `gallery`, train_batch samples per stream, `jobs` streams at once, each
+// sample with its file's absolute path as its source (so a neighbour can be traced to its
+// file from any directory) and options.metadata. A stream refused for one bad sample is
+// resent one sample per stream so that only the bad file is skipped. Errors go to `err` as they
+// happen (through `progress`).
 TrainOutcome TrainFiles(Client& client, const std::string& gallery,
                         const std::vector<LabelledFile>& files, const BatchOptions& options,
                         Progress& progress, std::FILE* err);

@@ -1,9 +1,14 @@
 #include "client/cli/gallery_commands.h"
 
+#include <algorithm>
+#include <cstdint>
 #include <ctime>
 #include <memory>
+#include <utility>
+#include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "client/gallery_file.h"
 #include "core/json.h"
@@ -288,6 +293,83 @@ int RunGalleryRemove(const GalleryRemoveOptions& options, const CliContext& cont
       break;
   }
   return FinishOutput(WriteAll(context.out, text), context);
+}
+
+namespace {
+
+// A sample's metadata, keys sorted: as a JSON object, and as "k=v, k=v" for the table.
+std::vector<std::pair<std::string, std::string>> SortedMetadata(const v1::SampleInfo& sample) {
+  std::vector<std::pair<std::string, std::string>> metadata(sample.metadata().begin(),
+                                                            sample.metadata().end());
+  std::sort(metadata.begin(), metadata.end());
+  return metadata;
+}
+
+std::string MetadataJson(const v1::SampleInfo& sample) {
+  std::string out = "{";
+  for (const auto& [key, value] : SortedMetadata(sample)) {
+    absl::StrAppend(&out, out.size() > 1 ? "," : "", JsonString(key), ":", JsonString(value));
+  }
+  return out + "}";
+}
+
+std::string SampleLine(const v1::SampleInfo& sample, OutputFormat format) {
+  switch (format) {
+    case OutputFormat::kJson:
+      return absl::StrCat("{\"sample_id\":", sample.sample_id(),
+                          ",\"label\":", JsonString(sample.label()), ",\"views\":", sample.views(),
+                          ",\"source\":", JsonString(sample.source()),
+                          ",\"metadata\":", MetadataJson(sample), "}\n");
+    case OutputFormat::kCsv:
+      return absl::StrCat(sample.sample_id(), ",", CsvField(sample.label()), ",", sample.views(),
+                          ",", CsvField(sample.source()), ",", CsvField(MetadataJson(sample)),
+                          "\r\n");
+    case OutputFormat::kTable: {
+      std::vector<std::string> pairs;
+      for (const auto& [key, value] : SortedMetadata(sample)) {
+        pairs.push_back(absl::StrCat(key, "=", value));
+      }
+      return absl::StrFormat("%-20d  %-16s  %5d  %s%s\n", sample.sample_id(), sample.label(),
+                             sample.views(), sample.source().empty() ? "-" : sample.source(),
+                             pairs.empty() ? "" : absl::StrCat("  ", absl::StrJoin(pairs, ", ")));
+    }
+  }
+  return "";
+}
+
+}  // namespace
+
+int RunGallerySamples(const GallerySamplesOptions& options, const CliContext& context) {
+  std::unique_ptr<Client> client = ConnectOrReport(context);
+  if (client == nullptr) return kExitUsage;
+  v1::ListSamplesRequest request;
+  request.set_gallery(options.name);
+  request.set_label(options.label);
+  bool written = true;
+  if (context.format == OutputFormat::kTable) {
+    written &= WriteAll(context.out, absl::StrFormat("%-20s  %-16s  %5s  %s\n", "ID", "LABEL",
+                                                     "VIEWS", "SOURCE  METADATA"));
+  } else if (context.format == OutputFormat::kCsv) {
+    written &= WriteAll(context.out, "sample_id,label,views,source,metadata\r\n");
+  }
+  uint64_t listed = 0;
+  while (written) {
+    const uint64_t left = options.limit == 0 ? UINT64_MAX : options.limit - listed;
+    request.set_page_size(static_cast<uint32_t>(std::min<uint64_t>(options.page_size, left)));
+    absl::StatusOr<v1::ListSamplesResponse> page = client->ListSamples(request);
+    if (!page.ok()) {
+      std::fflush(context.out);
+      PrintCallError(context, absl::StrCat("gallery samples ", options.name), page.status());
+      return ExitCodeForStatus(page.status());
+    }
+    for (const v1::SampleInfo& sample : page->samples()) {
+      written &= WriteAll(context.out, SampleLine(sample, context.format));
+    }
+    listed += static_cast<uint64_t>(page->samples_size());
+    if (page->next_page_token().empty() || (options.limit > 0 && listed >= options.limit)) break;
+    request.set_page_token(page->next_page_token());
+  }
+  return FinishOutput(written, context);
 }
 
 int RunGalleryExport(const std::string& name, const std::string& file, const CliContext& context) {

@@ -44,6 +44,17 @@ struct GalleryRemoveOptions {
 };
 int RunGalleryRemove(const GalleryRemoveOptions& options, const CliContext& context);
 
+struct GallerySamplesOptions {
+  std::string name;
+  std::string label;   // empty: every label
+  uint64_t limit = 0;  // 0: every sample
+  uint32_t page_size = 1000;
+};
+// Lists a gallery's samples with their provenance, in id order, fetched a page at a time
+// (ListSamples) and printed as they arrive: table (ID LABEL VIEWS SOURCE METADATA), JSON
+// Lines (one object per sample) or CSV (metadata as a JSON object in one field).
+int RunGallerySamples(const GallerySamplesOptions& options, const CliContext& context);
+
 // Writes gallery `name` to `file` (client/gallery_file.h; "-": stdout), replacing it only
 // once the whole export has arrived. Table format: "exported gallery 'NAME': N samples to
 // FILE (B bytes)" on stderr unless --quiet; json and csv: the same facts on stdout (on stderr

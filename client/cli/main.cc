@@ -224,7 +224,7 @@ int main(int argc, char** argv) {
       ->type_name("");
   describe_cmd->footer(shapeid::DescribeHelpFooter());
 
-  // gallery create|list|show|delete|remove
+  // gallery create|list|show|delete|remove|samples|export|import
   CLI::App* gallery_cmd =
       app.add_subcommand("gallery", "Create, list, show, delete, export and import galleries");
   gallery_cmd->fallthrough();
@@ -254,6 +254,14 @@ int main(int argc, char** argv) {
   remove_cmd->add_option("NAME", remove.name, "Gallery name")->required();
   remove_cmd->add_option("--label", remove.labels, "Remove every sample of this label");
   remove_cmd->add_option("--id", remove.sample_ids, "Remove the sample with this id");
+  shapeid::GallerySamplesOptions samples;
+  CLI::App* samples_cmd = gallery_cmd->add_subcommand(
+      "samples", "List a gallery's samples with where each came from (source, metadata)");
+  samples_cmd->fallthrough();
+  samples_cmd->add_option("NAME", samples.name, "Gallery name")->required();
+  samples_cmd->add_option("--label", samples.label, "Only the samples of this label");
+  samples_cmd->add_option("--limit", samples.limit, "At most this many samples (0: all)")
+      ->capture_default_str();
   std::string gallery_file, import_name;
   CLI::App* export_cmd = gallery_cmd->add_subcommand(
       "export", "Write a gallery to a portable file (a backup, or to move it to another server)");
@@ -299,6 +307,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   AddBatchFlags(train_cmd, &train.batch);
   AddSensorFrameFlags(train_cmd, &sensor_flags);
+  train_cmd
+      ->add_option("--metadata", train.metadata,
+                   "KEY=VALUE kept with every sample of this call (repeatable), beside its "
+                   "file's path; shown with neighbours and by `gallery samples`")
+      ->type_name("KEY=VALUE");
   train_cmd->add_option("PATH", train.paths, "Files or folders")->required()->type_name("");
 
   // classify
@@ -415,6 +428,7 @@ int main(int argc, char** argv) {
   if (*show_cmd) return shapeid::RunGalleryShow(gallery_name, context);
   if (*delete_cmd) return shapeid::RunGalleryDelete(gallery_name, missing_ok, context);
   if (*remove_cmd) return shapeid::RunGalleryRemove(remove, context);
+  if (*samples_cmd) return shapeid::RunGallerySamples(samples, context);
   if (*export_cmd) return shapeid::RunGalleryExport(gallery_name, gallery_file, context);
   if (*import_cmd) return shapeid::RunGalleryImport(gallery_file, import_name, context);
   if (*descriptors_cmd) return shapeid::RunDescriptors(context);

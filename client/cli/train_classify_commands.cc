@@ -52,6 +52,20 @@ std::string Pad(absl::string_view text, size_t width) {
 }  // namespace
 
 int RunTrain(const TrainOptions& options, const CliContext& context) {
+  BatchOptions batch = options.batch;
+  for (const std::string& pair : options.metadata) {
+    const size_t equals = pair.find('=');
+    if (equals == 0 || equals == std::string::npos) {
+      WriteAll(context.err, absl::StrCat("shapeid: train: --metadata ", pair,
+                                         ": expected KEY=VALUE with a non-empty key\n"));
+      return kExitUsage;
+    }
+    if (!batch.metadata.emplace(pair.substr(0, equals), pair.substr(equals + 1)).second) {
+      WriteAll(context.err, absl::StrCat("shapeid: train: --metadata key ", pair.substr(0, equals),
+                                         " is given twice\n"));
+      return kExitUsage;
+    }
+  }
   std::vector<LabelledFile> files;
   std::vector<std::string> unsupported;
   if (!options.label.empty()) {
@@ -83,7 +97,7 @@ int RunTrain(const TrainOptions& options, const CliContext& context) {
   TrainOutcome outcome;
   {
     Progress progress(context.err, context.progress, "train", files.size());
-    outcome = TrainFiles(*client, options.gallery, files, options.batch, progress, context.err);
+    outcome = TrainFiles(*client, options.gallery, files, batch, progress, context.err);
   }
   const double rate = outcome.seconds > 0 ? outcome.trained / outcome.seconds : 0;
   std::string text;
@@ -128,9 +142,18 @@ std::string ClassifyJsonLine(const std::string& file, const v1::ClassifyResponse
   std::string neighbors;
   for (const v1::Neighbor& n : r.neighbors()) {
     if (!neighbors.empty()) neighbors += ',';
+    // Metadata keys sorted, so that the line is the same whatever the map's order.
+    std::vector<std::pair<std::string, std::string>> metadata(n.metadata().begin(),
+                                                              n.metadata().end());
+    std::sort(metadata.begin(), metadata.end());
+    std::string fields;
+    for (const auto& [key, value] : metadata) {
+      absl::StrAppend(&fields, fields.empty() ? "" : ",", JsonString(key), ":", JsonString(value));
+    }
     absl::StrAppend(&neighbors, "{\"sample_id\":", n.sample_id(),
                     ",\"label\":", JsonString(n.label()),
-                    ",\"distance\":", JsonNumber(n.distance()), "}");
+                    ",\"distance\":", JsonNumber(n.distance()),
+                    ",\"source\":", JsonString(n.source()), ",\"metadata\":{", fields, "}}");
   }
   std::string votes;
   for (const v1::ClassVote& v : r.votes()) {
@@ -182,7 +205,8 @@ int RunClassify(const ClassifyOptions& options, const CliContext& context) {
   } else if (context.format == OutputFormat::kCsv) {
     std::string header = "file,label,unknown,confidence,points,seconds";
     for (size_t i = 1; i <= top; ++i) {
-      absl::StrAppend(&header, ",neighbor", i, "_label,neighbor", i, "_distance");
+      absl::StrAppend(&header, ",neighbor", i, "_label,neighbor", i, "_distance,neighbor", i,
+                      "_source");
     }
     written &= WriteAll(context.out, header + "\r\n");
   }
@@ -202,9 +226,10 @@ int RunClassify(const ClassifyOptions& options, const CliContext& context) {
         for (size_t n = 0; n < top; ++n) {
           if (n < static_cast<size_t>(r.neighbors_size())) {
             absl::StrAppend(&line, ",", CsvField(r.neighbors(n).label()), ",",
-                            absl::StrFormat("%.6g", r.neighbors(n).distance()));
+                            absl::StrFormat("%.6g", r.neighbors(n).distance()), ",",
+                            CsvField(r.neighbors(n).source()));
           } else {
-            line += ",,";
+            line += ",,,";
           }
         }
         line += "\r\n";

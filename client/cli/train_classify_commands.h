@@ -19,6 +19,8 @@ struct TrainOptions {
   // where it exists, as in ModelNet's layout).
   std::string label;
   std::vector<std::string> paths;
+  // "KEY=VALUE" pairs for every sample's metadata (BatchOptions::metadata once parsed).
+  std::vector<std::string> metadata;
   BatchOptions batch;
 };
 int RunTrain(const TrainOptions& options, const CliContext& context);

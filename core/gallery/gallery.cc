@@ -66,7 +66,8 @@ absl::Status TrainBatch::Fail(absl::Status status) {
   return status;
 }
 
-absl::Status TrainBatch::AddSample(uint64_t id, std::string label, const PointCloud& cloud) {
+absl::Status TrainBatch::AddSample(uint64_t id, std::string label, const PointCloud& cloud,
+                                   SampleProvenance provenance) {
   if (!error_.ok()) return error_;
   if (committed_) return absl::FailedPreconditionError("batch was already committed");
   if (descriptor_ == nullptr) {
@@ -80,6 +81,10 @@ absl::Status TrainBatch::AddSample(uint64_t id, std::string label, const PointCl
         "' may hold (max_samples_per_gallery = ", limits.max_samples_per_gallery, ")")));
   }
   if (absl::Status s = ValidateLabel(label); !s.ok()) return Fail(Prefixed(where, s));
+  if (absl::Status s = NormalizeMetadata(provenance.metadata); !s.ok()) {
+    return Fail(Prefixed(where, s));
+  }
+  if (absl::Status s = ValidateProvenance(provenance); !s.ok()) return Fail(Prefixed(where, s));
   if (id >= kFirstAssignedId) {
     return Fail(absl::InvalidArgumentError(
         absl::StrCat(where, "sample id ", id, " is reserved: client ids are 1 to ",
@@ -100,7 +105,8 @@ absl::Status TrainBatch::AddSample(uint64_t id, std::string label, const PointCl
       DescribeForTraining(*descriptor_, cloud, augment_, limits.cloud_limits());
   if (!features.ok()) return Fail(Prefixed(where, features.status()));
   if (id != 0) client_ids_.insert(id);
-  samples_.push_back(StoredSample{id, std::move(label), *std::move(features)});
+  samples_.push_back(
+      StoredSample{id, std::move(label), *std::move(features), std::move(provenance)});
   return absl::OkStatus();
 }
 
@@ -232,7 +238,10 @@ absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Restore(const StoredGallery& s
       return absl::DataLossError(absl::StrCat(where, "a sample has id 0, which is never stored"));
     }
     if (absl::Status s = ValidateLabel(sample.label); !s.ok()) return Prefixed(where, s);
-    if (absl::Status s = snapshot->index_.Add(sample.id, sample.label, sample.features); !s.ok()) {
+    if (absl::Status s = ValidateProvenance(sample.provenance); !s.ok()) {
+      return Prefixed(absl::StrCat(where, "sample id ", sample.id, ": "), s);
+    }
+    if (absl::Status s = snapshot->AddSample(sample); !s.ok()) {
       return Prefixed(absl::StrCat(where, "sample id ", sample.id, ": "), s);
     }
     if (sample.id >= kFirstAssignedId) next_assigned = std::max(next_assigned, sample.id + 1);
@@ -268,7 +277,8 @@ TrainBatch Gallery::NewBatch() { return TrainBatch(shared_from_this()); }
 absl::StatusOr<CommitResult> Gallery::Train(absl::Span<const LabelledCloud> samples) {
   TrainBatch batch = NewBatch();
   for (const LabelledCloud& sample : samples) {
-    SHAPEID_RETURN_IF_ERROR(batch.AddSample(sample.id, sample.label, sample.cloud));
+    SHAPEID_RETURN_IF_ERROR(
+        batch.AddSample(sample.id, sample.label, sample.cloud, sample.provenance));
   }
   return batch.Commit();
 }
@@ -421,7 +431,7 @@ absl::StatusOr<CommitResult> Gallery::CommitBatchOnce(std::vector<StoredSample>&
       // Assigned ids live above every client id (kFirstAssignedId), so they cannot collide.
       if (sample.id == 0) sample.id = next.next_assigned_id_++;
       // Cannot fail for validated descriptors and labels; if it does, nothing is published.
-      SHAPEID_RETURN_IF_ERROR(next.index_.Add(sample.id, sample.label, sample.features));
+      SHAPEID_RETURN_IF_ERROR(next.AddSample(sample));
     }
     return absl::OkStatus();
   };
@@ -475,7 +485,7 @@ absl::StatusOr<int64_t> Gallery::RemoveSamplesOnce(absl::Span<const uint64_t> id
     }
     return !unique.empty();
   };
-  const Change remove = [&](GallerySnapshot& next) { return next.index_.Remove(unique); };
+  const Change remove = [&](GallerySnapshot& next) { return next.RemoveSamples(unique); };
   const Origin origin =
       Origin::Local([&](GalleryStore& store, absl::Time updated, uint64_t version) {
         return store.RemoveSamples(name_, unique, updated, version);
@@ -488,7 +498,8 @@ absl::Status Gallery::ApplyStoredAppend(absl::Span<const StoredSample> samples, 
                                         uint64_t version) {
   const Change add = [&](GallerySnapshot& next) -> absl::Status {
     for (const StoredSample& sample : samples) {
-      SHAPEID_RETURN_IF_ERROR(next.index_.Add(sample.id, sample.label, sample.features));
+      SHAPEID_RETURN_IF_ERROR(ValidateProvenance(sample.provenance));
+      SHAPEID_RETURN_IF_ERROR(next.AddSample(sample));
       if (sample.id >= kFirstAssignedId) {
         next.next_assigned_id_ = std::max(next.next_assigned_id_, sample.id + 1);
       }
@@ -500,7 +511,7 @@ absl::Status Gallery::ApplyStoredAppend(absl::Span<const StoredSample> samples, 
 
 absl::Status Gallery::ApplyStoredRemove(absl::Span<const uint64_t> ids, absl::Time updated,
                                         uint64_t version) {
-  const Change remove = [&](GallerySnapshot& next) { return next.index_.Remove(ids); };
+  const Change remove = [&](GallerySnapshot& next) { return next.RemoveSamples(ids); };
   return Mutate(Origin::Stored(version, updated), nullptr, remove).status();
 }
 

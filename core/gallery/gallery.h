@@ -46,6 +46,7 @@ struct LabelledCloud {
   uint64_t id = 0;  // 0: the gallery assigns one; else in [1, kFirstAssignedId)
   std::string label;
   PointCloud cloud;
+  SampleProvenance provenance = {};  // optional
 };
 
 struct CommitResult {
@@ -72,14 +73,17 @@ class TrainBatch {
   //    (the descriptor's message, which names the bad point);
   //  - ResourceExhausted over max_points_per_cloud or when the batch alone would exceed
   //    max_samples_per_gallery;
-  //  - AlreadyExists when `id` is nonzero and already in the gallery or in this batch.
+  //  - AlreadyExists when `id` is nonzero and already in the gallery or in this batch;
+  //  - InvalidArgument for provenance over its limits or not UTF-8 (ValidateProvenance;
+  //    the metadata is sorted by key here, and a key given twice is refused).
   //
   // With view augmentation (the gallery's GalleryOptions::augment, or the batch's override)
   // the cloud's synthetic views are described too and kept as views of the sample; they are
   // seeded by the cloud's own bytes, so the same cloud always gets the same views. Views
   // that cannot be made or described (degenerate scans) are left out; the cloud itself must
   // pass.
-  absl::Status AddSample(uint64_t id, std::string label, const PointCloud& cloud);
+  absl::Status AddSample(uint64_t id, std::string label, const PointCloud& cloud,
+                         SampleProvenance provenance = {});
 
   // Replaces the gallery's view augmentation for the samples added from now on (a Train
   // stream's own setting). InvalidArgument (and the batch fails) for invalid options.

@@ -47,6 +47,15 @@ std::string Quote(absl::string_view label) {
 
 }  // namespace
 
+size_t InvalidUtf8Offset(absl::string_view text) {
+  for (size_t i = 0; i < text.size();) {
+    const size_t len = Utf8SequenceLength(text.substr(i));
+    if (len == 0) return i;
+    i += len;
+  }
+  return absl::string_view::npos;
+}
+
 absl::Status ValidateGalleryName(absl::string_view name) {
   const auto allowed = [](char c, bool first) {
     return absl::ascii_isalnum(static_cast<unsigned char>(c)) ||
@@ -67,13 +76,9 @@ absl::Status ValidateLabel(absl::string_view label) {
                                                    " bytes, more than the limit of ",
                                                    kMaxLabelBytes));
   }
-  for (size_t i = 0; i < label.size();) {
-    const size_t len = Utf8SequenceLength(label.substr(i));
-    if (len == 0) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("label ", Quote(label), " is not valid UTF-8 (at byte ", i, ")"));
-    }
-    i += len;
+  if (const size_t bad = InvalidUtf8Offset(label); bad != absl::string_view::npos) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("label ", Quote(label), " is not valid UTF-8 (at byte ", bad, ")"));
   }
   if (label == kUnknownLabel) {
     return absl::InvalidArgumentError(

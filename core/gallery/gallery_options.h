@@ -81,6 +81,10 @@ struct GalleryLimits {
 // the pattern. Names are used as file names by future stores, hence the conservative set.
 absl::Status ValidateGalleryName(absl::string_view name);
 
+// The offset of the first byte of `text` that does not start a valid UTF-8 sequence (RFC
+// 3629: no overlong forms, no surrogates), or npos when all of it is valid.
+size_t InvalidUtf8Offset(absl::string_view text);
+
 // InvalidArgument unless `label` is non-empty, at most kMaxLabelBytes bytes, valid UTF-8
 // (RFC 3629: no overlong forms, no surrogates) and not kUnknownLabel.
 absl::Status ValidateLabel(absl::string_view label);

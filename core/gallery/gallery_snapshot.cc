@@ -1,5 +1,6 @@
 #include "core/gallery/gallery_snapshot.h"
 
+#include <algorithm>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -26,8 +27,58 @@ StoredGallery GallerySnapshot::ToStored() const {
     sample.features.resize(static_cast<size_t>(index_.ViewsAt(slot)) *
                            static_cast<size_t>(index_.dimension()));
     index_.CopyFeatures(slot, sample.features.data());
+    if (auto provenance = Provenance(sample.id)) sample.provenance = *provenance;
   }
   return stored;
+}
+
+std::shared_ptr<const SampleProvenance> GallerySnapshot::Provenance(uint64_t id) const {
+  const auto* entry = provenance_.Find(id);
+  return entry == nullptr ? nullptr : entry->second;
+}
+
+SamplePage GallerySnapshot::ListSamples(absl::string_view label, uint64_t after_id,
+                                        size_t page_size) const {
+  // The page_size smallest qualifying ids, plus one to tell whether more remain: a max-heap
+  // of (id, slot) holding the best page_size + 1 seen so far.
+  const size_t keep = std::max<size_t>(page_size, 1) + 1;
+  std::vector<std::pair<uint64_t, int64_t>> best;
+  best.reserve(std::min<size_t>(keep, static_cast<size_t>(index_.size())));
+  for (int64_t slot = 0; slot < index_.size(); ++slot) {
+    const uint64_t id = index_.IdAt(slot);
+    if (id <= after_id || (!label.empty() && index_.LabelAt(slot) != label)) continue;
+    if (best.size() < keep) {
+      best.emplace_back(id, slot);
+      std::push_heap(best.begin(), best.end());
+    } else if (id < best.front().first) {
+      std::pop_heap(best.begin(), best.end());
+      best.back() = {id, slot};
+      std::push_heap(best.begin(), best.end());
+    }
+  }
+  std::sort_heap(best.begin(), best.end());
+  SamplePage page;
+  page.more = best.size() == keep;
+  if (page.more) best.pop_back();
+  for (const auto& [id, slot] : best) {
+    page.samples.push_back(
+        SampleInfo{id, index_.LabelAt(slot), index_.ViewsAt(slot), Provenance(id)});
+  }
+  return page;
+}
+
+absl::Status GallerySnapshot::AddSample(const StoredSample& sample) {
+  SHAPEID_RETURN_IF_ERROR(index_.Add(sample.id, sample.label, sample.features));
+  if (!sample.provenance.empty()) {
+    provenance_.Insert({sample.id, std::make_shared<const SampleProvenance>(sample.provenance)});
+  }
+  return absl::OkStatus();
+}
+
+absl::Status GallerySnapshot::RemoveSamples(absl::Span<const uint64_t> ids) {
+  SHAPEID_RETURN_IF_ERROR(index_.Remove(ids));
+  for (uint64_t id : ids) provenance_.Erase(id);
+  return absl::OkStatus();
 }
 
 absl::Status GallerySnapshot::CheckCompatible() const {
@@ -96,6 +147,8 @@ GalleryClassification GallerySnapshot::Answer(KnnResult knn) const {
                    knn.neighbors.front().distance > meta_.options.reject_distance;
   answer.label = answer.unknown ? std::string(kUnknownLabel) : knn.label;
   answer.confidence = answer.unknown ? 0.0 : knn.confidence;
+  answer.provenance.reserve(knn.neighbors.size());
+  for (const auto& neighbor : knn.neighbors) answer.provenance.push_back(Provenance(neighbor.id));
   answer.knn = std::move(knn);
   return answer;
 }

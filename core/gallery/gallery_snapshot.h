@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "absl/container/flat_hash_map.h"
 #include "absl/status/statusor.h"
 #include "absl/time/time.h"
 #include "absl/types/span.h"
@@ -16,7 +17,9 @@
 #include "core/gallery/gallery_metadata.h"
 #include "core/gallery/gallery_options.h"
 #include "core/gallery/gallery_store.h"
+#include "core/gallery/sample_provenance.h"
 #include "core/knn/knn_index.h"
+#include "core/knn/knn_shared_chunks.h"
 #include "core/point_cloud.h"
 
 namespace shapeid {
@@ -31,9 +34,27 @@ struct GalleryClassification {
   bool unknown = false;
   // The raw kNN result, reported even when rejected (which class was nearest, how far).
   KnnResult knn;
+  // Each neighbour's provenance, in knn.neighbors' order; null for a sample trained without.
+  std::vector<std::shared_ptr<const SampleProvenance>> provenance;
   // Server-side time spent computing the descriptor and searching the index.
   absl::Duration describe_time;
   absl::Duration search_time;
+};
+
+// One sample as ListSamples gives it: everything but its descriptors.
+struct SampleInfo {
+  uint64_t id = 0;
+  std::string label;
+  int views = 1;
+  std::shared_ptr<const SampleProvenance> provenance;  // null: none
+};
+
+// A page of ListSamples: samples in increasing id order.
+struct SamplePage {
+  std::vector<SampleInfo> samples;
+  // True when samples with larger ids (of the label asked for) remain: the next page starts
+  // after samples.back().id.
+  bool more = false;
 };
 
 // One immutable state of a gallery: what readers hold while writers publish the next one
@@ -74,6 +95,12 @@ class GallerySnapshot {
   }
   // Samples per label, labels sorted (byte order).
   std::map<std::string, int64_t> LabelCounts() const;
+  // The provenance sample `id` was trained with; null when it has none or is absent.
+  std::shared_ptr<const SampleProvenance> Provenance(uint64_t id) const;
+  // Up to `page_size` (>= 1) samples with ids above `after_id`, labelled `label` (empty:
+  // any), in increasing id order: keyset paging, so that a sample added or removed while a
+  // client pages through changes no other sample's page. O(num_samples * log(page_size)).
+  SamplePage ListSamples(absl::string_view label, uint64_t after_id, size_t page_size) const;
 
   // GalleryMetadata's fields.
   absl::Time created() const { return meta_.created; }
@@ -123,6 +150,10 @@ class GallerySnapshot {
   GallerySnapshot(const GallerySnapshot&) = default;
   GallerySnapshot& operator=(const GallerySnapshot&) = delete;
 
+  // The two ways samples change, which keep the index and the provenance in step.
+  absl::Status AddSample(const StoredSample& sample);
+  absl::Status RemoveSamples(absl::Span<const uint64_t> ids);
+
   // The gallery's kNN options, with k replaced when `k` > 0.
   KnnOptions KnnFor(int k) const;
   // Applies the reject rule to a kNN result.
@@ -133,6 +164,10 @@ class GallerySnapshot {
   GalleryMetadata meta_;
   std::shared_ptr<const Descriptor> descriptor_;
   KnnIndex index_;
+  // Only samples trained with provenance have an entry; shared by copies like the index.
+  knn_internal::SharedHashTable<
+      absl::flat_hash_map<uint64_t, std::shared_ptr<const SampleProvenance>>>
+      provenance_;
   uint64_t next_assigned_id_ = uint64_t{1} << 63;  // kFirstAssignedId
   std::string incompatible_;
 };

@@ -16,6 +16,7 @@
 #include "absl/types/span.h"
 #include "core/gallery/gallery_metadata.h"
 #include "core/gallery/gallery_options.h"
+#include "core/gallery/sample_provenance.h"
 
 namespace shapeid {
 
@@ -28,6 +29,8 @@ struct StoredSample {
   // One descriptor (StoredGallery::dimension floats) per view: one for a plain sample, the
   // cloud's and then its synthetic views' in an augmented gallery (GalleryOptions::augment).
   std::vector<float> features;
+  // Where the sample came from (validated, metadata sorted); empty when not given.
+  SampleProvenance provenance = {};
 };
 
 // A gallery as a store or an export holds it: its metadata and every sample. Extends the

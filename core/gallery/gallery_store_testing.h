@@ -40,6 +40,8 @@ inline void ExpectSameStoredGallery(const StoredGallery& a, const StoredGallery&
   for (size_t i = 0; i < a.samples.size(); ++i) {
     EXPECT_EQ(a.samples[i].id, b.samples[i].id) << i;
     EXPECT_EQ(a.samples[i].label, b.samples[i].label) << i;
+    EXPECT_EQ(a.samples[i].provenance.source, b.samples[i].provenance.source) << i;
+    EXPECT_EQ(a.samples[i].provenance.metadata, b.samples[i].provenance.metadata) << i;
     ASSERT_EQ(a.samples[i].features.size(), b.samples[i].features.size()) << i;
     EXPECT_EQ(std::memcmp(a.samples[i].features.data(), b.samples[i].features.data(),
                           a.samples[i].features.size() * sizeof(float)),
@@ -51,7 +53,8 @@ inline void ExpectSameStoredGallery(const StoredGallery& a, const StoredGallery&
 // A stored gallery of `samples` random samples of `dimension` floats, `seed` choosing them,
 // for the stores' round-trip tests: client ids and assigned ids (>= 2^63) alternate, the first
 // label is not ASCII, and bit patterns a lossy path would change (-0, a subnormal, the largest
-// float) lead the first sample. It has an incarnation, as a created gallery has.
+// float) lead the first sample; every third sample has provenance. It has an incarnation, as
+// a created gallery has.
 inline StoredGallery MakeGallery(std::string name, int dimension, int samples, uint32_t seed) {
   StoredGallery g;
   g.name = std::move(name);
@@ -74,6 +77,11 @@ inline StoredGallery MakeGallery(std::string name, int dimension, int samples, u
     s.label = absl::StrCat("class-", i % 5, i == 0 ? " \xc3\xa9t\xc3\xa9" : "");
     s.features.resize(static_cast<size_t>(dimension));
     for (float& f : s.features) f = u(rng);
+    // Provenance on every third sample (the others have none, as most do).
+    if (i % 3 == 0) {
+      s.provenance.source = absl::StrCat("scans/", i, i == 0 ? "/caf\xc3\xa9.pcd" : ".pcd");
+      if (i % 2 == 0) s.provenance.metadata = {{"camera", "d435"}, {"seed", absl::StrCat(seed)}};
+    }
     g.samples.push_back(std::move(s));
   }
   if (samples > 0 && dimension >= 3) {

@@ -731,3 +731,138 @@ TEST(GalleryTest, IncompatibleDescriptorLoadsButRefusesWork) {
 
 }  // namespace
 }  // namespace shapeid
+
+namespace shapeid {
+namespace {
+
+// ThreeShapes with a source per sample ("<label>_<id>.pcd") and, on the boxes, metadata.
+std::vector<LabelledCloud> ThreeShapesWithProvenance() {
+  std::vector<LabelledCloud> samples = ThreeShapes();
+  for (LabelledCloud& s : samples) {
+    s.provenance.source = absl::StrCat(s.label, "_", s.id, ".pcd");
+    if (s.label == "box") s.provenance.metadata = {{"session", "2"}, {"camera", "d435"}};
+  }
+  return samples;
+}
+
+TEST(GalleryProvenanceTest, NeighboursCarryTheirProvenance) {
+  auto g = MakeGallery();
+  std::vector<LabelledCloud> samples = ThreeShapesWithProvenance();
+  samples.push_back({0, "sphere", Sphere(9)});  // one without
+  ASSERT_TRUE(g->Train(samples).ok());
+  const auto answer = g->Snapshot()->Classify(Box(40), {}, 10);
+  ASSERT_TRUE(answer.ok()) << answer.status();
+  ASSERT_EQ(answer->provenance.size(), answer->knn.neighbors.size());
+  int without = 0;
+  for (size_t i = 0; i < answer->knn.neighbors.size(); ++i) {
+    const auto& neighbor = answer->knn.neighbors[i];
+    const auto& provenance = answer->provenance[i];
+    if (neighbor.id >= kFirstAssignedId) {
+      EXPECT_EQ(provenance, nullptr);
+      ++without;
+      continue;
+    }
+    ASSERT_NE(provenance, nullptr) << neighbor.id;
+    EXPECT_EQ(provenance->source, absl::StrCat(neighbor.label, "_", neighbor.id, ".pcd"));
+    if (neighbor.label == "box") {
+      // Sorted by key when trained.
+      EXPECT_THAT(provenance->metadata, ElementsAre(Pair("camera", "d435"), Pair("session", "2")));
+    } else {
+      EXPECT_TRUE(provenance->metadata.empty());
+    }
+  }
+  EXPECT_EQ(without, 1);
+}
+
+TEST(GalleryProvenanceTest, SurvivesStoreRestoreAndRemoval) {
+  auto store = std::make_shared<InMemoryGalleryStore>();
+  auto g = MakeGallery({}, {}, store);
+  ASSERT_TRUE(store->SaveGallery(g->Snapshot()->ToStored()).ok());
+  ASSERT_TRUE(g->Train(ThreeShapesWithProvenance()).ok());
+  ASSERT_TRUE(g->RemoveSamples({1}).ok());
+  EXPECT_EQ(g->Snapshot()->Provenance(1), nullptr);
+  ASSERT_NE(g->Snapshot()->Provenance(2), nullptr);
+
+  const absl::StatusOr<std::vector<StoredGallery>> loaded = store->LoadAll();
+  ASSERT_TRUE(loaded.ok());
+  ASSERT_EQ(loaded->size(), 1u);
+  auto restored = Gallery::Restore(loaded->front(), {}, nullptr);
+  ASSERT_TRUE(restored.ok()) << restored.status();
+  const auto snap = (*restored)->Snapshot();
+  EXPECT_EQ(snap->Provenance(1), nullptr);
+  ASSERT_NE(snap->Provenance(4), nullptr);
+  EXPECT_EQ(snap->Provenance(4)->source, "sphere_4.pcd");
+  EXPECT_EQ(snap->ToStored().samples.front().provenance.metadata.size(), 2u);
+}
+
+TEST(GalleryProvenanceTest, BadProvenanceFailsTheSampleAndTheBatch) {
+  auto g = MakeGallery();
+  TrainBatch batch = g->NewBatch();
+  ASSERT_TRUE(batch.AddSample(1, "box", Box(1), {"a.pcd", {}}).ok());
+  SampleProvenance twice{"b.pcd", {{"k", "1"}, {"k", "2"}}};
+  const absl::Status s = batch.AddSample(2, "box", Box(2), twice);
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(s.message(), AllOf(HasSubstr("sample 1"), HasSubstr("\"k\" is given twice")));
+  EXPECT_FALSE(batch.Commit().ok());
+  EXPECT_EQ(g->Snapshot()->num_samples(), 0);
+
+  // A store's or an export's sample is checked too.
+  StoredGallery stored = g->Snapshot()->ToStored();
+  StoredSample sample;
+  sample.id = 5;
+  sample.label = "box";
+  sample.features.assign(static_cast<size_t>(stored.dimension), 0.5f);
+  sample.provenance.source = "bad\xff";
+  stored.samples.push_back(sample);
+  auto restored = Gallery::Restore(stored, {}, nullptr);
+  ASSERT_EQ(restored.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(restored.status().message(), AllOf(HasSubstr("sample id 5"), HasSubstr("UTF-8")));
+}
+
+TEST(GalleryProvenanceTest, ListSamplesPagesByIdAndLabel) {
+  auto g = MakeGallery();
+  std::vector<LabelledCloud> samples = ThreeShapesWithProvenance();
+  // Ids out of training order: paging is by id, whatever the order.
+  for (LabelledCloud& s : samples) s.id = 100 - s.id;  // 99 .. 91
+  ASSERT_TRUE(g->Train(samples).ok());
+  auto snap = g->Snapshot();
+  std::vector<uint64_t> seen;
+  uint64_t after = 0;
+  int pages = 0;
+  while (true) {
+    const SamplePage page = snap->ListSamples("", after, 4);
+    ++pages;
+    for (const SampleInfo& s : page.samples) {
+      seen.push_back(s.id);
+      ASSERT_NE(s.provenance, nullptr);
+      EXPECT_EQ(s.provenance->source, absl::StrCat(s.label, "_", 100 - s.id, ".pcd"));
+      EXPECT_EQ(s.views, 1);
+    }
+    if (!page.more) break;
+    after = page.samples.back().id;
+  }
+  EXPECT_EQ(pages, 3);  // 4 + 4 + 1
+  EXPECT_THAT(seen, ElementsAre(91, 92, 93, 94, 95, 96, 97, 98, 99));
+
+  const SamplePage spheres = snap->ListSamples("sphere", 0, 10);
+  EXPECT_FALSE(spheres.more);
+  ASSERT_EQ(spheres.samples.size(), 3u);
+  EXPECT_EQ(spheres.samples.front().id, 94u);
+  EXPECT_EQ(spheres.samples.front().label, "sphere");
+  // An exact page is not followed by an empty one.
+  EXPECT_FALSE(snap->ListSamples("sphere", 0, 3).more);
+  EXPECT_TRUE(snap->ListSamples("nosuch", 0, 3).samples.empty());
+
+  // Changes between pages move no other sample: a removed one is skipped, a new one with a
+  // larger id comes at the end.
+  const SamplePage first = snap->ListSamples("", 0, 3);
+  ASSERT_TRUE(g->RemoveSamples({94}).ok());
+  ASSERT_TRUE(g->Train({{500, "box", Box(30)}}).ok());
+  const SamplePage rest = g->Snapshot()->ListSamples("", first.samples.back().id, 100);
+  std::vector<uint64_t> rest_ids;
+  for (const SampleInfo& s : rest.samples) rest_ids.push_back(s.id);
+  EXPECT_THAT(rest_ids, ElementsAre(95, 96, 97, 98, 99, 500));
+}
+
+}  // namespace
+}  // namespace shapeid

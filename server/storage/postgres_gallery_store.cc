@@ -29,7 +29,7 @@ constexpr int64_t kLogLockKey = 0x73686170656964;
 // Held while the tables are created: replicas starting together would otherwise race in
 // CREATE TABLE IF NOT EXISTS (which is not safe against concurrent creators).
 constexpr int64_t kSchemaLockKey = kLogLockKey + 1;
-// Samples per INSERT statement (4 parameters each; PostgreSQL allows 65,535).
+// Samples per INSERT statement (5 parameters each; PostgreSQL allows 65,535).
 constexpr size_t kSamplesPerInsert = 1000;
 // Change-log rows older than this are deleted (by any replica, once a minute), and
 // shapeid_log_floor records the last sequence number deleted. A replica whose position is
@@ -61,6 +61,9 @@ CREATE TABLE IF NOT EXISTS shapeid_samples (
   crc BIGINT NOT NULL,
   PRIMARY KEY (incarnation, id));
 CREATE INDEX IF NOT EXISTS shapeid_samples_order ON shapeid_samples (incarnation, position);
+-- EncodeProvenance's bytes (their own CRC), empty or NULL for none; added after release 1, so
+-- a database an older server made gains it here, and an older server's inserts leave it NULL.
+ALTER TABLE shapeid_samples ADD COLUMN IF NOT EXISTS provenance BYTEA;
 CREATE TABLE IF NOT EXISTS shapeid_changes (
   seq BIGSERIAL PRIMARY KEY,
   gallery TEXT NOT NULL,
@@ -144,23 +147,52 @@ absl::Span<const uint8_t> Bytes(absl::string_view s) {
   return absl::Span<const uint8_t>(reinterpret_cast<const uint8_t*>(s.data()), s.size());
 }
 
+// The columns every read of samples selects, in this order.
+constexpr char kSampleColumns[] = "id, label, features, crc, provenance";
+
+// Sample row `r` of a binary SELECT of kSampleColumns, checked; `damaged` makes the error.
+absl::StatusOr<StoredSample> FromSampleRow(
+    const PgResult& rows, int r, int dimension,
+    const std::function<absl::Status(absl::string_view)>& damaged) {
+  StoredSample s;
+  s.id = FromPgId(rows.BinaryInt(r, 0));
+  s.label = std::string(rows.Value(r, 1));
+  const absl::string_view features = rows.Value(r, 2);
+  if (features.size() % (sizeof(float) * static_cast<size_t>(dimension)) != 0) {
+    return damaged(absl::StrCat("sample id ", s.id, " has ", features.size(), " feature bytes"));
+  }
+  FeaturesFromBytes(Bytes(features), &s.features);
+  if (SampleCrc32(0, s.id, s.label, s.features) != static_cast<uint32_t>(rows.BinaryInt(r, 3))) {
+    return damaged(absl::StrCat("checksum mismatch in sample id ", s.id));
+  }
+  absl::StatusOr<SampleProvenance> provenance =
+      DecodeProvenance(rows.IsNull(r, 4) ? absl::string_view() : rows.Value(r, 4));
+  if (!provenance.ok()) {
+    return damaged(absl::StrCat("sample id ", s.id, ": ", provenance.status().message()));
+  }
+  s.provenance = *std::move(provenance);
+  return s;
+}
+
 // Inserts samples of one incarnation, kSamplesPerInsert per statement.
 absl::Status InsertSamples(PgConnection& connection, absl::string_view what, int64_t incarnation,
                            absl::Span<const StoredSample> samples) {
   for (size_t begin = 0; begin < samples.size(); begin += kSamplesPerInsert) {
     const size_t end = std::min(samples.size(), begin + kSamplesPerInsert);
-    std::string sql = "INSERT INTO shapeid_samples (incarnation, id, label, features, crc) VALUES ";
+    std::string sql =
+        "INSERT INTO shapeid_samples (incarnation, id, label, features, crc, provenance) VALUES ";
     PgParams params;
     params.Int(incarnation);
     for (size_t i = begin; i < end; ++i) {
       const StoredSample& s = samples[i];
       const int p = params.size();
       absl::StrAppend(&sql, i == begin ? "" : ",", "($1,$", p + 1, ",$", p + 2, ",$", p + 3, ",$",
-                      p + 4, ")");
+                      p + 4, ",$", p + 5, ")");
       params.Int(AsPgId(s.id))
           .Bytes(Bytes(s.label))
           .Bytes(FeatureBytes(s.features))
-          .Int(SampleCrc32(0, s.id, s.label, s.features));
+          .Int(SampleCrc32(0, s.id, s.label, s.features))
+          .Bytes(Bytes(EncodeProvenance(s.provenance)));
     }
     SHAPEID_RETURN_IF_ERROR(connection.Exec(what, sql, params));
   }
@@ -387,23 +419,12 @@ absl::StatusOr<StoredGallery> PostgresSnapshot::ReadGallery(absl::string_view na
   SHAPEID_ASSIGN_OR_RETURN(
       PgResult samples,
       c.Query(what,
-              "SELECT id, label, features, crc FROM shapeid_samples WHERE incarnation = $1 "
-              "ORDER BY position",
+              absl::StrCat("SELECT ", kSampleColumns,
+                           " FROM shapeid_samples WHERE incarnation = $1 ORDER BY position"),
               PgParams().Int(static_cast<int64_t>(g.incarnation)), /*binary=*/true));
   g.samples.reserve(static_cast<size_t>(samples.rows()));
   for (int r = 0; r < samples.rows(); ++r) {
-    StoredSample s;
-    s.id = FromPgId(samples.BinaryInt(r, 0));
-    s.label = std::string(samples.Value(r, 1));
-    const absl::string_view features = samples.Value(r, 2);
-    if (features.size() % (sizeof(float) * static_cast<size_t>(g.dimension)) != 0) {
-      return damaged(absl::StrCat("sample id ", s.id, " has ", features.size(), " feature bytes"));
-    }
-    FeaturesFromBytes(Bytes(features), &s.features);
-    if (SampleCrc32(0, s.id, s.label, s.features) !=
-        static_cast<uint32_t>(samples.BinaryInt(r, 3))) {
-      return damaged(absl::StrCat("checksum mismatch in sample id ", s.id));
-    }
+    SHAPEID_ASSIGN_OR_RETURN(StoredSample s, FromSampleRow(samples, r, g.dimension, damaged));
     g.samples.push_back(std::move(s));
   }
   return g;
@@ -524,21 +545,20 @@ absl::StatusOr<std::vector<StoredSample>> PostgresSnapshot::ReadAppended(
   SHAPEID_ASSIGN_OR_RETURN(
       PgResult rows,
       c_.Query("cannot read samples",
-               "SELECT id, label, features, crc FROM shapeid_samples WHERE incarnation = $1 AND "
-               "id = ANY($2::bigint[]) ORDER BY position",
+               absl::StrCat("SELECT ", kSampleColumns,
+                            " FROM shapeid_samples WHERE incarnation = $1 AND "
+                            "id = ANY($2::bigint[]) ORDER BY position"),
                PgParams().Int(change.incarnation).IntArray(change.ids), /*binary=*/true));
-  std::vector<StoredSample> samples(static_cast<size_t>(rows.rows()));
+  const auto damaged = [&](absl::string_view why) {
+    return absl::DataLossError(
+        absl::StrCat("gallery '", change.gallery, "' in PostgreSQL is damaged: ", why));
+  };
+  std::vector<StoredSample> samples;
+  samples.reserve(static_cast<size_t>(rows.rows()));
   for (int r = 0; r < rows.rows(); ++r) {
-    StoredSample& s = samples[static_cast<size_t>(r)];
-    s.id = FromPgId(rows.BinaryInt(r, 0));
-    s.label = std::string(rows.Value(r, 1));
-    FeaturesFromBytes(Bytes(rows.Value(r, 2)), &s.features);
-    if (SampleCrc32(0, s.id, s.label, s.features) != static_cast<uint32_t>(rows.BinaryInt(r, 3))) {
-      return absl::DataLossError(absl::StrCat("gallery '", change.gallery,
-                                              "' in PostgreSQL is damaged: checksum mismatch "
-                                              "in sample id ",
-                                              s.id));
-    }
+    // The features' length is checked where they are applied (KnnIndex::Add).
+    SHAPEID_ASSIGN_OR_RETURN(StoredSample s, FromSampleRow(rows, r, /*dimension=*/1, damaged));
+    samples.push_back(std::move(s));
   }
   return samples;
 }

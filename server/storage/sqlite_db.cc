@@ -78,6 +78,8 @@ void SqliteStatement::BindBlob(int index, absl::Span<const uint8_t> value) {
                       SQLITE_TRANSIENT);
 }
 
+void SqliteStatement::BindNull(int index) { sqlite3_bind_null(stmt_, index); }
+
 absl::StatusOr<bool> SqliteStatement::Step() {
   const int rc = sqlite3_step(stmt_);
   if (rc == SQLITE_ROW) return true;

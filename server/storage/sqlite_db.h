@@ -40,6 +40,7 @@ class SqliteStatement {
   void BindDouble(int index, double value);
   void BindText(int index, absl::string_view value);
   void BindBlob(int index, absl::Span<const uint8_t> value);
+  void BindNull(int index);
 
   // True while a row is available, false when done; errors through SqliteStatus.
   absl::StatusOr<bool> Step();

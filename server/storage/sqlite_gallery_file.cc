@@ -48,11 +48,30 @@ void BindGalleryRow(SqliteStatement& s, const GalleryMetadata& g) {
   s.BindText(13, AugmentOptionsToString(g.options.augment));
 }
 
-absl::Status InsertSample(SqliteStatement& insert, const StoredSample& sample) {
+absl::string_view InsertSampleSql(int64_t format) {
+  return format >= kFirstFormatWithProvenance
+             ? "INSERT INTO samples(id, label, features, crc, provenance) VALUES(?,?,?,?,?)"
+             : "INSERT INTO samples(id, label, features, crc) VALUES(?,?,?,?)";
+}
+
+absl::Status InsertSample(SqliteStatement& insert, int64_t format, const StoredSample& sample) {
   insert.BindInt64(1, AsStoredId(sample.id));
   insert.BindText(2, sample.label);
   insert.BindBlob(3, FeatureBytes(sample.features));
   insert.BindInt64(4, SampleCrc32(0, sample.id, sample.label, sample.features));
+  if (format >= kFirstFormatWithProvenance) {
+    const std::string provenance = EncodeProvenance(sample.provenance);
+    if (provenance.empty()) {
+      insert.BindNull(5);  // NULL: no provenance (the common case costs no bytes)
+    } else {
+      insert.BindBlob(5,
+                      absl::Span<const uint8_t>(reinterpret_cast<const uint8_t*>(provenance.data()),
+                                                provenance.size()));
+    }
+  } else if (!sample.provenance.empty()) {
+    return absl::InternalError(absl::StrCat(
+        "sample id ", sample.id, " has provenance, which a format-", format, " file cannot hold"));
+  }
   return insert.Run();
 }
 
@@ -146,7 +165,10 @@ absl::StatusOr<StoredGallery> ReadGallery(SqliteDb& db, const std::string& path,
     g.samples.reserve(static_cast<size_t>(last_seq));
     SHAPEID_ASSIGN_OR_RETURN(
         SqliteStatement rows,
-        schema(db.Prepare("SELECT seq, id, label, features, crc FROM samples ORDER BY seq")));
+        schema(db.Prepare(format >= kFirstFormatWithProvenance
+                              ? "SELECT seq, id, label, features, crc, provenance FROM samples "
+                                "ORDER BY seq"
+                              : "SELECT seq, id, label, features, crc FROM samples ORDER BY seq")));
     const size_t bytes = static_cast<size_t>(g.dimension) * sizeof(float);
     while (true) {
       SHAPEID_ASSIGN_OR_RETURN(const bool more, rows.Step());
@@ -166,6 +188,13 @@ absl::StatusOr<StoredGallery> ReadGallery(SqliteDb& db, const std::string& path,
       if (SampleCrc32(0, sample.id, sample.label, sample.features) !=
           static_cast<uint32_t>(rows.ColumnInt64(4))) {
         return damaged(absl::StrCat(at, ": checksum mismatch"));
+      }
+      if (format >= kFirstFormatWithProvenance) {
+        const absl::Span<const uint8_t> encoded = rows.ColumnBlob(5);
+        absl::StatusOr<SampleProvenance> provenance = DecodeProvenance(
+            absl::string_view(reinterpret_cast<const char*>(encoded.data()), encoded.size()));
+        if (!provenance.ok()) return damaged(absl::StrCat(at, ": ", provenance.status().message()));
+        sample.provenance = *std::move(provenance);
       }
       g.samples.push_back(std::move(sample));
     }

@@ -48,8 +48,18 @@ CREATE TABLE samples(
   id INTEGER NOT NULL UNIQUE,
   label TEXT NOT NULL,
   features BLOB NOT NULL,
-  crc INTEGER NOT NULL);
+  crc INTEGER NOT NULL,
+  provenance BLOB);
 )sql";
+
+// Format 3 adds the samples' `provenance` column: EncodeProvenance's bytes (which carry their
+// own CRC), NULL for a sample without. An older file gains it (ALTER TABLE, user_version 3)
+// at its first sample with provenance, so files that never see one stay as they were.
+inline constexpr absl::string_view kAddProvenanceColumn =
+    "ALTER TABLE samples ADD COLUMN provenance BLOB; PRAGMA user_version=3;";
+inline constexpr int kFirstFormatWithProvenance = 3;
+// The insert statement of a file of format `format`: 5 parameters from format 3 on, else 4.
+absl::string_view InsertSampleSql(int64_t format);
 
 // Format 1's columns; format 2 adds `augment` (AugmentOptionsToString), and samples of an
 // augmented gallery hold several descriptors (views) in their features blob.
@@ -69,8 +79,9 @@ uint64_t FromStoredId(int64_t id);
 
 // Binds the gallery row's kGalleryColumns, in order, to parameters 1..13 of `s`.
 void BindGalleryRow(SqliteStatement& s, const GalleryMetadata& g);
-// Runs `insert` (id, label, features, crc) for `sample`.
-absl::Status InsertSample(SqliteStatement& insert, const StoredSample& sample);
+// Runs `insert` (InsertSampleSql(format)) for `sample`. Internal for a sample with
+// provenance in a file of an older format (the caller adds the column first).
+absl::Status InsertSample(SqliteStatement& insert, int64_t format, const StoredSample& sample);
 
 // SQLite's own words ("database disk image is malformed") with ours in front.
 absl::Status Damaged(const std::string& path, const absl::Status& status);

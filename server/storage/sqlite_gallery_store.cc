@@ -5,6 +5,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <utility>
@@ -27,6 +28,7 @@ using sqlite_gallery_file::BindGalleryRow;
 using sqlite_gallery_file::Damaged;
 using sqlite_gallery_file::GalleryRowCrc;
 using sqlite_gallery_file::InsertSample;
+using sqlite_gallery_file::InsertSampleSql;
 using sqlite_gallery_file::kApplicationId;
 using sqlite_gallery_file::kConnectionPragmas;
 using sqlite_gallery_file::kGalleryColumns;
@@ -51,6 +53,8 @@ struct SqliteGalleryStore::OpenGallery {
   SqliteStatement insert ABSL_GUARDED_BY(mu);
   SqliteStatement remove ABSL_GUARDED_BY(mu);
   SqliteStatement touch ABSL_GUARDED_BY(mu);
+  // The file's PRAGMA user_version, which decides the insert's columns.
+  int64_t format ABSL_GUARDED_BY(mu) = 0;
   GalleryMetadata header ABSL_GUARDED_BY(mu);
   // Set after a failed fsync; every later write fails with it.
   absl::Status broken ABSL_GUARDED_BY(mu);
@@ -156,16 +160,17 @@ absl::StatusOr<std::shared_ptr<SqliteGalleryStore::OpenGallery>> SqliteGallerySt
 
 namespace {
 
-// Opens a gallery's database for writing: pragmas and the prepared statements.
+// Opens a gallery's database for writing: pragmas, the file's format and the prepared
+// statements.
 absl::Status PrepareWrites(const std::string& path, const std::string& vfs,
-                           std::unique_ptr<SqliteDb>* db, SqliteStatement* insert,
+                           std::unique_ptr<SqliteDb>* db, int64_t* format, SqliteStatement* insert,
                            SqliteStatement* remove, SqliteStatement* touch) {
   if (*db == nullptr) {
     SHAPEID_ASSIGN_OR_RETURN(*db, SqliteDb::Open(path, SqliteDb::Mode::kReadWrite, vfs));
   }
   SHAPEID_RETURN_IF_ERROR((*db)->Exec(kConnectionPragmas));
-  SHAPEID_ASSIGN_OR_RETURN(
-      *insert, (*db)->Prepare("INSERT INTO samples(id, label, features, crc) VALUES(?,?,?,?)"));
+  SHAPEID_ASSIGN_OR_RETURN(*format, (*db)->QueryInt("PRAGMA user_version"));
+  SHAPEID_ASSIGN_OR_RETURN(*insert, (*db)->Prepare(InsertSampleSql(*format)));
   SHAPEID_ASSIGN_OR_RETURN(*remove, (*db)->Prepare("DELETE FROM samples WHERE id = ?"));
   SHAPEID_ASSIGN_OR_RETURN(
       *touch,
@@ -238,11 +243,10 @@ absl::Status SqliteGalleryStore::SaveGallery(const StoredGallery& gallery) {
                                    ") VALUES(1,?,?,?,?,?,?,?,?,?,?,?,?,?)")));
       BindGalleryRow(row, gallery);
       SHAPEID_RETURN_IF_ERROR(row.Run());
-      SHAPEID_ASSIGN_OR_RETURN(
-          SqliteStatement insert,
-          db->Prepare("INSERT INTO samples(id, label, features, crc) VALUES(?,?,?,?)"));
+      SHAPEID_ASSIGN_OR_RETURN(SqliteStatement insert,
+                               db->Prepare(InsertSampleSql(kFormatVersion)));
       for (const StoredSample& sample : gallery.samples) {
-        SHAPEID_RETURN_IF_ERROR(InsertSample(insert, sample));
+        SHAPEID_RETURN_IF_ERROR(InsertSample(insert, kFormatVersion, sample));
       }
       return absl::OkStatus();
     });
@@ -263,8 +267,8 @@ absl::Status SqliteGalleryStore::SaveGallery(const StoredGallery& gallery) {
 
   auto open = std::make_shared<OpenGallery>();
   std::lock_guard<std::mutex> gallery_lock(open->mu);
-  status = PrepareWrites(final_path, options_.testing_vfs, &open->db, &open->insert, &open->remove,
-                         &open->touch);
+  status = PrepareWrites(final_path, options_.testing_vfs, &open->db, &open->format, &open->insert,
+                         &open->remove, &open->touch);
   if (!status.ok()) {
     // Stored but not writable: undo, so that the failed call leaves no gallery behind.
     open->db.reset();
@@ -307,13 +311,44 @@ absl::Status SqliteGalleryStore::ChangeSamples(
 absl::Status SqliteGalleryStore::AppendSamples(absl::string_view name,
                                                absl::Span<const StoredSample> batch,
                                                absl::Time updated, uint64_t /*version*/) {
-  return ChangeSamples(name, absl::StrCat("store ", batch.size(), " samples in"), updated,
-                       [&](OpenGallery& g) -> absl::Status {
-                         for (const StoredSample& sample : batch) {
-                           SHAPEID_RETURN_IF_ERROR(InsertSample(g.insert, sample));
-                         }
-                         return absl::OkStatus();
-                       });
+  const bool has_provenance = std::any_of(
+      batch.begin(), batch.end(), [](const StoredSample& s) { return !s.provenance.empty(); });
+  const std::string what = absl::StrCat("store ", batch.size(), " samples in");
+  if (has_provenance) SHAPEID_RETURN_IF_ERROR(AddProvenanceColumn(name, what));
+  return ChangeSamples(name, what, updated, [&](OpenGallery& g) -> absl::Status {
+    for (const StoredSample& sample : batch) {
+      SHAPEID_RETURN_IF_ERROR(InsertSample(g.insert, g.format, sample));
+    }
+    return absl::OkStatus();
+  });
+}
+
+absl::Status SqliteGalleryStore::AddProvenanceColumn(absl::string_view name,
+                                                     absl::string_view what) {
+  SHAPEID_RETURN_IF_ERROR(CheckWritable(absl::StrCat(what, " gallery '", name, "'")));
+  SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<OpenGallery> g, Find(name));
+  std::lock_guard<std::mutex> lock(g->mu);
+  SHAPEID_RETURN_IF_ERROR(g->broken);
+  if (g->db == nullptr) SHAPEID_RETURN_IF_ERROR(Reopen(name, what, *g));
+  if (g->format >= sqlite_gallery_file::kFirstFormatWithProvenance) return absl::OkStatus();
+  // Its own transaction: if the samples' then fails, the file merely has an empty column.
+  absl::Status status =
+      Transaction(*g->db, [&] { return g->db->Exec(sqlite_gallery_file::kAddProvenanceColumn); });
+  if (status.ok()) {
+    absl::StatusOr<SqliteStatement> insert =
+        g->db->Prepare(InsertSampleSql(sqlite_gallery_file::kFirstFormatWithProvenance));
+    status = insert.status();
+    if (insert.ok()) {
+      g->insert = *std::move(insert);
+      g->format = sqlite_gallery_file::kFirstFormatWithProvenance;
+    }
+  }
+  if (!status.ok()) {
+    return absl::Status(status.code(),
+                        absl::StrCat("cannot ", what, " gallery '", name,
+                                     "': adding the provenance column: ", status.message()));
+  }
+  return absl::OkStatus();
 }
 
 absl::Status SqliteGalleryStore::RemoveSamples(absl::string_view name,
@@ -349,8 +384,8 @@ absl::Status SqliteGalleryStore::DeleteGallery(absl::string_view name) {
   if (!status.ok()) {
     // Still stored: reopen so the gallery stays writable, as the registry keeps it.
     if (writable) {
-      g->broken =
-          PrepareWrites(path, options_.testing_vfs, &g->db, &g->insert, &g->remove, &g->touch);
+      g->broken = PrepareWrites(path, options_.testing_vfs, &g->db, &g->format, &g->insert,
+                                &g->remove, &g->touch);
     }
     return absl::Status(status.code(),
                         absl::StrCat("cannot delete gallery '", name, "': ", status.message()));
@@ -390,8 +425,8 @@ absl::StatusOr<StoredGallery> SqliteGalleryStore::LoadFile(const std::string& na
           absl::StrCat(path, " can only be read (a read-only file or volume)"));
     } else if (loaded.ok()) {
       open->db = *std::move(db);
-      *unwritable = PrepareWrites(path, options_.testing_vfs, &open->db, &open->insert,
-                                  &open->remove, &open->touch);
+      *unwritable = PrepareWrites(path, options_.testing_vfs, &open->db, &open->format,
+                                  &open->insert, &open->remove, &open->touch);
       if (!unwritable->ok()) open->CloseWrites();
     } else if (!IsDiskCondition(loaded.status())) {
       return Damaged(path, loaded.status());
@@ -441,7 +476,7 @@ absl::Status SqliteGalleryStore::Reopen(absl::string_view name, absl::string_vie
                                         OpenGallery& g) {
   const std::string path = GalleryPath(name);
   absl::Status status =
-      PrepareWrites(path, options_.testing_vfs, &g.db, &g.insert, &g.remove, &g.touch);
+      PrepareWrites(path, options_.testing_vfs, &g.db, &g.format, &g.insert, &g.remove, &g.touch);
   if (status.ok() && g.db->read_only()) {
     status = absl::UnavailableError(
         absl::StrCat(path, " can only be read (a read-only file or volume)"));

@@ -69,9 +69,10 @@ class SqliteGalleryStore final : public GalleryStore {
  public:
   // Galleries' on-disk format; stored as PRAGMA user_version. Bump on any schema change and
   // teach LoadAll to read the old one. 2: the gallery row's `augment` column, and
-  // samples with several views. Format-1 files load (as galleries without augmentation) and
-  // stay format 1 as they are appended to.
-  static constexpr int kFormatVersion = 2;
+  // samples with several views. 3: the samples' `provenance` column. Older files load (format
+  // 1 as galleries without augmentation) and keep their format as they are appended to, until
+  // a sample with provenance arrives: then the column is added and the file is format 3.
+  static constexpr int kFormatVersion = 3;
 
   // Creates the directories and takes the directory's lock. Unavailable naming the path if a
   // directory cannot be created or written; FailedPrecondition if another process holds the
@@ -141,6 +142,9 @@ class SqliteGalleryStore final : public GalleryStore {
   // update time in one transaction; errors say "cannot <what> gallery 'NAME'".
   absl::Status ChangeSamples(absl::string_view name, absl::string_view what, absl::Time updated,
                              const std::function<absl::Status(OpenGallery&)>& change);
+  // Makes a file of a format before 3 able to hold provenance (see kFormatVersion).
+  // Errors say "cannot <what> gallery 'NAME'", as ChangeSamples'.
+  absl::Status AddProvenanceColumn(absl::string_view name, absl::string_view what);
   // Verifies and reads one gallery file, for writing if it can (see LoadAll); `*unwritable`
   // says why not.
   absl::StatusOr<StoredGallery> LoadFile(const std::string& name, std::shared_ptr<OpenGallery>* out,

@@ -268,9 +268,11 @@ TEST(SqliteGalleryStoreTest, AugmentedGalleriesKeepTheirOptionsAndEveryView) {
 }
 
 TEST(SqliteGalleryStoreTest, FormatOneGalleriesLoadAndKeepAcceptingSamples) {
-  // A format-1 file: today's schema without the augment column, user_version 1.
+  // A format-1 file: today's schema without the augment column, user_version 1 (and no
+  // provenance, which format 1 cannot hold).
   const std::string dir = ScratchDir("data");
   StoredGallery g = MakeGallery("old", 6, 4, 8);
+  for (StoredSample& sample : g.samples) sample.provenance = {};
   {
     auto store = OpenStore(dir);
     ASSERT_TRUE(store->LoadAll().ok());
@@ -282,7 +284,10 @@ TEST(SqliteGalleryStoreTest, FormatOneGalleriesLoadAndKeepAcceptingSamples) {
     ASSERT_TRUE((*db)->Exec("ALTER TABLE gallery DROP COLUMN augment; PRAGMA user_version=1").ok());
   }
   StoredGallery more = MakeGallery("old", 6, 2, 9);
-  for (StoredSample& sample : more.samples) sample.id += 1000;
+  for (StoredSample& sample : more.samples) {
+    sample.id += 1000;
+    sample.provenance = {};
+  }
   {
     auto store = OpenStore(dir);
     auto loaded = store->LoadAll();
@@ -378,6 +383,89 @@ TEST(SqliteGalleryStoreTest, FilesAnEarlierReleaseWroteLoadAndTakeChanges) {
   ASSERT_EQ(loaded->size(), 2u);
   ExpectSameStoredGallery((*loaded)[0], augmented);
   ExpectSameStoredGallery((*loaded)[1], plain);
+}
+
+// The user_version of a gallery file, read without the store.
+int64_t FileFormat(const std::string& path) {
+  auto db = SqliteDb::Open(path, SqliteDb::Mode::kReadWrite);
+  EXPECT_TRUE(db.ok()) << db.status();
+  if (!db.ok()) return -1;
+  auto format = (*db)->QueryInt("PRAGMA user_version");
+  EXPECT_TRUE(format.ok()) << format.status();
+  return format.ok() ? *format : -1;
+}
+
+// An earlier release's file keeps its format while samples without provenance arrive, and
+// gains the provenance column (format 3) with the first sample that has some; everything in
+// it reads back.
+TEST(SqliteGalleryStoreTest, EarlierFilesGainTheProvenanceColumnOnlyWhenNeeded) {
+  const std::string dir = ScratchDir("data");
+  const std::string path = dir + "/galleries/old-plain.gallery";
+  std::filesystem::create_directories(dir + "/galleries");
+  std::filesystem::copy_file(absl::StrCat(SHAPEID_SOURCE_DIR, "/server/testdata/old-plain.gallery"),
+                             path);
+  ASSERT_EQ(FileFormat(path), 2);
+  StoredGallery g;
+  {
+    auto store = OpenStore(dir);
+    auto loaded = store->LoadAll();
+    ASSERT_TRUE(loaded.ok()) << loaded.status();
+    g = (*loaded)[0];
+    StoredSample plain = g.samples[0];
+    plain.id = 7;
+    g.updated += absl::Seconds(1);
+    ASSERT_TRUE(store->AppendSamples(g.name, {plain}, g.updated, 1).ok());
+    g.samples.push_back(plain);
+  }
+  EXPECT_EQ(FileFormat(path), 2);
+  {
+    auto store = OpenStore(dir);
+    ASSERT_TRUE(store->LoadAll().ok());
+    StoredSample traced = g.samples[0];
+    traced.id = 8;
+    traced.provenance = {"lab/box_0008.pcd", {{"camera", "d435"}, {"note", ""}}};
+    g.updated += absl::Seconds(1);
+    ASSERT_TRUE(store->AppendSamples(g.name, {traced}, g.updated, 2).ok());
+    g.samples.push_back(traced);
+    // The same open store goes on writing into the upgraded file.
+    StoredSample second = traced;
+    second.id = 9;
+    second.provenance.source = "lab/box_0009.pcd";
+    g.updated += absl::Seconds(1);
+    ASSERT_TRUE(store->AppendSamples(g.name, {second}, g.updated, 3).ok());
+    g.samples.push_back(second);
+  }
+  EXPECT_EQ(FileFormat(path), 3);
+  auto store = OpenStore(dir);
+  auto loaded = store->LoadAll();
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  ExpectSameStoredGallery((*loaded)[0], g);
+  EXPECT_EQ((*loaded)[0].samples.back().provenance.source, "lab/box_0009.pcd");
+}
+
+TEST(SqliteGalleryStoreTest, DamagedProvenanceIsDamage) {
+  const std::string dir = ScratchDir("data");
+  {
+    auto store = OpenStore(dir);
+    ASSERT_TRUE(store->LoadAll().ok());
+    ASSERT_TRUE(store->SaveGallery(MakeGallery("g", 4, 6, 1)).ok());
+  }
+  {
+    auto db = SqliteDb::Open(dir + "/galleries/g.gallery", SqliteDb::Mode::kReadWrite);
+    ASSERT_TRUE(db.ok());
+    // One byte of the first sample's source changed: its CRC no longer matches.
+    ASSERT_TRUE((*db)
+                    ->Exec("UPDATE samples SET provenance = "
+                           "substr(provenance, 1, 6) || X'41' || substr(provenance, 8) "
+                           "WHERE seq = 1")
+                    .ok());
+  }
+  auto store = OpenStore(dir);
+  auto loaded = store->LoadAll();
+  EXPECT_EQ(loaded.status().code(), absl::StatusCode::kDataLoss);
+  EXPECT_THAT(loaded.status().message(),
+              AllOf(HasSubstr("is damaged"), HasSubstr("sample id 1 (row 1)"),
+                    HasSubstr("sample provenance: checksum mismatch")));
 }
 
 TEST(SqliteGalleryStoreTest, SetAsideMovesTheDamagedGalleryAndLoadsTheRest) {

@@ -172,8 +172,8 @@ class Client:
                                     self._stub.Classify, timeout)
         return _results.ClassifyResult.from_proto(response)
 
-    def train(self, gallery, clouds, labels, *, ids=None, augmentation=None,
-              drop_non_finite=False, up=None, transform=None, timeout=None):
+    def train(self, gallery, clouds, labels, *, ids=None, sources=None, metadata=None,
+              augmentation=None, drop_non_finite=False, up=None, transform=None, timeout=None):
         """Adds labelled clouds to `gallery` in one stream: all of them or, on any error, none.
         Returns a TrainResult (the new sample ids, in order).
 
@@ -183,6 +183,11 @@ class Client:
           that one). Retried on UNAVAILABLE only when every id is client-chosen, so a
           repeated stream cannot add a sample twice; an AlreadyExistsError after such a
           retry says that the first attempt may have committed.
+        sources: None, or one string per cloud (a file path, a URI, "" for none): kept with
+          the sample and returned with it as a neighbour and by list_samples, so that an
+          answer can be traced to the scan it matched (at most 4,096 bytes each).
+        metadata: None, one dict of str -> str for every cloud, or one dict per cloud: small
+          key/value pairs kept the same way (at most 64 pairs, 4,096 bytes in all).
         augmentation: a shapeid.Augmentation for this stream instead of the gallery's.
         up, transform: the sensor's frame of every cloud of the stream (see classify).
         Every cloud is checked before anything is sent; a bad one raises TypeError or
@@ -205,6 +210,22 @@ class Client:
             raise ValueError("%d clouds but %d ids" % (len(clouds), len(ids)))
         if any(i < 0 or i >= 1 << 64 for i in ids):
             raise ValueError("sample ids are unsigned 64-bit integers (0: the server assigns)")
+        sources = [""] * len(clouds) if sources is None else list(sources)
+        if len(sources) != len(clouds):
+            raise ValueError("%d clouds but %d sources" % (len(clouds), len(sources)))
+        for i, source in enumerate(sources):
+            if not isinstance(source, str):
+                raise TypeError("sources[%d] is %r; a source is a string" % (i, source))
+        if metadata is None or isinstance(metadata, dict):
+            metadata = [metadata or {}] * len(clouds)
+        metadata = list(metadata)
+        if len(metadata) != len(clouds):
+            raise ValueError("%d clouds but %d metadata dicts" % (len(clouds), len(metadata)))
+        for i, pairs in enumerate(metadata):
+            if not isinstance(pairs, dict) or not all(
+                    isinstance(k, str) and isinstance(v, str) for k, v in pairs.items()):
+                raise TypeError("metadata[%d] is %r; metadata is a dict of str -> str"
+                                % (i, pairs))
         def encode_all(forward):
             encoded = []
             for i, cloud in enumerate(clouds):
@@ -228,9 +249,11 @@ class Client:
 
         def requests():
             yield _pb.TrainRequest(header=header)
-            for label, sample_id, cloud in zip(labels, ids, encoded):
+            for label, sample_id, cloud, source, pairs in zip(labels, ids, encoded, sources,
+                                                              metadata):
                 yield _pb.TrainRequest(sample=_pb.SampleHeader(
-                    label=label, sample_id=sample_id, expected_points=cloud.num_points))
+                    label=label, sample_id=sample_id, expected_points=cloud.num_points,
+                    source=source, metadata=pairs))
                 for chunk in cloud.chunks(self._chunk_points):
                     yield _pb.TrainRequest(points=_pb.PointChunk(xyz=chunk))
 
@@ -300,6 +323,20 @@ class Client:
                                            labels=list(labels))
         response = self._unary(False, self._stub.RemoveSamples, request, timeout)
         return _results.RemoveResult(response.removed, response.remaining)
+
+    def list_samples(self, gallery, *, label="", page_size=1000, timeout=None):
+        """Yields gallery `gallery`'s samples (shapeid.Sample: id, label, views, source,
+        metadata) in id order, fetching a page of `page_size` (1 to 10,000) at a time, each
+        page with `timeout`. Samples trained or removed while it runs appear or not as the
+        gallery is when their page is read. label: only the samples of that label."""
+        request = _pb.ListSamplesRequest(gallery=gallery, label=label, page_size=page_size)
+        while True:
+            response = self._unary(True, self._stub.ListSamples, request, timeout)
+            for sample in response.samples:
+                yield _results.Sample.from_proto(sample)
+            if not response.next_page_token:
+                return
+            request.page_token = response.next_page_token
 
     def export_gallery(self, name, file, *, timeout=None):
         """Streams gallery `name` into `file` (a path, or a binary file object) as the

@@ -45,6 +45,22 @@ class Neighbor:
     label: str
     distance: float  # between descriptors, in the gallery's scaled feature space
     view: int = 0    # 0: the trained cloud; i >= 1: its i-th synthetic view
+    source: str = ""  # where the sample came from, as trained ("" when not given)
+    metadata: Dict[str, str] = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass(slots=True)
+class Sample:
+    """One trained sample as Client.list_samples gives it: everything but its descriptors."""
+    sample_id: int
+    label: str
+    views: int   # descriptors stored: 1, or 1 + synthetic views (augmented galleries)
+    source: str  # "" when not given
+    metadata: Dict[str, str]
+
+    @classmethod
+    def from_proto(cls, s):
+        return cls(s.sample_id, s.label, s.views, s.source, dict(s.metadata))
 
 
 @dataclasses.dataclass(slots=True)
@@ -68,7 +84,8 @@ class ClassifyResult:
     @classmethod
     def from_proto(cls, r):
         return cls(label=r.label, unknown=r.unknown, confidence=r.confidence,
-                   neighbors=[Neighbor(n.sample_id, n.label, n.distance, n.view)
+                   neighbors=[Neighbor(n.sample_id, n.label, n.distance, n.view, n.source,
+                                       dict(n.metadata))
                               for n in r.neighbors],
                    votes=[Vote(v.label, v.weight) for v in r.votes],
                    num_points=r.num_points, describe_seconds=_seconds(r.describe_time),

@@ -269,6 +269,41 @@ def test_train_takes_one_cloud_one_label_or_a_batch(client, gallery):
     assert client.get_gallery(gallery).sample_count == 3  # nothing sent by the refusals
 
 
+def test_provenance_comes_back_with_neighbours_and_list_samples(client, gallery):
+    batch = [shape(0, 11), shape(1, 12), shape(2, 13)]
+    trained = client.train(gallery, batch, ["plate", "ball", "rod"],
+                           sources=["scans/plate.ply", "scans/ball.pcd", ""],
+                           metadata=[{"camera": "d435", "take": "1"}, {}, {"camera": "l515"}])
+    answer = client.classify(gallery, QUERY, k=3)
+    by_id = {n.sample_id: n for n in answer.neighbors}
+    ball = by_id[trained.sample_ids[1]]
+    assert (ball.label, ball.source, ball.metadata) == ("ball", "scans/ball.pcd", {})
+    plate = by_id[trained.sample_ids[0]]
+    assert (plate.source, plate.metadata) == ("scans/plate.ply", {"camera": "d435", "take": "1"})
+    assert by_id[trained.sample_ids[2]].source == ""
+
+    listed = list(client.list_samples(gallery, page_size=1))  # three pages of one
+    assert [s.sample_id for s in listed] == sorted(trained.sample_ids)
+    assert {s.sample_id: (s.label, s.views, s.source, s.metadata) for s in listed} == {
+        trained.sample_ids[0]: ("plate", 1, "scans/plate.ply", {"camera": "d435", "take": "1"}),
+        trained.sample_ids[1]: ("ball", 1, "scans/ball.pcd", {}),
+        trained.sample_ids[2]: ("rod", 1, "", {"camera": "l515"}),
+    }
+    assert [s.label for s in client.list_samples(gallery, label="rod")] == ["rod"]
+
+    with pytest.raises(ValueError, match="3 clouds but 2 sources"):
+        client.train(gallery, batch, "x", sources=["a", "b"])
+    with pytest.raises(TypeError, match=r"metadata\[0\] is .*dict of str -> str"):
+        client.train(gallery, batch, "x", metadata=[{"k": 1}, {}, {}])
+    with pytest.raises(shapeid.InvalidArgumentError, match="more than the limit of 4096"):
+        client.train(gallery, QUERY, "x", sources=["s" * 4097])
+    with pytest.raises(shapeid.InvalidArgumentError, match="was not given by this gallery"):
+        client._unary(True, client._stub.ListSamples,
+                      shapeid.client._pb.ListSamplesRequest(gallery=gallery, page_token="1.2"),
+                      None)
+    assert client.get_gallery(gallery).sample_count == 3  # nothing sent by the refusals
+
+
 def test_augmentation_and_reject_distance(client):
     created = client.create_gallery("augmented", augmentation=shapeid.Augmentation(views=2),
                                     reject_distance=1e-9)
