@@ -55,6 +55,9 @@ packages=(
   # OBJ; tests/formats/cross_tool_formats.py, core/io/vtk_reader_test.cc), VTK's own writer
   # and numpy-stl (core/io/vtk_reader_test.cc, core/io/stl_reader_test.cc)
   pcl-tools python3-vtk9 python3-stl
+  # the eval report's browser test (tests/report/report_browser_test.py): the page opened in
+  # headless Chromium, its screenshot's pixels read with Pillow
+  chromium python3-pil
 )
 
 sudo_if_needed() { if [ "$(id -u)" -eq 0 ]; then "$@"; else sudo "$@"; fi; }

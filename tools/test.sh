@@ -30,6 +30,8 @@ export CCACHE_MAXSIZE=${CCACHE_MAXSIZE:-16G}
 export ASAN_SYMBOLIZER_PATH=/usr/lib/llvm-14/bin/llvm-symbolizer
 # install-deps installs PostgreSQL: here a test that cannot start one fails rather than skips.
 export SHAPEID_REQUIRE_POSTGRES=1
+# The report test opens the eval report in Chromium (installed above): never a silent skip here.
+export SHAPEID_REQUIRE_BROWSER=1
 
 timings=()
 stage() {  # NAME COMMAND...

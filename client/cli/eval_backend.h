@@ -33,9 +33,10 @@ class EvalBackend {
 
   // Makes round `round`'s classifier: a fresh gallery trained on `train`, or (against an
   // existing gallery, `train` empty) that gallery. Sets run.descriptor_spec and run.k; adds
-  // to run.train_samples and run.train_seconds (wall time, file reading included); appends
-  // unusable files to run.failed_files, after one line each on stderr through `progress`.
-  // Replaces the previous round's classifier.
+  // to run.train_samples and run.train_seconds (wall time, file reading included), or against
+  // an existing gallery sets run.gallery and run.train_samples to its name and sample count;
+  // appends unusable files to run.failed_files, after one line each on stderr through
+  // `progress`. Replaces the previous round's classifier.
   virtual EvalStep Train(int round, const std::vector<LabelledFile>& train, Progress& progress,
                          EvalRun& run) = 0;
 
@@ -45,6 +46,10 @@ class EvalBackend {
   // run.test_seconds.
   virtual EvalStep Test(int round, const std::vector<LabelledFile>& test, Progress& progress,
                         EvalRun& run) = 0;
+
+  // Sets run.server_version: the server's shapeid version, left empty in-process or when the
+  // server does not tell (best effort: never stops the evaluation).
+  virtual void IdentifyServer(EvalRun& run) = 0;
 };
 
 }  // namespace shapeid

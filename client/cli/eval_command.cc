@@ -6,10 +6,13 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+#include "absl/time/time.h"
 #include "client/cli/eval_backend.h"
 #include "client/cli/eval_local.h"
 #include "client/cli/eval_report.h"
 #include "client/cli/eval_server.h"
+#include "core/version.h"
 
 namespace shapeid {
 namespace {
@@ -33,7 +36,7 @@ int WriteEvalResults(const EvalRun& run, const EvalOptions& options, const CliCo
   written &= std::fflush(context.out) == 0;
   if (!options.report_html.empty()) {
     std::ofstream report(options.report_html, std::ios::binary | std::ios::trunc);
-    report << RenderEvalHtml(run, metrics);
+    report << RenderEvalHtml(run, metrics, ErrorPicturesFromFiles(options.batch.read));
     report.close();
     if (!report) {
       WriteAll(context.err,
@@ -95,6 +98,9 @@ int RunEval(const EvalOptions& options, const CliContext& context) {
   run.dataset = options.dataset;
   run.seed = options.seed;
   run.folds = plan->folds;
+  run.started = absl::FormatTime("%Y-%m-%dT%H:%M:%SZ", absl::Now(), absl::UTCTimeZone());
+  run.server = backend->target();
+  run.client_version = kShapeidVersion;
   const std::vector<EvalRound>& rounds = plan->rounds;
   for (size_t r = 0; r < rounds.size(); ++r) {
     const int round = static_cast<int>(r);
@@ -117,7 +123,8 @@ int RunEval(const EvalOptions& options, const CliContext& context) {
     }
     if (!step.ok()) return stopped(step);
   }
-  backend.reset();  // temporary galleries go before the results are printed
+  backend->IdentifyServer(run);  // asked last: by now the server has answered every call
+  backend.reset();               // temporary galleries go before the results are printed
   const int code = WriteEvalResults(run, options, context);
   return code == kExitOk && unsupported_failed ? kExitSomeInputsFailed : code;
 }

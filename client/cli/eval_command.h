@@ -34,7 +34,9 @@ struct EvalOptions {
   // Train and classify in this process, no server. Incompatible with `gallery` (a usage
   // error). `batch.jobs` is then the number of threads describing clouds.
   bool local = false;
-  std::string report_html;        // write the HTML report here
+  // Write the HTML report here (eval_report.h); it reads the first errors' test files and
+  // their nearest training files again, with batch.read, for their pictures.
+  std::string report_html;
   bool with_predictions = false;  // json: include every prediction
   BatchOptions batch;
 };

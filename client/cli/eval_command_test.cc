@@ -12,8 +12,11 @@
 
 #include "absl/strings/str_cat.h"
 #include "client/cli/cli_testing.h"
+#include "client/cli/eval_testing.h"
 #include "client/cli/gallery_commands.h"
+#include "client/cli/train_classify_commands.h"
 #include "core/descriptor_registry.h"
+#include "core/version.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "server/server.h"
@@ -24,18 +27,23 @@ namespace {
 namespace fs = std::filesystem;
 using cli_testing::Captured;
 using cli_testing::WithoutTimes;
+using ::testing::AllOf;
 using ::testing::HasSubstr;
 using ::testing::Not;
 
 // In z-scored rphsd:bins=20 space, nearest-neighbour distances of these clouds straddle it.
 constexpr double kRejectDistance = 3.0;
 
-// The local run also names each neighbour's training file, which a server's gallery does not
-// keep, and numbers samples its own way (a server's ids are its own); the rest must match.
+// The runs differ in where and when they ran; the local run numbers samples its own way (a
+// server's ids are its own) and names each neighbour's training file as listed (a server
+// gives the source the training client sent, if any). The rest must match.
 std::string WithoutSampleIdentity(const std::string& json) {
   static const std::regex kFile(R"re(,"file":"[^"]*"\})re");
   static const std::regex kId(R"re("sample_id":[0-9]+)re");
-  return std::regex_replace(std::regex_replace(json, kFile, "}"), kId, "\"sample_id\":0");
+  static const std::regex kWhere(R"re("(started|server|server_version)":"[^"]*")re");
+  return std::regex_replace(
+      std::regex_replace(std::regex_replace(json, kFile, "}"), kId, "\"sample_id\":0"), kWhere,
+      "\"$1\":\"\"");
 }
 
 class EvalCommandTest : public ::testing::Test {
@@ -129,6 +137,60 @@ TEST_F(EvalCommandTest, KFoldWithEveryKnobGivesTheServersPredictions) {
               HasSubstr(absl::StrCat("\"descriptor_spec\":\"", kDefaultDescriptorSpec)));
   EXPECT_EQ(WithoutSampleIdentity(WithoutTimes(defaults.local)),
             WithoutSampleIdentity(WithoutTimes(defaults.server)));
+}
+
+TEST_F(EvalCommandTest, AgainstAGalleryTheOutputsNameItAndTheReportTracesErrorsToFiles) {
+  cli_testing::WriteLabelledDataset(root_ / "split", /*split=*/true, /*per_label=*/15);
+  Captured out, err;
+  GalleryCreateOptions create;
+  create.name = "parts";
+  create.spec = "rphsd:refs=cross7,bins=10";
+  ASSERT_EQ(RunGalleryCreate(create, Context(out, err)), kExitOk) << err.contents();
+  TrainOptions train;
+  train.gallery = "parts";
+  train.paths = {(root_ / "split").string()};  // <label>/train/: 10 clouds per label
+  ASSERT_EQ(RunTrain(train, Context(out, err)), kExitOk) << err.contents();
+
+  EvalOptions eval;
+  eval.gallery = "parts";
+  eval.dataset = (root_ / "split").string();
+  eval.report_html = (root_ / "report.html").string();
+  Captured json, json_err;
+  ASSERT_EQ(RunEval(eval, Context(json, json_err)), kExitOk) << json_err.contents();
+  EXPECT_THAT(json.contents(),
+              AllOf(HasSubstr("\"mode\":\"gallery\""), HasSubstr("\"gallery\":\"parts\""),
+                    HasSubstr(absl::StrCat("\"server\":\"", server_->address(), "\"")),
+                    HasSubstr(absl::StrCat("\"client_version\":\"", kShapeidVersion,
+                                           "\",\"server_version\":\"", kShapeidVersion, "\"")),
+                    HasSubstr("\"tests\":15,"), HasSubstr("\"train_samples\":30,")));
+  Captured table, table_err;
+  CliContext table_context = Context(table, table_err);
+  table_context.format = OutputFormat::kTable;
+  eval.report_html.clear();
+  ASSERT_EQ(RunEval(eval, table_context), kExitOk) << table_err.contents();
+  EXPECT_THAT(table.contents(), HasSubstr("  gallery parts (30 samples)\n"));
+  EXPECT_THAT(table.contents(), Not(HasSubstr("training ")));
+
+  std::ifstream html((root_ / "report.html").string());
+  const std::string page((std::istreambuf_iterator<char>(html)), std::istreambuf_iterator<char>());
+  EXPECT_THAT(page,
+              AllOf(HasSubstr("<dt>gallery</dt><dd>parts (30 samples)</dd>"),
+                    HasSubstr("<div class=\"k\">gallery samples</div><div class=\"v\">30</div>"),
+                    HasSubstr(absl::StrCat("<dt>server</dt><dd>", server_->address(), "</dd>")),
+                    HasSubstr(absl::StrCat("<dt>shapeid</dt><dd>client ", kShapeidVersion,
+                                           ", server ", kShapeidVersion, "</dd>"))));
+  // Every error row names the training file its nearest sample was made from (the CLI
+  // trained each with its absolute path as the source), and has its picture.
+  const std::regex row(R"re(<tr id="e[0-9]+">.*?</tr>)re");
+  const std::regex traced(
+      R"re(<td class="path">/[^<]*/split/[a-z]+/train/[0-9]+\.pcd</td><td>[a-z]+</td>)re");
+  int rows = 0;
+  for (auto it = std::sregex_iterator(page.begin(), page.end(), row); it != std::sregex_iterator();
+       ++it, ++rows) {
+    EXPECT_TRUE(std::regex_search(it->str(), traced)) << it->str();
+  }
+  EXPECT_GT(rows, 0);
+  EXPECT_EQ(eval_testing::CountOf(page, "<img class=\"cloud\""), 2u * rows);
 }
 
 }  // namespace

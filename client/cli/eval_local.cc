@@ -206,6 +206,8 @@ class LocalEvalBackend final : public EvalBackend {
     return {};
   }
 
+  void IdentifyServer(EvalRun& /*run*/) override {}  // no server
+
  private:
   // One failed file: a line on stderr, counted, and the evaluation goes on.
   void Fail(const std::string& path, const absl::Status& status, Progress& progress, EvalRun& run) {

@@ -132,6 +132,9 @@ EvalMetrics ComputeEvalMetrics(const EvalRun& run) {
 std::string FormatEvalTable(const EvalRun& run, const EvalMetrics& metrics) {
   std::string out = absl::StrCat("eval ", run.mode, "  dataset ", run.dataset);
   if (run.mode == "kfold") absl::StrAppend(&out, "  folds ", run.folds, "  seed ", run.seed);
+  if (!run.gallery.empty()) {
+    absl::StrAppend(&out, "  gallery ", run.gallery, " (", run.train_samples, " samples)");
+  }
   absl::StrAppend(&out, "\naccuracy ", FormatPercent(metrics.accuracy), " % (", metrics.correct,
                   "/", metrics.tests, ")  mean class accuracy ",
                   FormatPercent(metrics.mean_class_accuracy), " %  k=", run.k, "  spec ",
@@ -145,7 +148,7 @@ std::string FormatEvalTable(const EvalRun& run, const EvalMetrics& metrics) {
   }
   absl::StrAppend(&out, "time per cloud ", FormatSeconds(metrics.seconds_per_cloud),
                   " (median call ", FormatSeconds(metrics.median_call_seconds), ")");
-  if (run.train_samples > 0 || run.train_seconds > 0) {
+  if (run.gallery.empty() && (run.train_samples > 0 || run.train_seconds > 0)) {
     absl::StrAppend(&out, "  training ", run.train_samples, " samples in ",
                     FormatSeconds(run.train_seconds));
   }
@@ -259,7 +262,10 @@ std::string FormatEvalJson(const EvalRun& run, const EvalMetrics& metrics, bool 
   std::string out = absl::StrCat(
       "{\"mode\":", JsonString(run.mode), ",\"dataset\":", JsonString(run.dataset),
       ",\"descriptor_spec\":", JsonString(run.descriptor_spec), ",\"k\":", run.k,
-      ",\"folds\":", run.folds, ",\"seed\":", run.seed, ",\"tests\":", metrics.tests,
+      ",\"folds\":", run.folds, ",\"seed\":", run.seed, ",\"gallery\":", JsonString(run.gallery),
+      ",\"started\":", JsonString(run.started), ",\"server\":", JsonString(run.server),
+      ",\"client_version\":", JsonString(run.client_version),
+      ",\"server_version\":", JsonString(run.server_version), ",\"tests\":", metrics.tests,
       ",\"correct\":", metrics.correct, ",\"accuracy\":", JsonNumber(metrics.accuracy),
       ",\"mean_class_accuracy\":", JsonNumber(metrics.mean_class_accuracy), ",\"fold_accuracy\":[");
   for (size_t i = 0; i < metrics.fold_accuracy.size(); ++i) {

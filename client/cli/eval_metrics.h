@@ -12,16 +12,18 @@
 
 namespace shapeid {
 
-// One classified test cloud.
 // One of a prediction's nearest samples, for tracing an answer to the training data.
 struct EvalNeighbour {
   uint64_t sample_id = 0;
   std::string label;
   double distance = 0;  // descriptor distance, as Classify reports it
   uint32_t view = 0;    // 0: the trained cloud; i >= 1: its i-th synthetic view
-  std::string file;     // the training file (eval --local); empty against a server's gallery
+  // The training file: its path as trained (eval --local: as listed; a server's gallery: the
+  // sample's source as the training client gave it). Empty when the gallery does not know it.
+  std::string file;
 };
 
+// One classified test cloud.
 struct EvalPrediction {
   std::string file;
   std::string truth;      // the class the folder layout gives
@@ -40,9 +42,18 @@ struct EvalRun {
   uint32_t k = 0;               // neighbours used
   int folds = 1;                // K for kfold, else 1
   uint64_t seed = 0;            // kfold shuffle seed
-  uint64_t train_samples = 0;   // total over folds
-  double train_seconds = 0;     // wall time spent training, total over folds
-  double test_seconds = 0;      // wall time spent classifying, total over folds
+  // The existing gallery classified against ("gallery" mode); empty when each round trains
+  // a fresh one.
+  std::string gallery;
+  // The samples the classifiers held: total over folds; in "gallery" mode the gallery's own
+  // sample count (trained before the run, so train_seconds stays 0).
+  uint64_t train_samples = 0;
+  std::string started;         // when the run started: UTC, ISO 8601 ("2026-11-28T15:05:00Z")
+  std::string server;          // the server's address; empty in-process (eval --local)
+  std::string client_version;  // this CLI's shapeid version
+  std::string server_version;  // the server's shapeid version; empty in-process or unknown
+  double train_seconds = 0;    // wall time spent training, total over folds
+  double test_seconds = 0;     // wall time spent classifying, total over folds
   std::vector<std::string> failed_files;  // files that could not be read or classified
   std::vector<EvalPrediction> predictions;
 };
@@ -82,13 +93,14 @@ struct EvalMetrics {
 
 EvalMetrics ComputeEvalMetrics(const EvalRun& run);
 
-// Human-readable summary for a terminal: headline figures, the per-class table, the confusion
-// matrix (truth rows only; columns keyed c1..cN with a legend when full names would make a line
-// wider than 150 characters) and the failed files (the first 20 and a count).
+// Human-readable summary for a terminal: the run (with the gallery's name and sample count
+// in "gallery" mode), headline figures, the per-class table, the confusion matrix (truth rows
+// only; columns keyed c1..cN with a legend when full names would make a line wider than 150
+// characters) and the failed files (the first 20 and a count).
 std::string FormatEvalTable(const EvalRun& run, const EvalMetrics& metrics);
-// One JSON object (then '\n') with the run's parameters, the metrics, the confusion matrix
-// and the failed files; not the individual predictions unless `with_predictions`. Ratios are
-// in [0, 1], times in seconds.
+// One JSON object (then '\n') with the run's parameters (gallery, start time, server and
+// versions included), the metrics, the confusion matrix and the failed files; not the individual
+// predictions unless `with_predictions`. Ratios are in [0, 1], times in seconds.
 std::string FormatEvalJson(const EvalRun& run, const EvalMetrics& metrics, bool with_predictions);
 // CSV with a header row: one row per class (label,tests,correct,recall,precision), then a row
 // "__overall__" with the totals (its recall and precision are the micro averages, both equal to

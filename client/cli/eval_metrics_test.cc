@@ -209,6 +209,22 @@ TEST(EvalMetricsTest, TableHasHeadlineAlignedClassesAndMatrix) {
   EXPECT_THAT(table, EndsWith("failed files (2):\n  broken/one.pcd\n  broken/two.ply\n"));
 }
 
+TEST(EvalMetricsTest, TableAgainstAGalleryNamesItAndItsSamples) {
+  EvalRun run = ThreeClassRun();
+  run.mode = "gallery";
+  run.gallery = "mn10";
+  run.train_samples = 3991;
+  run.train_seconds = 0;
+  const EvalMetrics m = ComputeEvalMetrics(run);
+  const std::string table = FormatEvalTable(run, m);
+  EXPECT_THAT(table,
+              StartsWith("eval gallery  dataset data/furniture  gallery mn10 (3991 samples)\n"));
+  EXPECT_THAT(table, HasSubstr("time per cloud 50 ms (median call 50 ms)  testing 500 ms\n"));
+  EXPECT_THAT(FormatEvalJson(run, m, false),
+              HasSubstr("\"seed\":0,\"gallery\":\"mn10\",\"started\":\"\",\"server\":\"\","));
+  EXPECT_THAT(FormatEvalJson(run, m, false), HasSubstr("\"train_samples\":3991,"));
+}
+
 TEST(EvalMetricsTest, TableUsesKeysForManyLongLabels) {
   EvalRun run;
   run.mode = "holdout";
@@ -239,6 +255,10 @@ TEST(EvalMetricsTest, JsonIsValidAndHasTheValues) {
   run.folds = 2;
   run.seed = 42;
   run.failed_files = {"we\"ird\\name\n.pcd"};
+  run.started = "2026-11-28T15:05:00Z";
+  run.server = "host:1";
+  run.client_version = "1.2.3";
+  run.server_version = "1.2.0";
   run.predictions[0].fold = 1;
   run.predictions[0].neighbours = {{1, "table", 0.25, 3, "train/table/7.pcd"},
                                    {9, "bench", 0.5, 0, ""}};
@@ -263,7 +283,8 @@ TEST(EvalMetricsTest, JsonIsValidAndHasTheValues) {
 
   if (!HavePython()) GTEST_SKIP() << "python3 not found; JSON checked by substrings only";
   EXPECT_TRUE(PythonCheck(json, R"py(
-keys = ["mode", "dataset", "descriptor_spec", "k", "folds", "seed", "tests", "correct",
+keys = ["mode", "dataset", "descriptor_spec", "k", "folds", "seed", "gallery", "started",
+        "server", "client_version", "server_version", "tests", "correct",
         "accuracy", "mean_class_accuracy", "fold_accuracy", "fold_accuracy_mean",
         "fold_accuracy_std", "seconds_per_cloud", "median_call_seconds", "train_samples", "train_seconds",
         "test_seconds", "classes", "labels", "confusion", "failed_files"]
@@ -277,6 +298,8 @@ assert d["classes"][1] == {"label": "chair", "tests": 4, "correct": 2, "recall":
                            "precision": 2 / 3}, d["classes"][1]
 assert d["failed_files"] == ["we\"ird\\name\n.pcd"]
 assert (d["train_samples"], d["train_seconds"], d["test_seconds"]) == (90, 2.5, 0.5)
+assert (d["gallery"], d["started"], d["server"]) == ("", "2026-11-28T15:05:00Z", "host:1")
+assert (d["client_version"], d["server_version"]) == ("1.2.3", "1.2.0")
 )py"));
   EXPECT_TRUE(PythonCheck(with_predictions, R"py(
 p = d["predictions"]

@@ -2,13 +2,19 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <map>
+#include <memory>
 #include <string>
 #include <tuple>
+#include <utility>
 #include <vector>
 
+#include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "client/cli/cli_common.h"
+#include "client/cli/cloud_picture.h"
+#include "client/cli/input_files.h"
 
 namespace shapeid {
 
@@ -96,6 +102,18 @@ dl{display:inline-grid;grid-template-columns:max-content auto;gap:4px 24px;margi
   background:var(--card);border:1px solid var(--line);border-radius:8px;padding:12px 16px}
 dt{color:var(--muted)}
 dd{margin:0;overflow-wrap:anywhere}
+dl.head{display:grid;max-width:980px;margin:8px 0 18px}
+.errors td{white-space:nowrap}
+.errors td.path{white-space:normal;min-width:240px;max-width:420px}
+.muted{color:var(--muted)}
+.pairs{display:flex;flex-direction:column;gap:14px}
+.pair{display:flex;flex-wrap:wrap;gap:16px;background:var(--card);border:1px solid var(--line);
+  border-radius:10px;padding:10px 14px}
+.pic{width:400px}
+.pic .cap{font-size:12px;margin:0 0 6px;overflow-wrap:anywhere;min-height:52px}
+.pic img{display:block;image-rendering:pixelated}
+.missing{width:300px;height:96px;display:flex;align-items:center;padding:8px;font-size:12px;
+  color:#92400e;background:#fffbeb;border:1px dashed #f59e0b;overflow-wrap:anywhere}
 )css";
 
 // Cell colours: green for correct, red for a confusion with another test class, amber for a
@@ -124,18 +142,210 @@ std::string RecallBar(double recall) {
       100.0 * recall, 120.0 * recall);
 }
 
+// What was evaluated, against what, when, where and with which software.
+std::string RunHeader(const EvalRun& run) {
+  std::string mode = HtmlEscape(run.mode);
+  if (run.mode == "holdout") {
+    mode = "hold-out (train on DIR/&lt;label&gt;/train, test DIR/&lt;label&gt;/test)";
+  } else if (run.mode == "kfold") {
+    mode = absl::StrCat("stratified ", run.folds, "-fold cross-validation, seed ", run.seed);
+  } else if (run.mode == "gallery") {
+    mode = "against an existing gallery";
+  }
+  const std::string gallery =
+      !run.gallery.empty()
+          ? absl::StrCat(HtmlEscape(run.gallery), " (", run.train_samples, " samples)")
+      : run.server.empty() ? std::string("a fresh in-process gallery per round")
+                           : std::string("a fresh temporary gallery per round (deleted after)");
+  const std::string server =
+      run.server.empty() ? std::string("in-process (--local)") : HtmlEscape(run.server);
+  std::string versions = absl::StrCat("client ", HtmlEscape(run.client_version));
+  if (!run.server.empty()) {
+    absl::StrAppend(&versions, ", server ",
+                    run.server_version.empty() ? std::string("unknown (it did not say)")
+                                               : HtmlEscape(run.server_version));
+  }
+  return absl::StrCat("<dl class=\"head\">\n<dt>dataset</dt><dd>", HtmlEscape(run.dataset),
+                      "</dd>\n<dt>mode</dt><dd>", mode, "</dd>\n<dt>gallery</dt><dd>", gallery,
+                      "</dd>\n<dt>descriptor spec</dt><dd>", HtmlEscape(run.descriptor_spec),
+                      "</dd>\n<dt>k</dt><dd>", run.k, "</dd>\n<dt>started</dt><dd>",
+                      run.started.empty() ? "unknown" : HtmlEscape(run.started),
+                      "</dd>\n<dt>server</dt><dd>", server, "</dd>\n<dt>shapeid</dt><dd>", versions,
+                      "</dd>\n</dl>\n");
+}
+
+// A picture, or why there is none.
+std::string PictureOrReason(const std::string& png, const std::string& missing,
+                            absl::string_view alt) {
+  if (png.empty()) return absl::StrCat("<div class=\"missing\">", HtmlEscape(missing), "</div>");
+  return absl::StrCat("<img class=\"cloud\" src=\"", PngDataUri(png), "\" alt=\"", alt, "\">");
+}
+
+// The nearest training sample, as the error table and the pictures name it.
+std::string NeighbourCaption(const EvalNeighbour& n) {
+  std::string caption = absl::StrCat("sample ", n.sample_id, " \xC2\xB7 ", HtmlEscape(n.label),
+                                     " \xC2\xB7 distance ", absl::StrFormat("%.4g", n.distance));
+  if (n.view != 0) absl::StrAppend(&caption, " \xC2\xB7 its synthetic view ", n.view);
+  return caption;
+}
+
+std::string TrainingFile(const EvalNeighbour& n) {
+  return n.file.empty() ? "<span class=\"muted\">not recorded by the gallery</span>"
+                        : HtmlEscape(n.file);
+}
+
+// The error table and, for its first kMaxErrorPictures rows, the pictures.
+std::string ErrorSections(const EvalRun& run, const ErrorPictureSource& pictures) {
+  const std::vector<const EvalPrediction*> wrong = ReportErrors(run);
+  std::string out = absl::StrCat("<h2>Misclassified files (", wrong.size(), ")</h2>\n");
+  if (wrong.empty()) return out;
+  // At k = 1 the winner's vote share is 1 by construction; the nearest distance, always
+  // shown, is what tells a close match from a far one, so the share column goes.
+  const bool show_confidence = run.k > 1;
+  const size_t pictured = pictures ? std::min(wrong.size(), kMaxErrorPictures) : 0;
+  absl::StrAppend(
+      &out,
+      "<p class=\"note\">Each error names the training sample nearest to the test cloud: its "
+      "id, label, descriptor distance and the training file it was made from. ",
+      show_confidence
+          ? "Confidence is the predicted label's share of the k neighbours' vote."
+          : "With k = 1 the nearest sample alone decides (its share of the vote is always 1), "
+            "so there is no confidence column: the distance says how close the match was.",
+      pictured > 0 ? " The numbers link to the pictures below." : "",
+      "</p>\n<div class=\"scroll\"><table class=\"list errors\">\n<thead><tr>"
+      "<th class=\"num\">#</th><th>file</th>"
+      "<th>truth</th><th>predicted</th>",
+      show_confidence ? "<th class=\"num\">confidence</th>" : "",
+      "<th>nearest training file</th><th>its label</th><th class=\"num\">distance</th>"
+      "<th class=\"num\">sample id</th></tr></thead>\n<tbody>\n");
+  const size_t shown = std::min(wrong.size(), kMaxHtmlRows);
+  for (size_t i = 0; i < shown; ++i) {
+    const EvalPrediction& p = *wrong[i];
+    const std::string number = i < pictured
+                                   ? absl::StrCat("<a href=\"#p", i + 1, "\">", i + 1, "</a>")
+                                   : absl::StrCat(i + 1);
+    absl::StrAppend(&out, "<tr id=\"e", i + 1, "\"><td class=\"num\">", number,
+                    "</td><td class=\"path\">", HtmlEscape(p.file), "</td><td>",
+                    HtmlEscape(p.truth), "</td><td>", HtmlEscape(p.predicted), "</td>");
+    if (show_confidence) {
+      absl::StrAppend(&out, "<td class=\"num\">", absl::StrFormat("%.2f", p.confidence), "</td>");
+    }
+    if (p.neighbours.empty()) {
+      out +=
+          "<td class=\"path\">no neighbour</td><td></td><td class=\"num\"></td>"
+          "<td class=\"num\"></td></tr>\n";
+      continue;
+    }
+    const EvalNeighbour& n = p.neighbours[0];
+    absl::StrAppend(&out, "<td class=\"path\">", TrainingFile(n), "</td><td>", HtmlEscape(n.label),
+                    "</td><td class=\"num\">", absl::StrFormat("%.4g", n.distance),
+                    "</td><td class=\"num\">", n.sample_id,
+                    n.view != 0 ? absl::StrCat(" (view ", n.view, ")") : "", "</td></tr>\n");
+  }
+  out += "</tbody>\n</table></div>\n";
+  if (shown < wrong.size()) {
+    absl::StrAppend(&out, "<p class=\"note\">Showing the first ", shown, " of ", wrong.size(),
+                    "; the JSON output with predictions lists all.</p>\n");
+  }
+  if (pictured == 0) return out;
+
+  absl::StrAppend(&out,
+                  "<h2>Pictures of the errors</h2>\n<p class=\"note\">Each misclassified test "
+                  "cloud beside the training sample nearest to it, each seen from the front, the "
+                  "side and the top (darker points are nearer). The first ",
+                  pictured, " of ", wrong.size(), " errors, in the order of the table.</p>\n",
+                  "<div class=\"pairs\">\n");
+  for (size_t i = 0; i < pictured; ++i) {
+    const EvalPrediction& p = *wrong[i];
+    const ErrorPictures pics = pictures(p);
+    absl::StrAppend(&out, "<div class=\"pair\" id=\"p", i + 1,
+                    "\">\n<div class=\"pic\"><p class=\"cap\"><a href=\"#e", i + 1, "\">#", i + 1,
+                    "</a> test cloud, truth <b>", HtmlEscape(p.truth), "</b>, predicted <b>",
+                    HtmlEscape(p.predicted), "</b><br>", HtmlEscape(p.file), "</p>",
+                    PictureOrReason(pics.test_png, pics.test_missing, "the test cloud"),
+                    "</div>\n<div class=\"pic\"><p class=\"cap\">nearest training ");
+    if (p.neighbours.empty()) {
+      absl::StrAppend(&out, "sample: none</p>");
+    } else {
+      absl::StrAppend(&out, NeighbourCaption(p.neighbours[0]), "<br>",
+                      TrainingFile(p.neighbours[0]), "</p>");
+    }
+    absl::StrAppend(
+        &out,
+        PictureOrReason(pics.neighbour_png, pics.neighbour_missing, "the nearest training sample"),
+        "</div>\n</div>\n");
+  }
+  out += "</div>\n";
+  return out;
+}
+
 }  // namespace
 
-std::string RenderEvalHtml(const EvalRun& run, const EvalMetrics& metrics) {
+std::vector<const EvalPrediction*> ReportErrors(const EvalRun& run) {
+  std::vector<const EvalPrediction*> wrong;
+  for (const EvalPrediction& p : run.predictions) {
+    if (p.truth != p.predicted) wrong.push_back(&p);
+  }
+  std::stable_sort(wrong.begin(), wrong.end(),
+                   [](const EvalPrediction* a, const EvalPrediction* b) {
+                     return std::tie(a->truth, a->predicted) < std::tie(b->truth, b->predicted);
+                   });
+  return wrong;
+}
+
+ErrorPictureSource ErrorPicturesFromFiles(const ReadOptions& read) {
+  ReadOptions options = read;
+  options.drop_non_finite = true;  // the pictures skip them anyway; a cloud with holes still shows
+  // Training files by path: (PNG, why none). Nearest samples repeat across errors.
+  auto training = std::make_shared<std::map<std::string, std::pair<std::string, std::string>>>();
+  return [options, training](const EvalPrediction& p) {
+    ErrorPictures out;
+    absl::StatusOr<ReadResult> test = ReadInputCloud(p.file, options);
+    if (test.ok()) {
+      out.test_png = EncodePng(RenderCloudViews(test->cloud));
+    } else {
+      out.test_missing = absl::StrCat("No picture: ", test.status().message());
+    }
+    if (p.neighbours.empty()) {
+      out.neighbour_missing = "No picture: the classifier named no neighbour.";
+      return out;
+    }
+    const EvalNeighbour& n = p.neighbours[0];
+    if (n.file.empty()) {
+      out.neighbour_missing =
+          absl::StrCat("No picture: the gallery does not record which file sample ", n.sample_id,
+                       " was trained from.");
+      return out;
+    }
+    auto [it, inserted] = training->try_emplace(n.file);
+    if (inserted) {
+      absl::StatusOr<ReadResult> cloud = ReadInputCloud(n.file, options);
+      if (cloud.ok()) {
+        it->second.first = EncodePng(RenderCloudViews(cloud->cloud));
+      } else {
+        it->second.second = absl::StrCat(
+            "No picture: the training file of sample ", n.sample_id, " (", n.file,
+            ") cannot be read here; it may have been trained on another machine or from "
+            "another folder. ",
+            cloud.status().message());
+      }
+    }
+    out.neighbour_png = it->second.first;
+    out.neighbour_missing = it->second.second;
+    return out;
+  };
+}
+
+std::string RenderEvalHtml(const EvalRun& run, const EvalMetrics& metrics,
+                           const ErrorPictureSource& pictures) {
   const std::string dataset = HtmlEscape(run.dataset);
   std::string out = absl::StrCat(
       "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
       "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
       "<title>shapeid eval \xC2\xB7 ",
       dataset, "</title>\n<style>", kHtmlStyle,
-      "</style>\n</head>\n<body>\n<h1>shapeid eval</h1>\n", "<p class=\"sub\">", dataset,
-      " \xC2\xB7 ", HtmlEscape(run.mode), " \xC2\xB7 k=", run.k, " \xC2\xB7 ",
-      HtmlEscape(run.descriptor_spec), "</p>\n<div class=\"cards\">\n");
+      "</style>\n</head>\n<body>\n<h1>shapeid eval</h1>\n", RunHeader(run),
+      "<div class=\"cards\">\n");
 
   const uint64_t errors = metrics.tests - metrics.correct;
   absl::StrAppend(
@@ -153,8 +363,11 @@ std::string RenderEvalHtml(const EvalRun& run, const EvalMetrics& metrics) {
   absl::StrAppend(&out,
                   Card("time per cloud", FormatSeconds(metrics.seconds_per_cloud),
                        absl::StrCat(FormatSeconds(run.test_seconds), " in total")),
-                  Card("training samples", absl::StrCat(run.train_samples),
-                       absl::StrCat(FormatSeconds(run.train_seconds), " to train")),
+                  run.gallery.empty()
+                      ? Card("training samples", absl::StrCat(run.train_samples),
+                             absl::StrCat(FormatSeconds(run.train_seconds), " to train"))
+                      : Card("gallery samples", absl::StrCat(run.train_samples),
+                             absl::StrCat("in ", HtmlEscape(run.gallery))),
                   Card("errors", absl::StrCat(errors), "misclassified test clouds", errors > 0),
                   Card("failed files", absl::StrCat(run.failed_files.size()),
                        "could not be read or classified", !run.failed_files.empty()),
@@ -225,34 +438,7 @@ std::string RenderEvalHtml(const EvalRun& run, const EvalMetrics& metrics) {
     out += "<p class=\"note\">No predictions.</p>\n";
   }
 
-  // Misclassified files, grouped by truth then prediction so that one confusion reads as a block.
-  std::vector<const EvalPrediction*> wrong;
-  for (const EvalPrediction& p : run.predictions) {
-    if (p.truth != p.predicted) wrong.push_back(&p);
-  }
-  std::stable_sort(wrong.begin(), wrong.end(),
-                   [](const EvalPrediction* a, const EvalPrediction* b) {
-                     return std::tie(a->truth, a->predicted) < std::tie(b->truth, b->predicted);
-                   });
-  absl::StrAppend(&out, "<h2>Misclassified files (", wrong.size(), ")</h2>\n");
-  if (!wrong.empty()) {
-    absl::StrAppend(&out,
-                    "<table class=\"list\">\n<thead><tr><th>file</th><th>truth</th>"
-                    "<th>predicted</th><th class=\"num\">confidence</th></tr></thead>\n<tbody>\n");
-    const size_t shown = std::min(wrong.size(), kMaxHtmlRows);
-    for (size_t i = 0; i < shown; ++i) {
-      const EvalPrediction& p = *wrong[i];
-      absl::StrAppend(&out, "<tr><td class=\"path\">", HtmlEscape(p.file), "</td><td>",
-                      HtmlEscape(p.truth), "</td><td>", HtmlEscape(p.predicted),
-                      "</td><td class=\"num\">", absl::StrFormat("%.2f", p.confidence),
-                      "</td></tr>\n");
-    }
-    out += "</tbody>\n</table>\n";
-    if (shown < wrong.size()) {
-      absl::StrAppend(&out, "<p class=\"note\">Showing the first ", shown, " of ", wrong.size(),
-                      "; the JSON output with predictions lists all.</p>\n");
-    }
-  }
+  out += ErrorSections(run, pictures);
 
   absl::StrAppend(&out, "<h2>Failed files (", run.failed_files.size(), ")</h2>\n");
   if (!run.failed_files.empty()) {
@@ -269,17 +455,12 @@ std::string RenderEvalHtml(const EvalRun& run, const EvalMetrics& metrics) {
     }
   }
 
-  absl::StrAppend(&out, "<h2>Parameters</h2>\n<dl>\n<dt>mode</dt><dd>", HtmlEscape(run.mode),
-                  "</dd>\n<dt>dataset</dt><dd>", dataset, "</dd>\n<dt>descriptor spec</dt><dd>",
-                  HtmlEscape(run.descriptor_spec), "</dd>\n<dt>k</dt><dd>", run.k, "</dd>\n");
-  if (run.mode == "kfold") {
-    absl::StrAppend(&out, "<dt>folds</dt><dd>", run.folds, "</dd>\n<dt>seed</dt><dd>", run.seed,
-                    "</dd>\n");
-  }
-  absl::StrAppend(&out, "<dt>training samples</dt><dd>", run.train_samples,
-                  "</dd>\n<dt>training time</dt><dd>", FormatSeconds(run.train_seconds),
-                  "</dd>\n<dt>testing time</dt><dd>", FormatSeconds(run.test_seconds),
-                  "</dd>\n<dt>test clouds</dt><dd>", metrics.tests,
+  // The run's identity is in the header; what remains is its cost.
+  absl::StrAppend(&out, "<h2>Timings</h2>\n<dl>\n<dt>",
+                  run.gallery.empty() ? "training samples" : "gallery samples", "</dt><dd>",
+                  run.train_samples, "</dd>\n<dt>training time</dt><dd>",
+                  FormatSeconds(run.train_seconds), "</dd>\n<dt>testing time</dt><dd>",
+                  FormatSeconds(run.test_seconds), "</dd>\n<dt>test clouds</dt><dd>", metrics.tests,
                   "</dd>\n</dl>\n</body>\n</html>\n");
   return out;
 }

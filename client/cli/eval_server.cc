@@ -64,6 +64,8 @@ class ServerEvalBackend final : public EvalBackend {
       if (!existing.ok()) return {absl::StrCat("eval ", gallery_), existing.status()};
       run.descriptor_spec = existing->descriptor_spec();
       run.k = k != 0 ? k : existing->knn().k();
+      run.gallery = gallery_;
+      run.train_samples = existing->sample_count();
       return {};
     }
     temporary_ = std::make_unique<TemporaryGallery>(*client_, TemporaryGalleryName(round));
@@ -100,7 +102,7 @@ class ServerEvalBackend final : public EvalBackend {
           p.seconds = seconds;
           p.fold = round;
           for (const v1::Neighbor& n : response.neighbors()) {
-            p.neighbours.push_back({n.sample_id(), n.label(), n.distance(), n.view(), ""});
+            p.neighbours.push_back({n.sample_id(), n.label(), n.distance(), n.view(), n.source()});
           }
           run.predictions.push_back(std::move(p));
         },
@@ -111,6 +113,11 @@ class ServerEvalBackend final : public EvalBackend {
     run.test_seconds += classified.seconds;
     for (const FailedInput& f : classified.failed) run.failed_files.push_back(f.path);
     return {};
+  }
+
+  void IdentifyServer(EvalRun& run) override {
+    absl::StatusOr<v1::ServerStats> stats = client_->GetServerStats();
+    if (stats.ok()) run.server_version = stats->version();
   }
 
  private:
