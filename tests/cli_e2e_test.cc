@@ -126,9 +126,11 @@ TEST_F(CliE2ETest, TrainJsonGivesEachFilesSampleIdSoANeighbourTracesBackToItsFil
             fs::absolute(file).lexically_normal().string());
 
   // --metadata goes with every sample of the call; `gallery samples` lists them all, by id.
+  // Two files after --metadata: each --metadata takes one value, the files stay files.
   const std::string extra = Data("bar/test/view-000.pcd");
-  const RunResult tagged = Run({"train", "--gallery", "traced", "--label", "bar", "--metadata",
-                                "camera=d435", "--metadata", "session=7", extra});
+  const RunResult tagged =
+      Run({"train", "--gallery", "traced", "--label", "bar", "--metadata", "camera=d435",
+           "--metadata", "session=7", extra, Data("bar/test/view-001.pcd")});
   ASSERT_EQ(tagged.exit_code, 0) << tagged.err;
   const RunResult listed = Run({"gallery", "samples", "traced", "--format", "json"});
   ASSERT_EQ(listed.exit_code, 0) << listed.err;
@@ -137,7 +139,7 @@ TEST_F(CliE2ETest, TrainJsonGivesEachFilesSampleIdSoANeighbourTracesBackToItsFil
              "len(rows), [r['sample_id'] for r in rows] == sorted(r['sample_id'] for r in "
              "rows), all(r['source'].startswith('/') for r in rows), "
              "[r['metadata'] for r in rows if r['source'].endswith('bar/test/view-000.pcd')]"),
-      "(25, True, True, [{'camera': 'd435', 'session': '7'}])");
+      "(26, True, True, [{'camera': 'd435', 'session': '7'}])");
   const RunResult bars = Run({"gallery", "samples", "traced", "--label", "bar", "--limit", "3"});
   ASSERT_EQ(bars.exit_code, 0) << bars.err;
   EXPECT_THAT(bars.out, AllOf(StartsWith("ID"), HasSubstr("SOURCE"), HasSubstr("bar")));

@@ -311,7 +311,8 @@ int main(int argc, char** argv) {
       ->add_option("--metadata", train.metadata,
                    "KEY=VALUE kept with every sample of this call (repeatable), beside its "
                    "file's path; shown with neighbours and by `gallery samples`")
-      ->type_name("KEY=VALUE");
+      ->type_name("KEY=VALUE")
+      ->allow_extra_args(false);  // one value per --metadata: the files after it stay files
   train_cmd->add_option("PATH", train.paths, "Files or folders")->required()->type_name("");
 
   // classify
