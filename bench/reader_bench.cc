@@ -95,15 +95,20 @@ std::string Las(const PointCloud& cloud) {
   return h;
 }
 
-std::string Npy(const PointCloud& cloud) {
+// A version-1.0 .npy header for an (n, 3) C-order array of `descr` ("<f4"), padded to 64.
+std::string NpyHeader(const char* descr, size_t n) {
   std::string dict =
-      absl::StrFormat("{'descr': '<f4', 'fortran_order': False, 'shape': (%d, 3), }", cloud.size());
+      absl::StrFormat("{'descr': '%s', 'fortran_order': False, 'shape': (%d, 3), }", descr, n);
   dict.append(64 - (10 + dict.size() + 1) % 64, ' ');
   dict += '\n';
   std::string out = "\x93NUMPY\x01";
   out += '\0';
   Put<uint16_t>(&out, static_cast<uint16_t>(dict.size()));
-  out += dict;
+  return out + dict;
+}
+
+std::string Npy(const PointCloud& cloud) {
+  std::string out = NpyHeader("<f4", cloud.size());
   out.append(reinterpret_cast<const char*>(cloud.data()), 12 * cloud.size());
   return out;
 }
@@ -140,14 +145,7 @@ std::string PcdXyzRgb(const PointCloud& cloud) {
 }
 
 std::string NpyDouble(const PointCloud& cloud) {
-  std::string dict =
-      absl::StrFormat("{'descr': '<f8', 'fortran_order': False, 'shape': (%d, 3), }", cloud.size());
-  dict.append(64 - (10 + dict.size() + 1) % 64, ' ');
-  dict += '\n';
-  std::string out = "\x93NUMPY\x01";
-  out += '\0';
-  Put<uint16_t>(&out, static_cast<uint16_t>(dict.size()));
-  out += dict;
+  std::string out = NpyHeader("<f8", cloud.size());
   for (float v : cloud.xyz()) Put<double>(&out, v);
   return out;
 }
