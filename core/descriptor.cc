@@ -29,7 +29,7 @@ absl::Status Descriptor::Compute(const PointCloud& cloud, std::vector<float>* ou
                                  const CloudLimits& limits) const {
   SHAPEID_ASSIGN_OR_RETURN(const CloudStats stats, ValidateCloud(cloud, limits));
   out->resize(dimension_);
-  SHAPEID_RETURN_IF_ERROR(ComputeValidated(cloud, stats, absl::MakeSpan(*out)));
+  SHAPEID_RETURN_IF_ERROR(ComputeValidated(cloud, stats, limits, absl::MakeSpan(*out)));
   return CheckFinite(spec_, cloud, *out);
 }
 
@@ -40,7 +40,7 @@ absl::Status Descriptor::ComputeWithPoseVariants(const PointCloud& cloud, std::v
   out->resize(dimension_);
   variants->clear();
   SHAPEID_RETURN_IF_ERROR(
-      ComputeValidatedWithPoseVariants(cloud, stats, absl::MakeSpan(*out), variants));
+      ComputeValidatedWithPoseVariants(cloud, stats, limits, absl::MakeSpan(*out), variants));
   if (variants->size() % dimension_ != 0) {
     return absl::InternalError(absl::StrCat(spec_.ToString(), " produced ", variants->size(),
                                             " pose-variant values, not a multiple of ",

@@ -65,8 +65,10 @@ class Descriptor {
   // What Compute or ComputeWithPoseVariants costs for a cloud of `num_points` points, from the
   // parameters alone: cheap, no allocation, thread-safe. `working_bytes` bounds the peak heap
   // the call allocates beyond the cloud (the output vectors included, starting empty) from
-  // above, for every cloud of that size. `cpu` is the expected time, within about 2x for
-  // ordinary clouds (docs/performance.md, "Describe cost"; degenerate clouds may take longer).
+  // above, for every cloud of that size, with CloudLimits::max_threads = 1 (each further
+  // thread may add one copy of the per-thread state, RPHSD's histograms). `cpu` is the
+  // expected time on one thread, within about 2x for ordinary clouds (docs/performance.md,
+  // "Describe cost"; degenerate clouds may take longer).
   virtual DescribeCost EstimateCost(size_t num_points) const = 0;
 
   // Which way is up (a unit vector) in the frame this descriptor expects its clouds in: +z
@@ -78,16 +80,18 @@ class Descriptor {
       : spec_(std::move(canonical_spec)), dimension_(dimension) {}
 
   // Computes the descriptor of a cloud that passed validation; `out` has dimension() floats.
+  // `limits` is what the caller gave Compute (its max_threads may be used; see CloudLimits).
   virtual absl::Status ComputeValidated(const PointCloud& cloud, const CloudStats& stats,
-                                        absl::Span<float> out) const = 0;
+                                        const CloudLimits& limits, absl::Span<float> out) const = 0;
   // ComputeValidated, plus the pose variants appended to `variants` (empty on entry). The
   // default has none.
   virtual absl::Status ComputeValidatedWithPoseVariants(const PointCloud& cloud,
                                                         const CloudStats& stats,
+                                                        const CloudLimits& limits,
                                                         absl::Span<float> out,
                                                         std::vector<float>* variants) const {
     (void)variants;
-    return ComputeValidated(cloud, stats, out);
+    return ComputeValidated(cloud, stats, limits, out);
   }
 
  private:

@@ -57,6 +57,11 @@ class PointCloud {
 // no size limit: a library user who describes a 50-million-point scan may.
 struct CloudLimits {
   size_t max_points = std::numeric_limits<size_t>::max();
+  // Threads one Compute may use, the calling thread included. The default keeps the work on
+  // the calling thread, as a server running many requests at once wants; a program describing
+  // one large cloud may give it its cores. Only large clouds are split (RPHSD from 2 x 65,536
+  // points), and the result is the same bits whatever the count.
+  int max_threads = 1;
 };
 
 // What one pass over a valid cloud learns; every descriptor needs some of it.

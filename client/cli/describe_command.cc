@@ -1,8 +1,10 @@
 #include "client/cli/describe_command.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <memory>
+#include <thread>
 #include <utility>
 
 #include "absl/strings/match.h"
@@ -82,6 +84,10 @@ int RunDescribe(const DescribeOptions& options, const CliContext& context) {
   std::FILE* const err = context.err;
   std::unique_ptr<Descriptor> local;
   RigidTransform local_frame;
+  CloudLimits local_limits;
+  local_limits.max_threads =
+      options.threads > 0 ? options.threads
+                          : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   std::unique_ptr<Client> client;
   std::string canonical_spec;
   if (options.local) {
@@ -145,7 +151,7 @@ int RunDescribe(const DescribeOptions& options, const CliContext& context) {
       if (!local_frame.is_identity()) {
         ApplyRigidTransform(local_frame, read->cloud.mutable_xyz().data(), read->cloud.size());
       }
-      status = local->Compute(read->cloud, &values);
+      status = local->Compute(read->cloud, &values, local_limits);
     } else {
       Client::DescribeOptions call;
       call.spec = options.spec;

@@ -19,6 +19,9 @@ struct DescribeOptions {
   // Compute in this process instead of asking the server: no server needed, and the same
   // code and results (the server runs the same core library).
   bool local = false;
+  // With `local`: threads one large cloud's descriptor may use (CloudLimits::max_threads);
+  // 0: one per core. Clouds are described one after another.
+  int threads = 0;
   // Descriptor spec text; empty: the gallery's spec if `gallery` is set, else the default
   // (kDefaultDescriptorSpec). Registry defaults fill omitted parameters.
   std::string spec;

@@ -5,6 +5,10 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
+#include "core/descriptors/rphsd.h"
+#include "core/io/pcd_writer.h"
+#include "core/io/test_files.h"
+#include "core/testing/test_clouds.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 
@@ -79,6 +83,30 @@ TEST(DescribeCommandTest, BadSpecIsAUsageErrorBeforeAnyFile) {
   EXPECT_THAT(message, Not(HasSubstr("a.pcd")));
 
   EXPECT_EQ(std::count(message.begin(), message.end(), '\n'), 1);
+}
+
+// --threads splits a large cloud (RPHSD from 2 x kMinPointsPerThread points) without changing
+// a digit of the output.
+TEST(DescribeCommandTest, LocalThreadsGiveTheSameLine) {
+  const std::string path = WriteTempFile("describe_threads.pcd", "");
+  const size_t points = 2 * static_cast<size_t>(Rphsd::kMinPointsPerThread) + 5;
+  ASSERT_TRUE(WritePcd(path, testing_clouds::ShapeCloud(1, 7, points), PcdEncoding::kBinary).ok());
+  std::string lines[2];
+  for (const int threads : {1, 2}) {
+    CapturedFile out, err;
+    DescribeOptions options;
+    options.local = true;
+    options.spec = "rphsd";
+    options.threads = threads;
+    options.files = {path};
+    CliContext context;
+    context.out = out.get();
+    context.err = err.get();
+    ASSERT_EQ(RunDescribe(options, context), kExitOk) << err.contents();
+    lines[threads - 1] = out.contents();
+  }
+  EXPECT_THAT(lines[0], StartsWith(path + " "));
+  EXPECT_EQ(lines[1], lines[0]);
 }
 
 TEST(DescribeCommandTest, HelpFooterListsKindsAndExamples) {

@@ -213,6 +213,10 @@ int main(int argc, char** argv) {
                            "Descriptor spec: KIND[:param=value,...] (default dfsd)");
   describe_cmd->add_option("--gallery", describe.gallery,
                            "Describe with this gallery's spec (server only)");
+  describe_cmd
+      ->add_option("--threads", describe.threads,
+                   "With --local: threads for one large cloud (default: one per core)")
+      ->check(CLI::NonNegativeNumber);
   AddReadFlags(describe_cmd, &describe.read, &describe.skip_unsupported);
   shapeid::SensorFrameFlags sensor_flags;  // one subcommand runs: they share it
   AddSensorFrameFlags(describe_cmd, &sensor_flags);

@@ -199,6 +199,7 @@ class CnsdDescriptor final : public Descriptor {
 
  protected:
   absl::Status ComputeValidated(const PointCloud& cloud, const CloudStats& /*stats*/,
+                                const CloudLimits& /*limits*/,
                                 absl::Span<float> out) const override {
     if (cloud.size() <= max_points_) {
       return cnsd_internal::ComputeFeatures(cloud, thresholds_, ActiveSimdLevel(), out);

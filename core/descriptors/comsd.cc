@@ -197,6 +197,7 @@ class ComsdDescriptor final : public Descriptor {
 
  protected:
   absl::Status ComputeValidated(const PointCloud& cloud, const CloudStats& stats,
+                                const CloudLimits& /*limits*/,
                                 absl::Span<float> out) const override {
     if (out.size() != static_cast<size_t>(kDimension)) {
       return absl::InternalError(

@@ -180,11 +180,12 @@ class DfsdDescriptor : public Descriptor {
 
  protected:
   absl::Status ComputeValidated(const PointCloud& cloud, const CloudStats& stats,
-                                absl::Span<float> out) const override {
-    return ComputeValidatedWithPoseVariants(cloud, stats, out, nullptr);
+                                const CloudLimits& limits, absl::Span<float> out) const override {
+    return ComputeValidatedWithPoseVariants(cloud, stats, limits, out, nullptr);
   }
 
   absl::Status ComputeValidatedWithPoseVariants(const PointCloud& cloud, const CloudStats& stats,
+                                                const CloudLimits& /*limits*/,
                                                 absl::Span<float> out,
                                                 std::vector<float>* variants) const override {
     if (options_.smooth > 0) {

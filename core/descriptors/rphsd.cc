@@ -7,6 +7,7 @@
 #include "core/descriptors/cost_model.h"
 #include "core/descriptors/rphsd_kernels.h"
 #include "core/enum_names.h"
+#include "core/parallel_ranges.h"
 #include "core/status_macros.h"
 
 namespace shapeid {
@@ -138,23 +139,23 @@ DescribeCost Rphsd::EstimateCost(size_t num_points) const {
 }
 
 absl::Status Rphsd::ComputeValidated(const PointCloud& cloud, const CloudStats& stats,
-                                     absl::Span<float> out) const {
-  return ComputeWith(cloud, stats, ActiveSimdLevel(), out);
+                                     const CloudLimits& limits, absl::Span<float> out) const {
+  return ComputeWith(cloud, stats, ActiveSimdLevel(), limits.max_threads, out);
 }
 
 absl::Status Rphsd::ComputeAtLevel(const PointCloud& cloud, SimdLevel level,
-                                   std::vector<float>* out) const {
+                                   std::vector<float>* out, const CloudLimits& limits) const {
   if (level > DetectedSimdLevel()) {
     return absl::FailedPreconditionError(
         absl::StrCat("this CPU does not support ", SimdLevelName(level)));
   }
-  SHAPEID_ASSIGN_OR_RETURN(const CloudStats stats, ValidateCloud(cloud));
+  SHAPEID_ASSIGN_OR_RETURN(const CloudStats stats, ValidateCloud(cloud, limits));
   out->resize(dimension());
-  return ComputeWith(cloud, stats, level, absl::MakeSpan(*out));
+  return ComputeWith(cloud, stats, level, limits.max_threads, absl::MakeSpan(*out));
 }
 
 absl::Status Rphsd::ComputeWith(const PointCloud& cloud, const CloudStats& stats, SimdLevel level,
-                                absl::Span<float> out) const {
+                                int max_threads, absl::Span<float> out) const {
   // Step 1: centre on the centroid, scale by the L-infinity radius into [-1, 1]^3.
   const double radius = stats.MaxAbsCentred();
   const float inv_scale = static_cast<float>(1.0 / radius);
@@ -177,8 +178,21 @@ absl::Status Rphsd::ComputeWith(const PointCloud& cloud, const CloudStats& stats
   input.num_refs = num_refs;
   input.bins = bins;
   input.bin_scale = static_cast<float>(bins / kMaxDistance);
-  std::vector<uint32_t> counts(num_refs * bins, 0);
-  rphsd_internal::AccumulateHistograms(input, counts.data(), level);
+  const size_t histogram_values = num_refs * static_cast<size_t>(bins);
+  const int64_t num_points = static_cast<int64_t>(cloud.size());
+  const int parts = ParallelParts(num_points, max_threads, kMinPointsPerThread);
+  std::vector<uint32_t> counts(histogram_values * static_cast<size_t>(parts), 0);
+  ParallelRanges(num_points, parts, kMinPointsPerThread, [&](int part, int64_t begin, int64_t end) {
+    rphsd_internal::HistogramInput range = input;
+    range.xyz = input.xyz + 3 * begin;
+    range.num_points = static_cast<size_t>(end - begin);
+    rphsd_internal::AccumulateHistograms(
+        range, &counts[histogram_values * static_cast<size_t>(part)], level);
+  });
+  for (int part = 1; part < parts; ++part) {
+    const uint32_t* part_counts = &counts[histogram_values * static_cast<size_t>(part)];
+    for (size_t i = 0; i < histogram_values; ++i) counts[i] += part_counts[i];
+  }
 
   // Steps 3 and 4.
   std::vector<double> variances(num_refs), entropies(num_refs), idms(num_refs);

@@ -34,8 +34,13 @@ class Rphsd final : public Descriptor {
 
   // For tests and benchmarks: the same descriptor computed at an explicit SIMD level
   // (must not exceed DetectedSimdLevel()). Compute() uses ActiveSimdLevel().
-  absl::Status ComputeAtLevel(const PointCloud& cloud, SimdLevel level,
-                              std::vector<float>* out) const;
+  absl::Status ComputeAtLevel(const PointCloud& cloud, SimdLevel level, std::vector<float>* out,
+                              const CloudLimits& limits = {}) const;
+
+  // Clouds are split across CloudLimits::max_threads threads in parts of at least this many
+  // points: each part counts into its own histograms, which are then summed (integers, so
+  // the result does not depend on the split).
+  static constexpr int64_t kMinPointsPerThread = 65536;
 
   const RphsdOptions& options() const { return options_; }
 
@@ -43,12 +48,12 @@ class Rphsd final : public Descriptor {
 
  protected:
   absl::Status ComputeValidated(const PointCloud& cloud, const CloudStats& stats,
-                                absl::Span<float> out) const override;
+                                const CloudLimits& limits, absl::Span<float> out) const override;
 
  private:
   Rphsd(DescriptorSpec spec, size_t dimension, RphsdOptions options);
   absl::Status ComputeWith(const PointCloud& cloud, const CloudStats& stats, SimdLevel level,
-                           absl::Span<float> out) const;
+                           int max_threads, absl::Span<float> out) const;
 
   RphsdOptions options_;
   // Reference coordinates, structure-of-arrays and zero-padded for the SIMD kernels.

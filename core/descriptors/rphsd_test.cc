@@ -227,6 +227,26 @@ TEST(RphsdTest, BitIdenticalOnRepeatedRunsAndAcrossSimdLevels) {
   }
 }
 
+// A cloud split across threads (CloudLimits::max_threads) counts the same histograms: the
+// same bits for every thread count, including splits that leave a part of odd size.
+TEST(RphsdTest, BitIdenticalWhateverTheThreadCount) {
+  const size_t n = 3 * static_cast<size_t>(Rphsd::kMinPointsPerThread) + 7;
+  const PointCloud cloud = RandomCloud(n, 11);
+  for (const char* spec : {"rphsd", "rphsd:refs=fibonacci:40,bins=53,variant=reduced"}) {
+    auto created = CreateDescriptor(spec);
+    ASSERT_TRUE(created.ok()) << created.status();
+    const Descriptor& d = **created;
+    const std::vector<float> one_thread = MustCompute(d, cloud);
+    for (const int threads : {2, 3, 8}) {
+      CloudLimits limits;
+      limits.max_threads = threads;
+      std::vector<float> v;
+      ASSERT_TRUE(d.Compute(cloud, &v, limits).ok());
+      EXPECT_EQ(v, one_thread) << spec << " on " << threads << " threads";
+    }
+  }
+}
+
 TEST(RphsdTest, HistogramsSumToOne) {
   // Every point lands in exactly one bin of every histogram: with M = 1 each histogram is
   // [1], so variance 0, entropy 0, IDM 1, whatever the cloud.

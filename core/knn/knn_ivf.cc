@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "core/knn/knn_kd_tree.h"
+#include "core/parallel_ranges.h"
 
 namespace shapeid {
 namespace knn_internal {
@@ -22,20 +23,6 @@ AlignedFloats ToBlocked(const std::vector<float>& rows, int64_t count, int dim) 
     }
   }
   return blocked;
-}
-
-// Runs body(begin, end) over [0, count) split into up to `threads` contiguous ranges; the
-// calling thread takes the first. Small jobs stay on the calling thread.
-template <typename Body>
-void ParallelRanges(int64_t count, int threads, const Body& body) {
-  constexpr int64_t kMinPerThread = 1024;
-  const int64_t parts = std::clamp<int64_t>(count / kMinPerThread, 1, std::max(threads, 1));
-  std::vector<std::thread> workers;
-  for (int64_t p = 1; p < parts; ++p) {
-    workers.emplace_back(body, count * p / parts, count * (p + 1) / parts);
-  }
-  body(int64_t{0}, count / parts);
-  for (std::thread& worker : workers) worker.join();
 }
 
 }  // namespace
@@ -58,7 +45,7 @@ BlockedView InvertedLists::List(int list) const {
 void InvertedLists::Assign(SimdLevel level, const float* vectors, int64_t count, const float* scale,
                            int threads, int32_t* cell) const {
   const BlockedView centroids = Centroids();
-  ParallelRanges(count, threads, [&](int64_t begin, int64_t end) {
+  ParallelRanges(count, threads, /*min_per_part=*/1024, [&](int, int64_t begin, int64_t end) {
     for (int64_t i = begin; i < end; ++i) {
       TopK nearest(1);
       ScanBlocks(level, centroids, vectors + i * dim_, 1, scale, /*abandon=*/true, &nearest);
