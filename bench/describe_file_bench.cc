@@ -3,8 +3,9 @@
 // the same descriptor with scalar loops), each run as a fresh process, medians of --runs runs
 // taken alternately in one run of this program. Checks that both print the same descriptor
 // within float tolerance, so that the comparison is fair. Then where shapeid's time goes: the
-// process start-up (the same command on a 3-point file), and in this process the reading
-// (ReadPointCloud) and the descriptor (Compute, validation included). Run from a release build:
+// process start-up (the same command on a 4-point file), the same command on one core (--threads
+// 1), and in this process the reading (ReadPointCloud) and the descriptor (Compute, validation
+// included). Run from a release build:
 //   build/release/bench/describe_file_bench [--points 1000000] [--runs 9]
 
 #include <fcntl.h>
@@ -122,6 +123,9 @@ int main(int argc, char** argv) {
   }
   const std::vector<std::string> shapeid_args = {shapeid,  "describe", "--local",
                                                  "--spec", "rphsd",    file};
+  // The same on one core: describe --local uses every core for a large cloud by default.
+  const std::vector<std::string> one_core_args = {shapeid, "describe", "--local", "--threads",
+                                                  "1",     "--spec",   "rphsd",   file};
   const std::vector<std::string> plain_args = {plain, file};
   const std::string shapeid_out = dir + "/shapeid.txt", plain_out = dir + "/plain.txt";
   // One run each first: the page cache holds the file and both binaries from then on.
@@ -140,12 +144,14 @@ int main(int argc, char** argv) {
                  a.size(), b.size(), worst);
     return 1;
   }
-  std::vector<double> shapeid_s, plain_s;
-  for (int r = 0; r < runs; ++r) {  // alternating, so that the machine's load hits both alike
+  std::vector<double> shapeid_s, one_core_s, plain_s;
+  for (int r = 0; r < runs; ++r) {  // alternating, so that the machine's load hits all alike
     shapeid_s.push_back(TimeProcess(shapeid_args, shapeid_out));
+    one_core_s.push_back(TimeProcess(one_core_args, shapeid_out));
     plain_s.push_back(TimeProcess(plain_args, plain_out));
   }
   if (*std::min_element(shapeid_s.begin(), shapeid_s.end()) < 0 ||
+      *std::min_element(one_core_s.begin(), one_core_s.end()) < 0 ||
       *std::min_element(plain_s.begin(), plain_s.end()) < 0) {
     std::fprintf(stderr, "a program failed during the timed runs\n");
     return 1;
@@ -181,14 +187,16 @@ int main(int argc, char** argv) {
   std::printf("| program | median ms (%d runs) | min ms |\n|---|---:|---:|\n", runs);
   std::printf("| shapeid describe --local --spec rphsd | %.1f | %.1f |\n", 1e3 * s,
               1e3 * *std::min_element(shapeid_s.begin(), shapeid_s.end()));
+  std::printf("| the same with --threads 1 | %.1f | %.1f |\n", 1e3 * Median(one_core_s),
+              1e3 * *std::min_element(one_core_s.begin(), one_core_s.end()));
   std::printf("| plain scalar program (-O2) | %.1f | %.1f |\n", 1e3 * p,
               1e3 * *std::min_element(plain_s.begin(), plain_s.end()));
   std::printf("| shapeid describe on a 4-point file (start-up) | %.1f | %.1f |\n",
               1e3 * Median(startup_s), 1e3 * *std::min_element(startup_s.begin(), startup_s.end()));
   std::printf("| in process: ReadPointCloud | %.1f | %.1f |\n", 1e3 * Median(read_s),
               1e3 * *std::min_element(read_s.begin(), read_s.end()));
-  std::printf("| in process: rphsd Compute (with ValidateCloud) | %.1f | %.1f |\n",
+  std::printf("| in process: rphsd Compute (with ValidateCloud), one thread | %.1f | %.1f |\n",
               1e3 * Median(compute_s), 1e3 * *std::min_element(compute_s.begin(), compute_s.end()));
-  std::printf("ratio shapeid / plain: %.3fx\n", s / p);
+  std::printf("ratio shapeid / plain: %.3fx (one core: %.3fx)\n", s / p, Median(one_core_s) / p);
   return 0;
 }
