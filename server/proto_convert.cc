@@ -168,7 +168,6 @@ SampleProvenance ProvenanceFromProto(const v1::SampleHeader& sample) {
   SampleProvenance provenance;
   provenance.source = sample.source();
   for (const auto& [key, value] : sample.metadata()) provenance.metadata.emplace_back(key, value);
-  std::sort(provenance.metadata.begin(), provenance.metadata.end());
   return provenance;
 }
 

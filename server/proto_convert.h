@@ -56,8 +56,8 @@ void ToProto(const GallerySnapshot& snapshot, v1::Gallery* out);
 absl::Status ToProto(absl::Span<const DescriptorKind> kinds, v1::ListDescriptorsResponse* out);
 
 void ToProto(const GalleryClassification& answer, size_t num_points, v1::ClassifyResponse* out);
-// A trained sample's provenance from a SampleHeader, metadata sorted by key (not yet
-// validated: TrainBatch::AddSample does that).
+// A trained sample's provenance from a SampleHeader, metadata in the map's order (neither
+// sorted nor validated: TrainBatch::AddSample does both).
 SampleProvenance ProvenanceFromProto(const v1::SampleHeader& sample);
 void ToProto(const SampleInfo& sample, v1::SampleInfo* out);
 

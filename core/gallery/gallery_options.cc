@@ -39,13 +39,12 @@ size_t Utf8SequenceLength(absl::string_view s) {
   return len;
 }
 
-// A printable rendering of a label for error messages: C-escaped, cut at 64 bytes.
-std::string Quote(absl::string_view label) {
-  const bool cut = label.size() > 64;
-  return absl::StrCat("\"", absl::CHexEscape(label.substr(0, 64)), cut ? "...\"" : "\"");
-}
-
 }  // namespace
+
+std::string QuoteForMessage(absl::string_view text) {
+  const bool cut = text.size() > 64;
+  return absl::StrCat("\"", absl::CHexEscape(text.substr(0, 64)), cut ? "...\"" : "\"");
+}
 
 size_t InvalidUtf8Offset(absl::string_view text) {
   for (size_t i = 0; i < text.size();) {
@@ -65,20 +64,20 @@ absl::Status ValidateGalleryName(absl::string_view name) {
   for (size_t i = 0; ok && i < name.size(); ++i) ok = allowed(name[i], i == 0);
   if (ok) return absl::OkStatus();
   return absl::InvalidArgumentError(
-      absl::StrCat("gallery name ", Quote(name), " does not match ", kNamePattern,
+      absl::StrCat("gallery name ", QuoteForMessage(name), " does not match ", kNamePattern,
                    " (a letter or digit, then up to 127 letters, digits, '_', '.' or '-')"));
 }
 
 absl::Status ValidateLabel(absl::string_view label) {
   if (label.empty()) return absl::InvalidArgumentError("label is empty");
   if (label.size() > kMaxLabelBytes) {
-    return absl::InvalidArgumentError(absl::StrCat("label ", Quote(label), " has ", label.size(),
-                                                   " bytes, more than the limit of ",
+    return absl::InvalidArgumentError(absl::StrCat("label ", QuoteForMessage(label), " has ",
+                                                   label.size(), " bytes, more than the limit of ",
                                                    kMaxLabelBytes));
   }
   if (const size_t bad = InvalidUtf8Offset(label); bad != absl::string_view::npos) {
     return absl::InvalidArgumentError(
-        absl::StrCat("label ", Quote(label), " is not valid UTF-8 (at byte ", bad, ")"));
+        absl::StrCat("label ", QuoteForMessage(label), " is not valid UTF-8 (at byte ", bad, ")"));
   }
   if (label == kUnknownLabel) {
     return absl::InvalidArgumentError(

@@ -85,6 +85,9 @@ absl::Status ValidateGalleryName(absl::string_view name);
 // 3629: no overlong forms, no surrogates), or npos when all of it is valid.
 size_t InvalidUtf8Offset(absl::string_view text);
 
+// `text` printable in an error message: quoted, C-escaped, cut at 64 bytes ("...").
+std::string QuoteForMessage(absl::string_view text);
+
 // InvalidArgument unless `label` is non-empty, at most kMaxLabelBytes bytes, valid UTF-8
 // (RFC 3629: no overlong forms, no surrogates) and not kUnknownLabel.
 absl::Status ValidateLabel(absl::string_view label);

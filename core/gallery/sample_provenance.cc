@@ -4,7 +4,6 @@
 
 #include <algorithm>
 
-#include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 #include "core/gallery/gallery_options.h"
 
@@ -14,17 +13,11 @@ namespace {
 
 constexpr uint8_t kEncodingVersion = 1;
 
-// For messages: C-escaped, cut at 64 bytes.
-std::string Quote(absl::string_view text) {
-  const bool cut = text.size() > 64;
-  return absl::StrCat("\"", absl::CHexEscape(text.substr(0, 64)), cut ? "...\"" : "\"");
-}
-
 absl::Status CheckUtf8(absl::string_view what, absl::string_view text) {
   const size_t bad = InvalidUtf8Offset(text);
   if (bad == absl::string_view::npos) return absl::OkStatus();
   return absl::InvalidArgumentError(
-      absl::StrCat(what, " ", Quote(text), " is not valid UTF-8 (at byte ", bad, ")"));
+      absl::StrCat(what, " ", QuoteForMessage(text), " is not valid UTF-8 (at byte ", bad, ")"));
 }
 
 void PutU32(uint32_t value, std::string& out) {
@@ -73,7 +66,7 @@ absl::Status NormalizeMetadata(std::vector<std::pair<std::string, std::string>>&
   for (size_t i = 1; i < metadata.size(); ++i) {
     if (metadata[i].first == metadata[i - 1].first) {
       return absl::InvalidArgumentError(
-          absl::StrCat("metadata key ", Quote(metadata[i].first), " is given twice"));
+          absl::StrCat("metadata key ", QuoteForMessage(metadata[i].first), " is given twice"));
     }
   }
   return absl::OkStatus();
@@ -82,8 +75,8 @@ absl::Status NormalizeMetadata(std::vector<std::pair<std::string, std::string>>&
 absl::Status ValidateProvenance(const SampleProvenance& provenance) {
   if (provenance.source.size() > kMaxSourceBytes) {
     return absl::InvalidArgumentError(
-        absl::StrCat("source ", Quote(provenance.source), " has ", provenance.source.size(),
-                     " bytes, more than the limit of ", kMaxSourceBytes));
+        absl::StrCat("source ", QuoteForMessage(provenance.source), " has ",
+                     provenance.source.size(), " bytes, more than the limit of ", kMaxSourceBytes));
   }
   if (absl::Status s = CheckUtf8("source", provenance.source); !s.ok()) return s;
   if (provenance.metadata.size() > kMaxMetadataEntries) {
@@ -97,10 +90,10 @@ absl::Status ValidateProvenance(const SampleProvenance& provenance) {
     if (key.empty()) return absl::InvalidArgumentError("a metadata key is empty");
     if (i > 0 && !(provenance.metadata[i - 1].first < key)) {
       return absl::InvalidArgumentError(
-          absl::StrCat("metadata key ", Quote(key), " is out of order or given twice"));
+          absl::StrCat("metadata key ", QuoteForMessage(key), " is out of order or given twice"));
     }
     if (absl::Status s = CheckUtf8("metadata key", key); !s.ok()) return s;
-    if (absl::Status s = CheckUtf8(absl::StrCat("metadata value of ", Quote(key)), value);
+    if (absl::Status s = CheckUtf8(absl::StrCat("metadata value of ", QuoteForMessage(key)), value);
         !s.ok()) {
       return s;
     }
