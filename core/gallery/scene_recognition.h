@@ -1,0 +1,60 @@
+#ifndef SHAPEID_CORE_GALLERY_SCENE_RECOGNITION_H_
+#define SHAPEID_CORE_GALLERY_SCENE_RECOGNITION_H_
+
+// One sensor frame in, the objects on it out: SegmentScene (core/scene) finds them, the
+// gallery classifies each as the partial view it is.
+
+#include <cstdint>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/time/time.h"
+#include "core/gallery/gallery_snapshot.h"
+#include "core/point_cloud.h"
+#include "core/scene/scene_segmentation.h"
+
+namespace shapeid {
+
+struct SceneRecognitionOptions {
+  SceneSegmentationOptions segmentation;
+  // Neighbours per object; 0: the gallery's k.
+  int k = 0;
+  // Each object is turned so that the first removed plane's normal (pointing to the sensor's
+  // side: up, for a table seen from above) becomes the descriptor's up before it is
+  // described, as a caller's sensor frame would (core/rigid_transform.h). Off, or with no
+  // plane, objects are described in the frame's own axes.
+  bool up_from_plane = true;
+  // Limits each object's cloud as Classify's limits do.
+  CloudLimits limits;
+};
+
+struct RecognizedObject {
+  // The gallery's answer for this object's points, as Classify gives it (label, or
+  // kUnknownLabel when rejected; neighbours, votes). When the object could not be described
+  // (`status` not OK) the label is kUnknownLabel with no neighbours.
+  GalleryClassification classification;
+  absl::Status status;
+  ClusterGeometry geometry;       // in the frame's coordinates
+  std::vector<uint32_t> indices;  // into the frame, ascending
+};
+
+struct SceneRecognition {
+  // The planes and the accounting of the frame's points (its `clusters` are moved into
+  // `objects`, so they are empty here).
+  SceneSegmentation segmentation;
+  std::vector<RecognizedObject> objects;  // largest first, as SegmentScene orders clusters
+  absl::Duration segment_time;
+  absl::Duration classify_time;  // all objects
+};
+
+// Errors: SegmentScene's (options out of range: InvalidArgument); the gallery's
+// (FailedPrecondition for an empty or incompatible gallery), checked before any work. An
+// object that fails to be described does not fail the frame: see RecognizedObject::status.
+absl::StatusOr<SceneRecognition> RecognizeScene(const GallerySnapshot& gallery,
+                                                const PointCloud& frame,
+                                                const SceneRecognitionOptions& options);
+
+}  // namespace shapeid
+
+#endif  // SHAPEID_CORE_GALLERY_SCENE_RECOGNITION_H_
