@@ -71,9 +71,7 @@ std::optional<Eigen::Vector4f> PlaneThrough(const Eigen::Vector3f& a, const Eige
   const float norm = n.norm();
   if (!(norm > 1e-6f * u.norm() * v.norm())) return std::nullopt;
   const Eigen::Vector3f unit = n / norm;
-  Eigen::Vector4f plane;
-  plane << unit, -unit.dot(a);
-  return plane;
+  return Eigen::Vector4f(unit.x(), unit.y(), unit.z(), -unit.dot(a));
 }
 
 // How many of the points (x[i], y[i], z[i]) lie within `distance` of `plane`.
@@ -82,7 +80,7 @@ size_t CountNear(const std::vector<float>& x, const std::vector<float>& y,
   size_t count = 0;
   const float a = plane[0], b = plane[1], c = plane[2], d = plane[3];
   for (size_t i = 0; i < x.size(); ++i) {
-    count += std::fabs(a * x[i] + b * y[i] + c * z[i] + d) <= distance ? 1 : 0;
+    count += std::fabs(a * x[i] + b * y[i] + c * z[i] + d) < distance ? 1 : 0;
   }
   return count;
 }
@@ -94,7 +92,7 @@ std::vector<uint32_t> PointsNear(const PointCloud& frame, const std::vector<uint
   const float* xyz = frame.data();
   for (const uint32_t i : ids) {
     const float* p = xyz + 3 * static_cast<size_t>(i);
-    if (std::fabs(plane[0] * p[0] + plane[1] * p[1] + plane[2] * p[2] + plane[3]) <= distance) {
+    if (std::fabs(plane[0] * p[0] + plane[1] * p[1] + plane[2] * p[2] + plane[3]) < distance) {
       near.push_back(i);
     }
   }
@@ -116,9 +114,8 @@ Eigen::Vector4f FitPlane(const PointCloud& frame, const std::vector<uint32_t>& i
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);
   Eigen::Vector3d normal = solver.eigenvectors().col(0).normalized();
   if (normal.dot(guide.head<3>().cast<double>()) < 0) normal = -normal;
-  Eigen::Vector4f plane;
-  plane << normal.cast<float>(), static_cast<float>(-normal.dot(mean));
-  return plane;
+  return Eigen::Vector4f(static_cast<float>(normal.x()), static_cast<float>(normal.y()),
+                         static_cast<float>(normal.z()), static_cast<float>(-normal.dot(mean)));
 }
 
 // One RANSAC plane over `candidates` (>= 3 points): the hypothesis that holds the most
@@ -158,11 +155,12 @@ std::pair<Eigen::Vector4f, std::vector<uint32_t>> FindPlane(const PointCloud& fr
     needed = static_cast<int>(std::min<double>(options.plane_iterations, std::ceil(draws)));
   }
   if (best_count < 3) return {best, {}};
-  std::vector<uint32_t> on_plane = PointsNear(frame, candidates, best, options.plane_distance);
+  // The refit is kept even when it holds a few points fewer: a three-point plane tilted by
+  // a fraction of a degree also shaves the bases of the objects standing on it.
+  const std::vector<uint32_t> on_plane =
+      PointsNear(frame, candidates, best, options.plane_distance);
   const Eigen::Vector4f refit = FitPlane(frame, on_plane, best);
-  std::vector<uint32_t> on_refit = PointsNear(frame, candidates, refit, options.plane_distance);
-  if (on_refit.size() >= on_plane.size()) return {refit, std::move(on_refit)};
-  return {best, std::move(on_plane)};
+  return {refit, PointsNear(frame, candidates, refit, options.plane_distance)};
 }
 
 // Union-find over grid cells; the smaller index is the root, so the result does not depend on
@@ -192,10 +190,11 @@ uint64_t CellKey(int64_t ix, int64_t iy, int64_t iz) {
          static_cast<uint64_t>(iz) << 42;
 }
 
-// The connected groups of `points` (ascending frame indices) under "at most `tolerance`
-// apart". Points are binned into cubic cells a little smaller than tolerance / sqrt(3), so
-// the points of one cell are all within the tolerance of each other; two cells are joined
-// when some pair of their points is. Cells up to two apart on each axis can hold such pairs.
+// The connected groups of `points` (ascending frame indices) under "closer than `tolerance`"
+// (squared float distances, strictly less: PCL's kd-tree and Open3D's DBSCAN test). Points are
+// binned into cubic cells a little smaller than tolerance / sqrt(3), so the points of one cell are
+// all within the tolerance of each other; two cells are joined when some pair of their points is.
+// Cells up to two apart on each axis can hold such pairs.
 absl::StatusOr<std::vector<std::vector<uint32_t>>> EuclideanClusters(
     const PointCloud& frame, const std::vector<uint32_t>& points, float tolerance) {
   std::vector<std::vector<uint32_t>> clusters;
@@ -260,13 +259,13 @@ absl::StatusOr<std::vector<std::vector<uint32_t>>> EuclideanClusters(
   const auto joined = [&](uint32_t a, uint32_t b) {
     const Eigen::AlignedBox3f& A = bounds[a];
     const Eigen::AlignedBox3f& B = bounds[b];
-    if (A.squaredExteriorDistance(B) > tolerance2) return false;  // no pair is near enough
+    if (A.squaredExteriorDistance(B) >= tolerance2) return false;  // no pair is near enough
     const Eigen::Vector3f farthest =
         (A.max() - B.min()).cwiseAbs().cwiseMax((B.max() - A.min()).cwiseAbs());
-    if (farthest.squaredNorm() <= tolerance2) return true;  // every pair is
+    if (farthest.squaredNorm() < tolerance2) return true;  // every pair is
     for (uint32_t i = start[a]; i < start[a + 1]; ++i) {
       for (uint32_t j = start[b]; j < start[b + 1]; ++j) {
-        if ((grouped[i] - grouped[j]).squaredNorm() <= tolerance2) return true;
+        if ((grouped[i] - grouped[j]).squaredNorm() < tolerance2) return true;
       }
     }
     return false;

@@ -20,7 +20,7 @@ namespace shapeid {
 struct SceneSegmentationOptions {
   // Supporting planes to remove, largest first (a table, a floor, a wall), in [0, 16].
   int max_planes = 1;
-  // A point within this distance of a plane lies on it. > 0.
+  // A point closer than this to a plane lies on it (strictly, as PCL's SACSegmentation). > 0.
   float plane_distance = 0.01f;
   // A plane is removed only if it holds at least this share of the frame's usable points
   // (finite, in the region): an object's flat face is not a support. In (0, 1].
@@ -28,8 +28,9 @@ struct SceneSegmentationOptions {
   // Plane hypotheses tried at most per plane. RANSAC stops earlier once it is 99.9 % sure
   // that a better plane would have been drawn. In [1, 100000].
   int plane_iterations = 1000;
-  // Two points closer than this (or exactly this far) belong to the same object; objects are
-  // the connected groups. > 0.
+  // Two points closer than this belong to the same object (strictly less, as PCL's
+  // EuclideanClusterExtraction and Open3D's cluster_dbscan with min_points 1); objects are
+  // the connected groups, the same partition those give. > 0.
   float cluster_tolerance = 0.02f;
   // Clusters with fewer points are dropped as noise; with more, as background (a wall the
   // planes missed). 1 <= min <= max.
@@ -46,7 +47,8 @@ struct SceneSegmentationOptions {
   uint64_t seed = 0;
 };
 
-// A removed plane: a x + b y + c z + d = 0 with (a, b, c) a unit normal.
+// A removed plane: a x + b y + c z + d = 0 with (a, b, c) a unit normal, refitted by least
+// squares to its points (PCL's optimizeCoefficients).
 struct ScenePlane {
   Eigen::Vector4f coefficients = Eigen::Vector4f::Zero();
   size_t points = 0;  // how many of the frame's points were removed with it
@@ -55,7 +57,7 @@ struct ScenePlane {
 struct SceneSegmentation {
   std::vector<ScenePlane> planes;  // in the order removed
   // The objects: indices into the frame, ascending within a cluster; clusters largest first
-  // (ties: the one with the smaller first index first).
+  // (ties: the one with the smaller first index first; PCL leaves ties in no set order).
   std::vector<std::vector<uint32_t>> clusters;
   // Where the other points went. Together with the planes' and the clusters' points they
   // account for every point of the frame.
