@@ -38,6 +38,20 @@ inline double LoadAverage1() {
   return one;
 }
 
+// The process's thread count (Linux; 0 elsewhere), to show that nothing ran in parallel.
+inline double ProcessThreads() {
+  std::ifstream status("/proc/self/status");
+  std::string key;
+  while (status >> key) {
+    if (key == "Threads:") {
+      double threads = 0;
+      status >> threads;
+      return threads;
+    }
+  }
+  return 0;
+}
+
 }  // namespace shapeid::bench
 
 #endif  // SHAPEID_BENCH_HOST_INFO_H_

@@ -28,6 +28,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "bench/bench_clouds.h"
+#include "bench/host_info.h"
 #include "benchmark/benchmark.h"
 #include "core/descriptor_registry.h"
 #include "core/io/point_cloud_reader.h"
@@ -100,20 +101,6 @@ const Inputs& GetInputs(size_t points) {
   return inputs;
 }
 
-// The process's thread count (Linux), to show that nothing ran in parallel.
-double ProcessThreads() {
-  std::ifstream status("/proc/self/status");
-  std::string key;
-  while (status >> key) {
-    if (key == "Threads:") {
-      double threads = 0;
-      status >> threads;
-      return threads;
-    }
-  }
-  return 0;
-}
-
 // Labels and counters shared by every row: items = clouds, so items_per_second is clouds/s.
 void Finish(benchmark::State& state, const Inputs& inputs, const std::string& note) {
   size_t points = 0;
@@ -121,7 +108,7 @@ void Finish(benchmark::State& state, const Inputs& inputs, const std::string& no
   state.SetItemsProcessed(state.iterations());
   state.counters["points"] =
       static_cast<double>(points) / static_cast<double>(inputs.clouds.size());
-  state.counters["threads"] = ProcessThreads();
+  state.counters["threads"] = bench::ProcessThreads();
   state.SetLabel(note.empty() ? inputs.label : absl::StrCat(inputs.label, "; ", note));
 }
 

@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "bench/host_info.h"
 #include "benchmark/benchmark.h"
 #include "core/point_cloud.h"
 #include "core/scene/scene_segmentation.h"
@@ -185,20 +186,6 @@ PclResult PclChain(const PclCloud::ConstPtr& frame, bool keep_rest) {
   return result;
 }
 
-// The process's thread count (Linux), to show that nothing ran in parallel.
-double ProcessThreads() {
-  std::ifstream status("/proc/self/status");
-  std::string key;
-  while (status >> key) {
-    if (key == "Threads:") {
-      double threads = 0;
-      status >> threads;
-      return threads;
-    }
-  }
-  return 0;
-}
-
 // Shared counters: per_frame is the time of one frame (an iteration segments every frame of
 // the set), points the mean points segmented per frame.
 void Finish(benchmark::State& state, const FrameSet& set, size_t points) {
@@ -207,7 +194,7 @@ void Finish(benchmark::State& state, const FrameSet& set, size_t points) {
   state.counters["per_frame"] = benchmark::Counter(
       frames, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
   state.counters["points"] = static_cast<double>(points) / frames;
-  state.counters["threads"] = ProcessThreads();
+  state.counters["threads"] = bench::ProcessThreads();
   state.SetLabel(absl::StrCat(set.frames.size(), " frames, ", set.name));
 }
 

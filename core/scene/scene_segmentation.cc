@@ -99,19 +99,26 @@ std::vector<uint32_t> PointsNear(const PointCloud& frame, const std::vector<uint
   return near;
 }
 
+// The mean of `ids`' points and the sum of their outer products about it, in double.
+std::pair<Eigen::Vector3d, Eigen::Matrix3d> MeanAndScatter(const PointCloud& frame,
+                                                           const std::vector<uint32_t>& ids) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const uint32_t i : ids) mean += frame.point(i).cast<double>();
+  mean /= static_cast<double>(ids.size());
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const uint32_t i : ids) {
+    const Eigen::Vector3d d = frame.point(i).cast<double>() - mean;
+    scatter.noalias() += d * d.transpose();
+  }
+  return {mean, scatter};
+}
+
 // The least-squares plane of `ids`' points (the normal is the covariance's weakest axis),
 // its normal on the same side as `guide`'s.
 Eigen::Vector4f FitPlane(const PointCloud& frame, const std::vector<uint32_t>& ids,
                          const Eigen::Vector4f& guide) {
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const uint32_t i : ids) mean += frame.point(i).cast<double>();
-  mean /= static_cast<double>(ids.size());
-  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
-  for (const uint32_t i : ids) {
-    const Eigen::Vector3d d = frame.point(i).cast<double>() - mean;
-    covariance.noalias() += d * d.transpose();
-  }
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);
+  const auto [mean, scatter] = MeanAndScatter(frame, ids);
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
   Eigen::Vector3d normal = solver.eigenvectors().col(0).normalized();
   if (normal.dot(guide.head<3>().cast<double>()) < 0) normal = -normal;
   return Eigen::Vector4f(static_cast<float>(normal.x()), static_cast<float>(normal.y()),
@@ -373,15 +380,8 @@ absl::StatusOr<SceneSegmentation> SegmentScene(const PointCloud& frame,
 ClusterGeometry DescribeClusterGeometry(const PointCloud& frame,
                                         const std::vector<uint32_t>& indices) {
   ClusterGeometry geometry;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const uint32_t i : indices) mean += frame.point(i).cast<double>();
-  mean /= static_cast<double>(indices.size());
-  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
-  for (const uint32_t i : indices) {
-    const Eigen::Vector3d d = frame.point(i).cast<double>() - mean;
-    covariance.noalias() += d * d.transpose();
-  }
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);
+  const auto [mean, scatter] = MeanAndScatter(frame, indices);
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
   Eigen::Matrix3d axes;  // largest spread first; eigenvalues come in increasing order
   axes.col(0) = solver.eigenvectors().col(2).normalized();
   axes.col(1) = solver.eigenvectors().col(1).normalized();
