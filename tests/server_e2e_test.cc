@@ -75,7 +75,9 @@ class ServerE2ETest : public ::testing::Test {
   grpc::Status Classify(const PointCloud& cloud, v1::ClassifyResponse* answer,
                         size_t chunk_points = 16384) {
     grpc::ClientContext context;
-    context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(60));
+    // Generous: the 2,000,000-point cloud takes 20-56 s under ASan on a shared 2-core machine
+    // and once ran past a 60 s deadline. What is checked is the answer, not the speed.
+    context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(240));
     auto writer = stub_->Classify(&context, answer);
     v1::ClassifyRequest header;
     header.mutable_header()->set_gallery("e2e");
