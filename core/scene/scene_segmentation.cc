@@ -74,27 +74,28 @@ std::optional<Eigen::Vector4f> PlaneThrough(const Eigen::Vector3f& a, const Eige
   return Eigen::Vector4f(unit.x(), unit.y(), unit.z(), -unit.dot(a));
 }
 
-// How many of the points (x[i], y[i], z[i]) lie within `distance` of `plane`.
+// Whether (x, y, z) lies closer than `distance` to `plane`: the one test of scoring and
+// of the final count, so that both see the same points on a plane.
+inline bool OnPlane(const Eigen::Vector4f& plane, float x, float y, float z, float distance) {
+  return std::fabs(plane[0] * x + plane[1] * y + plane[2] * z + plane[3]) < distance;
+}
+
+// How many of the points (x[i], y[i], z[i]) are on `plane`.
 size_t CountNear(const std::vector<float>& x, const std::vector<float>& y,
                  const std::vector<float>& z, const Eigen::Vector4f& plane, float distance) {
   size_t count = 0;
-  const float a = plane[0], b = plane[1], c = plane[2], d = plane[3];
-  for (size_t i = 0; i < x.size(); ++i) {
-    count += std::fabs(a * x[i] + b * y[i] + c * z[i] + d) < distance ? 1 : 0;
-  }
+  for (size_t i = 0; i < x.size(); ++i) count += OnPlane(plane, x[i], y[i], z[i], distance);
   return count;
 }
 
-// The points of `frame` at `ids` within `distance` of `plane`, in the order of `ids`.
+// The points of `frame` at `ids` on `plane`, in the order of `ids`.
 std::vector<uint32_t> PointsNear(const PointCloud& frame, const std::vector<uint32_t>& ids,
                                  const Eigen::Vector4f& plane, float distance) {
   std::vector<uint32_t> near;
   const float* xyz = frame.data();
   for (const uint32_t i : ids) {
     const float* p = xyz + 3 * static_cast<size_t>(i);
-    if (std::fabs(plane[0] * p[0] + plane[1] * p[1] + plane[2] * p[2] + plane[3]) < distance) {
-      near.push_back(i);
-    }
+    if (OnPlane(plane, p[0], p[1], p[2], distance)) near.push_back(i);
   }
   return near;
 }
@@ -216,7 +217,8 @@ absl::StatusOr<std::vector<std::vector<uint32_t>>> EuclideanClusters(
   if (cells.maxCoeff() >= static_cast<double>(kGridCells)) {
     return absl::InvalidArgumentError(
         absl::StrCat("the frame spans ", static_cast<int64_t>(cells.maxCoeff() * cell / tolerance),
-                     " cluster tolerances along one axis, more than ", kGridCells / 2,
+                     " cluster tolerances along one axis, more than the grid's ",
+                     static_cast<int64_t>(static_cast<double>(kGridCells) * cell / tolerance),
                      ": widen the cluster tolerance or set a region of interest"));
   }
   const double inverse = 1 / cell;

@@ -70,9 +70,9 @@ struct SceneSegmentation {
 // Removes up to max_planes planes and clusters the remaining points. Non-finite points are
 // skipped, never an error: depth cameras mark missing pixels with NaN. A frame with no
 // usable point, or whose every point lies on planes, gives no clusters (not an error).
-// Errors: InvalidArgument for options out of their ranges, or a frame more than 2^20
-// cluster tolerances across (it would not fit the grid: widen the tolerance or set a
-// region); more than 2^32 - 1 points.
+// Errors: InvalidArgument for options out of their ranges, a frame more than about 605,000
+// cluster tolerances across (2^20 grid cells of tolerance / sqrt(3): widen the tolerance or
+// set a region), or more than 2^32 - 2 points.
 absl::StatusOr<SceneSegmentation> SegmentScene(const PointCloud& frame,
                                                const SceneSegmentationOptions& options);
 
