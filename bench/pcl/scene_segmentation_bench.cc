@@ -343,39 +343,6 @@ double Iou(const std::vector<uint32_t>& a, const std::vector<uint32_t>& b) {
          static_cast<double>(a.size() + b.size() - common.size());
 }
 
-struct TruthScore {
-  int visible = 0;  // objects with at least min_cluster_points points
-  int found = 0;    // a cluster holds >= 50 % of the object's points
-  int alone = 0;    // ... and the object is >= 50 % of that cluster
-  int other = 0;    // clusters that are mostly not any one object (table, floor, a mix)
-};
-
-TruthScore Score(const tf::TabletopFrame& t, const Clusters& clusters) {
-  TruthScore s;
-  // counts[c][k]: points of object k in cluster c.
-  std::vector<std::vector<size_t>> counts(clusters.size(), std::vector<size_t>(t.objects.size()));
-  for (size_t c = 0; c < clusters.size(); ++c) {
-    for (const uint32_t i : clusters[c]) {
-      if (t.truth[i] >= 0) ++counts[c][static_cast<size_t>(t.truth[i])];
-    }
-    const size_t best = *std::max_element(counts[c].begin(), counts[c].end());
-    s.other += 2 * best < clusters[c].size() ? 1 : 0;
-  }
-  for (size_t k = 0; k < t.objects.size(); ++k) {
-    if (t.objects[k].points < kOptions.min_cluster_points) continue;
-    ++s.visible;
-    bool found = false, alone = false;
-    for (size_t c = 0; c < clusters.size(); ++c) {
-      if (2 * counts[c][k] < t.objects[k].points) continue;
-      found = true;
-      alone = alone || 2 * counts[c][k] >= clusters[c].size();
-    }
-    s.found += found ? 1 : 0;
-    s.alone += alone ? 1 : 0;
-  }
-  return s;
-}
-
 // Clusters of `a` identical to one of `b` (both with ascending indices), and the lowest IoU
 // of the others' best match in `b` (1 when all are identical).
 std::pair<int, double> Match(const Clusters& a, const Clusters& b) {
@@ -455,7 +422,10 @@ void PrintAgreement() {
         p_rest.emplace_back(c.indices.begin(), c.indices.end());
       }
       const int rest_same = Match(s_rest->clusters, Sorted(p_rest)).first;
-      const TruthScore ts = Score(f.frame, s->clusters), tp = Score(f.frame, p.clusters);
+      const tf::ClusterScore ts = tf::ScoreClusters(f.frame, s->clusters,
+                                                    kOptions.min_cluster_points),
+                             tp = tf::ScoreClusters(f.frame, p.clusters,
+                                                    kOptions.min_cluster_points);
       const auto pair = [](auto a, auto b) { return absl::StrCat(a, "/", b); };
       std::printf("%-24s %-14s %-14s %-11s %-13s %-7s %-5d %-6s %-10s %-7d %-9s %-9s %-9s\n",
                   f.name.c_str(), PlaneErrors(f.frame, s_planes).c_str(),

@@ -316,6 +316,43 @@ inline TabletopFrame MakeTabletopFrame(const TabletopFrameOptions& options) {
   return frame;
 }
 
+// How a segmentation's clusters (frame indices) meet the frame's objects.
+struct ClusterScore {
+  int visible = 0;  // objects with at least `min_points` points
+  int found = 0;    // a cluster holds >= 50 % of the object's points
+  int alone = 0;    // ... and the object is >= 50 % of that cluster
+  int other = 0;    // clusters that are mostly not any one object (table, floor, a mix)
+};
+inline ClusterScore ScoreClusters(const TabletopFrame& frame,
+                                  const std::vector<std::vector<uint32_t>>& clusters,
+                                  size_t min_points) {
+  ClusterScore score;
+  // counts[c][k]: points of object k in cluster c.
+  std::vector<std::vector<size_t>> counts(clusters.size(),
+                                          std::vector<size_t>(frame.objects.size()));
+  for (size_t c = 0; c < clusters.size(); ++c) {
+    for (const uint32_t i : clusters[c]) {
+      if (frame.truth[i] >= 0) ++counts[c][static_cast<size_t>(frame.truth[i])];
+    }
+    const size_t best =
+        counts[c].empty() ? 0 : *std::max_element(counts[c].begin(), counts[c].end());
+    score.other += 2 * best < clusters[c].size() ? 1 : 0;
+  }
+  for (size_t k = 0; k < frame.objects.size(); ++k) {
+    if (frame.objects[k].points < min_points) continue;
+    ++score.visible;
+    bool found = false, alone = false;
+    for (size_t c = 0; c < clusters.size(); ++c) {
+      if (2 * counts[c][k] < frame.objects[k].points) continue;
+      found = true;
+      alone = alone || 2 * counts[c][k] >= clusters[c].size();
+    }
+    score.found += found ? 1 : 0;
+    score.alone += alone ? 1 : 0;
+  }
+  return score;
+}
+
 }  // namespace shapeid::testing_frames
 
 #endif  // SHAPEID_CORE_TESTING_TABLETOP_FRAMES_H_
