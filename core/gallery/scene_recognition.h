@@ -5,6 +5,7 @@
 // gallery classifies each as the partial view it is.
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -12,6 +13,7 @@
 #include "absl/time/time.h"
 #include "core/gallery/gallery_snapshot.h"
 #include "core/point_cloud.h"
+#include "core/rigid_transform.h"
 #include "core/scene/scene_segmentation.h"
 
 namespace shapeid {
@@ -20,10 +22,16 @@ struct SceneRecognitionOptions {
   SceneSegmentationOptions segmentation;
   // Neighbours per object; 0: the gallery's k.
   int k = 0;
-  // Each object is turned so that the first removed plane's normal (pointing to the sensor's
-  // side: up, for a table seen from above) becomes the descriptor's up before it is
-  // described, as a caller's sensor frame would (core/rigid_transform.h). Off, or with no
-  // plane, objects are described in the frame's own axes.
+  // The caller's sensor frame (proto SensorFrame): the transform from the frame's
+  // coordinates into the gallery's. When set, each object is moved by it before it is
+  // described, and the up it implies (R^T times the descriptor's up) is the segmentation's
+  // `up` unless that is set: only supports perpendicular to it are removed. Segmentation,
+  // geometry and indices stay in the frame's own coordinates.
+  std::optional<RigidTransform> frame_to_gallery;
+  // Without a sensor frame: each object is turned so that the first removed plane's normal
+  // (pointing to the sensor's side: up, for a table seen from above) becomes the
+  // descriptor's up before it is described. Off, or with no plane, objects are described in
+  // the frame's own axes.
   bool up_from_plane = true;
   // Limits each object's cloud as Classify's limits do.
   CloudLimits limits;

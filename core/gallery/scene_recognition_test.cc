@@ -161,5 +161,45 @@ TEST(SceneRecognitionTest, TheTableGivesUp) {
   EXPECT_GT(largest_unturned_change, 0.05);
 }
 
+// The caller's sensor frame replaces the plane: the tilted frame with its transform back to
+// the table's axes gives the level frame's distances, and the geometry stays in the frame's
+// own coordinates.
+TEST(SceneRecognitionTest, ASensorFrameTurnsTheObjectsAndKeepsTheFramesCoordinates) {
+  const std::shared_ptr<Gallery> gallery = ShapesGallery(true);
+  std::vector<std::vector<uint32_t>> truth;
+  const PointCloud level = TableScene(&truth);
+  const Eigen::Matrix3f tilt =
+      Eigen::AngleAxisf(0.7f, Eigen::Vector3f(1, 0.3f, 0).normalized()).toRotationMatrix();
+  PointCloud tilted;
+  for (size_t i = 0; i < level.size(); ++i) tilted.Add(tilt * level.point(i));
+  SceneRecognitionOptions options;
+  RigidTransform back;
+  const Eigen::Matrix3f inverse = tilt.transpose();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) back.rotation[3 * r + c] = inverse(r, c);
+  }
+  options.frame_to_gallery = back;
+  options.up_from_plane = false;  // the frame, not the plane, gives up
+  const auto snapshot = gallery->Snapshot();
+  const absl::StatusOr<SceneRecognition> on_level = RecognizeScene(*snapshot, level, {});
+  const absl::StatusOr<SceneRecognition> turned = RecognizeScene(*snapshot, tilted, options);
+  ASSERT_TRUE(on_level.ok() && turned.ok());
+  ASSERT_EQ(turned->objects.size(), 3u);
+  ASSERT_EQ(turned->segmentation.planes.size(), 1u);
+  // The table's normal, in the tilted frame, along the frame's up (tilt times +z).
+  const Eigen::Vector3f up = tilt.col(2);
+  EXPECT_GT(turned->segmentation.planes[0].coefficients.head<3>().dot(up), 0.9999f);
+  for (size_t i = 0; i < 3; ++i) {
+    const double reference = on_level->objects[i].classification.knn.neighbors[0].distance;
+    EXPECT_NEAR(turned->objects[i].classification.knn.neighbors[0].distance, reference,
+                1e-3 * reference + 1e-6)
+        << "object " << i;
+    EXPECT_EQ(turned->objects[i].indices, on_level->objects[i].indices);
+    EXPECT_LT((turned->objects[i].geometry.centroid - tilt * on_level->objects[i].geometry.centroid)
+                  .norm(),
+              1e-4f);
+  }
+}
+
 }  // namespace
 }  // namespace shapeid

@@ -25,6 +25,7 @@ constexpr int kMaxPlaneIterations = 100000;
 // winner is refitted and recounted on every point.
 constexpr size_t kPlaneScoringPoints = 4096;
 constexpr double kPlaneConfidence = 0.999;
+constexpr double kRadiansPerDegree = 3.14159265358979323846 / 180;
 // Grid cells per axis for clustering: coordinates are packed 21 bits each into one key.
 constexpr int64_t kGridCells = int64_t{1} << 20;
 
@@ -52,6 +53,13 @@ absl::Status CheckOptions(const SceneSegmentationOptions& o) {
     return bad("cluster sizes [", o.min_cluster_points, ", ", o.max_cluster_points,
                "]: need 1 <= min <= max");
   }
+  if (o.up.has_value() && (!o.up->allFinite() || !(o.up->norm() > 0))) {
+    return bad("up is (", o.up->x(), ", ", o.up->y(), ", ", o.up->z(),
+               "); it must be finite and not zero");
+  }
+  if (!(o.max_plane_tilt_degrees > 0 && o.max_plane_tilt_degrees <= 90)) {
+    return bad("max_plane_tilt_degrees is ", o.max_plane_tilt_degrees, "; it must be in (0, 90]");
+  }
   if (o.region.has_value()) {
     const auto& r = *o.region;
     if (!r.min.allFinite() || !r.max.allFinite() || (r.min.array() > r.max.array()).any()) {
@@ -78,6 +86,14 @@ std::optional<Eigen::Vector4f> PlaneThrough(const Eigen::Vector3f& a, const Eige
 // of the final count, so that both see the same points on a plane.
 inline bool OnPlane(const Eigen::Vector4f& plane, float x, float y, float z, float distance) {
   return std::fabs(plane[0] * x + plane[1] * y + plane[2] * z + plane[3]) < distance;
+}
+
+// Whether `plane` may be a support: any plane, or one within the tilt of the caller's up.
+bool Upright(const Eigen::Vector4f& plane, const SceneSegmentationOptions& options) {
+  if (!options.up.has_value()) return true;
+  const double cosine =
+      std::fabs(plane.head<3>().cast<double>().dot(options.up->cast<double>().normalized()));
+  return cosine >= std::cos(options.max_plane_tilt_degrees * kRadiansPerDegree);
 }
 
 // How many of the points (x[i], y[i], z[i]) are on `plane`.
@@ -150,7 +166,7 @@ std::pair<Eigen::Vector4f, std::vector<uint32_t>> FindPlane(const PointCloud& fr
     if (a == b || b == c || a == c) continue;
     const std::optional<Eigen::Vector4f> plane =
         PlaneThrough(frame.point(scoring[a]), frame.point(scoring[b]), frame.point(scoring[c]));
-    if (!plane.has_value()) continue;
+    if (!plane.has_value() || !Upright(*plane, options)) continue;
     const size_t count = CountNear(x, y, z, *plane, options.plane_distance);
     if (count <= best_count) continue;
     best_count = count;
@@ -348,9 +364,12 @@ absl::StatusOr<SceneSegmentation> SegmentScene(const PointCloud& frame,
   SplitMix64 random(options.seed);
   for (int p = 0; p < options.max_planes && candidates.size() >= min_plane_points; ++p) {
     auto [plane, on_plane] = FindPlane(frame, candidates, options, random);
-    if (on_plane.size() < min_plane_points) break;
-    // The normal's sign: the frame's origin (the sensor, in its own frame) on the positive side.
-    if (plane[3] < 0) plane = -plane;
+    if (on_plane.size() < min_plane_points || !Upright(plane, options)) break;
+    // The normal's sign: up, else the frame's origin (the sensor, in its own frame) on the
+    // positive side.
+    if (options.up.has_value() ? plane.head<3>().dot(*options.up) < 0 : plane[3] < 0) {
+      plane = -plane;
+    }
     result.planes.push_back({plane, on_plane.size()});
     // Both lists ascend: keep the candidates not on the plane.
     std::vector<uint32_t> rest;

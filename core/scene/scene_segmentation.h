@@ -43,12 +43,21 @@ struct SceneSegmentationOptions {
     Eigen::Vector3f max;
   };
   std::optional<Box> region;
+  // Which way is up in the frame (any finite length > 0), when the caller knows it (a
+  // sensor's mounting, an IMU): only planes whose normal is within max_plane_tilt_degrees of
+  // it are removed, so a wall or a tall object's side is never taken for the support (PCL's
+  // SACMODEL_PERPENDICULAR_PLANE), and their normals point up. Unset: any plane, its normal
+  // towards the frame's origin.
+  std::optional<Eigen::Vector3f> up;
+  double max_plane_tilt_degrees = 15;  // in (0, 90]
   // Seeds RANSAC's draws: the same frame, options and seed give the same planes and clusters.
   uint64_t seed = 0;
 };
 
 // A removed plane: a x + b y + c z + d = 0 with (a, b, c) a unit normal, refitted by least
-// squares to its points (PCL's optimizeCoefficients).
+// squares to its points (PCL's optimizeCoefficients). The normal points up when `up` was
+// given, else to the frame's origin's side (d >= 0: the sensor's side, in a sensor's frame;
+// either side for a plane through the origin).
 struct ScenePlane {
   Eigen::Vector4f coefficients = Eigen::Vector4f::Zero();
   size_t points = 0;  // how many of the frame's points were removed with it

@@ -208,6 +208,45 @@ TEST(SceneSegmentationTest, RemovesAFloorAndAWallLargestFirst) {
   EXPECT_EQ(s->clusters[0], box);
 }
 
+// A wall larger than the floor: without up it is removed first; with up it is never a
+// support, and the floor's normal points up whatever side the origin is on.
+TEST(SceneSegmentationTest, WithUpOnlyLevelPlanesAreSupports) {
+  PointCloud frame;
+  AddFloor(frame, -0.5f, -0.5f, 0.5f, 0.0f, 1.0f, 0.01f);  // floor z = -0.5, 101 x 101
+  const size_t floor_points = frame.size();
+  for (float x = -1.0f; x <= 1.0f; x += 0.01f) {  // wall y = 1.05, 201 x 91
+    for (float z = -0.45f; z <= 0.45f; z += 0.01f) frame.Add(x, 1.05f, z);
+  }
+  const std::vector<uint32_t> box = AddBox(frame, {0, 0.5f, -0.45f}, {0.1f, 0.6f, -0.35f}, 0.005f);
+  SceneSegmentationOptions any_plane;
+  any_plane.max_planes = 1;
+  const absl::StatusOr<SceneSegmentation> wall_first = SegmentScene(frame, any_plane);
+  ASSERT_TRUE(wall_first.ok()) << wall_first.status();
+  ASSERT_EQ(wall_first->planes.size(), 1u);
+  EXPECT_NEAR(std::fabs(wall_first->planes[0].coefficients[1]), 1.0f, 1e-4f);
+
+  SceneSegmentationOptions level = any_plane;
+  level.max_planes = 2;
+  level.up = Eigen::Vector3f(0, 0.1f, -3);  // any length; 1.9 degrees from -z
+  level.max_plane_tilt_degrees = 5;
+  const absl::StatusOr<SceneSegmentation> s = SegmentScene(frame, level);
+  ASSERT_TRUE(s.ok()) << s.status();
+  ASSERT_EQ(s->planes.size(), 1u);  // the wall is no support
+  EXPECT_EQ(s->planes[0].points, floor_points);
+  EXPECT_NEAR(s->planes[0].coefficients[2], -1.0f, 1e-4f);  // along up, away from the origin
+  EXPECT_NEAR(s->planes[0].coefficients[3], -0.5f, 1e-4f);
+  // The wall is left to clustering, an object as far as the default size limits can tell.
+  ASSERT_EQ(s->clusters.size(), 2u);
+  EXPECT_EQ(s->clusters[1], box);
+
+  SceneSegmentationOptions bad = level;
+  bad.up = Eigen::Vector3f::Zero();
+  EXPECT_EQ(SegmentScene(frame, bad).status().code(), absl::StatusCode::kInvalidArgument);
+  bad = level;
+  bad.max_plane_tilt_degrees = 91;
+  EXPECT_EQ(SegmentScene(frame, bad).status().code(), absl::StatusCode::kInvalidArgument);
+}
+
 TEST(SceneSegmentationTest, SmallFlatFacesAreNotSupports) {
   PointCloud frame;
   const std::vector<uint32_t> box = AddBox(frame, {0, 0, 0}, {0.2f, 0.2f, 0.02f}, 0.005f);
