@@ -114,9 +114,10 @@ TEST(AuthorizationTest, EveryShapeIdMethodIsInTheScopeTable) {
   const google::protobuf::ServiceDescriptor* service =
       v1::DescribeRequest::descriptor()->file()->FindServiceByName("ShapeId");
   ASSERT_NE(service, nullptr);
-  const std::vector<std::string> read = {"Describe",        "DescribeCloud",  "Classify",
-                                         "ClassifyCloud",   "GetGallery",     "ListGalleries",
-                                         "ListDescriptors", "GetServerStats", "ListSamples"};
+  const std::vector<std::string> read = {"Describe",       "DescribeCloud",  "Classify",
+                                         "ClassifyCloud",  "RecognizeScene", "RecognizeSceneCloud",
+                                         "GetGallery",     "ListGalleries",  "ListDescriptors",
+                                         "GetServerStats", "ListSamples"};
   const std::vector<std::string> write = {"Train", "CreateGallery", "RemoveSamples",
                                           "ImportGallery", "ExportGallery"};
   for (int i = 0; i < service->method_count(); ++i) {
@@ -128,7 +129,7 @@ TEST(AuthorizationTest, EveryShapeIdMethodIsInTheScopeTable) {
     ASSERT_TRUE(RequiredScope(full).has_value()) << full;
     EXPECT_EQ(*RequiredScope(full), expected) << full;
   }
-  EXPECT_EQ(service->method_count(), 16) << "a new RPC: decide its scope in authorization.cc";
+  EXPECT_EQ(service->method_count(), 18) << "a new RPC: decide its scope in authorization.cc";
   EXPECT_FALSE(RequiredScope("/grpc.health.v1.Health/Check").has_value());
   EXPECT_FALSE(RequiredScope("/grpc.health.v1.Health/Watch").has_value());
   EXPECT_EQ(*RequiredScope("/shapeid.v1.ShapeId/Unknown"), Scope::kAdmin);

@@ -19,6 +19,8 @@ constexpr MethodScope kMethodScopes[] = {
     {"/shapeid.v1.ShapeId/DescribeCloud", Scope::kRead},
     {"/shapeid.v1.ShapeId/Classify", Scope::kRead},
     {"/shapeid.v1.ShapeId/ClassifyCloud", Scope::kRead},
+    {"/shapeid.v1.ShapeId/RecognizeScene", Scope::kRead},
+    {"/shapeid.v1.ShapeId/RecognizeSceneCloud", Scope::kRead},
     {"/shapeid.v1.ShapeId/GetGallery", Scope::kRead},
     {"/shapeid.v1.ShapeId/ListGalleries", Scope::kRead},
     {"/shapeid.v1.ShapeId/ListSamples", Scope::kRead},

@@ -16,12 +16,12 @@ namespace shapeid {
 inline constexpr absl::string_view kAuthorizationMetadata = "authorization";
 
 // The scope a call of `full_method` ("/shapeid.v1.ShapeId/Train") needs, from one table:
-//   read   Describe, DescribeCloud, Classify, ClassifyCloud, GetGallery, ListGalleries,
-//          ListDescriptors, GetServerStats
+//   read   Describe, DescribeCloud, Classify, ClassifyCloud, RecognizeScene,
+//          RecognizeSceneCloud, GetGallery, ListGalleries, ListSamples, ListDescriptors,
+//          GetServerStats
 //   write  Train, CreateGallery, RemoveSamples, ImportGallery, ExportGallery
-//   admin  DeleteGallery, SetLogLevel, and every method the table does not name (a new RPC is
-//   admin-only
-//          until someone decides otherwise)
+//   admin  DeleteGallery, SetLogLevel, and every method the table does not name (a new RPC
+//          is admin-only until someone decides otherwise)
 // nullopt: open to every caller, key or not: grpc.health.v1 (Kubernetes' gRPC probes cannot
 // send metadata).
 std::optional<Scope> RequiredScope(absl::string_view full_method);

@@ -13,6 +13,7 @@
 #include "core/descriptor_registry.h"
 #include "core/gallery/gallery.h"
 #include "core/gallery/gallery_registry.h"
+#include "core/gallery/scene_recognition.h"
 #include "core/status_macros.h"
 #include "server/cloud_assembler.h"
 #include "server/proto_convert.h"
@@ -129,6 +130,73 @@ Work ClassifyWork(std::shared_ptr<Gallery> gallery, const v1::ClassifyHeader& he
                               answer.describe_time);
     call.observer().Searched(call.record(), answer.knn.approximate, answer.search_time);
     ToProto(answer, received.size(), response);
+    return absl::OkStatus();
+  });
+}
+
+// What a SceneHeader asks for, checked before any point is read: the gallery exists and has
+// samples, and the layout, sensor frame and segmentation parameters are well formed.
+struct SceneCall {
+  std::shared_ptr<Gallery> gallery;
+  SceneRecognitionOptions options;
+  // The frame as sent: non-finite points kept (segmentation skips them) and no transform,
+  // so that indices count every point sent and answers are in the frame's coordinates.
+  WireCloudFormat format;
+  bool return_indices = false;
+};
+
+absl::StatusOr<SceneCall> SceneCallOf(const GalleryRegistry& registry,
+                                      const v1::SceneHeader& header) {
+  SHAPEID_RETURN_IF_ERROR(RequireGalleryName("RecognizeScene", header.gallery()));
+  SceneCall scene;
+  SHAPEID_ASSIGN_OR_RETURN(scene.gallery, registry.Get(header.gallery()));
+  const std::shared_ptr<const GallerySnapshot> snapshot = scene.gallery->Snapshot();
+  if (snapshot->empty()) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("gallery '", scene.gallery->name(),
+                     "' has no samples; train it before recognising scenes"));
+  }
+  SHAPEID_ASSIGN_OR_RETURN(scene.format.layout, FromProto(header.layout()));
+  scene.format.layout.drop_nonfinite = false;
+  const v1::SensorFrame& frame = header.sensor_frame();
+  if (!frame.transform().empty() || !frame.up().empty()) {
+    const Descriptor* descriptor = snapshot->shared_descriptor().get();
+    SHAPEID_ASSIGN_OR_RETURN(
+        scene.options.frame_to_gallery,
+        FromProto(frame, descriptor != nullptr ? descriptor->up_direction()
+                                               : std::array<float, 3>{0, 0, 1}));
+  }
+  scene.options.segmentation =
+      FromProto(header.segmentation(), header.has_region() ? &header.region() : nullptr);
+  if (absl::Status s = ValidateSceneSegmentationOptions(scene.options.segmentation); !s.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat("RecognizeScene: ", s.message()));
+  }
+  scene.options.k = static_cast<int>(std::min<uint32_t>(header.k(), 1 << 20));
+  scene.options.mode = header.exact() ? SearchMode::kExact : SearchMode::kDefault;
+  scene.options.limits = scene.gallery->limits().cloud_limits();
+  scene.return_indices = header.return_indices();
+  return scene;
+}
+
+// Segments the frame `cloud` gives and classifies its objects against the snapshot the
+// gallery has when the work starts.
+Work SceneWork(SceneCall scene, size_t points, std::function<absl::StatusOr<PointCloud>()> cloud,
+               AdmittedCall& call, v1::RecognizeSceneResponse* response) {
+  const WorkEstimate cost = EstimateScene(*scene.gallery->Snapshot(), points,
+                                          scene.options.segmentation.min_cluster_points);
+  return Work::Compute(cost.cpu, cost.memory, [scene = std::move(scene), cloud, &call, response] {
+    SHAPEID_ASSIGN_OR_RETURN(const PointCloud frame, cloud());
+    const std::shared_ptr<const GallerySnapshot> snapshot = scene.gallery->Snapshot();
+    SHAPEID_ASSIGN_OR_RETURN(const SceneRecognition recognised,
+                             RecognizeScene(*snapshot, frame, scene.options));
+    const std::string& kind = snapshot->shared_descriptor()->spec().kind;
+    for (const RecognizedObject& object : recognised.objects) {
+      if (!object.status.ok()) continue;
+      call.observer().Described(call.record(), kind, object.classification.describe_time);
+      call.observer().Searched(call.record(), object.classification.knn.approximate,
+                               object.classification.search_time);
+    }
+    ToProto(recognised, frame.size(), scene.return_indices, response);
     return absl::OkStatus();
   });
 }
@@ -382,6 +450,59 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest, v1::Clas
   v1::ClassifyHeader header_;
 };
 
+class SceneReactor final
+    : public StreamReactor<v1::RecognizeSceneRequest, v1::RecognizeSceneResponse> {
+ public:
+  SceneReactor(grpc::CallbackServerContext* context, const ServiceRuntime& runtime,
+               grpc::ByteBuffer* response)
+      : StreamReactor(context, runtime, SHAPEID_METHOD(RecognizeScene), response),
+        runtime_(runtime),
+        assembler_(runtime.registry->limits().max_points_per_cloud, runtime.budget,
+                   call().caller()) {
+    StartReading();
+  }
+
+ private:
+  absl::StatusOr<std::optional<Work>> OnMessage(const v1::RecognizeSceneRequest& request) override {
+    switch (request.kind_case()) {
+      case v1::RecognizeSceneRequest::kHeader: {
+        if (scene_.has_value()) {
+          return absl::InvalidArgumentError("RecognizeScene: a second SceneHeader");
+        }
+        call().record().gallery = request.header().gallery();
+        SHAPEID_ASSIGN_OR_RETURN(scene_, SceneCallOf(*runtime_.registry, request.header()));
+        SHAPEID_RETURN_IF_ERROR(
+            assembler_.Start(request.header().expected_points(), scene_->format));
+        return std::nullopt;
+      }
+      case v1::RecognizeSceneRequest::kPoints:
+        if (!scene_.has_value()) {
+          return absl::InvalidArgumentError(
+              "RecognizeScene: the first message must be a SceneHeader; points came first");
+        }
+        SHAPEID_RETURN_IF_ERROR(assembler_.Append(request.points().xyz()));
+        call().record().points = static_cast<int64_t>(assembler_.points_received());
+        return std::nullopt;
+      case v1::RecognizeSceneRequest::KIND_NOT_SET:
+        break;
+    }
+    return absl::InvalidArgumentError("RecognizeScene: a message with neither header nor points");
+  }
+
+  absl::StatusOr<Work> OnEnd() override {
+    if (!scene_.has_value()) {
+      return absl::InvalidArgumentError("RecognizeScene: the stream ended without a SceneHeader");
+    }
+    return SceneWork(
+        *std::move(scene_), assembler_.points(), [this] { return assembler_.Finish(); }, call(),
+        response());
+  }
+
+  const ServiceRuntime runtime_;
+  CloudAssembler assembler_;
+  std::optional<SceneCall> scene_;
+};
+
 }  // namespace
 
 grpc::ServerReadReactor<grpc::ByteBuffer>* StartDescribe(grpc::CallbackServerContext* context,
@@ -400,6 +521,12 @@ grpc::ServerReadReactor<grpc::ByteBuffer>* StartClassify(grpc::CallbackServerCon
                                                          const ServiceRuntime& runtime,
                                                          grpc::ByteBuffer* response) {
   return new ClassifyReactor(context, runtime, response);
+}
+
+grpc::ServerReadReactor<grpc::ByteBuffer>* StartRecognizeScene(grpc::CallbackServerContext* context,
+                                                               const ServiceRuntime& runtime,
+                                                               grpc::ByteBuffer* response) {
+  return new SceneReactor(context, runtime, response);
 }
 
 absl::StatusOr<Work> DescribeCloud(const ServiceRuntime& runtime,
@@ -436,6 +563,25 @@ absl::StatusOr<Work> ClassifyCloud(const ServiceRuntime& runtime,
   call.record().points = PointsIn(request.points().xyz(), format);
   return ClassifyWork(
       gallery, request.header(), static_cast<size_t>(call.record().points),
+      [&runtime, &request, format = std::move(format)] {
+        return CloudInOneMessage(runtime, request.header().expected_points(), format,
+                                 request.points().xyz());
+      },
+      call, response);
+}
+
+absl::StatusOr<Work> RecognizeSceneCloud(const ServiceRuntime& runtime,
+                                         const v1::RecognizeSceneCloudRequest& request,
+                                         v1::RecognizeSceneResponse* response, AdmittedCall& call) {
+  call.record().gallery = request.header().gallery();
+  if (!request.has_header()) {
+    return absl::InvalidArgumentError("RecognizeSceneCloud: the request has no header");
+  }
+  SHAPEID_ASSIGN_OR_RETURN(SceneCall scene, SceneCallOf(*runtime.registry, request.header()));
+  call.record().points = PointsIn(request.points().xyz(), scene.format);
+  WireCloudFormat format = scene.format;
+  return SceneWork(
+      std::move(scene), static_cast<size_t>(call.record().points),
       [&runtime, &request, format = std::move(format)] {
         return CloudInOneMessage(runtime, request.header().expected_points(), format,
                                  request.points().xyz());

@@ -1,10 +1,10 @@
 #ifndef SHAPEID_SERVER_CLOUD_CALLS_H_
 #define SHAPEID_SERVER_CLOUD_CALLS_H_
 
-// The calls that bring clouds: Describe, Train and Classify (client streams) and
-// DescribeCloud and ClassifyCloud (one message). Each checks its header on gRPC's thread and
-// hands describing, searching and committing to the scheduler with their estimated costs
-// (server/work_costs.h).
+// The calls that bring clouds: Describe, Train, Classify and RecognizeScene (client streams)
+// and DescribeCloud, ClassifyCloud and RecognizeSceneCloud (one message). Each checks its header on
+// gRPC's thread and hands describing, searching and committing to the scheduler with their
+// estimated costs (server/work_costs.h).
 
 #include "absl/status/statusor.h"
 #include "grpcpp/grpcpp.h"
@@ -24,6 +24,10 @@ grpc::ServerReadReactor<grpc::ByteBuffer>* StartTrain(grpc::CallbackServerContex
 grpc::ServerReadReactor<grpc::ByteBuffer>* StartClassify(grpc::CallbackServerContext* context,
                                                          const ServiceRuntime& runtime,
                                                          grpc::ByteBuffer* response);
+// v1::RecognizeSceneRequest in, v1::RecognizeSceneResponse out.
+grpc::ServerReadReactor<grpc::ByteBuffer>* StartRecognizeScene(grpc::CallbackServerContext* context,
+                                                               const ServiceRuntime& runtime,
+                                                               grpc::ByteBuffer* response);
 
 // The one-message calls' handlers (server/unary_call.h): the same checks and answers as the
 // streams'.
@@ -33,6 +37,9 @@ absl::StatusOr<Work> DescribeCloud(const ServiceRuntime& runtime,
 absl::StatusOr<Work> ClassifyCloud(const ServiceRuntime& runtime,
                                    const v1::ClassifyCloudRequest& request,
                                    v1::ClassifyResponse* response, AdmittedCall& call);
+absl::StatusOr<Work> RecognizeSceneCloud(const ServiceRuntime& runtime,
+                                         const v1::RecognizeSceneCloudRequest& request,
+                                         v1::RecognizeSceneResponse* response, AdmittedCall& call);
 
 }  // namespace shapeid
 

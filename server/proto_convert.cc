@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <memory>
+#include <string>
 
+#include "Eigen/Geometry"
 #include "absl/strings/str_cat.h"
 #include "core/status_macros.h"
 
@@ -284,6 +286,82 @@ void ToProto(const GalleryClassification& answer, size_t num_points, v1::Classif
   ToProto(answer.describe_time, out->mutable_describe_time());
   ToProto(answer.search_time, out->mutable_search_time());
   out->set_approximate(answer.knn.approximate);
+}
+
+namespace {
+
+int ClampToInt(uint32_t value) { return static_cast<int>(std::min<uint32_t>(value, 1 << 20)); }
+
+void ToProto(const Eigen::Vector3f& v, v1::Vector3* out) {
+  out->set_x(v.x());
+  out->set_y(v.y());
+  out->set_z(v.z());
+}
+
+Eigen::Vector3f FromProto(const v1::Vector3& v) {
+  return Eigen::Vector3d(v.x(), v.y(), v.z()).cast<float>();
+}
+
+}  // namespace
+
+SceneSegmentationOptions FromProto(const v1::SceneSegmentation& segmentation,
+                                   const v1::AxisAlignedBox* region) {
+  SceneSegmentationOptions out;
+  if (segmentation.has_max_planes()) out.max_planes = ClampToInt(segmentation.max_planes());
+  if (segmentation.has_plane_distance()) out.plane_distance = segmentation.plane_distance();
+  if (segmentation.has_min_plane_share()) out.min_plane_share = segmentation.min_plane_share();
+  if (segmentation.has_plane_iterations()) {
+    out.plane_iterations = ClampToInt(segmentation.plane_iterations());
+  }
+  if (segmentation.has_cluster_tolerance()) {
+    out.cluster_tolerance = segmentation.cluster_tolerance();
+  }
+  if (segmentation.has_min_cluster_points()) {
+    out.min_cluster_points = static_cast<size_t>(segmentation.min_cluster_points());
+  }
+  if (segmentation.has_max_cluster_points()) {
+    out.max_cluster_points = static_cast<size_t>(segmentation.max_cluster_points());
+  }
+  if (segmentation.has_max_plane_tilt_degrees()) {
+    out.max_plane_tilt_degrees = segmentation.max_plane_tilt_degrees();
+  }
+  out.seed = segmentation.seed();
+  if (region != nullptr) {
+    out.region = SceneSegmentationOptions::Box{FromProto(region->min()), FromProto(region->max())};
+  }
+  return out;
+}
+
+void ToProto(const SceneRecognition& scene, size_t num_points, bool with_indices,
+             v1::RecognizeSceneResponse* out) {
+  for (const RecognizedObject& object : scene.objects) {
+    v1::SceneObject* found = out->add_objects();
+    ToProto(object.classification, object.indices.size(), found->mutable_classification());
+    ToProto(object.geometry.centroid, found->mutable_centroid());
+    v1::OrientedBox* box = found->mutable_box();
+    ToProto(object.geometry.box.center, box->mutable_center());
+    const Eigen::Quaternionf rotation(object.geometry.box.axes);
+    box->mutable_orientation()->set_x(rotation.x());
+    box->mutable_orientation()->set_y(rotation.y());
+    box->mutable_orientation()->set_z(rotation.z());
+    box->mutable_orientation()->set_w(rotation.w());
+    ToProto(object.geometry.box.size, box->mutable_size());
+    if (with_indices)
+      found->mutable_indices()->Assign(object.indices.begin(), object.indices.end());
+    if (!object.status.ok()) found->set_error(std::string(object.status.message()));
+  }
+  for (const ScenePlane& plane : scene.segmentation.planes) {
+    v1::ScenePlane* removed = out->add_planes();
+    for (int i = 0; i < 4; ++i) removed->add_coefficients(plane.coefficients[i]);
+    removed->set_num_points(plane.points);
+  }
+  out->set_num_points(num_points);
+  out->set_non_finite_points(scene.segmentation.non_finite_points);
+  out->set_outside_region(scene.segmentation.outside_region);
+  out->set_in_small_clusters(scene.segmentation.in_small_clusters);
+  out->set_in_large_clusters(scene.segmentation.in_large_clusters);
+  ToProto(scene.segment_time, out->mutable_segment_time());
+  ToProto(scene.classify_time, out->mutable_classify_time());
 }
 
 absl::Status ToProto(absl::Span<const DescriptorKind> kinds, v1::ListDescriptorsResponse* out) {

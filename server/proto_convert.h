@@ -10,6 +10,7 @@
 #include "core/gallery/gallery_metadata.h"
 #include "core/gallery/gallery_options.h"
 #include "core/gallery/gallery_snapshot.h"
+#include "core/gallery/scene_recognition.h"
 #include "core/knn/knn_options.h"
 #include "server/cloud_assembler.h"
 #include "shapeid/v1/shapeid.pb.h"
@@ -58,6 +59,15 @@ absl::Status ToProto(absl::Span<const DescriptorKind> kinds, v1::ListDescriptors
 void ToProto(const GalleryClassification& answer, size_t num_points, v1::ClassifyResponse* out);
 // A trained sample's provenance from a SampleHeader, metadata in the map's order (neither
 // sorted nor validated: TrainBatch::AddSample does both).
+// A SceneHeader's segmentation parameters and region of interest over the defaults (unset
+// fields keep them). Ranges are SegmentScene's to check, naming the field; here only the
+// conversion: counts too large for an int are clamped so that the check names them.
+SceneSegmentationOptions FromProto(const v1::SceneSegmentation& segmentation,
+                                   const v1::AxisAlignedBox* region);
+// A recognised frame of `num_points` points; each object's indices only `with_indices`.
+void ToProto(const SceneRecognition& scene, size_t num_points, bool with_indices,
+             v1::RecognizeSceneResponse* out);
+
 SampleProvenance ProvenanceFromProto(const v1::SampleHeader& sample);
 void ToProto(const SampleInfo& sample, v1::SampleInfo* out);
 

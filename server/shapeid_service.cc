@@ -69,6 +69,11 @@ grpc::ServerReadReactor<grpc::ByteBuffer>* ShapeIdService::Classify(
   return StartClassify(context, runtime_, response);
 }
 
+grpc::ServerReadReactor<grpc::ByteBuffer>* ShapeIdService::RecognizeScene(
+    grpc::CallbackServerContext* context, grpc::ByteBuffer* response) {
+  return StartRecognizeScene(context, runtime_, response);
+}
+
 grpc::ServerUnaryReactor* ShapeIdService::DescribeCloud(grpc::CallbackServerContext* context,
                                                         const grpc::ByteBuffer* raw_request,
                                                         grpc::ByteBuffer* raw_response) {
@@ -90,6 +95,18 @@ grpc::ServerUnaryReactor* ShapeIdService::ClassifyCloud(grpc::CallbackServerCont
       [this](const v1::ClassifyCloudRequest& request, v1::ClassifyResponse* response,
              AdmittedCall& call) {
         return shapeid::ClassifyCloud(runtime_, request, response, call);
+      });
+}
+
+grpc::ServerUnaryReactor* ShapeIdService::RecognizeSceneCloud(grpc::CallbackServerContext* context,
+                                                              const grpc::ByteBuffer* raw_request,
+                                                              grpc::ByteBuffer* raw_response) {
+  return RunUnary<v1::RecognizeSceneCloudRequest, v1::RecognizeSceneResponse>(
+      context, runtime_, SHAPEID_METHOD(RecognizeSceneCloud), CallGate::Kind::kUnary, raw_request,
+      raw_response,
+      [this](const v1::RecognizeSceneCloudRequest& request, v1::RecognizeSceneResponse* response,
+             AdmittedCall& call) {
+        return shapeid::RecognizeSceneCloud(runtime_, request, response, call);
       });
 }
 

@@ -22,21 +22,24 @@ namespace shapeid {
 // the stream, and a unary request that does not parse as UNIMPLEMENTED; shapeid answers both
 // INVALID_ARGUMENT and keeps nothing of the call. ExportGallery stays typed (its request is a
 // name).
-using ShapeIdRawService =
-    v1::ShapeId::WithRawCallbackMethod_Describe<v1::ShapeId::WithRawCallbackMethod_DescribeCloud<
-        v1::ShapeId::WithRawCallbackMethod_Train<v1::ShapeId::WithRawCallbackMethod_Classify<
-            v1::ShapeId::WithRawCallbackMethod_ClassifyCloud<
-                v1::ShapeId::WithRawCallbackMethod_CreateGallery<
-                    v1::ShapeId::WithRawCallbackMethod_GetGallery<
-                        v1::ShapeId::WithRawCallbackMethod_ListGalleries<
-                            v1::ShapeId::WithRawCallbackMethod_DeleteGallery<
-                                v1::ShapeId::WithRawCallbackMethod_RemoveSamples<
-                                    v1::ShapeId::WithRawCallbackMethod_ListSamples<
-                                        v1::ShapeId::WithRawCallbackMethod_ImportGallery<
-                                            v1::ShapeId::WithRawCallbackMethod_ListDescriptors<
-                                                v1::ShapeId::WithRawCallbackMethod_GetServerStats<
-                                                    v1::ShapeId::WithRawCallbackMethod_SetLogLevel<
-                                                        v1::ShapeId::CallbackService>>>>>>>>>>>>>>>;
+using ShapeIdRawService = v1::ShapeId::WithRawCallbackMethod_Describe<
+    v1::ShapeId::WithRawCallbackMethod_DescribeCloud<v1::ShapeId::WithRawCallbackMethod_Train<
+        v1::ShapeId::WithRawCallbackMethod_Classify<v1::ShapeId::WithRawCallbackMethod_ClassifyCloud<
+            v1::ShapeId::WithRawCallbackMethod_RecognizeScene<
+                v1::ShapeId::WithRawCallbackMethod_RecognizeSceneCloud<
+                    v1::ShapeId::WithRawCallbackMethod_CreateGallery<
+                        v1::ShapeId::WithRawCallbackMethod_GetGallery<
+                            v1::ShapeId::WithRawCallbackMethod_ListGalleries<
+                                v1::ShapeId::WithRawCallbackMethod_DeleteGallery<
+                                    v1::ShapeId::WithRawCallbackMethod_RemoveSamples<
+                                        v1::ShapeId::WithRawCallbackMethod_ListSamples<
+                                            v1::ShapeId::WithRawCallbackMethod_ImportGallery<
+                                                v1::ShapeId::WithRawCallbackMethod_ListDescriptors<
+                                                    v1::ShapeId::WithRawCallbackMethod_GetServerStats<
+                                                        v1::ShapeId::
+                                                            WithRawCallbackMethod_SetLogLevel<
+                                                                v1::ShapeId::
+                                                                    CallbackService>>>>>>>>>>>>>>>>>;
 
 // The gRPC edge of shapeid: each method turns its messages into calls on core/ (descriptors,
 // the gallery registry) and the result into one status (server/grpc_status.h). All state
@@ -70,6 +73,8 @@ class ShapeIdService final : public ShapeIdRawService {
                                                    grpc::ByteBuffer* response) override;
   grpc::ServerReadReactor<grpc::ByteBuffer>* Classify(grpc::CallbackServerContext* context,
                                                       grpc::ByteBuffer* response) override;
+  grpc::ServerReadReactor<grpc::ByteBuffer>* RecognizeScene(grpc::CallbackServerContext* context,
+                                                            grpc::ByteBuffer* response) override;
   // Unary calls: the request and response types of the proto, as bytes.
   grpc::ServerUnaryReactor* DescribeCloud(grpc::CallbackServerContext* context,
                                           const grpc::ByteBuffer* raw_request,
@@ -77,6 +82,9 @@ class ShapeIdService final : public ShapeIdRawService {
   grpc::ServerUnaryReactor* ClassifyCloud(grpc::CallbackServerContext* context,
                                           const grpc::ByteBuffer* raw_request,
                                           grpc::ByteBuffer* raw_response) override;
+  grpc::ServerUnaryReactor* RecognizeSceneCloud(grpc::CallbackServerContext* context,
+                                                const grpc::ByteBuffer* raw_request,
+                                                grpc::ByteBuffer* raw_response) override;
 
   grpc::ServerUnaryReactor* CreateGallery(grpc::CallbackServerContext* context,
                                           const grpc::ByteBuffer* raw_request,

@@ -17,6 +17,12 @@ constexpr double kCommitSecondsPerFloat = 4e-9;
 // An append's fixed part: the index's last block (at most 2 MiB) and a chunk of each table
 // copied (bench/commit_bench: one sample into 10^6 x 240 in 0.2 ms), rounded up.
 constexpr double kAppendFixedSeconds = 0.5e-3;
+// Scene segmentation per frame point, planes and clusters (bench/pcl/scene_segmentation_bench:
+// 13-15 ms for a 307,000-point frame), rounded up; and its working memory per point (the
+// candidate and cluster index lists, the grid, each object's copy).
+constexpr double kSegmentSecondsPerPoint = 60e-9;
+constexpr size_t kSegmentBytesPerPoint = 40;
+constexpr size_t kMaxCountedObjects = 64;
 // The sensor simulator's cost per input point for one synthetic view
 // (core/views/scan_simulator_bench), rounded up.
 constexpr double kViewSecondsPerPoint = 100e-9;
@@ -49,6 +55,22 @@ WorkEstimate EstimateClassify(const GallerySnapshot& snapshot, size_t points) {
   const double floats =
       static_cast<double>(snapshot.index().num_rows()) * snapshot.dimension() * kQueryVectors;
   estimate.cpu += absl::Seconds(kSearchSecondsPerFloat * floats);
+  return estimate;
+}
+
+WorkEstimate EstimateScene(const GallerySnapshot& snapshot, size_t points,
+                           size_t min_object_points) {
+  WorkEstimate estimate;
+  if (const std::shared_ptr<const Descriptor>& descriptor = snapshot.shared_descriptor()) {
+    estimate = EstimateDescribe(*descriptor, points);
+  }
+  const size_t objects =
+      std::min(kMaxCountedObjects, points / std::max<size_t>(min_object_points, 1));
+  const double floats = static_cast<double>(snapshot.index().num_rows()) * snapshot.dimension() *
+                        kQueryVectors * static_cast<double>(objects);
+  estimate.cpu += absl::Seconds(kSearchSecondsPerFloat * floats +
+                                kSegmentSecondsPerPoint * static_cast<double>(points));
+  estimate.memory += kSegmentBytesPerPoint * points;
   return estimate;
 }
 

@@ -59,7 +59,7 @@ absl::StatusOr<SceneRecognition> RecognizeScene(const GallerySnapshot& gallery,
     for (const uint32_t i : object.indices) cloud.Add(frame.point(i));
     if (!turn.is_identity()) ApplyRigidTransform(turn, cloud.data(), cloud.size());
     absl::StatusOr<GalleryClassification> answer =
-        gallery.Classify(cloud, options.limits, options.k);
+        gallery.Classify(cloud, options.limits, options.k, options.mode);
     if (answer.ok()) {
       object.classification = std::move(answer).value();
     } else {

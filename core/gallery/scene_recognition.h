@@ -22,6 +22,7 @@ struct SceneRecognitionOptions {
   SceneSegmentationOptions segmentation;
   // Neighbours per object; 0: the gallery's k.
   int k = 0;
+  SearchMode mode = SearchMode::kDefault;
   // The caller's sensor frame (proto SensorFrame): the transform from the frame's
   // coordinates into the gallery's. When set, each object is moved by it before it is
   // described, and the up it implies (R^T times the descriptor's up) is the segmentation's

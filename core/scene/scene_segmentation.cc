@@ -337,6 +337,10 @@ absl::StatusOr<std::vector<std::vector<uint32_t>>> EuclideanClusters(
 
 }  // namespace
 
+absl::Status ValidateSceneSegmentationOptions(const SceneSegmentationOptions& options) {
+  return CheckOptions(options);
+}
+
 absl::StatusOr<SceneSegmentation> SegmentScene(const PointCloud& frame,
                                                const SceneSegmentationOptions& options) {
   if (absl::Status s = CheckOptions(options); !s.ok()) return s;

@@ -84,6 +84,9 @@ struct SceneSegmentation {
 // set a region), or more than 2^32 - 2 points.
 absl::StatusOr<SceneSegmentation> SegmentScene(const PointCloud& frame,
                                                const SceneSegmentationOptions& options);
+// SegmentScene's check of its options alone (InvalidArgument naming the field), for callers
+// that refuse bad options before they have a frame.
+absl::Status ValidateSceneSegmentationOptions(const SceneSegmentationOptions& options);
 
 // The smallest box along the principal axes of `indices`' points (their covariance's
 // eigenvectors; extents from the points' projections).
