@@ -1,19 +1,18 @@
 // Issue 29's speed goal: a 300,000-point frame segmented and all its objects classified in
 // under 100 ms on one core. RecognizeScene (core/gallery/scene_recognition.h) on ray-cast
 // tabletop frames (core/testing/tabletop_frames.h, 640 x 480, 3-10 objects), one thread,
-// with the segmentation and the classification reported apart. The gallery holds views of the
-// same three primitives (spheres, boxes, cylinders) cut from frames of other seeds: this bench
-// times the work, it is not an accuracy figure. PCL's chain beside the segmentation:
+// with the segmentation and the classification reported apart (bench/tabletop_gallery.h: a
+// timing gallery, not an accuracy figure). PCL's chain beside the whole call:
 // bench/pcl/scene_segmentation_bench. Figures: docs/performance.md.
 //   build/release/bench/scene_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only
 
-#include <cstdlib>
 #include <map>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "bench/tabletop_gallery.h"
 #include "benchmark/benchmark.h"
 #include "core/gallery/gallery.h"
 #include "core/gallery/scene_recognition.h"
@@ -26,39 +25,11 @@ using testing_frames::MakeTabletopFrame;
 using testing_frames::TabletopFrame;
 using testing_frames::TabletopFrameOptions;
 
-constexpr const char* kKindNames[] = {"sphere", "box", "cylinder"};
-
-// Each object of frames seeded 1000 on, as a training sample labelled with its kind.
-std::shared_ptr<Gallery> PrimitivesGallery(const std::string& spec) {
-  GalleryOptions options;
-  options.descriptor_spec = spec;
-  std::shared_ptr<Gallery> gallery = Gallery::Create("primitives", options, {}, nullptr).value();
-  TrainBatch batch = gallery->NewBatch();
-  uint64_t id = 1;
-  for (uint64_t seed = 1000; seed < 1012; ++seed) {
-    TabletopFrameOptions frame_options;
-    frame_options.seed = seed;
-    frame_options.objects = 6;
-    const TabletopFrame frame = MakeTabletopFrame(frame_options);
-    for (size_t o = 0; o < frame.objects.size(); ++o) {
-      if (frame.objects[o].points < 200) continue;
-      PointCloud cloud;
-      for (size_t i = 0; i < frame.cloud.size(); ++i) {
-        if (frame.truth[i] == static_cast<int32_t>(o)) cloud.Add(frame.cloud.point(i));
-      }
-      const std::string label = kKindNames[static_cast<int>(frame.objects[o].kind)];
-      if (!batch.AddSample(id++, label, cloud).ok()) std::abort();
-    }
-  }
-  if (!batch.Commit().ok()) std::abort();
-  return gallery;
-}
-
 void BM_RecognizeScene(benchmark::State& state, const std::string& spec) {
   static std::map<std::string, std::shared_ptr<Gallery>>& galleries =
       *new std::map<std::string, std::shared_ptr<Gallery>>();  // built once per spec
   std::shared_ptr<Gallery>& gallery = galleries[spec];
-  if (gallery == nullptr) gallery = PrimitivesGallery(spec);
+  if (gallery == nullptr) gallery = bench::TabletopPrimitivesGallery(spec);
   const int objects = static_cast<int>(state.range(0));
   TabletopFrameOptions frame_options;
   frame_options.objects = objects;

@@ -13,7 +13,9 @@
 //   point's frame index (one pass per plane) is timed too: shapeid returns frame indices.
 // Both use the same settings (kOptions), including the rule that stops plane removal: a
 // plane must hold min_plane_share of the finite points.
-// The `clusters_only` rows time the clustering alone, on the points PCL's planes left.
+// The `clusters_only` rows time the clustering alone, on the points PCL's planes left. The
+// `recognize_scene` and `chain_then_classify` rows add classifying every object found against
+// one gallery: issue 29's whole speed goal (a frame in, every object labelled).
 // Not timed: making the frames and converting them to pcl::PointCloud (once, at start-up).
 
 #include <algorithm>
@@ -31,7 +33,9 @@
 
 #include "absl/strings/str_cat.h"
 #include "bench/host_info.h"
+#include "bench/tabletop_gallery.h"
 #include "benchmark/benchmark.h"
+#include "core/gallery/scene_recognition.h"
 #include "core/point_cloud.h"
 #include "core/scene/scene_segmentation.h"
 #include "core/testing/tabletop_frames.h"
@@ -231,6 +235,82 @@ void BM_Pcl(benchmark::State& state, const FrameSet* set) {
   state.counters["nan_s"] = stage[0] / frames;
   state.counters["planes_s"] = stage[1] / frames;
   state.counters["clusters_s"] = stage[2] / frames;
+}
+
+// The whole of issue 29's speed goal, a frame segmented and every object classified, against
+// the same gallery (bench/tabletop_gallery.h, DFSD): shapeid's RecognizeScene, and PCL's chain
+// followed by the same classification of PCL's clusters (ClassifySceneObjects, turned by
+// PCL's first plane as RecognizeScene turns by its own).
+const GallerySnapshot& TimingGallery() {
+  static const std::shared_ptr<const GallerySnapshot> snapshot =
+      bench::TabletopPrimitivesGallery("dfsd")->Snapshot();
+  return *snapshot;
+}
+
+SceneRecognitionOptions RecognitionOptions() {
+  SceneRecognitionOptions options;
+  options.segmentation = kOptions;
+  return options;
+}
+
+void RecognitionCounters(benchmark::State& state, const FrameSet& set, double classify_seconds,
+                         size_t objects) {
+  const double frames = static_cast<double>(state.iterations()) * set.frames.size();
+  state.counters["classify_ms"] = 1e3 * classify_seconds / frames;
+  state.counters["objects"] = static_cast<double>(objects) / set.frames.size();
+}
+
+void BM_ShapeidRecognize(benchmark::State& state, const FrameSet* set) {
+  const GallerySnapshot& gallery = TimingGallery();
+  const SceneRecognitionOptions options = RecognitionOptions();
+  size_t points = 0;
+  for (const Frame& f : set->frames) points += f.frame.cloud.size();
+  double classify = 0;
+  size_t objects = 0;
+  for (auto _ : state) {
+    objects = 0;
+    for (const Frame& f : set->frames) {
+      absl::StatusOr<SceneRecognition> scene = RecognizeScene(gallery, f.frame.cloud, options);
+      if (!scene.ok()) {
+        state.SkipWithError(std::string(scene.status().message()).c_str());
+        return;
+      }
+      classify += absl::ToDoubleSeconds(scene->classify_time);
+      objects += scene->objects.size();
+    }
+  }
+  Finish(state, *set, points);
+  RecognitionCounters(state, *set, classify, objects);
+}
+
+void BM_PclChainThenClassify(benchmark::State& state, const FrameSet* set) {
+  const GallerySnapshot& gallery = TimingGallery();
+  const SceneRecognitionOptions options = RecognitionOptions();
+  size_t points = 0;
+  for (const Frame& f : set->frames) points += f.frame.cloud.size();
+  double classify = 0;
+  size_t objects = 0;
+  for (auto _ : state) {
+    objects = 0;
+    for (const Frame& f : set->frames) {
+      PclResult r = PclChain(f.pcl, false);
+      SceneSegmentation segmentation;
+      for (size_t p = 0; p < r.planes.size(); ++p) {
+        segmentation.planes.push_back({r.planes[p], r.plane_points[p]});
+      }
+      segmentation.clusters = std::move(r.clusters);
+      absl::StatusOr<SceneRecognition> scene =
+          ClassifySceneObjects(gallery, f.frame.cloud, std::move(segmentation), options);
+      if (!scene.ok()) {
+        state.SkipWithError(std::string(scene.status().message()).c_str());
+        return;
+      }
+      classify += absl::ToDoubleSeconds(scene->classify_time);
+      objects += scene->objects.size();
+    }
+  }
+  Finish(state, *set, points);
+  RecognitionCounters(state, *set, classify, objects);
 }
 
 // Clustering alone, on the points PCL's planes left (dense, no NaN, no plane to find).
@@ -453,6 +533,14 @@ int main(int argc, char** argv) {
         ->Threads(1)
         ->Unit(benchmark::kMillisecond);
     benchmark::RegisterBenchmark(("pcl_chain/" + set.name).c_str(), BM_Pcl, &set)
+        ->Unit(benchmark::kMillisecond);
+  }
+  for (const FrameSet& set : Sets()) {
+    benchmark::RegisterBenchmark(("shapeid_recognize_scene/" + set.name).c_str(),
+                                 BM_ShapeidRecognize, &set)
+        ->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark(("pcl_chain_then_classify/" + set.name).c_str(),
+                                 BM_PclChainThenClassify, &set)
         ->Unit(benchmark::kMillisecond);
   }
   for (const FrameSet& set : Sets()) {

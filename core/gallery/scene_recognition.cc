@@ -10,9 +10,9 @@
 
 namespace shapeid {
 
-absl::StatusOr<SceneRecognition> RecognizeScene(const GallerySnapshot& gallery,
-                                                const PointCloud& frame,
-                                                const SceneRecognitionOptions& options) {
+namespace {
+
+absl::Status CheckGallery(const GallerySnapshot& gallery) {
   if (!gallery.incompatible().empty()) {
     return absl::FailedPreconditionError(gallery.incompatible());
   }
@@ -20,31 +20,21 @@ absl::StatusOr<SceneRecognition> RecognizeScene(const GallerySnapshot& gallery,
     return absl::FailedPreconditionError(absl::StrCat(
         "gallery '", gallery.name(), "' has no samples; train it before recognising scenes"));
   }
-  const std::array<float, 3> gallery_up = gallery.shared_descriptor()->up_direction();
-  SceneSegmentationOptions segmentation_options = options.segmentation;
-  if (options.frame_to_gallery.has_value() && !segmentation_options.up.has_value()) {
-    // Rotations are orthonormal: the frame's up is the gallery's turned back, R^T up.
-    const std::array<float, 9>& r = options.frame_to_gallery->rotation;
-    segmentation_options.up =
-        Eigen::Vector3f(r[0] * gallery_up[0] + r[3] * gallery_up[1] + r[6] * gallery_up[2],
-                        r[1] * gallery_up[0] + r[4] * gallery_up[1] + r[7] * gallery_up[2],
-                        r[2] * gallery_up[0] + r[5] * gallery_up[1] + r[8] * gallery_up[2]);
-  }
-  SceneRecognition result;
-  const absl::Time start = absl::Now();
-  absl::StatusOr<SceneSegmentation> segmentation = SegmentScene(frame, segmentation_options);
-  if (!segmentation.ok()) return segmentation.status();
-  result.segmentation = std::move(segmentation).value();
-  const absl::Time segmented = absl::Now();
-  result.segment_time = segmented - start;
+  return absl::OkStatus();
+}
 
+// Classifies the clusters of `result.segmentation`, moving them into `result.objects`.
+void ClassifyClusters(const GallerySnapshot& gallery, const PointCloud& frame,
+                      const SceneRecognitionOptions& options, SceneRecognition& result) {
+  const absl::Time start = absl::Now();
   RigidTransform turn;  // identity unless the caller's frame or a plane gives up
   if (options.frame_to_gallery.has_value()) {
     turn = *options.frame_to_gallery;
   } else if (options.up_from_plane && !result.segmentation.planes.empty()) {
     const Eigen::Vector4f& plane = result.segmentation.planes.front().coefficients;
     const std::array<double, 3> up = {plane[0], plane[1], plane[2]};
-    absl::StatusOr<RigidTransform> rotation = RotationTakingUpTo(up, gallery_up);
+    absl::StatusOr<RigidTransform> rotation =
+        RotationTakingUpTo(up, gallery.shared_descriptor()->up_direction());
     if (rotation.ok()) turn = *rotation;  // a plane's normal is a unit vector: always ok
   }
   std::vector<std::vector<uint32_t>> clusters = std::move(result.segmentation.clusters);
@@ -68,7 +58,43 @@ absl::StatusOr<SceneRecognition> RecognizeScene(const GallerySnapshot& gallery,
       object.classification.unknown = true;
     }
   }
-  result.classify_time = absl::Now() - segmented;
+  result.classify_time = absl::Now() - start;
+}
+
+}  // namespace
+
+absl::StatusOr<SceneRecognition> RecognizeScene(const GallerySnapshot& gallery,
+                                                const PointCloud& frame,
+                                                const SceneRecognitionOptions& options) {
+  if (absl::Status s = CheckGallery(gallery); !s.ok()) return s;
+  const std::array<float, 3> gallery_up = gallery.shared_descriptor()->up_direction();
+  SceneSegmentationOptions segmentation_options = options.segmentation;
+  if (options.frame_to_gallery.has_value() && !segmentation_options.up.has_value()) {
+    // Rotations are orthonormal: the frame's up is the gallery's turned back, R^T up.
+    const std::array<float, 9>& r = options.frame_to_gallery->rotation;
+    segmentation_options.up =
+        Eigen::Vector3f(r[0] * gallery_up[0] + r[3] * gallery_up[1] + r[6] * gallery_up[2],
+                        r[1] * gallery_up[0] + r[4] * gallery_up[1] + r[7] * gallery_up[2],
+                        r[2] * gallery_up[0] + r[5] * gallery_up[1] + r[8] * gallery_up[2]);
+  }
+  SceneRecognition result;
+  const absl::Time start = absl::Now();
+  absl::StatusOr<SceneSegmentation> segmentation = SegmentScene(frame, segmentation_options);
+  if (!segmentation.ok()) return segmentation.status();
+  result.segmentation = std::move(segmentation).value();
+  result.segment_time = absl::Now() - start;
+  ClassifyClusters(gallery, frame, options, result);
+  return result;
+}
+
+absl::StatusOr<SceneRecognition> ClassifySceneObjects(const GallerySnapshot& gallery,
+                                                      const PointCloud& frame,
+                                                      SceneSegmentation segmentation,
+                                                      const SceneRecognitionOptions& options) {
+  if (absl::Status s = CheckGallery(gallery); !s.ok()) return s;
+  SceneRecognition result;
+  result.segmentation = std::move(segmentation);
+  ClassifyClusters(gallery, frame, options, result);
   return result;
 }
 

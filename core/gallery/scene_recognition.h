@@ -64,6 +64,15 @@ absl::StatusOr<SceneRecognition> RecognizeScene(const GallerySnapshot& gallery,
                                                 const PointCloud& frame,
                                                 const SceneRecognitionOptions& options);
 
+// RecognizeScene's second half, for a frame segmented elsewhere (another library's planes
+// and clusters, with indices into `frame`): classifies each cluster as RecognizeScene does,
+// turned by options.frame_to_gallery or the first plane. `segmentation`'s clusters must be
+// non-empty and index finite points of `frame`. Errors: the gallery's, as RecognizeScene.
+absl::StatusOr<SceneRecognition> ClassifySceneObjects(const GallerySnapshot& gallery,
+                                                      const PointCloud& frame,
+                                                      SceneSegmentation segmentation,
+                                                      const SceneRecognitionOptions& options);
+
 }  // namespace shapeid
 
 #endif  // SHAPEID_CORE_GALLERY_SCENE_RECOGNITION_H_

@@ -201,5 +201,29 @@ TEST(SceneRecognitionTest, ASensorFrameTurnsTheObjectsAndKeepsTheFramesCoordinat
   }
 }
 
+// A frame segmented elsewhere (here by SegmentScene itself) is classified exactly as
+// RecognizeScene classifies it.
+TEST(SceneRecognitionTest, ClustersFromElsewhereAreClassifiedTheSameWay) {
+  const std::shared_ptr<Gallery> gallery = ShapesGallery(true);
+  std::vector<std::vector<uint32_t>> truth;
+  const PointCloud frame = TableScene(&truth);
+  const auto snapshot = gallery->Snapshot();
+  const absl::StatusOr<SceneRecognition> whole = RecognizeScene(*snapshot, frame, {});
+  absl::StatusOr<SceneSegmentation> segmentation = SegmentScene(frame, {});
+  ASSERT_TRUE(whole.ok() && segmentation.ok());
+  const absl::StatusOr<SceneRecognition> halves =
+      ClassifySceneObjects(*snapshot, frame, *std::move(segmentation), {});
+  ASSERT_TRUE(halves.ok()) << halves.status();
+  ASSERT_EQ(halves->objects.size(), whole->objects.size());
+  for (size_t i = 0; i < whole->objects.size(); ++i) {
+    EXPECT_EQ(halves->objects[i].indices, whole->objects[i].indices);
+    EXPECT_EQ(halves->objects[i].classification.label, whole->objects[i].classification.label);
+    EXPECT_EQ(halves->objects[i].classification.knn.neighbors[0].distance,
+              whole->objects[i].classification.knn.neighbors[0].distance);
+  }
+  EXPECT_EQ(ClassifySceneObjects(*ShapesGallery(false)->Snapshot(), frame, {}, {}).status().code(),
+            absl::StatusCode::kFailedPrecondition);
+}
+
 }  // namespace
 }  // namespace shapeid
