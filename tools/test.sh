@@ -33,6 +33,13 @@ export SHAPEID_REQUIRE_POSTGRES=1
 # The report test opens the eval report in Chromium (installed above): never a silent skip here.
 export SHAPEID_REQUIRE_BROWSER=1
 
+# Every stage's build tree lives in the clone (about 8 GB for all six): warn at once when the
+# disk cannot hold them, rather than fail in a link with "No space left on device".
+free_gb=$(df -Pk . | awk 'NR == 2 { print int($4 / 1048576) }')
+if [ "$free_gb" -lt 10 ]; then
+  echo "test.sh: WARNING: only $free_gb GB free under $PWD; all stages need about 10 GB" >&2
+fi
+
 timings=()
 stage() {  # NAME COMMAND...
   local name=$1 start=$SECONDS
