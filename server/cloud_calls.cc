@@ -182,8 +182,8 @@ absl::StatusOr<SceneCall> SceneCallOf(const GalleryRegistry& registry,
 // gallery has when the work starts.
 Work SceneWork(SceneCall scene, size_t points, std::function<absl::StatusOr<PointCloud>()> cloud,
                AdmittedCall& call, v1::RecognizeSceneResponse* response) {
-  const WorkEstimate cost = EstimateScene(*scene.gallery->Snapshot(), points,
-                                          scene.options.segmentation.min_cluster_points);
+  const WorkEstimate cost =
+      EstimateScene(*scene.gallery->Snapshot(), points, scene.options.segmentation);
   return Work::Compute(cost.cpu, cost.memory, [scene = std::move(scene), cloud, &call, response] {
     SHAPEID_ASSIGN_OR_RETURN(const PointCloud frame, cloud());
     const std::shared_ptr<const GallerySnapshot> snapshot = scene.gallery->Snapshot();

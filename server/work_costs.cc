@@ -23,6 +23,8 @@ constexpr double kAppendFixedSeconds = 0.5e-3;
 constexpr double kSegmentSecondsPerPoint = 60e-9;
 constexpr size_t kSegmentBytesPerPoint = 40;
 constexpr size_t kMaxCountedObjects = 64;
+// One point tested against one RANSAC hypothesis (a multiply-add and a compare, vectorised).
+constexpr double kPlaneTestSeconds = 1e-9;
 // The sensor simulator's cost per input point for one synthetic view
 // (core/views/scan_simulator_bench), rounded up.
 constexpr double kViewSecondsPerPoint = 100e-9;
@@ -59,17 +61,23 @@ WorkEstimate EstimateClassify(const GallerySnapshot& snapshot, size_t points) {
 }
 
 WorkEstimate EstimateScene(const GallerySnapshot& snapshot, size_t points,
-                           size_t min_object_points) {
+                           const SceneSegmentationOptions& segmentation) {
   WorkEstimate estimate;
   if (const std::shared_ptr<const Descriptor>& descriptor = snapshot.shared_descriptor()) {
     estimate = EstimateDescribe(*descriptor, points);
   }
   const size_t objects =
-      std::min(kMaxCountedObjects, points / std::max<size_t>(min_object_points, 1));
+      std::min(kMaxCountedObjects, points / std::max<size_t>(segmentation.min_cluster_points, 1));
+  // Each hypothesis tests at most 4,096 drawn points (SegmentScene's scoring sample); the
+  // adaptive stop usually ends far sooner, but a caller may ask for the most.
+  const double ransac_tests = static_cast<double>(std::max(segmentation.max_planes, 0)) *
+                              std::max(segmentation.plane_iterations, 0) *
+                              static_cast<double>(std::min<size_t>(points, 4096));
   const double floats = static_cast<double>(snapshot.index().num_rows()) * snapshot.dimension() *
                         kQueryVectors * static_cast<double>(objects);
   estimate.cpu += absl::Seconds(kSearchSecondsPerFloat * floats +
-                                kSegmentSecondsPerPoint * static_cast<double>(points));
+                                kSegmentSecondsPerPoint * static_cast<double>(points) +
+                                kPlaneTestSeconds * ransac_tests);
   estimate.memory += kSegmentBytesPerPoint * points;
   return estimate;
 }

@@ -13,6 +13,7 @@
 #include "absl/time/time.h"
 #include "core/descriptor.h"
 #include "core/gallery/gallery_snapshot.h"
+#include "core/scene/scene_segmentation.h"
 #include "core/views/augment.h"
 
 namespace shapeid {
@@ -29,11 +30,12 @@ WorkEstimate EstimateTrainSample(const Descriptor& descriptor, const AugmentOpti
                                  size_t points);
 // Describing a query and searching `snapshot` with it and its pose variants.
 WorkEstimate EstimateClassify(const GallerySnapshot& snapshot, size_t points);
-// Recognising a frame of `points` points: segmenting it, describing every point once (the
-// objects together hold at most the frame) and one search per object, as many as the frame
-// could hold objects of `min_object_points` (at most 64 counted).
+// Recognising a frame of `points` points with `segmentation`: every RANSAC hypothesis the
+// parameters allow, clustering, describing every point once (the objects together hold at
+// most the frame) and one search per object, as many as the frame could hold objects of
+// min_cluster_points (at most 64 counted).
 WorkEstimate EstimateScene(const GallerySnapshot& snapshot, size_t points,
-                           size_t min_object_points);
+                           const SceneSegmentationOptions& segmentation);
 // Appending `vectors` descriptors to `snapshot`'s gallery: O(vectors), the index's blocks are
 // shared with the snapshot (the store's write, mostly waiting on the disk, is not counted).
 absl::Duration EstimateCommit(const GallerySnapshot& snapshot, int64_t vectors);

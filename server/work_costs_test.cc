@@ -65,5 +65,23 @@ TEST(WorkCostsTest, TrainingViewsCostMoreThanThePlainSampleAndBuildsScaleWithThe
               1e-9);
 }
 
+// A scene costs at least describing its whole frame and searching once, and more when the
+// caller allows more RANSAC work or smaller objects (more of them to search).
+TEST(WorkCostsTest, AScenesCostFollowsItsFrameAndItsParameters) {
+  const auto gallery = GalleryOf(1'000);
+  const SceneSegmentationOptions defaults;
+  const WorkEstimate frame = EstimateScene(*gallery, 300'000, defaults);
+  EXPECT_GT(frame.cpu, EstimateClassify(*gallery, 300'000).cpu);
+  EXPECT_GT(frame.memory, EstimateClassify(*gallery, 300'000).memory);
+  SceneSegmentationOptions heavy = defaults;
+  heavy.max_planes = 16;
+  heavy.plane_iterations = 10'000;
+  EXPECT_GT(EstimateScene(*gallery, 300'000, heavy).cpu, frame.cpu + absl::Milliseconds(500));
+  SceneSegmentationOptions small_objects = defaults;
+  small_objects.min_cluster_points = 10;
+  EXPECT_GT(EstimateScene(*gallery, 2'000, small_objects).cpu,
+            EstimateScene(*gallery, 2'000, defaults).cpu);
+}
+
 }  // namespace
 }  // namespace shapeid

@@ -19,7 +19,7 @@ namespace shapeid {
 namespace {
 
 constexpr int kMaxPlanes = 16;
-constexpr int kMaxPlaneIterations = 100000;
+constexpr int kMaxPlaneIterations = 10000;
 // Each hypothesis is scored on this many of the candidate points, not all: the count's
 // relative error is then about 2 % for a plane holding a quarter of the points, and the
 // winner is refitted and recounted on every point.

@@ -26,7 +26,7 @@ struct SceneSegmentationOptions {
   // (finite, in the region): an object's flat face is not a support. In (0, 1].
   double min_plane_share = 0.05;
   // Plane hypotheses tried at most per plane. RANSAC stops earlier once it is 99.9 % sure
-  // that a better plane would have been drawn. In [1, 100000].
+  // that a better plane would have been drawn. In [1, 10000].
   int plane_iterations = 1000;
   // Two points closer than this belong to the same object (strictly less, as PCL's
   // EuclideanClusterExtraction and Open3D's cluster_dbscan with min_points 1); objects are
