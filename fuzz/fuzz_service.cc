@@ -76,6 +76,32 @@ void CheckClassify(const v1::ClassifyResponse& response) {
   }
 }
 
+// Every point sent is in exactly one plane, object or count; indices, when sent, ascend
+// within the frame; each object is classified or carries its error.
+void CheckScene(const v1::RecognizeSceneResponse& response, bool indices) {
+  uint64_t accounted = response.non_finite_points() + response.outside_region() +
+                       response.in_small_clusters() + response.in_large_clusters();
+  for (const v1::ScenePlane& plane : response.planes()) {
+    if (plane.coefficients_size() != 4) Fail("a scene plane without 4 coefficients");
+    accounted += plane.num_points();
+  }
+  for (const v1::SceneObject& object : response.objects()) {
+    CheckClassify(object.classification());
+    accounted += object.classification().num_points();
+    if (indices &&
+        static_cast<uint64_t>(object.indices_size()) != object.classification().num_points()) {
+      Fail("a scene object's indices do not match its point count");
+    }
+    for (int i = 0; i < object.indices_size(); ++i) {
+      if (object.indices(i) >= response.num_points() ||
+          (i > 0 && object.indices(i) <= object.indices(i - 1))) {
+        Fail("a scene object's indices are not ascending within the frame");
+      }
+    }
+  }
+  if (accounted != response.num_points()) Fail("a scene's points are not all accounted for");
+}
+
 bool Documented(grpc::StatusCode code) {
   switch (code) {
     case grpc::StatusCode::OK:
@@ -188,6 +214,27 @@ grpc::Status FuzzServer::Run(const Call& call) {
       v1::ClassifyResponse response;
       grpc::Status status = stub.ClassifyCloud(context.get(), call.classify_cloud(), &response);
       if (status.ok()) CheckClassify(response);
+      return status;
+    }
+    case Call::kRecognizeScene: {
+      v1::RecognizeSceneResponse response;
+      grpc::Status status = RunClientStream(
+          call.recognize_scene().messages(), call.cancel_after(),
+          [&](grpc::ClientContext* c, v1::RecognizeSceneResponse* r) {
+            return stub.RecognizeScene(c, r);
+          },
+          &response);
+      const auto& messages = call.recognize_scene().messages();
+      if (status.ok()) {
+        CheckScene(response, !messages.empty() && messages[0].header().return_indices());
+      }
+      return status;
+    }
+    case Call::kRecognizeSceneCloud: {
+      v1::RecognizeSceneResponse response;
+      grpc::Status status =
+          stub.RecognizeSceneCloud(context.get(), call.recognize_scene_cloud(), &response);
+      if (status.ok()) CheckScene(response, call.recognize_scene_cloud().header().return_indices());
       return status;
     }
     case Call::kCreateGallery: {

@@ -167,6 +167,45 @@ std::vector<std::pair<std::string, ServiceSession>> Seeds() {
     add("train_cancelled", {cancelled, ClassifyCall("base", 1, Shape(1, 63))});
   }
   {
+    // A table (1,681 points) with two shapes on it, within the fuzz server's 4,096 points:
+    // one message with the defaults, then a stream with up, a region, indices and a NaN.
+    PointCloud frame;
+    for (int x = -20; x <= 20; ++x) {
+      for (int y = -20; y <= 20; ++y) frame.Add(0.025f * x, 0.025f * y, 0);
+    }
+    for (int kind = 0; kind < 2; ++kind) {
+      const PointCloud shape = Shape(kind, 81 + kind, 300);
+      for (size_t i = 0; i < shape.size(); ++i) {
+        frame.Add(0.05f * shape.point(i) + Eigen::Vector3f(kind == 0 ? -0.2f : 0.2f, 0, 0.06f));
+      }
+    }
+    Call one;
+    one.mutable_recognize_scene_cloud()->mutable_header()->set_gallery("base");
+    one.mutable_recognize_scene_cloud()
+        ->mutable_header()
+        ->mutable_segmentation()
+        ->set_min_cluster_points(50);
+    one.mutable_recognize_scene_cloud()->mutable_points()->set_xyz(Xyz(frame));
+    frame.data()[7] = std::numeric_limits<float>::quiet_NaN();
+    Call stream;
+    auto* header = stream.mutable_recognize_scene()->add_messages()->mutable_header();
+    header->set_gallery("base");
+    header->set_return_indices(true);
+    header->mutable_sensor_frame()->add_up(0);
+    header->mutable_sensor_frame()->add_up(0);
+    header->mutable_sensor_frame()->add_up(1);
+    header->mutable_segmentation()->set_min_cluster_points(50);
+    header->mutable_segmentation()->set_max_planes(2);
+    header->mutable_region()->mutable_min()->set_x(-0.4);
+    header->mutable_region()->mutable_min()->set_y(-0.4);
+    header->mutable_region()->mutable_min()->set_z(-0.1);
+    header->mutable_region()->mutable_max()->set_x(0.4);
+    header->mutable_region()->mutable_max()->set_y(0.4);
+    header->mutable_region()->mutable_max()->set_z(0.5);
+    AddChunks(stream.mutable_recognize_scene(), frame, 500);
+    add("scenes", {one, stream});
+  }
+  {
     // Mistakes: points before the header, fewer points than announced, a NaN.
     Call early;
     early.mutable_classify()->add_messages()->mutable_points()->set_xyz(Xyz(Shape(0, 71)));
