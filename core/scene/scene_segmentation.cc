@@ -231,10 +231,11 @@ absl::StatusOr<std::vector<std::vector<uint32_t>>> EuclideanClusters(
   const double cell = static_cast<double>(tolerance) / std::sqrt(3.0) * (1 - 1e-6);
   const Eigen::Vector3d cells = ((high - low).cast<double>() / cell).array().floor() + 1;
   if (cells.maxCoeff() >= static_cast<double>(kGridCells)) {
+    // Printed as doubles: a frame of huge coordinates spans more tolerances than an int holds.
     return absl::InvalidArgumentError(
-        absl::StrCat("the frame spans ", static_cast<int64_t>(cells.maxCoeff() * cell / tolerance),
+        absl::StrCat("the frame spans ", std::floor(cells.maxCoeff() * cell / tolerance),
                      " cluster tolerances along one axis, more than the grid's ",
-                     static_cast<int64_t>(static_cast<double>(kGridCells) * cell / tolerance),
+                     std::floor(static_cast<double>(kGridCells) * cell / tolerance),
                      ": widen the cluster tolerance or set a region of interest"));
   }
   const double inverse = 1 / cell;

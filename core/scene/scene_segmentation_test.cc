@@ -327,6 +327,11 @@ TEST(SceneSegmentationTest, AFrameTooWideForTheGridIsRefusedWithTheRemedy) {
   const absl::StatusOr<SceneSegmentation> s = SegmentScene(frame, options);
   EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(s.status().message(), HasSubstr("region of interest"));
+  // Coordinates whose span overflows float: the same error, no overflowing conversion.
+  const PointCloud huge = {{-3e38f, 0, 0}, {3e38f, 0, 0}, {0, 1, 0}};
+  const absl::StatusOr<SceneSegmentation> h = SegmentScene(huge, options);
+  EXPECT_EQ(h.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(h.status().message(), HasSubstr("inf cluster tolerances"));
 }
 
 // A box rotated and moved: the geometry finds its centre, its extents (largest first) and
