@@ -19,7 +19,7 @@ from .errors import (AbortedError, AlreadyExistsError, CancelledError, DataLossE
                      ShapeidError, UnauthenticatedError, UnavailableError, UnimplementedError)
 from .results import (Augmentation, ClassifyResult, DescribeResult, DescriptorKind,
                       DescriptorParameter, Gallery, GalleryStats, Health, LogLevel, MethodStats,
-                      Neighbor, RemoveResult, Sample, ServerStats, TrainResult, Vote,
-                      WorkLaneStats)
+                      Neighbor, OrientedBox, RemoveResult, Sample, SceneObject, ScenePlane,
+                      SceneResult, ServerStats, TrainResult, Vote, WorkLaneStats)
 
 __version__ = "0.1.0"

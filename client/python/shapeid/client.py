@@ -172,6 +172,57 @@ class Client:
                                     self._stub.Classify, timeout)
         return _results.ClassifyResult.from_proto(response)
 
+    def recognize_scene(self, gallery, cloud, *, k=0, exact=False, up=None, transform=None,
+                        max_planes=None, plane_distance=None, min_plane_share=None,
+                        plane_iterations=None, cluster_tolerance=None, min_cluster_points=None,
+                        max_cluster_points=None, max_plane_tilt_degrees=None, region=None,
+                        seed=0, return_indices=False, timeout=None):
+        """Finds the objects in one sensor frame (a depth camera's or LiDAR's cloud of a table
+        or floor with things on it) and classifies each against `gallery` as a SceneResult:
+        the supporting planes are removed, the rest split into clusters, each cluster
+        classified with `k` neighbours (0: the gallery's k) as classify would. Distances are
+        in the frame's units (the defaults assume metres); every answer (centroids, boxes,
+        planes) is in the frame's coordinates.
+
+        Non-finite points (a depth camera's missing returns) are sent, never refused nor
+        dropped here: the server skips and counts them (non_finite_points), so that indices
+        count every point of the frame, an organised PointCloud2's index being its pixel
+        (row * width + column).
+
+        up, transform: the sensor's frame, as in classify: each object is moved by it before
+          it is described, and only planes within max_plane_tilt_degrees of level are
+          supports. Neither: the first plane removed gives up.
+        Segmentation (proto SceneSegmentation; None: the server's default, so that 0 is
+        never mistaken for one): max_planes (0 to 16, 1), plane_distance (0.01),
+        min_plane_share (0.05), plane_iterations (1,000), cluster_tolerance (0.02),
+        min_cluster_points (100), max_cluster_points (1,000,000), max_plane_tilt_degrees
+        (15). A value out of range is the server's InvalidArgumentError naming it.
+        region: ((min x, y, z), (max x, y, z)), a 2 x 3 array-like: only points inside are
+          considered. seed: seeds RANSAC (the same frame and seed, the same answer).
+        return_indices: fill each object's `indices` (numpy uint32, ascending), to colour or
+          crop the frame; else they are None.
+        NotFoundError for an unknown gallery, FailedPreconditionError for an empty one."""
+        frame = _sensor_frame(up, transform)
+        encoded = _clouds.encode(cloud, keep_non_finite=True)
+        header = _pb.SceneHeader(gallery=gallery, k=k, exact=exact,
+                                 expected_points=encoded.num_points,
+                                 return_indices=bool(return_indices))
+        _set_format(header, encoded, False, frame)
+        _set_optional(header.segmentation, max_planes=max_planes, plane_distance=plane_distance,
+                      min_plane_share=min_plane_share, plane_iterations=plane_iterations,
+                      cluster_tolerance=cluster_tolerance, min_cluster_points=min_cluster_points,
+                      max_cluster_points=max_cluster_points,
+                      max_plane_tilt_degrees=max_plane_tilt_degrees, seed=seed)
+        if region is not None:
+            box = _region(region)
+            for vector, values in zip((header.region.min, header.region.max), box):
+                vector.x, vector.y, vector.z = values
+        response = self._cloud_call(header, encoded, _pb.RecognizeSceneCloudRequest,
+                                    _pb.RecognizeSceneRequest, self._stub.RecognizeSceneCloud,
+                                    self._stub.RecognizeScene, timeout,
+                                    stream_if_unimplemented=False)
+        return _results.SceneResult.from_proto(response, bool(return_indices))
+
     def train(self, gallery, clouds, labels, *, ids=None, sources=None, metadata=None,
               augmentation=None, drop_non_finite=False, up=None, transform=None, timeout=None):
         """Adds labelled clouds to `gallery` in one stream: all of them or, on any error, none.
@@ -460,17 +511,20 @@ class Client:
         return self._call(retry, lambda remaining: method(
             request, timeout=remaining, metadata=self._metadata), timeout)
 
-    def _cloud_call(self, header, encoded, one_message, stream_request, unary, stream, timeout):
-        """Describe and Classify: the header and the cloud in one message when the cloud has
-        at most chunk_points points (and the server knows the one-message calls), else a
-        stream of the header then chunks. Retried like any idempotent call."""
+    def _cloud_call(self, header, encoded, one_message, stream_request, unary, stream, timeout,
+                    stream_if_unimplemented=True):
+        """Describe, Classify and RecognizeScene: the header and the cloud in one message when
+        the cloud has at most chunk_points points (and the server knows the one-message
+        calls), else a stream of the header then chunks. Retried like any idempotent call.
+        stream_if_unimplemented=False: a server without the one-message call has neither
+        (RecognizeScene and RecognizeSceneCloud came together), so UNIMPLEMENTED is raised."""
         if (encoded.num_points <= self._chunk_points
                 and not self._server_lacks_one_message_calls):
             request = one_message(header=header, points=_pb.PointChunk(xyz=encoded.tobytes()))
             try:
                 return self._unary(True, unary, request, timeout)
             except ShapeidError as e:
-                if e.code != grpc.StatusCode.UNIMPLEMENTED:
+                if e.code != grpc.StatusCode.UNIMPLEMENTED or not stream_if_unimplemented:
                     raise
                 self._server_lacks_one_message_calls = True
 
@@ -504,6 +558,31 @@ def _set_format(header, encoded, drop_non_finite, frame):
         out.drop_nonfinite = bool(drop_non_finite)
     if frame is not None:
         header.sensor_frame.CopyFrom(frame)
+
+
+def _set_optional(message, **values):
+    """Sets each field of `message` named by a keyword to its value, leaving those whose
+    value is None unset (proto3 optional: the server's default). A value the field cannot
+    hold is a ValueError naming the keyword."""
+    for name, value in values.items():
+        if value is None:
+            continue
+        try:
+            setattr(message, name, value)
+        except (TypeError, ValueError) as e:
+            raise ValueError("%s=%r: %s" % (name, value, e)) from None
+
+
+def _region(region):
+    """`region` as two rows of 3 floats (min, max); ValueError for another shape. Whether min
+    lies below max is the server's to say."""
+    try:
+        box = np.asarray(region, dtype=np.float64)
+    except (TypeError, ValueError):
+        box = None
+    if box is None or box.shape != (2, 3):
+        raise ValueError("region must be ((min x, y, z), (max x, y, z)), got %r" % (region,))
+    return box.tolist()
 
 
 def _sensor_frame(up, transform):

@@ -87,13 +87,15 @@ class EncodedCloud:
             yield self.data[start:start + step].tobytes()
 
 
-def encode(cloud, *, drop_non_finite=False, forward_point_cloud2=True):
+def encode(cloud, *, drop_non_finite=False, keep_non_finite=False, forward_point_cloud2=True):
     """`cloud` as an EncodedCloud (see the module's comment for what is accepted).
 
     drop_non_finite: False (the default) refuses a cloud with a NaN or infinite coordinate
     (ValueError naming how many and the first); True leaves those points out (organised
     depth-camera clouds mark missing returns with NaN): here for arrays, on the server for
     a forwarded PointCloud2 (the layout says so).
+    keep_non_finite: True sends such points as they are, in place (a scene: the server skips
+    and counts them, and indices count every point sent).
     forward_point_cloud2: False converts a PointCloud2 into PACKED_XYZ32 as arrays are.
     """
     width = None  # of an organised cloud, to name a point by row and column
@@ -113,13 +115,13 @@ def encode(cloud, *, drop_non_finite=False, forward_point_cloud2=True):
                 dropped = 0
                 # float64: `values` is their float32 rounding, isfinite's fast path is as quick
                 if source is not None or not _sums_finite(values):
-                    _, dropped = _finite(values, drop_non_finite, width, source, what,
-                                         keep=False)
+                    _, dropped = _finite(values, drop_non_finite or keep_non_finite, width,
+                                         source, what, keep=False)
                 # Already packed float32 xyz with points to drop: dropped here, as an array's.
-                if not (dropped and declared.layout == PACKED_XYZ32):
+                if keep_non_finite or not (dropped and declared.layout == PACKED_XYZ32):
                     return EncodedCloud(data=memoryview(declared.data).toreadonly(),
                                         num_points=declared.height * declared.width,
-                                        layout=declared.layout, dropped_non_finite=dropped)
+                                        layout=declared.layout, dropped_non_finite=0 if keep_non_finite else dropped)
             points, source = _point_cloud2_values(declared, packed=True)
             points = points.reshape(-1, 3)
     elif hasattr(cloud, "points") and not isinstance(cloud, (str, bytes, dict)):
@@ -130,10 +132,12 @@ def encode(cloud, *, drop_non_finite=False, forward_point_cloud2=True):
             raise type(e)(what + str(e)[len("the array"):]) from None
     else:
         raise TypeError("expected %s; got %s%s" % (_EXPECTED, _type_name(cloud), _hint(cloud)))
-    points, dropped = _finite(points, drop_non_finite, width, source, what)
+    # keep_non_finite: counted and checked for float32 overflow, never left out.
+    points, dropped = _finite(points, drop_non_finite or keep_non_finite, width, source, what,
+                              keep=not keep_non_finite)
     data = memoryview(points.reshape(-1).view(np.uint8)).toreadonly()
     return EncodedCloud(data=data, num_points=len(points), layout=PACKED_XYZ32,
-                        dropped_non_finite=dropped)
+                        dropped_non_finite=0 if keep_non_finite else dropped)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -11,7 +11,8 @@ from typing import Dict, List, Optional
 import numpy as np
 
 __all__ = [
-    "Neighbor", "Vote", "ClassifyResult", "DescribeResult", "TrainResult", "Augmentation",
+    "Neighbor", "Vote", "ClassifyResult", "OrientedBox", "SceneObject", "ScenePlane",
+    "SceneResult", "DescribeResult", "TrainResult", "Augmentation",
     "Gallery", "RemoveResult", "DescriptorParameter", "DescriptorKind", "MethodStats",
     "WorkLaneStats", "GalleryStats", "ServerStats", "Health", "LogLevel",
 ]
@@ -90,6 +91,88 @@ class ClassifyResult:
                    votes=[Vote(v.label, v.weight) for v in r.votes],
                    num_points=r.num_points, describe_seconds=_seconds(r.describe_time),
                    search_seconds=_seconds(r.search_time), approximate=r.approximate)
+
+
+def _vector(v):
+    return np.array([v.x, v.y, v.z])
+
+
+@dataclasses.dataclass(slots=True, eq=False)  # numpy fields: compare them with numpy
+class OrientedBox:
+    """vision_msgs/BoundingBox3D's box, in the frame's coordinates: the rotation takes the
+    frame's axes onto the points' principal axes (x along the largest spread, then y, then
+    z; right-handed); size is the full extents along them."""
+    center: np.ndarray       # (3,) float64
+    orientation: np.ndarray  # (4,) float64, a unit quaternion x, y, z, w
+    size: np.ndarray         # (3,) float64
+
+    @classmethod
+    def from_proto(cls, b):
+        q = b.orientation
+        return cls(center=_vector(b.center), orientation=np.array([q.x, q.y, q.z, q.w]),
+                   size=_vector(b.size))
+
+
+@dataclasses.dataclass(slots=True, eq=False)
+class SceneObject:
+    """One object of a frame: the gallery's answer for its points, as classify gives it, and
+    where it is, in the frame's coordinates."""
+    classification: ClassifyResult  # label or "unknown"; num_points is the object's
+    centroid: np.ndarray            # (3,) float64, the mean of its points
+    box: OrientedBox
+    indices: Optional[np.ndarray]   # uint32, ascending, into the frame as sent; None unless
+                                    # return_indices
+    error: str                      # why it could not be described ("": it was)
+
+    @property
+    def label(self):
+        return self.classification.label
+
+    @property
+    def num_points(self):
+        return self.classification.num_points
+
+    @classmethod
+    def from_proto(cls, o, with_indices):
+        return cls(classification=ClassifyResult.from_proto(o.classification),
+                   centroid=_vector(o.centroid), box=OrientedBox.from_proto(o.box),
+                   indices=np.array(o.indices, np.uint32) if with_indices else None,
+                   error=o.error)
+
+
+@dataclasses.dataclass(slots=True, eq=False)
+class ScenePlane:
+    """A support removed: a x + b y + c z + d = 0, (a, b, c) a unit normal pointing up with a
+    sensor frame, else towards the sensor (d >= 0)."""
+    coefficients: np.ndarray  # (4,) float64: a, b, c, d
+    num_points: int
+
+
+@dataclasses.dataclass(slots=True, eq=False)
+class SceneResult:
+    """Client.recognize_scene's answer. Every point sent is in exactly one of the planes, the
+    objects or the counts non_finite_points, outside_region, in_small_clusters and
+    in_large_clusters."""
+    objects: List[SceneObject]  # largest first
+    planes: List[ScenePlane]    # in the order removed, largest first
+    num_points: int             # points sent
+    non_finite_points: int      # skipped
+    outside_region: int
+    in_small_clusters: int      # fewer than min_cluster_points: noise
+    in_large_clusters: int      # more than max_cluster_points: background
+    segment_seconds: float
+    classify_seconds: float     # all objects
+
+    @classmethod
+    def from_proto(cls, r, with_indices):
+        return cls(objects=[SceneObject.from_proto(o, with_indices) for o in r.objects],
+                   planes=[ScenePlane(np.array(p.coefficients, np.float64), p.num_points)
+                           for p in r.planes],
+                   num_points=r.num_points, non_finite_points=r.non_finite_points,
+                   outside_region=r.outside_region, in_small_clusters=r.in_small_clusters,
+                   in_large_clusters=r.in_large_clusters,
+                   segment_seconds=_seconds(r.segment_time),
+                   classify_seconds=_seconds(r.classify_time))
 
 
 @dataclasses.dataclass(slots=True, eq=False)  # compare .values with numpy, not ==
