@@ -1,6 +1,7 @@
 #include "server/proto_convert.h"
 
 #include <algorithm>
+#include <limits>
 #include <memory>
 #include <string>
 
@@ -290,7 +291,10 @@ void ToProto(const GalleryClassification& answer, size_t num_points, v1::Classif
 
 namespace {
 
-int ClampToInt(uint32_t value) { return static_cast<int>(std::min<uint32_t>(value, 1 << 20)); }
+// Values past INT_MAX become INT_MAX: still out of every range, so the check names them.
+int ClampToInt(uint32_t value) {
+  return static_cast<int>(std::min<uint32_t>(value, std::numeric_limits<int>::max()));
+}
 
 void ToProto(const Eigen::Vector3f& v, v1::Vector3* out) {
   out->set_x(v.x());

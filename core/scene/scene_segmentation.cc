@@ -62,9 +62,9 @@ absl::Status CheckOptions(const SceneSegmentationOptions& o) {
   }
   if (o.region.has_value()) {
     const auto& r = *o.region;
-    if (!r.min.allFinite() || !r.max.allFinite() || (r.min.array() > r.max.array()).any()) {
+    if (r.min.hasNaN() || r.max.hasNaN() || (r.min.array() > r.max.array()).any()) {
       return bad("the region's min (", r.min.x(), ", ", r.min.y(), ", ", r.min.z(),
-                 ") must be finite and not above its max (", r.max.x(), ", ", r.max.y(), ", ",
+                 ") must be a number and not above its max (", r.max.x(), ", ", r.max.y(), ", ",
                  r.max.z(), ") on any axis");
     }
   }
@@ -90,7 +90,7 @@ inline bool OnPlane(const Eigen::Vector4f& plane, float x, float y, float z, flo
 
 // Whether `plane` may be a support: any plane, or one within the tilt of the caller's up.
 bool Upright(const Eigen::Vector4f& plane, const SceneSegmentationOptions& options) {
-  if (!options.up.has_value()) return true;
+  if (!options.up.has_value() || options.max_plane_tilt_degrees >= 90) return true;
   const double cosine =
       std::fabs(plane.head<3>().cast<double>().dot(options.up->cast<double>().normalized()));
   return cosine >= std::cos(options.max_plane_tilt_degrees * kRadiansPerDegree);

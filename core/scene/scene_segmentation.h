@@ -37,7 +37,7 @@ struct SceneSegmentationOptions {
   size_t min_cluster_points = 100;
   size_t max_cluster_points = 1'000'000;
   // Points outside this axis-aligned box (inclusive) are ignored: the work area in front of
-  // a robot. Unset: the whole frame.
+  // a robot. Bounds may be infinite (everything above a height). Unset: the whole frame.
   struct Box {
     Eigen::Vector3f min;
     Eigen::Vector3f max;

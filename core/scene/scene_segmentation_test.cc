@@ -166,6 +166,13 @@ TEST(SceneSegmentationTest, SkipsNonFiniteAndOutsideTheRegionAndCountsEverything
   ASSERT_EQ(s->clusters.size(), 1u);
   EXPECT_EQ(s->clusters[0], box);
   EXPECT_EQ(Accounted(*s), frame.size());
+  // Infinite bounds: everything below x = 1, whatever else.
+  const float inf = std::numeric_limits<float>::infinity();
+  options.region = SceneSegmentationOptions::Box{{-inf, -inf, -inf}, {1, inf, inf}};
+  const absl::StatusOr<SceneSegmentation> open = SegmentScene(frame, options);
+  ASSERT_TRUE(open.ok()) << open.status();
+  EXPECT_EQ(open->outside_region, far.size());
+  EXPECT_EQ(open->clusters, s->clusters);
 }
 
 TEST(SceneSegmentationTest, ClusterSizeLimitsDropAndCount) {
@@ -238,6 +245,15 @@ TEST(SceneSegmentationTest, WithUpOnlyLevelPlanesAreSupports) {
   // The wall is left to clustering, an object as far as the default size limits can tell.
   ASSERT_EQ(s->clusters.size(), 2u);
   EXPECT_EQ(s->clusters[1], box);
+
+  // 90 degrees: any plane, the exactly perpendicular wall included.
+  SceneSegmentationOptions any_tilt = level;
+  any_tilt.max_planes = 1;
+  any_tilt.max_plane_tilt_degrees = 90;
+  const absl::StatusOr<SceneSegmentation> wall = SegmentScene(frame, any_tilt);
+  ASSERT_TRUE(wall.ok()) << wall.status();
+  ASSERT_EQ(wall->planes.size(), 1u);
+  EXPECT_NEAR(std::fabs(wall->planes[0].coefficients[1]), 1.0f, 1e-4f);
 
   SceneSegmentationOptions bad = level;
   bad.up = Eigen::Vector3f::Zero();
