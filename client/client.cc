@@ -300,9 +300,9 @@ absl::StatusOr<Response> Client::SingleCloudCall(Open open, const Request& heade
 template <typename OneMessage, typename StreamRequest, typename Response, typename Header,
           typename Unary, typename Open>
 absl::StatusOr<Response> Client::CloudCall(const Header& header, const SensorCloud& cloud,
-                                           Unary unary, Open open) {
+                                           Unary unary, Open open, std::atomic<bool>& lacks_unary) {
   if (cloud.data.size() <= options_.chunk_points * PointStep(cloud.layout) &&
-      !server_lacks_one_message_calls_.load(std::memory_order_relaxed)) {
+      !lacks_unary.load(std::memory_order_relaxed)) {
     OneMessage request;
     *request.mutable_header() = header;
     request.mutable_points()->set_xyz(cloud.data.data(), cloud.data.size());
@@ -313,7 +313,7 @@ absl::StatusOr<Response> Client::CloudCall(const Header& header, const SensorClo
     });
     if (status.ok()) return response;
     if (status.code() != absl::StatusCode::kUnimplemented) return status;
-    server_lacks_one_message_calls_.store(true, std::memory_order_relaxed);
+    lacks_unary.store(true, std::memory_order_relaxed);
   }
   StreamRequest first;
   *first.mutable_header() = header;
@@ -350,7 +350,8 @@ absl::StatusOr<v1::DescribeResponse> Client::Describe(const SensorCloud& cloud,
       },
       [&](grpc::ClientContext* context, v1::DescribeResponse* response) {
         return stub_->Describe(context, response);
-      });
+      },
+      server_lacks_one_message_calls_);
 }
 
 absl::StatusOr<v1::ClassifyResponse> Client::Classify(const std::string& gallery,
@@ -384,7 +385,40 @@ absl::StatusOr<v1::ClassifyResponse> Client::Classify(const std::string& gallery
       },
       [&](grpc::ClientContext* context, v1::ClassifyResponse* response) {
         return stub_->Classify(context, response);
-      });
+      },
+      server_lacks_one_message_calls_);
+}
+
+absl::StatusOr<v1::RecognizeSceneResponse> Client::RecognizeScene(const std::string& gallery,
+                                                                  const PointCloud& frame,
+                                                                  const SceneOptions& options) {
+  return RecognizeScene(gallery, Packed(frame), options);
+}
+
+absl::StatusOr<v1::RecognizeSceneResponse> Client::RecognizeScene(const std::string& gallery,
+                                                                  const SensorCloud& frame,
+                                                                  const SceneOptions& options) {
+  v1::SceneHeader header;
+  header.set_gallery(gallery);
+  header.set_k(options.k);
+  header.set_exact(options.exact);
+  header.set_expected_points(PointsIn(frame.data, frame.layout));
+  *header.mutable_layout() = frame.layout;
+  *header.mutable_sensor_frame() = options.sensor_frame;
+  *header.mutable_segmentation() = options.segmentation;
+  if (options.region) *header.mutable_region() = *options.region;
+  header.set_return_indices(options.return_indices);
+  return CloudCall<v1::RecognizeSceneCloudRequest, v1::RecognizeSceneRequest,
+                   v1::RecognizeSceneResponse>(
+      header, frame,
+      [&](grpc::ClientContext* context, const v1::RecognizeSceneCloudRequest& request,
+          v1::RecognizeSceneResponse* response) {
+        return stub_->RecognizeSceneCloud(context, request, response);
+      },
+      [&](grpc::ClientContext* context, v1::RecognizeSceneResponse* response) {
+        return stub_->RecognizeScene(context, response);
+      },
+      server_lacks_one_message_scene_call_);
 }
 
 absl::StatusOr<v1::TrainResponse> Client::Train(const std::string& gallery,

@@ -23,6 +23,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -136,6 +137,40 @@ class Client {
                                                 const SensorCloud& cloud,
                                                 const ClassifyOptions& options);
 
+  // Per-call choices of RecognizeScene (the proto's SceneHeader).
+  struct SceneOptions {
+    // Neighbours that vote for each object; 0: the gallery's k.
+    uint32_t k = 0;
+    // As in ClassifyOptions.
+    bool exact = false;
+    // The sensor's frame: each object is turned by it before it is described, and only level
+    // planes are supports. Empty: the first plane removed gives up.
+    v1::SensorFrame sensor_frame;
+    // How the frame is split; unset fields take the server's defaults (proto
+    // SceneSegmentation).
+    v1::SceneSegmentation segmentation;
+    // Only points inside this box (the frame's coordinates) are considered; none: all.
+    std::optional<v1::AxisAlignedBox> region;
+    // Send each object's point indices in the frame (to colour or crop it).
+    bool return_indices = false;
+  };
+
+  // Finds the objects of one sensor frame and classifies each against `gallery`: supporting
+  // planes removed, Euclidean clusters, one classification per cluster; geometry in the
+  // frame's coordinates. Non-finite points are skipped and counted, never an error, and keep
+  // their place: indices count every point of `frame`. FAILED_PRECONDITION on an empty
+  // gallery, NOT_FOUND on an unknown one, INVALID_ARGUMENT naming a segmentation field out of
+  // range. A frame of up to options().chunk_points points goes in one RecognizeSceneCloud
+  // message, a larger one streams through RecognizeScene (as every frame does once a server
+  // has answered UNIMPLEMENTED to RecognizeSceneCloud); retried like Classify.
+  absl::StatusOr<v1::RecognizeSceneResponse> RecognizeScene(const std::string& gallery,
+                                                            const PointCloud& frame,
+                                                            const SceneOptions& options);
+  // The same for a frame in a sensor's own layout (an organised one's indices are its pixels).
+  absl::StatusOr<v1::RecognizeSceneResponse> RecognizeScene(const std::string& gallery,
+                                                            const SensorCloud& frame,
+                                                            const SceneOptions& options);
+
   // Adds `samples` to `gallery` in one stream: all of them or, on any error, none.
   // InvalidArgument (before sending anything) if a sample has no cloud. Retried on
   // UNAVAILABLE only when every sample has a sample_id; ALREADY_EXISTS after such a retry
@@ -238,14 +273,15 @@ class Client {
   template <typename Request, typename Response, typename Open>
   absl::StatusOr<Response> SingleCloudCall(Open open, const Request& header,
                                            const SensorCloud& cloud);
-  // Describe and Classify: `header` and `cloud` in one OneMessage request through `unary`
-  // (DescribeCloud, ClassifyCloud) when the cloud has at most options_.chunk_points points,
-  // else (and for good once a server answers UNIMPLEMENTED to it: an older server) on the
-  // stream `open` starts, through SingleCloudCall. Retried like any idempotent call.
+  // Describe, Classify and RecognizeScene: `header` and `cloud` in one OneMessage request
+  // through `unary` (DescribeCloud, ClassifyCloud, RecognizeSceneCloud) when the cloud has at
+  // most options_.chunk_points points, else (and for good once a server answers UNIMPLEMENTED
+  // to it, which sets `lacks_unary`: an older server) on the stream `open` starts, through
+  // SingleCloudCall. Retried like any idempotent call.
   template <typename OneMessage, typename StreamRequest, typename Response, typename Header,
             typename Unary, typename Open>
   absl::StatusOr<Response> CloudCall(const Header& header, const SensorCloud& cloud, Unary unary,
-                                     Open open);
+                                     Open open, std::atomic<bool>& lacks_unary);
 
   const ClientOptions options_;
   const std::string authorization_;  // "Bearer KEY", or empty
@@ -254,6 +290,9 @@ class Client {
   // Set when the server turned out not to know the one-message calls (DescribeCloud,
   // ClassifyCloud; an older server): stream from then on.
   std::atomic<bool> server_lacks_one_message_calls_{false};
+  // The same for RecognizeSceneCloud, apart: a server from before scenes lacks it but still
+  // has ClassifyCloud, which must not stop being used.
+  std::atomic<bool> server_lacks_one_message_scene_call_{false};
 };
 
 // The one conversion of a gRPC status into an absl::Status: same code, same message.

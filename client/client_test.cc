@@ -1,6 +1,6 @@
 // shapeid::Client against an in-process ShapeIdServer on a loopback port: every call, chunking
-// of a big cloud, export and import, error codes, retries with backoff, deadlines, concurrent
-// use.
+// of a big cloud, scenes, export and import, error codes, retries with backoff, deadlines,
+// concurrent use.
 
 #include "client/client.h"
 
@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <random>
 #include <string>
@@ -17,6 +18,7 @@
 #include "absl/strings/str_cat.h"
 #include "client/channel_target.h"
 #include "client/client_testing.h"
+#include "core/testing/test_clouds.h"
 #include "gmock/gmock.h"
 #include "grpcpp/grpcpp.h"
 #include "gtest/gtest.h"
@@ -247,6 +249,208 @@ TEST_F(ClientTest, ClassifyInOneMessageOrStreamedGivesTheSameAnswer) {
   }
   // Errors keep their code on the one-message path too.
   EXPECT_TRUE(absl::IsNotFound((*one_message_client)->Classify("missing", cloud).status()));
+}
+
+// A 1.2 m square table at z = -0.5 (1 cm grid) with a box, a sphere and a rod, 5 cm per unit,
+// 3 cm above it (core/gallery/scene_recognition_test.cc's frame); `truth` gets each object's
+// indices, box first.
+PointCloud TableFrame(std::vector<std::vector<uint32_t>>* truth) {
+  PointCloud frame;
+  for (float x = -0.6f; x <= 0.6f; x += 0.01f) {
+    for (float y = -0.6f; y <= 0.6f; y += 0.01f) frame.Add(x, y, -0.5f);
+  }
+  const Eigen::Vector3f places[3] = {
+      {0.1f, 0.3f, -0.46f}, {-0.3f, -0.1f, -0.42f}, {0.2f, -0.3f, -0.46f}};
+  for (int kind = 0; kind < 3; ++kind) {
+    const PointCloud shape = testing_clouds::ShapeCloud(kind, 50 + kind, 3000);
+    truth->emplace_back();
+    for (size_t i = 0; i < shape.size(); ++i) {
+      truth->back().push_back(static_cast<uint32_t>(frame.size()));
+      frame.Add(0.05f * shape.point(i) + places[kind]);
+    }
+  }
+  return frame;
+}
+
+std::vector<uint32_t> Indices(const v1::SceneObject& object) {
+  return {object.indices().begin(), object.indices().end()};
+}
+
+class ClientSceneTest : public ClientTest {
+ protected:
+  // "shapes": the three shapes, 3 samples each, k = 1 (rphsd reads the frame's axes).
+  void CreateShapes(const std::string& name, bool train = true) {
+    v1::CreateGalleryRequest request;
+    request.set_name(name);
+    request.set_descriptor_spec("rphsd");
+    request.mutable_knn()->set_k(1);
+    ASSERT_TRUE(client_->CreateGallery(request).ok());
+    if (!train) return;
+    std::vector<PointCloud> clouds;
+    for (int kind = 0; kind < 3; ++kind) {
+      for (uint32_t seed = 1; seed <= 3; ++seed) {
+        clouds.push_back(testing_clouds::ShapeCloud(kind, seed, 2000));
+      }
+    }
+    std::vector<TrainSample> samples;
+    for (size_t i = 0; i < clouds.size(); ++i) {
+      samples.push_back({testing_clouds::kShapeNames[i / 3], i + 1, &clouds[i]});
+    }
+    ASSERT_TRUE(client_->Train(name, samples).ok());
+  }
+};
+
+TEST_F(ClientSceneTest, FindsNamesAndLocatesEachObjectOnTheTable) {
+  CreateShapes("shapes");
+  std::vector<std::vector<uint32_t>> truth;
+  const PointCloud frame = TableFrame(&truth);
+  Client::SceneOptions options;
+  options.return_indices = true;
+  const auto scene = client_->RecognizeScene("shapes", frame, options);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ASSERT_EQ(scene->planes_size(), 1);
+  // Without a sensor frame the normal points towards the sensor (the origin, above).
+  ASSERT_EQ(scene->planes(0).coefficients_size(), 4);
+  EXPECT_NEAR(scene->planes(0).coefficients(2), 1.0, 1e-4);
+  EXPECT_NEAR(scene->planes(0).coefficients(3), 0.5, 1e-4);
+  EXPECT_EQ(scene->planes(0).num_points(), frame.size() - 9000);
+  EXPECT_EQ(scene->num_points(), frame.size());
+  EXPECT_EQ(scene->non_finite_points() + scene->outside_region() + scene->in_small_clusters() +
+                scene->in_large_clusters(),
+            0u);
+  ASSERT_EQ(scene->objects_size(), 3);
+  for (const v1::SceneObject& object : scene->objects()) {
+    const auto kind = std::find(truth.begin(), truth.end(), Indices(object));
+    ASSERT_NE(kind, truth.end());
+    const size_t k = static_cast<size_t>(kind - truth.begin());
+    EXPECT_EQ(object.classification().label(), testing_clouds::kShapeNames[k]);
+    EXPECT_EQ(object.classification().num_points(), 3000u);
+    ASSERT_EQ(object.classification().neighbors_size(), 1);
+    EXPECT_EQ(object.classification().neighbors(0).label(), testing_clouds::kShapeNames[k]);
+    EXPECT_TRUE(object.error().empty());
+    if (k == 1) {  // the sphere: where it was put, 10 cm across
+      EXPECT_NEAR(object.centroid().x(), -0.3, 0.005);
+      EXPECT_NEAR(object.centroid().y(), -0.1, 0.005);
+      EXPECT_NEAR(object.centroid().z(), -0.42, 0.005);
+      EXPECT_NEAR(object.box().size().x(), 0.1, 0.005);
+    }
+  }
+
+  // Without indices: the same objects, no indices.
+  options.return_indices = false;
+  const auto plain = client_->RecognizeScene("shapes", frame, options);
+  ASSERT_TRUE(plain.ok()) << plain.status();
+  ASSERT_EQ(plain->objects_size(), 3);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(plain->objects(i).indices_size(), 0);
+    EXPECT_EQ(plain->objects(i).classification().label(),
+              scene->objects(i).classification().label());
+  }
+}
+
+TEST_F(ClientSceneTest, OneMessageOrStreamedGivesTheSameAnswer) {
+  CreateShapes("shapes");
+  std::vector<std::vector<uint32_t>> truth;
+  const PointCloud frame = TableFrame(&truth);  // 23,641 points: over 1,000, so it streams
+  Client::SceneOptions options;
+  options.return_indices = true;
+  const auto streamed = client_->RecognizeScene("shapes", frame, options);
+  ASSERT_TRUE(streamed.ok()) << streamed.status();
+  ClientOptions one_message_options;
+  one_message_options.target = server_->address();
+  one_message_options.chunk_points = 100000;
+  auto one_message_client = Client::Connect(one_message_options);
+  ASSERT_TRUE(one_message_client.ok());
+  const auto one_message = (*one_message_client)->RecognizeScene("shapes", frame, options);
+  ASSERT_TRUE(one_message.ok()) << one_message.status();
+  ASSERT_EQ(one_message->objects_size(), 3);
+  ASSERT_EQ(streamed->objects_size(), 3);
+  for (int i = 0; i < 3; ++i) {
+    const v1::SceneObject& a = one_message->objects(i);
+    const v1::SceneObject& b = streamed->objects(i);
+    EXPECT_EQ(Indices(a), Indices(b));
+    EXPECT_EQ(a.classification().label(), b.classification().label());
+    EXPECT_EQ(a.classification().neighbors(0).distance(),
+              b.classification().neighbors(0).distance());
+    EXPECT_EQ(a.centroid().x(), b.centroid().x());
+    EXPECT_EQ(a.box().size().z(), b.box().size().z());
+  }
+  ASSERT_EQ(one_message->planes_size(), 1);
+  EXPECT_EQ(one_message->planes(0).coefficients(3), streamed->planes(0).coefficients(3));
+  // Errors keep their code on the one-message path too.
+  EXPECT_TRUE(
+      absl::IsNotFound((*one_message_client)->RecognizeScene("missing", frame, {}).status()));
+}
+
+// Non-finite points (a depth camera's missing returns) are skipped and counted; indices
+// still count them, so they are the caller's indices into the frame as sent.
+TEST_F(ClientSceneTest, NonFinitePointsAreSkippedAndIndicesCountThem) {
+  CreateShapes("shapes");
+  std::vector<std::vector<uint32_t>> truth;
+  const PointCloud dense = TableFrame(&truth);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  PointCloud frame;
+  for (int i = 0; i < 7; ++i) frame.Add(nan, nan, nan);
+  for (size_t i = 0; i < dense.size(); ++i) {
+    if (i == truth[1][10]) frame.Add(0.0f, nan, 1.0f);  // one inside the sphere's run
+    frame.Add(dense.point(i));
+  }
+  Client::SceneOptions options;
+  options.return_indices = true;
+  const auto scene = client_->RecognizeScene("shapes", frame, options);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_EQ(scene->num_points(), dense.size() + 8);
+  EXPECT_EQ(scene->non_finite_points(), 8u);
+  // Point i of the dense frame is point moved(i) of the frame sent.
+  const auto moved = [&](uint32_t i) { return i + 7 + (i >= truth[1][10] ? 1 : 0); };
+  ASSERT_EQ(scene->objects_size(), 3);
+  for (const v1::SceneObject& object : scene->objects()) {
+    ASSERT_GT(object.indices_size(), 0);
+    const auto kind = std::find_if(truth.begin(), truth.end(), [&](const auto& t) {
+      return moved(t.front()) == object.indices(0);
+    });
+    ASSERT_NE(kind, truth.end());
+    std::vector<uint32_t> expected;
+    for (const uint32_t i : *kind) expected.push_back(moved(i));
+    EXPECT_EQ(Indices(object), expected);
+    for (const uint32_t i : object.indices()) EXPECT_TRUE(std::isfinite(frame.point(i).y()));
+  }
+}
+
+TEST_F(ClientSceneTest, ErrorsKeepTheirCodeAndNameTheField) {
+  CreateShapes("shapes");
+  CreateShapes("untrained", /*train=*/false);
+  std::vector<std::vector<uint32_t>> truth;
+  const PointCloud frame = TableFrame(&truth);
+  absl::Status status = client_->RecognizeScene("untrained", frame, {}).status();
+  EXPECT_TRUE(absl::IsFailedPrecondition(status)) << status;
+  status = client_->RecognizeScene("nowhere", frame, {}).status();
+  EXPECT_TRUE(absl::IsNotFound(status)) << status;
+  Client::SceneOptions options;
+  options.segmentation.set_cluster_tolerance(0);
+  status = client_->RecognizeScene("shapes", frame, options).status();
+  EXPECT_TRUE(absl::IsInvalidArgument(status)) << status;
+  EXPECT_THAT(status.message(), HasSubstr("cluster_tolerance"));
+  options = {};
+  options.segmentation.set_max_planes(17);
+  status = client_->RecognizeScene("shapes", frame, options).status();
+  EXPECT_TRUE(absl::IsInvalidArgument(status)) << status;
+  EXPECT_THAT(status.message(), HasSubstr("max_planes"));
+  // A region: only the sphere's corner of the table; the rest is counted outside it.
+  options = {};
+  v1::AxisAlignedBox region;
+  region.mutable_min()->set_x(-0.5);
+  region.mutable_min()->set_y(-0.3);
+  region.mutable_min()->set_z(-1);
+  region.mutable_max()->set_x(-0.1);
+  region.mutable_max()->set_y(0.1);
+  region.mutable_max()->set_z(0);
+  options.region = region;
+  const auto cropped = client_->RecognizeScene("shapes", frame, options);
+  ASSERT_TRUE(cropped.ok()) << cropped.status();
+  ASSERT_EQ(cropped->objects_size(), 1);
+  EXPECT_EQ(cropped->objects(0).classification().label(), "sphere");
+  EXPECT_GT(cropped->outside_region(), 9000u);
 }
 
 // `cloud` as a sensor would send it: x y z float64 big-endian at offsets 8, 16, 0, with an
@@ -513,6 +717,38 @@ TEST(ClientFallbackTest, AnOlderServerWithoutOneMessageCallsGetsTheStream) {
   ASSERT_TRUE(described.ok()) << described.status();
   EXPECT_EQ(described->descriptor_spec(), "streamed");
   EXPECT_EQ(service.streams, 5);
+  server->Shutdown();
+}
+
+// A server from before scenes: ClassifyCloud, but no RecognizeScene calls.
+class NoScenesService final : public v1::ShapeId::CallbackService {
+ public:
+  std::atomic<int> one_message{0};
+
+  grpc::ServerUnaryReactor* ClassifyCloud(grpc::CallbackServerContext* context,
+                                          const v1::ClassifyCloudRequest* /*request*/,
+                                          v1::ClassifyResponse* response) override {
+    ++one_message;
+    response->set_label("one message");
+    grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+    reactor->Finish(grpc::Status::OK);
+    return reactor;
+  }
+};
+
+TEST(ClientFallbackTest, AServerWithoutScenesSaysSoAndKeepsItsOneMessageClassify) {
+  NoScenesService service;
+  ClientOptions options;
+  std::unique_ptr<grpc::Server> server = StartFakeServer(&service, &options.target);
+  ASSERT_NE(server, nullptr);
+  auto client = Client::Connect(options);
+  ASSERT_TRUE(client.ok());
+  const absl::Status scene = (*client)->RecognizeScene("parts", Shape(0, 5), {}).status();
+  EXPECT_EQ(scene.code(), absl::StatusCode::kUnimplemented) << scene;
+  auto answer = (*client)->Classify("parts", Shape(0, 5));
+  ASSERT_TRUE(answer.ok()) << answer.status();
+  EXPECT_EQ(answer->label(), "one message");
+  EXPECT_EQ(service.one_message, 1);
   server->Shutdown();
 }
 

@@ -54,11 +54,9 @@ void AppendChunk(std::string& out, absl::string_view type, absl::string_view dat
                   static_cast<uint32_t>(crc32(0, bytes, static_cast<uInt>(out.size() - start))));
 }
 
-}  // namespace
-
-const std::array<std::array<uint8_t, 3>, kPictureColours> kCloudPalette = MakePalette();
-
-CloudPicture RenderCloudViews(const PointCloud& cloud, const CloudPictureOptions& options) {
+// RenderCloudViews, with the points' own colours when `colours` is not empty.
+CloudPicture RenderViews(const PointCloud& cloud, absl::Span<const uint8_t> colours,
+                         const CloudPictureOptions& options) {
   const int view = std::max(8, options.view_pixels);
   const int gap = std::max(0, options.gap_pixels);
   const int splat = std::clamp(options.point_pixels, 1, view / 4);
@@ -124,7 +122,9 @@ CloudPicture RenderCloudViews(const PointCloud& cloud, const CloudPictureOptions
       // 0 nearest, 1 farthest.
       const double far = depth_span > 0 ? std::clamp(0.5 - d / depth_span, 0.0, 1.0) : 0.0;
       const uint8_t shade =
-          static_cast<uint8_t>(kPictureNearest + std::lround(far * (kPictureShades - 1)));
+          colours.empty()
+              ? static_cast<uint8_t>(kPictureNearest + std::lround(far * (kPictureShades - 1)))
+              : colours[i];
       for (int dy = 0; dy < splat; ++dy) {
         for (int dx = 0; dx < splat; ++dx) {
           const int x = std::clamp(x0 + dx, 1, view - 2);
@@ -141,17 +141,32 @@ CloudPicture RenderCloudViews(const PointCloud& cloud, const CloudPictureOptions
   return picture;
 }
 
-std::string EncodePng(const CloudPicture& picture) {
+}  // namespace
+
+const std::array<std::array<uint8_t, 3>, kPictureColours> kCloudPalette = MakePalette();
+
+CloudPicture RenderCloudViews(const PointCloud& cloud, const CloudPictureOptions& options) {
+  return RenderViews(cloud, {}, options);
+}
+
+CloudPicture RenderColouredCloudViews(const PointCloud& cloud, absl::Span<const uint8_t> colours,
+                                      const CloudPictureOptions& options) {
+  return RenderViews(cloud, colours, options);
+}
+
+std::string EncodePng(const CloudPicture& picture) { return EncodePng(picture, kCloudPalette); }
+
+std::string EncodePng(const CloudPicture& picture,
+                      absl::Span<const std::array<uint8_t, 3>> palette) {
   std::string png("\x89PNG\r\n\x1a\n", 8);
   std::string header;
   AppendBigEndian(header, static_cast<uint32_t>(picture.width));
   AppendBigEndian(header, static_cast<uint32_t>(picture.height));
   header += std::string("\x08\x03\x00\x00\x00", 5);  // 8 bits, indexed, deflate, filter 0, -
   AppendChunk(png, "IHDR", header);
-  std::string palette;
-  for (const auto& rgb : kCloudPalette)
-    palette.append(reinterpret_cast<const char*>(rgb.data()), 3);
-  AppendChunk(png, "PLTE", palette);
+  std::string colours;
+  for (const auto& rgb : palette) colours.append(reinterpret_cast<const char*>(rgb.data()), 3);
+  AppendChunk(png, "PLTE", colours);
 
   // Every row starts with its filter type, 0 (none): runs of background compress well as
   // they are.

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "absl/strings/string_view.h"
+#include "absl/types/span.h"
 #include "core/point_cloud.h"
 
 namespace shapeid {
@@ -46,9 +47,18 @@ struct CloudPicture {
 // a cloud without a finite point gives the empty frames. Sizes below 8 pixels count as 8.
 CloudPicture RenderCloudViews(const PointCloud& cloud, const CloudPictureOptions& options = {});
 
+// As RenderCloudViews, each point drawn in its own palette index, colours[i] for point i (one
+// per point of `cloud`), instead of a shade of its depth; nearer points still hide farther
+// ones. Indices 0 and 1 are the background and the views' frame.
+CloudPicture RenderColouredCloudViews(const PointCloud& cloud, absl::Span<const uint8_t> colours,
+                                      const CloudPictureOptions& options = {});
+
 // `picture` as a PNG file: 8-bit indexed colour with kCloudPalette, not interlaced, one IDAT
 // chunk compressed by zlib. Empty only if zlib runs out of memory.
 std::string EncodePng(const CloudPicture& picture);
+// The same with `palette` (index -> RGB, at most 256, one for every index the picture uses).
+std::string EncodePng(const CloudPicture& picture,
+                      absl::Span<const std::array<uint8_t, 3>> palette);
 
 // "data:image/png;base64,..." for an <img src>.
 std::string PngDataUri(absl::string_view png);

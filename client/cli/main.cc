@@ -13,6 +13,7 @@
 #include "client/cli/eval_command.h"
 #include "client/cli/gallery_commands.h"
 #include "client/cli/operations_commands.h"
+#include "client/cli/scene_command.h"
 #include "client/cli/train_classify_commands.h"
 #include "client/cli/views_command.h"
 #include "core/io/point_cloud_reader.h"
@@ -53,6 +54,7 @@ constexpr char kMainFooter[] =
     "  shapeid train --gallery parts dataset/            # dataset/<label>/... per label\n"
     "  shapeid train --gallery parts --label bolt scans/bolt-*.pcd\n"
     "  shapeid classify --gallery parts new-scans/\n"
+    "  shapeid scene --gallery parts --picture scene.png frame.pcd  # objects on a table\n"
     "  shapeid eval --gallery parts --test dataset/      # dataset/<label>/test/...\n"
     "  shapeid eval --folds 5 --spec rphsd --report report.html dataset/\n"
     "  shapeid describe --local --spec comsd:grid=50 chair.pcd\n"
@@ -377,6 +379,20 @@ int main(int argc, char** argv) {
       "  shapeid eval --local --spec rphsd ../shared/data/modelnet10\n"
       "  shapeid eval --local --folds 5 --report report.html dataset/\n");
 
+  // scene
+  shapeid::SceneCommandOptions scene;
+  CLI::App* scene_cmd = app.add_subcommand(
+      "scene", "Find the objects in sensor frames (a table with things on it) and classify each");
+  scene_cmd->fallthrough();
+  shapeid::AddSceneFlags(scene_cmd, &scene);
+  AddReadFlags(scene_cmd, &scene.read, &scene.skip_unsupported);
+  scene_cmd->get_option("--drop-nonfinite")
+      ->description(
+          "Remove points with NaN or infinite coordinates before sending them; by default they "
+          "are sent, skipped and counted by the server, so that indices and --colored keep the "
+          "file's points");
+  AddSensorFrameFlags(scene_cmd, &sensor_flags);
+
   // views
   shapeid::ViewsOptions views;
   CLI::App* views_cmd = app.add_subcommand(
@@ -425,7 +441,8 @@ int main(int argc, char** argv) {
     }
     describe.sensor_frame = *frame;
     train.batch.sensor_frame = *frame;
-    classify.call.sensor_frame = *std::move(frame);
+    classify.call.sensor_frame = *frame;
+    scene.call.sensor_frame = *std::move(frame);
   }
   if (*describe_cmd) return shapeid::RunDescribe(describe, context);
   if (*create_cmd) return shapeid::RunGalleryCreate(create, context);
@@ -444,5 +461,6 @@ int main(int argc, char** argv) {
   if (*classify_cmd) return shapeid::RunClassify(classify, context);
   if (*eval_cmd) return shapeid::RunEval(eval, context);
   if (*views_cmd) return shapeid::RunViews(views, context);
+  if (*scene_cmd) return shapeid::RunScene(scene, context);
   return shapeid::kExitUsage;
 }

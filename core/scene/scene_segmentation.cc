@@ -50,8 +50,8 @@ absl::Status CheckOptions(const SceneSegmentationOptions& o) {
     return bad("cluster_tolerance is ", o.cluster_tolerance, "; it must be a positive number");
   }
   if (o.min_cluster_points < 1 || o.min_cluster_points > o.max_cluster_points) {
-    return bad("cluster sizes [", o.min_cluster_points, ", ", o.max_cluster_points,
-               "]: need 1 <= min <= max");
+    return bad("min_cluster_points is ", o.min_cluster_points, " and max_cluster_points ",
+               o.max_cluster_points, ": need 1 <= min <= max");
   }
   if (o.up.has_value() && (!o.up->allFinite() || !(o.up->norm() > 0))) {
     return bad("up is (", o.up->x(), ", ", o.up->y(), ", ", o.up->z(),

@@ -323,12 +323,12 @@ TEST(SceneSegmentationTest, RejectsOptionsOutOfRange) {
   EXPECT_THAT(message([](auto& o) { o.min_plane_share = 0; }), HasSubstr("min_plane_share"));
   EXPECT_THAT(message([](auto& o) { o.plane_iterations = 0; }), HasSubstr("plane_iterations"));
   EXPECT_THAT(message([](auto& o) { o.cluster_tolerance = -1; }), HasSubstr("cluster_tolerance"));
-  EXPECT_THAT(message([](auto& o) { o.min_cluster_points = 0; }), HasSubstr("cluster sizes"));
+  EXPECT_THAT(message([](auto& o) { o.min_cluster_points = 0; }), HasSubstr("min_cluster_points"));
   EXPECT_THAT(message([](auto& o) {
                 o.min_cluster_points = 10;
                 o.max_cluster_points = 9;
               }),
-              HasSubstr("cluster sizes"));
+              HasSubstr("min_cluster_points"));
   EXPECT_THAT(message([](auto& o) {
                 o.region = SceneSegmentationOptions::Box{{0, 0, 1}, {1, 1, 0}};
               }),

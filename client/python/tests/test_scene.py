@@ -252,7 +252,7 @@ def test_errors(client, scene_gallery, gallery):
                             ({"max_planes": 17}, r"max_planes is 17; it must be in \[0, 16\]"),
                             ({"min_plane_share": 1.5}, "min_plane_share is 1.5"),
                             ({"min_cluster_points": 10, "max_cluster_points": 5},
-                             r"cluster sizes \[10, 5\]"),
+                             r"min_cluster_points is 10 and max_cluster_points 5"),
                             ({"region": ((0, 0, 0), (1, -1, 1))}, "the region's min"),
                             ({"up": (0, 0, 0)}, r"sensor up: \(0, 0, 0\) is not a direction")]:
         with pytest.raises(shapeid.InvalidArgumentError, match=message):
