@@ -168,7 +168,8 @@ namespace {
 // The scan itself, for a valid surface with its bounding box [lo, hi] and sample spacing,
 // and valid options.
 PointCloud Render(const PointCloud& surface, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
-                  double spacing, const ScanOptions& options, ScanBuffers& buf) {
+                  double spacing, const ScanOptions& options, ScanBuffers& buf,
+                  std::vector<uint32_t>* surface_indices) {
   const double radius = 0.5 * (hi - lo).norm();
   const Camera cam = MakeCamera(lo, hi, options);
   const int width = options.width, height = options.height;
@@ -272,6 +273,10 @@ PointCloud Render(const PointCloud& surface, const Eigen::Vector3d& lo, const Ei
   size_t wanted = options.max_points == 0 ? visible : std::min(options.max_points, visible);
   PointCloud scan;
   scan.Reserve(wanted);
+  if (surface_indices != nullptr) {
+    surface_indices->clear();
+    surface_indices->reserve(wanted);
+  }
   for (size_t j = 0; j < visible && wanted > 0; ++j) {
     const double offset = sigma > 0 ? sigma * noise.Next() : 0;
     const size_t remaining = visible - j;
@@ -280,6 +285,7 @@ PointCloud Render(const PointCloud& surface, const Eigen::Vector3d& lo, const Ei
       continue;
     }
     --wanted;
+    if (surface_indices != nullptr) surface_indices->push_back(buf.nearest[j]);
     const auto p = surface.point(buf.nearest[j]);
     if (offset == 0) {
       scan.Add(p);
@@ -328,12 +334,14 @@ ScanSimulator::ScanSimulator(ScanSimulator&&) = default;
 ScanSimulator& ScanSimulator::operator=(ScanSimulator&&) = default;
 ScanSimulator::~ScanSimulator() = default;
 
-absl::StatusOr<PointCloud> ScanSimulator::Scan(const ScanOptions& options) {
+absl::StatusOr<PointCloud> ScanSimulator::Scan(const ScanOptions& options,
+                                               std::vector<uint32_t>* surface_indices) {
   if (absl::Status status = ValidateScanOptions(options); !status.ok()) return status;
-  return Render(surface_, box_min_, box_max_, spacing_, options, *buffers_);
+  return Render(surface_, box_min_, box_max_, spacing_, options, *buffers_, surface_indices);
 }
 
-absl::StatusOr<PointCloud> SimulateScan(const PointCloud& surface, const ScanOptions& options) {
+absl::StatusOr<PointCloud> SimulateScan(const PointCloud& surface, const ScanOptions& options,
+                                        std::vector<uint32_t>* surface_indices) {
   // As Create and Scan, without copying the surface.
   if (absl::Status status = ValidateScanOptions(options); !status.ok()) return status;
   const absl::StatusOr<CloudStats> stats = ValidateCloud(surface);
@@ -341,7 +349,7 @@ absl::StatusOr<PointCloud> SimulateScan(const PointCloud& surface, const ScanOpt
   if (absl::Status status = views_internal::CheckSize(surface); !status.ok()) return status;
   views_internal::ScanBuffers buffers;
   return Render(surface, stats->min, stats->max, EstimateSampleSpacing(surface, *stats), options,
-                buffers);
+                buffers, surface_indices);
 }
 
 }  // namespace shapeid

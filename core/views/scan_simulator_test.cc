@@ -362,6 +362,47 @@ TEST(ScanSimulatorTest, ASurfaceSampledMostlyAtOneSpotIsScannedInBoundedMemory) 
   EXPECT_TRUE(PointSet(*scan).count({0.1f, 0.2f, 1.0f}));
 }
 
+TEST(ScanSimulatorTest, SurfaceIndicesNameTheSurfacePointEachOutputPointShows) {
+  const PointCloud surface = Join(BoxSurface({0, 0, 0}, {1, 0.5f, 0.25f}, 20000, 3),
+                                  SphereSurface(20000, 4, 0.4f, {0, 0, 0.8f}));
+  ScanOptions options = Exact();
+  options.direction = {0.3, -0.5, 1};
+  std::vector<uint32_t> indices = {7};  // replaced, not appended to
+  const auto scan = SimulateScan(surface, options, &indices);
+  ASSERT_TRUE(scan.ok()) << scan.status();
+  ASSERT_EQ(indices.size(), scan->size());
+  ASSERT_GT(scan->size(), 1000u);
+  size_t on_sphere = 0;
+  for (size_t i = 0; i < scan->size(); ++i) {
+    ASSERT_LT(indices[i], surface.size());
+    EXPECT_EQ(scan->point(i), surface.point(indices[i])) << i;
+    on_sphere += indices[i] >= 20000 ? 1 : 0;
+  }
+  EXPECT_GT(on_sphere, 500u);
+  EXPECT_LT(on_sphere, scan->size() - 500);
+
+  // With noise and a subset: the same bits as without asking, each point on its surface
+  // point's ray from the camera, within the noise.
+  options.depth_noise = 0.01;
+  options.max_points = 700;
+  options.seed = 11;
+  auto simulator = ScanSimulator::Create(surface);
+  ASSERT_TRUE(simulator.ok()) << simulator.status();
+  const auto plain = simulator->Scan(options);
+  const auto traced = simulator->Scan(options, &indices);
+  ASSERT_TRUE(plain.ok() && traced.ok());
+  EXPECT_EQ(plain->xyz(), traced->xyz());
+  ASSERT_EQ(indices.size(), 700u);
+  const Eigen::Vector3d eye = Eye(surface, options);
+  const double radius = 0.5 * (ValidateCloud(surface)->max - ValidateCloud(surface)->min).norm();
+  for (size_t i = 0; i < traced->size(); ++i) {
+    const Eigen::Vector3d p = traced->point(i).cast<double>() - eye;
+    const Eigen::Vector3d q = surface.point(indices[i]).cast<double>() - eye;
+    EXPECT_LT(p.normalized().cross(q.normalized()).norm(), 1e-5) << i;
+    EXPECT_LT(std::abs(p.norm() - q.norm()), 6 * 0.01 * radius) << i;
+  }
+}
+
 TEST(ScanSimulatorTest, EveryInvalidInputIsRejectedWithItsReason) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const double inf = std::numeric_limits<double>::infinity();
