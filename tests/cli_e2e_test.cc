@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "core/io/scene_files.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "tests/cli_runner.h"
@@ -190,6 +191,57 @@ TEST_F(CliE2ETest, CreateTrainClassifyEvaluate) {
   ASSERT_EQ(csv.exit_code, 0);
   EXPECT_THAT(csv.out,
               AllOf(StartsWith("NAME,SPEC,"), HasSubstr("\r\ndemo,\"rphsd:refs=cross7,bins=10")));
+}
+
+// The scene flow as a user runs it: frames of the models with their truth, then `scene` on a
+// frame against a gallery of the models' views, scored against that truth.
+TEST_F(CliE2ETest, ComposedScenesCarryTheirTruthAndTheSceneCommandFindsEachObject) {
+  const fs::path out = *root_ / "scene-set";
+  const RunResult composed = Shapeid({"views",
+                                      "--quiet",
+                                      "--out",
+                                      out.string(),
+                                      "--train-views",
+                                      "0",
+                                      "--test-views",
+                                      "0",
+                                      "--scenes",
+                                      "1",
+                                      "--scene-objects",
+                                      "3",
+                                      "--touching",
+                                      "0",
+                                      "--up",
+                                      "z",
+                                      "--seed",
+                                      "4",
+                                      (*root_ / "meshes/cube.off").string(),
+                                      (*root_ / "meshes/bar.off").string(),
+                                      (*root_ / "meshes/pyramid.off").string()});
+  ASSERT_EQ(composed.exit_code, 0) << composed.err;
+  const absl::StatusOr<SceneFile> scene = ReadSceneFile((out / "scenes").string(), "0000");
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ASSERT_EQ(scene->objects.size(), 3u);
+  std::vector<size_t> truth_points(4, 0);
+  for (const uint16_t id : scene->truth) ++truth_points[id];
+  for (size_t id = 1; id <= 3; ++id) EXPECT_GT(truth_points[id], 100u) << id;
+
+  ASSERT_EQ(Run({"gallery", "create", "tabletop", "--spec", "dfsd:frame=upright"}).exit_code, 0);
+  ASSERT_EQ(Run({"train", "--gallery", "tabletop", Data()}).exit_code, 0);
+  const RunResult found = Run({"scene", "--gallery", "tabletop", "--format", "json", "--indices",
+                               (out / "scenes/0000.pcd").string()});
+  ASSERT_EQ(found.exit_code, 0) << found.err;
+  // Each object found is one placed object: most of its points carry one truth id, and each
+  // truth id is found once.
+  std::string ids;
+  for (const uint16_t id : scene->truth) absl::StrAppend(&ids, ids.empty() ? "" : ",", id);
+  const std::string best =
+      "__import__('collections').Counter(truth[i] for i in x['indices']).most_common(1)[0]";
+  EXPECT_EQ(Python(found.out,
+                   absl::StrCat("(lambda truth, o: (len(o), sorted(", best, "[0] for x in o), all(",
+                                best, "[1] >= 0.9 * len(x['indices']) for x in o)))([", ids,
+                                "], rows[0]['objects'])")),
+            "(3, [1, 2, 3], True)");
 }
 
 TEST_F(CliE2ETest, TheSensorFrameReachesTheServer) {

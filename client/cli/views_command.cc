@@ -1,7 +1,12 @@
 #include "client/cli/views_command.h"
 
+#include <algorithm>
 #include <filesystem>
+#include <string>
 #include <system_error>
+#include <tuple>
+#include <utility>
+#include <vector>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
@@ -9,8 +14,11 @@
 #include "client/cli/input_files.h"
 #include "core/io/pcd_writer.h"
 #include "core/io/point_cloud_reader.h"
+#include "core/io/scene_files.h"
 #include "core/json.h"
+#include "core/random.h"
 #include "core/views/scan_simulator.h"
+#include "core/views/scene_composer.h"
 #include "core/views/view_directions.h"
 
 namespace shapeid {
@@ -62,6 +70,28 @@ void AddViewsFlags(CLI::App* command, ViewsOptions* options) {
       ->check(CLI::Range(size_t{1000}, size_t{10000000}))
       ->capture_default_str();
   command->add_option("--seed", options->seed, "Seed of sampling and noise")->capture_default_str();
+  command
+      ->add_option("--scenes", options->scenes,
+                   "Also compose this many tabletop frames of the models, with each point's "
+                   "truth, into OUT/scenes/ (docs/scenes.md)")
+      ->check(CLI::Range(0, 100000))
+      ->capture_default_str();
+  command
+      ->add_option("--scene-objects", options->scene_objects,
+                   "Models per frame, drawn without repeating (all of them when fewer)")
+      ->check(CLI::Range(1, 64))
+      ->capture_default_str();
+  command
+      ->add_option("--touching", options->touching,
+                   "Chance that each object of a frame leans on one placed before it")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  command
+      ->add_option("--clutter", options->clutter,
+                   "A model placed in the frames as clutter (in no gallery), one per frame in "
+                   "turn; repeat the flag for more")
+      ->type_name("FILE")
+      ->allow_extra_args(false);
 }
 
 namespace {
@@ -104,12 +134,120 @@ absl::Status RenderSet(ScanSimulator& simulator, const ViewsOptions& options, in
   return absl::OkStatus();
 }
 
+// One scene model per file: its surface sampled as for views, labelled by its file name.
+absl::StatusOr<SceneObjectModel> SceneModel(const std::string& file, const ViewsOptions& options,
+                                            SceneRole role) {
+  ReadOptions read;
+  read.sample_points = options.surface_points;
+  read.sample_seed = options.seed;
+  absl::StatusOr<ReadResult> result = ReadInputCloud(file, read);
+  if (!result.ok()) return result.status();
+  SceneObjectModel model;
+  model.label = fs::path(file).stem().string();
+  model.role = role;
+  model.surface = std::move(result->cloud);
+  model.up = UpAxis(options.up);
+  return model;
+}
+
+// Frame `index` of the scene set: `models` drawn without repeating, plus one clutter model,
+// composed and written as NNNN.pcd, NNNN.objects.csv and NNNN.truth.u16 under `dir`.
+absl::StatusOr<ComposedScene> WriteScene(const std::vector<SceneObjectModel>& models,
+                                         const std::vector<std::string>& model_files,
+                                         const std::vector<SceneObjectModel>& clutter,
+                                         const std::vector<std::string>& clutter_files,
+                                         const ViewsOptions& options, int index,
+                                         const fs::path& dir) {
+  SplitMix64 random(options.seed * 1000003 + static_cast<uint64_t>(index));
+  std::vector<size_t> order(models.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  for (size_t i = order.size(); i > 1; --i) {  // Fisher-Yates
+    std::swap(order[i - 1], order[static_cast<size_t>(random.Uniform() * i)]);
+  }
+  order.resize(std::min(order.size(), static_cast<size_t>(options.scene_objects)));
+  std::vector<SceneObjectModel> chosen;
+  std::vector<std::string> sources;
+  for (const size_t m : order) {
+    chosen.push_back(models[m]);
+    sources.push_back(model_files[m]);
+  }
+  if (!clutter.empty()) {
+    const size_t c = static_cast<size_t>(index) % clutter.size();
+    chosen.push_back(clutter[c]);
+    sources.push_back(clutter_files[c]);
+  }
+  SceneComposerOptions compose;
+  compose.touch_probability = options.touching;
+  compose.seed = options.seed * 7919 + static_cast<uint64_t>(index);
+  absl::StatusOr<ComposedScene> scene = ComposeScene(chosen, compose);
+  if (!scene.ok()) return scene.status();
+  SceneFile file;
+  file.name = absl::StrFormat("%04d", index);
+  file.frame = scene->frame;
+  file.truth = scene->truth;
+  for (const ComposedObject& object : scene->objects) {
+    file.objects.push_back(
+        {object.label, object.role == SceneRole::kClutter, sources[object.model]});
+  }
+  if (absl::Status s = WriteSceneFile(dir.string(), file); !s.ok()) return s;
+  return scene;
+}
+
+// The --scenes part of RunViews: one line per frame, or the first error.
+int RunScenes(const ViewsOptions& options, const CliContext& context) {
+  std::vector<SceneObjectModel> models, clutter;
+  for (const auto& [files, role, into] :
+       {std::tuple(&options.models, SceneRole::kGallery, &models),
+        std::tuple(&options.clutter, SceneRole::kClutter, &clutter)}) {
+    for (const std::string& file : *files) {
+      absl::StatusOr<SceneObjectModel> model = SceneModel(file, options, role);
+      if (!model.ok()) {
+        WriteAll(context.err, FileErrorLine(file, model.status()));
+        return kExitSomeInputsFailed;
+      }
+      into->push_back(*std::move(model));
+    }
+  }
+  const fs::path dir = fs::path(options.out) / "scenes";
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) {
+    WriteAll(context.err, absl::StrCat("shapeid: views: ", dir.string(), ": ", ec.message(), "\n"));
+    return kExitSomeInputsFailed;
+  }
+  Table table{
+      {"FRAME", "OBJECTS", "CLUTTER", "TOUCHING", "POINTS"}, {}, {false, true, true, true, true}};
+  for (int s = 0; s < options.scenes; ++s) {
+    absl::StatusOr<ComposedScene> scene =
+        WriteScene(models, options.models, clutter, options.clutter, options, s, dir);
+    if (!scene.ok()) {
+      WriteAll(context.err,
+               absl::StrCat("shapeid: views: frame ", s, ": ", scene.status().message(), "\n"));
+      return kExitSomeInputsFailed;
+    }
+    size_t placed_clutter = 0, touching = 0;
+    for (const ComposedObject& object : scene->objects) {
+      placed_clutter += object.role == SceneRole::kClutter;
+      touching += !object.separated;
+    }
+    table.rows.push_back({(dir / absl::StrFormat("%04d.pcd", s)).string(),
+                          absl::StrCat(scene->objects.size()), absl::StrCat(placed_clutter),
+                          absl::StrCat(touching), absl::StrCat(scene->frame.size())});
+  }
+  WriteAll(context.out,
+           context.format == OutputFormat::kCsv ? RenderCsv(table) : RenderTable(table));
+  return kExitOk;
+}
+
 }  // namespace
 
 int RunViews(const ViewsOptions& options, const CliContext& context) {
   if (options.min_elevation > options.max_elevation) {
     WriteAll(context.err, "shapeid: views: --min-elevation is above --max-elevation\n");
     return kExitUsage;
+  }
+  if (options.train_views == 0 && options.test_views == 0 && options.scenes > 0) {
+    return RunScenes(options, context);  // frames only
   }
   ReadOptions read;
   read.sample_points = options.surface_points;
@@ -162,6 +300,10 @@ int RunViews(const ViewsOptions& options, const CliContext& context) {
     text = context.format == OutputFormat::kCsv ? RenderCsv(table) : RenderTable(table);
   }
   WriteAll(context.out, text);
+  if (!failed && options.scenes > 0) {
+    const int scenes = RunScenes(options, context);
+    if (scenes != kExitOk) return scenes;
+  }
   std::fflush(context.out);
   return failed ? kExitSomeInputsFailed : kExitOk;
 }

@@ -5,7 +5,9 @@
 // as a labelled dataset for train / classify / eval:
 //   OUT/<model>/train/view-00.pcd ...   (views from one set of directions)
 //   OUT/<model>/test/view-00.pcd ...    (views from directions between those, other noise)
-// The label is the model's file name without extension.
+// The label is the model's file name without extension. With --scenes N it also composes N
+// tabletop frames of the models (core/views/scene_composer.h) with each point's truth:
+//   OUT/scenes/0000.pcd, 0000.objects.csv, 0000.truth.u16 ...  (docs/scenes.md)
 
 #include <cstdint>
 #include <string>
@@ -32,6 +34,13 @@ struct ViewsOptions {
   size_t max_points = 0;          // subsample each view to at most this many points (0: all)
   size_t surface_points = 60000;  // dense surface sampling the sensor sees
   uint64_t seed = 1;
+  // Tabletop frames: how many, objects per frame (drawn from the models), the chance that an
+  // object leans on another, and models placed as clutter (in no gallery: role `clutter`,
+  // one per frame while they last).
+  int scenes = 0;
+  int scene_objects = 5;
+  double touching = 0.3;
+  std::vector<std::string> clutter;
 };
 
 void AddViewsFlags(CLI::App* command, ViewsOptions* options);
