@@ -1,6 +1,6 @@
 // Scene recognition accuracy (issue 29, "Done when" 1): tabletop frames with the truth of
 // every point, recognised by RecognizeScene against a ModelNet10 gallery, scored per object.
-// Protocol, figures and what was tuned on what: docs/scene_accuracy.md.
+// Protocol, figures and what was tuned on what: docs/accuracy.md, "Scenes".
 //
 //   scene_accuracy                                    # calibrate, then test scenes A
 //   scene_accuracy --calibrate-only --spec dfsd       # compare gallery configurations

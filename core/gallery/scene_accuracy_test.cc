@@ -1,5 +1,5 @@
 // The fast, data-free slice of the scene accuracy run (bench/scene_accuracy.cc,
-// docs/scene_accuracy.md): a gallery of primitive shapes trained with the project's
+// docs/accuracy.md, "Scenes"): a gallery of primitive shapes trained with the project's
 // simulated views, tested on frames of the independent ray-caster
 // (core/testing/tabletop_frames.h), so no test frame comes from the code that made the
 // gallery's views.
