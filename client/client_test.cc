@@ -251,27 +251,6 @@ TEST_F(ClientTest, ClassifyInOneMessageOrStreamedGivesTheSameAnswer) {
   EXPECT_TRUE(absl::IsNotFound((*one_message_client)->Classify("missing", cloud).status()));
 }
 
-// A 1.2 m square table at z = -0.5 (1 cm grid) with a box, a sphere and a rod, 5 cm per unit,
-// 3 cm above it (core/gallery/scene_recognition_test.cc's frame); `truth` gets each object's
-// indices, box first.
-PointCloud TableFrame(std::vector<std::vector<uint32_t>>* truth) {
-  PointCloud frame;
-  for (float x = -0.6f; x <= 0.6f; x += 0.01f) {
-    for (float y = -0.6f; y <= 0.6f; y += 0.01f) frame.Add(x, y, -0.5f);
-  }
-  const Eigen::Vector3f places[3] = {
-      {0.1f, 0.3f, -0.46f}, {-0.3f, -0.1f, -0.42f}, {0.2f, -0.3f, -0.46f}};
-  for (int kind = 0; kind < 3; ++kind) {
-    const PointCloud shape = testing_clouds::ShapeCloud(kind, 50 + kind, 3000);
-    truth->emplace_back();
-    for (size_t i = 0; i < shape.size(); ++i) {
-      truth->back().push_back(static_cast<uint32_t>(frame.size()));
-      frame.Add(0.05f * shape.point(i) + places[kind]);
-    }
-  }
-  return frame;
-}
-
 std::vector<uint32_t> Indices(const v1::SceneObject& object) {
   return {object.indices().begin(), object.indices().end()};
 }
@@ -303,7 +282,7 @@ class ClientSceneTest : public ClientTest {
 TEST_F(ClientSceneTest, FindsNamesAndLocatesEachObjectOnTheTable) {
   CreateShapes("shapes");
   std::vector<std::vector<uint32_t>> truth;
-  const PointCloud frame = TableFrame(&truth);
+  const PointCloud frame = testing_clouds::TableWithShapes(&truth);
   Client::SceneOptions options;
   options.return_indices = true;
   const auto scene = client_->RecognizeScene("shapes", frame, options);
@@ -351,7 +330,8 @@ TEST_F(ClientSceneTest, FindsNamesAndLocatesEachObjectOnTheTable) {
 TEST_F(ClientSceneTest, OneMessageOrStreamedGivesTheSameAnswer) {
   CreateShapes("shapes");
   std::vector<std::vector<uint32_t>> truth;
-  const PointCloud frame = TableFrame(&truth);  // 23,641 points: over 1,000, so it streams
+  const PointCloud frame =
+      testing_clouds::TableWithShapes(&truth);  // 23,641 points: over 1,000, so it streams
   Client::SceneOptions options;
   options.return_indices = true;
   const auto streamed = client_->RecognizeScene("shapes", frame, options);
@@ -387,7 +367,7 @@ TEST_F(ClientSceneTest, OneMessageOrStreamedGivesTheSameAnswer) {
 TEST_F(ClientSceneTest, NonFinitePointsAreSkippedAndIndicesCountThem) {
   CreateShapes("shapes");
   std::vector<std::vector<uint32_t>> truth;
-  const PointCloud dense = TableFrame(&truth);
+  const PointCloud dense = testing_clouds::TableWithShapes(&truth);
   const float nan = std::numeric_limits<float>::quiet_NaN();
   PointCloud frame;
   for (int i = 0; i < 7; ++i) frame.Add(nan, nan, nan);
@@ -421,7 +401,7 @@ TEST_F(ClientSceneTest, ErrorsKeepTheirCodeAndNameTheField) {
   CreateShapes("shapes");
   CreateShapes("untrained", /*train=*/false);
   std::vector<std::vector<uint32_t>> truth;
-  const PointCloud frame = TableFrame(&truth);
+  const PointCloud frame = testing_clouds::TableWithShapes(&truth);
   absl::Status status = client_->RecognizeScene("untrained", frame, {}).status();
   EXPECT_TRUE(absl::IsFailedPrecondition(status)) << status;
   status = client_->RecognizeScene("nowhere", frame, {}).status();

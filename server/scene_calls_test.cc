@@ -26,35 +26,16 @@ namespace {
 
 using ::testing::HasSubstr;
 using testing_clouds::kShapeNames;
+using testing_clouds::kTableHeight;
 using testing_clouds::ShapeCloud;
+using testing_clouds::TableWithShapes;
 
-constexpr float kTable = -0.5f;
 constexpr uint32_t kMaxPoints = 60000;
 
 std::string Bytes(const PointCloud& cloud) {
   std::string bytes(cloud.size() * 12, '\0');
   std::memcpy(bytes.data(), cloud.data(), bytes.size());
   return bytes;
-}
-
-// A 1.2 m square table (1 cm grid) with a box, a sphere and a rod, 5 cm per unit, 3 cm
-// above it; `truth` gets each object's indices, box first.
-PointCloud TableFrame(std::vector<std::vector<uint32_t>>* truth) {
-  PointCloud frame;
-  for (float x = -0.6f; x <= 0.6f; x += 0.01f) {
-    for (float y = -0.6f; y <= 0.6f; y += 0.01f) frame.Add(x, y, kTable);
-  }
-  const Eigen::Vector3f places[3] = {
-      {0.1f, 0.3f, kTable + 0.04f}, {-0.3f, -0.1f, kTable + 0.08f}, {0.2f, -0.3f, kTable + 0.04f}};
-  for (int kind = 0; kind < 3; ++kind) {
-    const PointCloud shape = ShapeCloud(kind, 50 + kind, 3000);
-    truth->emplace_back();
-    for (size_t i = 0; i < shape.size(); ++i) {
-      truth->back().push_back(static_cast<uint32_t>(frame.size()));
-      frame.Add(0.05f * shape.point(i) + places[kind]);
-    }
-  }
-  return frame;
 }
 
 class SceneCallsTest : public ::testing::Test {
@@ -145,7 +126,7 @@ std::vector<uint32_t> Indices(const v1::SceneObject& object) {
 TEST_F(SceneCallsTest, FindsNamesAndLocatesEachObjectAndAccountsForEveryPoint) {
   CreateShapes("shapes");
   std::vector<std::vector<uint32_t>> truth;
-  const PointCloud frame = TableFrame(&truth);
+  const PointCloud frame = TableWithShapes(&truth);
   v1::RecognizeSceneResponse answer;
   const grpc::Status status = SceneCloud(Header("shapes"), Bytes(frame), &answer);
   ASSERT_TRUE(status.ok()) << status.error_message();
@@ -201,7 +182,7 @@ TEST_F(SceneCallsTest, FindsNamesAndLocatesEachObjectAndAccountsForEveryPoint) {
 TEST_F(SceneCallsTest, TheStreamAnswersAsOneMessageDoesWhateverTheChunks) {
   CreateShapes("shapes");
   std::vector<std::vector<uint32_t>> truth;
-  const std::string xyz = Bytes(TableFrame(&truth));
+  const std::string xyz = Bytes(TableWithShapes(&truth));
   v1::RecognizeSceneResponse one;
   ASSERT_TRUE(SceneCloud(Header("shapes"), xyz, &one).ok());
   for (const size_t chunk : {size_t{12} * 1000, size_t{12} * 16384}) {
@@ -226,7 +207,7 @@ TEST_F(SceneCallsTest, TheStreamAnswersAsOneMessageDoesWhateverTheChunks) {
 TEST_F(SceneCallsTest, OrganisedFramesKeepPixelIndicesThroughMissingReturns) {
   CreateShapes("shapes");
   std::vector<std::vector<uint32_t>> truth;
-  const PointCloud dense = TableFrame(&truth);
+  const PointCloud dense = TableWithShapes(&truth);
   const uint32_t width = 200;
   const size_t rows = (2 * dense.size() + width - 1) / width;
   const uint32_t point_step = 16, row_step = width * point_step + 8;
@@ -276,7 +257,7 @@ TEST_F(SceneCallsTest, OrganisedFramesKeepPixelIndicesThroughMissingReturns) {
 TEST_F(SceneCallsTest, TheSensorFramesUpKeepsWallsFromBeingSupports) {
   CreateShapes("shapes");
   std::vector<std::vector<uint32_t>> truth;
-  PointCloud frame = TableFrame(&truth);
+  PointCloud frame = TableWithShapes(&truth);
   size_t table_points = frame.size();
   for (const auto& object : truth) table_points -= object.size();
   for (float x = -1.2f; x <= 1.2f; x += 0.01f) {  // a wall at y = 0.75, larger than the table
@@ -328,7 +309,7 @@ TEST_F(SceneCallsTest, ErrorsAreNamedWithTheirCodes) {
   CreateShapes("shapes");
   CreateShapes("untrained", /*train=*/false);
   std::vector<std::vector<uint32_t>> truth;
-  const std::string xyz = Bytes(TableFrame(&truth));
+  const std::string xyz = Bytes(TableWithShapes(&truth));
   v1::RecognizeSceneResponse answer;
 
   grpc::Status s = SceneCloud(Header("untrained"), xyz, &answer);
@@ -386,8 +367,8 @@ TEST_F(SceneCallsTest, ErrorsAreNamedWithTheirCodes) {
 TEST_F(SceneCallsTest, AnObjectThatCannotBeDescribedCarriesItsError) {
   CreateShapes("shapes");
   std::vector<std::vector<uint32_t>> truth;
-  PointCloud frame = TableFrame(&truth);
-  for (int i = 0; i < 200; ++i) frame.Add(-0.4f, 0.4f, kTable + 0.2f);
+  PointCloud frame = TableWithShapes(&truth);
+  for (int i = 0; i < 200; ++i) frame.Add(-0.4f, 0.4f, kTableHeight + 0.2f);
   v1::RecognizeSceneResponse answer;
   ASSERT_TRUE(SceneCloud(Header("shapes"), Bytes(frame), &answer).ok());
   ASSERT_EQ(answer.objects_size(), 4);

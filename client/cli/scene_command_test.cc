@@ -69,21 +69,15 @@ class SceneCommandTest : public ::testing::Test {
       samples.push_back({kShapeNames[i / 3], 0, &clouds[i]});
     ASSERT_TRUE(client_->Train("shapes", samples).ok());
 
-    // NaN points first (a depth camera's missing returns), then a 1.2 m table at z = -0.5 (1 cm
-    // grid) with a box, a sphere and a rod, 5 cm per unit, 3 cm above it.
+    // NaN points first (a depth camera's missing returns), then the table with a box, a
+    // sphere and a rod (testing_clouds::TableWithShapes).
     const float nan = std::numeric_limits<float>::quiet_NaN();
     for (size_t i = 0; i < kLeadingNans; ++i) frame_.Add(nan, nan, nan);
-    for (float x = -0.6f; x <= 0.6f; x += 0.01f) {
-      for (float y = -0.6f; y <= 0.6f; y += 0.01f) frame_.Add(x, y, -0.5f);
-    }
-    table_points_ = frame_.size() - kLeadingNans;
-    const Eigen::Vector3f places[3] = {
-        {0.1f, 0.3f, -0.46f}, {-0.3f, -0.1f, -0.42f}, {0.2f, -0.3f, -0.46f}};
-    for (int kind = 0; kind < 3; ++kind) {
-      const PointCloud shape = ShapeCloud(kind, 50 + kind, 3000);
-      first_[kind] = frame_.size();
-      for (size_t i = 0; i < shape.size(); ++i) frame_.Add(0.05f * shape.point(i) + places[kind]);
-    }
+    std::vector<std::vector<uint32_t>> truth;
+    const PointCloud table = testing_clouds::TableWithShapes(&truth);
+    table_points_ = truth[0].front();
+    for (int kind = 0; kind < 3; ++kind) first_[kind] = kLeadingNans + truth[kind].front();
+    for (size_t i = 0; i < table.size(); ++i) frame_.Add(table.point(i));
     ASSERT_TRUE(WritePcd(Path("frame.pcd"), frame_).ok());
   }
   void TearDown() override {

@@ -17,9 +17,9 @@ namespace {
 
 using ::testing::HasSubstr;
 using testing_clouds::kShapeNames;
+using testing_clouds::kTableHeight;
 using testing_clouds::ShapeCloud;
-
-constexpr float kTable = -0.5f;
+using testing_clouds::TableWithShapes;
 
 std::shared_ptr<Gallery> ShapesGallery(bool trained) {
   GalleryOptions options;
@@ -40,30 +40,10 @@ std::shared_ptr<Gallery> ShapesGallery(bool trained) {
   return *gallery;
 }
 
-// A table (z = kTable) with the three shapes, 5 cm per unit, floating 3 cm above it so that no
-// object point is within the plane distance; returns each object's frame indices.
-PointCloud TableScene(std::vector<std::vector<uint32_t>>* truth) {
-  PointCloud frame;
-  for (float x = -0.6f; x <= 0.6f; x += 0.01f) {
-    for (float y = -0.6f; y <= 0.6f; y += 0.01f) frame.Add(x, y, kTable);
-  }
-  const Eigen::Vector3f places[3] = {
-      {0.1f, 0.3f, kTable + 0.04f}, {-0.3f, -0.1f, kTable + 0.08f}, {0.2f, -0.3f, kTable + 0.04f}};
-  for (int kind = 0; kind < 3; ++kind) {
-    const PointCloud shape = ShapeCloud(kind, 50 + kind, 3000);
-    truth->emplace_back();
-    for (size_t i = 0; i < shape.size(); ++i) {
-      truth->back().push_back(static_cast<uint32_t>(frame.size()));
-      frame.Add(0.05f * shape.point(i) + places[kind]);
-    }
-  }
-  return frame;
-}
-
 TEST(SceneRecognitionTest, FindsAndNamesEachObjectOnTheTable) {
   const std::shared_ptr<Gallery> gallery = ShapesGallery(true);
   std::vector<std::vector<uint32_t>> truth;
-  const PointCloud frame = TableScene(&truth);
+  const PointCloud frame = TableWithShapes(&truth);
   const absl::StatusOr<SceneRecognition> scene =
       RecognizeScene(*gallery->Snapshot(), frame, SceneRecognitionOptions());
   ASSERT_TRUE(scene.ok()) << scene.status();
@@ -82,8 +62,9 @@ TEST(SceneRecognitionTest, FindsAndNamesEachObjectOnTheTable) {
     EXPECT_EQ(object.classification.provenance.size(), object.classification.knn.neighbors.size());
     // The sphere's centroid is where it was put; its box about 10 cm on each side.
     if (kind == 1) {
-      EXPECT_LT((object.geometry.centroid - Eigen::Vector3f(-0.3f, -0.1f, kTable + 0.08f)).norm(),
-                0.005f);
+      EXPECT_LT(
+          (object.geometry.centroid - Eigen::Vector3f(-0.3f, -0.1f, kTableHeight + 0.08f)).norm(),
+          0.005f);
       EXPECT_NEAR(object.geometry.box.size[0], 0.1f, 0.005f);
     }
   }
@@ -95,8 +76,8 @@ TEST(SceneRecognitionTest, FindsAndNamesEachObjectOnTheTable) {
 TEST(SceneRecognitionTest, AnObjectThatCannotBeDescribedIsUnknownNotAFailure) {
   const std::shared_ptr<Gallery> gallery = ShapesGallery(true);
   std::vector<std::vector<uint32_t>> truth;
-  PointCloud frame = TableScene(&truth);
-  for (int i = 0; i < 150; ++i) frame.Add(0.5f, 0.5f, kTable + 0.2f);
+  PointCloud frame = TableWithShapes(&truth);
+  for (int i = 0; i < 150; ++i) frame.Add(0.5f, 0.5f, kTableHeight + 0.2f);
   const absl::StatusOr<SceneRecognition> scene =
       RecognizeScene(*gallery->Snapshot(), frame, SceneRecognitionOptions());
   ASSERT_TRUE(scene.ok()) << scene.status();
@@ -113,7 +94,7 @@ TEST(SceneRecognitionTest, AnObjectThatCannotBeDescribedIsUnknownNotAFailure) {
 TEST(SceneRecognitionTest, EmptyGalleryIsRefusedBeforeAnyWork) {
   std::vector<std::vector<uint32_t>> truth;
   const absl::StatusOr<SceneRecognition> scene =
-      RecognizeScene(*ShapesGallery(false)->Snapshot(), TableScene(&truth), {});
+      RecognizeScene(*ShapesGallery(false)->Snapshot(), TableWithShapes(&truth), {});
   EXPECT_EQ(scene.status().code(), absl::StatusCode::kFailedPrecondition);
   EXPECT_THAT(scene.status().message(), HasSubstr("'shapes' has no samples"));
 }
@@ -123,7 +104,7 @@ TEST(SceneRecognitionTest, BadSegmentationOptionsAreInvalidArgument) {
   options.segmentation.cluster_tolerance = 0;
   std::vector<std::vector<uint32_t>> truth;
   const absl::StatusOr<SceneRecognition> scene =
-      RecognizeScene(*ShapesGallery(true)->Snapshot(), TableScene(&truth), options);
+      RecognizeScene(*ShapesGallery(true)->Snapshot(), TableWithShapes(&truth), options);
   EXPECT_EQ(scene.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(scene.status().message(), HasSubstr("cluster_tolerance"));
 }
@@ -134,7 +115,7 @@ TEST(SceneRecognitionTest, BadSegmentationOptionsAreInvalidArgument) {
 TEST(SceneRecognitionTest, TheTableGivesUp) {
   const std::shared_ptr<Gallery> gallery = ShapesGallery(true);
   std::vector<std::vector<uint32_t>> truth;
-  const PointCloud level = TableScene(&truth);
+  const PointCloud level = TableWithShapes(&truth);
   const Eigen::Matrix3f tilt =
       Eigen::AngleAxisf(0.7f, Eigen::Vector3f(1, 0.3f, 0).normalized()).toRotationMatrix();
   PointCloud tilted;
@@ -167,7 +148,7 @@ TEST(SceneRecognitionTest, TheTableGivesUp) {
 TEST(SceneRecognitionTest, ASensorFrameTurnsTheObjectsAndKeepsTheFramesCoordinates) {
   const std::shared_ptr<Gallery> gallery = ShapesGallery(true);
   std::vector<std::vector<uint32_t>> truth;
-  const PointCloud level = TableScene(&truth);
+  const PointCloud level = TableWithShapes(&truth);
   const Eigen::Matrix3f tilt =
       Eigen::AngleAxisf(0.7f, Eigen::Vector3f(1, 0.3f, 0).normalized()).toRotationMatrix();
   PointCloud tilted;
@@ -206,7 +187,7 @@ TEST(SceneRecognitionTest, ASensorFrameTurnsTheObjectsAndKeepsTheFramesCoordinat
 TEST(SceneRecognitionTest, ClustersFromElsewhereAreClassifiedTheSameWay) {
   const std::shared_ptr<Gallery> gallery = ShapesGallery(true);
   std::vector<std::vector<uint32_t>> truth;
-  const PointCloud frame = TableScene(&truth);
+  const PointCloud frame = TableWithShapes(&truth);
   const auto snapshot = gallery->Snapshot();
   const absl::StatusOr<SceneRecognition> whole = RecognizeScene(*snapshot, frame, {});
   absl::StatusOr<SceneSegmentation> segmentation = SegmentScene(frame, {});

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <random>
+#include <vector>
 
 #include "core/point_cloud.h"
 
@@ -52,6 +53,32 @@ inline PointCloud ShapeCloud(int kind, uint32_t seed, size_t n) {
     }
   }
   return cloud;
+}
+
+// A sensor-frame-like scene for scene-recognition tests: a 1.2 m square table top at z =
+// kTableHeight (1 cm grid, 121 x 121 points, first) with a box, a sphere and a rod (ShapeCloud
+// kinds 0-2, seeds 50-52, 3,000 points each, 5 cm per unit) standing 3 cm clear of it, each
+// far from the others. `truth`, when given, gets each shape's indices, box first.
+inline constexpr float kTableHeight = -0.5f;
+inline PointCloud TableWithShapes(std::vector<std::vector<uint32_t>>* truth = nullptr) {
+  PointCloud frame;
+  for (int x = -60; x <= 60; ++x) {
+    for (int y = -60; y <= 60; ++y) frame.Add(0.01f * x, 0.01f * y, kTableHeight);
+  }
+  const float places[3][3] = {{0.1f, 0.3f, kTableHeight + 0.04f},
+                              {-0.3f, -0.1f, kTableHeight + 0.08f},
+                              {0.2f, -0.3f, kTableHeight + 0.04f}};
+  for (int kind = 0; kind < 3; ++kind) {
+    const PointCloud shape = ShapeCloud(kind, static_cast<uint32_t>(50 + kind), 3000);
+    if (truth != nullptr) truth->emplace_back();
+    for (size_t i = 0; i < shape.size(); ++i) {
+      if (truth != nullptr) truth->back().push_back(static_cast<uint32_t>(frame.size()));
+      const auto p = shape.point(i);
+      frame.Add(0.05f * p.x() + places[kind][0], 0.05f * p.y() + places[kind][1],
+                0.05f * p.z() + places[kind][2]);
+    }
+  }
+  return frame;
 }
 
 }  // namespace shapeid::testing_clouds
