@@ -141,7 +141,11 @@ class Footprint {
 
  private:
   int64_t Cell(double v) const { return static_cast<int64_t>(std::floor(v / cell_)); }
-  static int64_t Key(int64_t x, int64_t y) { return (x << 32) ^ (y & 0xffffffff); }
+  // Unsigned: cells left of or below the origin are negative, and shifting those is undefined.
+  static int64_t Key(int64_t x, int64_t y) {
+    return static_cast<int64_t>(static_cast<uint64_t>(x) << 32 ^
+                                (static_cast<uint64_t>(y) & 0xffffffffu));
+  }
   int64_t Key(const Eigen::Vector2d& p) const { return Key(Cell(p.x()), Cell(p.y())); }
 
   std::vector<Eigen::Vector2d> points_;
