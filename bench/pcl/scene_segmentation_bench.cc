@@ -260,17 +260,17 @@ void RecognitionCounters(benchmark::State& state, const FrameSet& set, double cl
   state.counters["objects"] = static_cast<double>(objects) / set.frames.size();
 }
 
-void BM_ShapeidRecognize(benchmark::State& state, const FrameSet* set) {
-  const GallerySnapshot& gallery = TimingGallery();
-  const SceneRecognitionOptions options = RecognitionOptions();
+// Times `recognise` (frame -> SceneRecognition) over every frame of the set.
+template <typename Recognise>
+void TimeRecognition(benchmark::State& state, const FrameSet& set, Recognise recognise) {
   size_t points = 0;
-  for (const Frame& f : set->frames) points += f.frame.cloud.size();
+  for (const Frame& f : set.frames) points += f.frame.cloud.size();
   double classify = 0;
   size_t objects = 0;
   for (auto _ : state) {
     objects = 0;
-    for (const Frame& f : set->frames) {
-      absl::StatusOr<SceneRecognition> scene = RecognizeScene(gallery, f.frame.cloud, options);
+    for (const Frame& f : set.frames) {
+      absl::StatusOr<SceneRecognition> scene = recognise(f);
       if (!scene.ok()) {
         state.SkipWithError(std::string(scene.status().message()).c_str());
         return;
@@ -279,38 +279,29 @@ void BM_ShapeidRecognize(benchmark::State& state, const FrameSet* set) {
       objects += scene->objects.size();
     }
   }
-  Finish(state, *set, points);
-  RecognitionCounters(state, *set, classify, objects);
+  Finish(state, set, points);
+  RecognitionCounters(state, set, classify, objects);
+}
+
+void BM_ShapeidRecognize(benchmark::State& state, const FrameSet* set) {
+  const GallerySnapshot& gallery = TimingGallery();
+  const SceneRecognitionOptions options = RecognitionOptions();
+  TimeRecognition(state, *set,
+                  [&](const Frame& f) { return RecognizeScene(gallery, f.frame.cloud, options); });
 }
 
 void BM_PclChainThenClassify(benchmark::State& state, const FrameSet* set) {
   const GallerySnapshot& gallery = TimingGallery();
   const SceneRecognitionOptions options = RecognitionOptions();
-  size_t points = 0;
-  for (const Frame& f : set->frames) points += f.frame.cloud.size();
-  double classify = 0;
-  size_t objects = 0;
-  for (auto _ : state) {
-    objects = 0;
-    for (const Frame& f : set->frames) {
-      PclResult r = PclChain(f.pcl, false);
-      SceneSegmentation segmentation;
-      for (size_t p = 0; p < r.planes.size(); ++p) {
-        segmentation.planes.push_back({r.planes[p], r.plane_points[p]});
-      }
-      segmentation.clusters = std::move(r.clusters);
-      absl::StatusOr<SceneRecognition> scene =
-          ClassifySceneObjects(gallery, f.frame.cloud, std::move(segmentation), options);
-      if (!scene.ok()) {
-        state.SkipWithError(std::string(scene.status().message()).c_str());
-        return;
-      }
-      classify += absl::ToDoubleSeconds(scene->classify_time);
-      objects += scene->objects.size();
+  TimeRecognition(state, *set, [&](const Frame& f) {
+    PclResult r = PclChain(f.pcl, false);
+    SceneSegmentation segmentation;
+    for (size_t p = 0; p < r.planes.size(); ++p) {
+      segmentation.planes.push_back({r.planes[p], r.plane_points[p]});
     }
-  }
-  Finish(state, *set, points);
-  RecognitionCounters(state, *set, classify, objects);
+    segmentation.clusters = std::move(r.clusters);
+    return ClassifySceneObjects(gallery, f.frame.cloud, std::move(segmentation), options);
+  });
 }
 
 // Clustering alone, on the points PCL's planes left (dense, no NaN, no plane to find).
