@@ -6,8 +6,11 @@
 //   scene_accuracy --calibrate-only --spec dfsd       # compare gallery configurations
 //   scene_accuracy --scenes build/independent-scenes  # also test scenes B from disk
 //   scene_accuracy --frames 20 --write-scenes /tmp/a  # write scenes A in the on-disk format
+//   scene_accuracy --instances --frames 0 --scenes build/independent-scenes
+//                                                     # B against a gallery of its own objects
 //
-// The gallery: the TRAIN split, trained in-process with view augmentation as a gallery does.
+// The gallery: the TRAIN split (--instances: the TEST split, for instance recognition of
+// scenes B), trained in-process with view augmentation as a gallery does.
 // Every 10th training file per class is held out to calibrate: frames composed from those
 // objects (no clutter) give the nearest-neighbour distances of known, unseen objects, whose
 // --reject-percentile is the gallery's reject distance; the held-out files then join the
@@ -290,7 +293,7 @@ int main(int argc, char** argv) {
   int views = 8, k = 1, frames = 100, calibration_frames = 60;
   uint64_t seed = 1;
   double percentile = 95, reject = -1, clutter_share = 0.25, separation = 0.05;
-  bool calibrate_only = false, verbose = false;
+  bool calibrate_only = false, verbose = false, instances = false;
   std::vector<std::string> dales_classes = {"car", "tree"};
   double min_elevation = -90, max_elevation = 90;
   SceneRecognitionOptions recognition;
@@ -340,9 +343,16 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--scenes", scenes_dir, "scene set on disk (test scenes B)");
   app.add_option("--write-scenes", write_dir, "write test scenes A there, in the same format");
+  app.add_flag("--instances", instances,
+               "instance recognition: train the gallery on the TEST split (the objects scenes B "
+               "show; needs --frames 0, as scenes A would be the augmentation's own simulator)");
   app.add_flag("--calibrate-only", calibrate_only, "stop after the calibration frames");
   app.add_flag("--verbose", verbose, "name each separated object that was not found");
   CLI11_PARSE(app, argc, argv);
+  if (instances && frames > 0) {
+    std::fprintf(stderr, "scene_accuracy: --instances needs --frames 0\n");
+    return 2;
+  }
 
   if (!fs::is_directory(data)) {
     std::printf("SKIPPED: no ModelNet10 data at %s\n", data.c_str());
@@ -357,12 +367,15 @@ int main(int argc, char** argv) {
     if (!fs::is_directory(cls)) continue;
     const std::string label = cls.filename().string();
     for (const char* split : {"train", "test"}) {
+      // --instances: the gallery is the test split's objects themselves.
+      const bool gallery_split = std::string(split) == (instances ? "test" : "train");
+      if (instances && !gallery_split) continue;
       int index = 0;
       for (const fs::path& file : SortedEntries(cls / split)) {
         absl::StatusOr<ReadResult> read = ReadPointCloud(file.string());
         if (!read.ok()) Fail(file.string(), read.status());
         const std::string source = fs::path(file).lexically_relative(data).generic_string();
-        if (std::string(split) == "test") {
+        if (!gallery_split) {
           test_models[label].push_back({label, source, std::move(read->cloud)});
         } else if (index++ % 10 == 0) {
           held_out_models[label].push_back({label, source, read->cloud});
