@@ -2,10 +2,8 @@
 
 #include <zlib.h>
 
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <memory>
 #include <utility>
 
@@ -20,6 +18,8 @@
 #include "client/cli/cloud_picture.h"
 #include "client/cli/describe_command.h"
 #include "client/cli/input_files.h"
+#include "core/io/coloured_cloud_writer.h"
+#include "core/io/file_writer.h"
 #include "core/io/point_cloud_reader.h"
 #include "core/json.h"
 
@@ -228,53 +228,6 @@ std::string SceneCsvRows(const std::string& file, const v1::RecognizeSceneRespon
   return rows;
 }
 
-// The bytes of a coloured PLY or PCD file (WriteColouredFrame's contract).
-std::string EncodeColoured(bool ply, const PointCloud& frame, absl::Span<const uint8_t> colours) {
-  const size_t n = frame.size();
-  std::string out =
-      ply ? absl::StrCat(
-                "ply\nformat binary_little_endian 1.0\ncomment shapeid scene: points "
-                "coloured by their object's label\nelement vertex ",
-                n,
-                "\nproperty float x\nproperty float y\nproperty float z\nproperty "
-                "uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n")
-          : absl::StrCat(
-                "# .PCD v0.7 - shapeid scene: points coloured by their object's label\n"
-                "VERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\n"
-                "COUNT 1 1 1 1\nWIDTH ",
-                n, "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS ", n, "\nDATA binary\n");
-  const size_t header = out.size();
-  const size_t step = ply ? 15 : 16;
-  out.resize(header + n * step);
-  char* at = out.data() + header;
-  for (size_t i = 0; i < n; ++i, at += step) {
-    std::memcpy(at, frame.data() + 3 * i, 12);  // little-endian hosts (the client's too)
-    const std::array<uint8_t, 3>& rgb = kScenePalette[colours[i]];
-    if (ply) {
-      std::memcpy(at + 12, rgb.data(), 3);
-    } else {
-      const uint32_t packed = (uint32_t{rgb[0]} << 16) | (uint32_t{rgb[1]} << 8) | rgb[2];
-      std::memcpy(at + 12, &packed, 4);
-    }
-  }
-  return out;
-}
-
-absl::Status WriteFile(const std::string& path, const std::string& bytes) {
-  std::FILE* f = std::fopen(path.c_str(), "wb");
-  if (f == nullptr) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("cannot write ", path, ": ", std::strerror(errno)));
-  }
-  const bool written = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
-  const int saved = errno;
-  if (std::fclose(f) != 0 || !written) {
-    return absl::UnknownError(
-        absl::StrCat("cannot write ", path, ": ", std::strerror(written ? errno : saved)));
-  }
-  return absl::OkStatus();
-}
-
 // The frame's points coloured and written / drawn as --colored and --picture ask.
 absl::Status WriteOutputs(const SceneCommandOptions& options, const PointCloud& frame,
                           const v1::RecognizeSceneResponse& scene) {
@@ -292,7 +245,7 @@ absl::Status WriteOutputs(const SceneCommandOptions& options, const PointCloud& 
     const std::string png =
         EncodePng(RenderColouredCloudViews(frame, colours, look), kScenePalette);
     if (png.empty()) return absl::ResourceExhaustedError("out of memory encoding the picture");
-    if (absl::Status s = WriteFile(options.picture, png); !s.ok()) return s;
+    if (absl::Status s = WriteFileAtomically(options.picture, png); !s.ok()) return s;
   }
   return absl::OkStatus();
 }
@@ -336,16 +289,17 @@ std::vector<uint8_t> SceneColours(const PointCloud& frame, const v1::RecognizeSc
 
 absl::Status WriteColouredFrame(const std::string& path, const PointCloud& frame,
                                 absl::Span<const uint8_t> colours) {
-  const std::string extension = Extension(path);
-  if (extension != ".ply" && extension != ".pcd") {
-    return absl::InvalidArgumentError(
-        absl::StrCat("--colored ", path, ": the file must end in .ply or .pcd"));
-  }
+  ColouredCloudFormat format;
+  if (absl::Status s = ColouredCloudFormatOf(path, &format); !s.ok()) return s;
   if (colours.size() != frame.size()) {
     return absl::InvalidArgumentError(
         absl::StrCat(colours.size(), " colours for ", frame.size(), " points"));
   }
-  return WriteFile(path, EncodeColoured(extension == ".ply", frame, colours));
+  std::vector<Rgb> rgb(colours.size());
+  for (size_t i = 0; i < colours.size(); ++i) rgb[i] = kScenePalette[colours[i]];
+  return WriteFileAtomically(
+      path, EncodeColouredCloud(frame, rgb, format,
+                                "shapeid scene: points coloured by their object's label"));
 }
 
 void AddSceneFlags(CLI::App* command, SceneCommandOptions* options) {

@@ -67,9 +67,9 @@ uint8_t SceneLabelColour(const std::string& label);
 std::vector<uint8_t> SceneColours(const PointCloud& frame, const v1::RecognizeSceneResponse& scene,
                                   double plane_distance, const v1::AxisAlignedBox* region);
 
-// The frame with its points' colours (palette indices of kScenePalette) as a binary PLY
-// (float x y z, uchar red green blue) or a binary PCD (x y z rgb, rgb a uint32 0x00RRGGBB as
-// PCL packs it), chosen by `path`'s extension. Every point is written, non-finite ones too.
+// The frame with its points' colours (palette indices of kScenePalette) as a binary PLY or
+// PCD (core/io/coloured_cloud_writer.h), chosen by `path`'s extension, written atomically.
+// Every point is written, non-finite ones too.
 absl::Status WriteColouredFrame(const std::string& path, const PointCloud& frame,
                                 absl::Span<const uint8_t> colours);
 

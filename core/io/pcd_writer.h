@@ -22,11 +22,8 @@ enum class PcdEncoding {
 // the result back; with ReadOptions::recenter false, to the same bits.
 std::string EncodePcd(const PointCloud& cloud, PcdEncoding encoding);
 
-// Writes EncodePcd(cloud, encoding) to `path`, replacing any file there. The bytes go to
-// `path` + ".tmp", which is flushed with fsync and then renamed over `path`, so a crash or a
-// full disk never leaves a half-written `path` (at worst a stale .tmp beside it). Errors name
-// the path and the system's reason: NotFound for a missing directory, PermissionDenied, and
-// Unknown for others (e.g. ENOSPC). Thread-safe, but two writers of one path race.
+// Writes EncodePcd(cloud, encoding) to `path` as WriteFileAtomically (core/io/file_writer.h)
+// does: never half-written, errors naming the path.
 absl::Status WritePcd(const std::string& path, const PointCloud& cloud,
                       PcdEncoding encoding = PcdEncoding::kBinary);
 
