@@ -2,12 +2,12 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <fstream>
 #include <sstream>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
+#include "core/io/file_writer.h"
 #include "core/io/pcd_writer.h"
 #include "core/io/point_cloud_reader.h"
 
@@ -97,14 +97,8 @@ absl::Status WriteSceneFile(const std::string& dir, const SceneFile& scene) {
     truth[2 * i] = static_cast<char>(scene.truth[i] & 0xff);
     truth[2 * i + 1] = static_cast<char>(scene.truth[i] >> 8);
   }
-  std::ofstream(base + ".objects.csv", std::ios::binary) << csv.str();
-  if (!std::ifstream(base + ".objects.csv")) {
-    return absl::UnknownError(absl::StrCat("cannot write ", base, ".objects.csv"));
-  }
-  std::ofstream out(base + ".truth.u16", std::ios::binary);
-  out.write(truth.data(), static_cast<std::streamsize>(truth.size()));
-  if (!out) return absl::UnknownError(absl::StrCat("cannot write ", base, ".truth.u16"));
-  return absl::OkStatus();
+  if (absl::Status s = WriteFileAtomically(base + ".objects.csv", csv.str()); !s.ok()) return s;
+  return WriteFileAtomically(base + ".truth.u16", truth);
 }
 
 }  // namespace shapeid

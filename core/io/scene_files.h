@@ -41,8 +41,9 @@ std::vector<std::string> ListSceneFiles(const std::string& dir);
 // is not 2 bytes per point or an id above the objects' count; the readers' errors otherwise.
 absl::StatusOr<SceneFile> ReadSceneFile(const std::string& dir, const std::string& name);
 
-// Writes `scene` as frame `scene.name` of `dir` (which must exist). InvalidArgument for a
-// label with a comma or a newline, or truth of another length than the frame.
+// Writes `scene` as frame `scene.name` of `dir` (which must exist), each file as
+// WriteFileAtomically does (core/io/file_writer.h). InvalidArgument for a label with a comma or
+// a newline, or truth of another length than the frame; the writer's errors otherwise.
 absl::Status WriteSceneFile(const std::string& dir, const SceneFile& scene);
 
 }  // namespace shapeid

@@ -62,6 +62,10 @@ TEST(SceneFilesTest, MalformedSetsAreRefusedNamingTheFile) {
   bad = TwoObjects("0000");
   bad.truth.pop_back();
   EXPECT_EQ(WriteSceneFile(dir, bad).code(), absl::StatusCode::kInvalidArgument);
+  // A folder that is not there: the writer's NotFound, naming the file.
+  const absl::Status missing = WriteSceneFile(dir + "/no_such_folder", TwoObjects("0000"));
+  EXPECT_EQ(missing.code(), absl::StatusCode::kNotFound);
+  EXPECT_NE(missing.message().find("no_such_folder/0000.pcd"), absl::string_view::npos);
 
   ASSERT_TRUE(WriteSceneFile(dir, TwoObjects("0000")).ok());
   const std::string base = dir + "/0000";
