@@ -37,6 +37,11 @@ struct ServiceOptions {
   size_t memory_budget_bytes = 0;
   // The part of the budget one caller (an API key, else a client host) may hold.
   double memory_caller_share = 0.5;
+  // The largest answer the service sends (a ListSamples page, a Classify with many
+  // neighbours, a scene with its indices): pages are cut to fit it, and a call whose answer
+  // would pass it fails RESOURCE_EXHAUSTED saying what to ask for instead. The project's
+  // clients accept answers up to kClientMaxReceiveBytes, so they can always read one.
+  size_t max_answer_bytes = 32 << 20;
   // The workers describing, searching and store writes run on (server/work_scheduler.h).
   WorkSchedulerOptions work;
 };
