@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cassert>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -78,19 +79,40 @@ WorkLane WorkScheduler::LaneFor(const WorkOrder& order) const {
   return order.cost >= options_.heavy_cost ? WorkLane::kHeavy : WorkLane::kCheap;
 }
 
+absl::Status WorkScheduler::ShareRefusalLocked(WorkLane which, absl::string_view caller) const {
+  const Lane& lane = lanes_[static_cast<int>(which)];
+  const int64_t queued = static_cast<int64_t>(lane.queue.size());
+  if (queued < options_.max_queued) return absl::OkStatus();
+  const auto found = lane.queued_by_caller.find(caller);
+  const int64_t mine = found == lane.queued_by_caller.end() ? 0 : found->second;
+  const int64_t callers = static_cast<int64_t>(lane.queued_by_caller.size()) + (mine == 0 ? 1 : 0);
+  const int64_t share = std::max<int64_t>(1, options_.max_queued / callers);
+  if (mine < share && queued < 2 * options_.max_queued) return absl::OkStatus();
+  if (mine < share) {
+    return absl::ResourceExhaustedError(absl::StrCat(
+        "the server has ", queued, " pieces of ", WorkLaneName(which), " work waiting from ",
+        callers - 1, " callers, twice its limit (--max_queued_work); retry shortly"));
+  }
+  return absl::ResourceExhaustedError(
+      absl::StrCat("this caller has ", mine, " pieces of ", WorkLaneName(which),
+                   " work waiting, its share of the lane (", share, " of --max_queued_work ",
+                   options_.max_queued, ", shared by ", callers,
+                   " callers); wait for answers before sending more"));
+}
+
 absl::Status WorkScheduler::Submit(WorkOrder order, std::function<void(const WorkStart&)> work) {
   const WorkLane which = LaneFor(order);
-  if (order.memory > 0 && budget_ != nullptr && !budget_->EverFits(order.memory)) {
-    return budget_->Refusal(order.caller, order.memory, "describing this cloud");
+  if (order.memory > 0 && budget_ != nullptr && !budget_->EverFits(order.memory + order.held)) {
+    return budget_->Refusal(order.caller, order.memory + order.held,
+                            order.held > 0 ? "this call's cloud with its work's working memory"
+                                           : "this call's working memory");
   }
   std::lock_guard<std::mutex> lock(mu_);
   if (stopping_)
     return absl::UnavailableError("the server is shutting down; retry on another replica");
   Lane& lane = lanes_[static_cast<int>(which)];
-  if (static_cast<int64_t>(lane.queue.size()) >= options_.max_queued) {
-    return absl::ResourceExhaustedError(
-        absl::StrCat("the server has ", lane.queue.size(), " pieces of ", WorkLaneName(which),
-                     " work waiting, its limit (--max_queued_work); retry shortly"));
+  if (absl::Status refused = ShareRefusalLocked(which, order.caller); !refused.ok()) {
+    return refused;
   }
   auto backlog = backlog_.find(order.caller);
   if (backlog != backlog_.end() && backlog->second + order.cost > options_.max_caller_backlog) {
@@ -106,8 +128,11 @@ absl::Status WorkScheduler::Submit(WorkOrder order, std::function<void(const Wor
   const double start = std::max(lane.virtual_time, finish);
   finish = start + cost;
   backlog_[order.caller] += order.cost;
+  ++lane.queued_by_caller[order.caller];
+  lane.queued_cost += order.cost;
   Job job{std::move(order), std::move(work), absl::Now()};
   lane.queue.emplace(Tag{start, next_seq_++}, std::move(job));
+  CheckBacklogLocked();
   lane.ready.notify_one();
   if (lane.running >= lane.workers && sleepers_ > 0) {
     // It will wait while this lane's workers are all busy: wake the workers that sleep
@@ -117,19 +142,37 @@ absl::Status WorkScheduler::Submit(WorkOrder order, std::function<void(const Wor
   return absl::OkStatus();
 }
 
-void WorkScheduler::Unqueue(Lane& lane, std::map<Tag, Job>::iterator it) {
-  const auto backlog = backlog_.find(it->second.order.caller);
-  if (backlog != backlog_.end()) {
-    backlog->second -= it->second.order.cost;
+WorkScheduler::Job WorkScheduler::UnqueueLocked(Lane& lane, std::map<Tag, Job>::iterator it) {
+  Job job = std::move(it->second);
+  lane.queue.erase(it);
+  const WorkOrder& order = job.order;
+  lane.queued_cost -= order.cost;
+  if (const auto mine = lane.queued_by_caller.find(order.caller);
+      mine != lane.queued_by_caller.end() && --mine->second <= 0) {
+    lane.queued_by_caller.erase(mine);
+  }
+  if (const auto backlog = backlog_.find(order.caller); backlog != backlog_.end()) {
+    backlog->second -= order.cost;
     if (backlog->second <= absl::ZeroDuration()) backlog_.erase(backlog);
   }
-  lane.queue.erase(it);
   // Callers whose last finish tag is behind the virtual time start afresh anyway.
   if (lane.last_finish.size() > 2 * lane.queue.size() + 64) {
     for (auto f = lane.last_finish.begin(); f != lane.last_finish.end();) {
       f = f->second <= lane.virtual_time ? lane.last_finish.erase(f) : std::next(f);
     }
   }
+  CheckBacklogLocked();
+  return job;
+}
+
+void WorkScheduler::CheckBacklogLocked() const {
+#ifndef NDEBUG
+  absl::Duration backlog;
+  for (const auto& [caller, waiting] : backlog_) backlog += waiting;
+  absl::Duration queued;
+  for (const Lane& lane : lanes_) queued += lane.queued_cost;
+  assert(backlog == queued && "a caller's backlog was not released exactly once");
+#endif
 }
 
 absl::Status WorkScheduler::DropReasonLocked(const WorkOrder& order, absl::Time now) const {
@@ -151,9 +194,8 @@ std::map<WorkScheduler::Tag, WorkScheduler::Job>::iterator WorkScheduler::DropLo
     std::vector<Taken>* dropped) {
   Taken& taken = dropped->emplace_back();
   taken.start = WorkStart{std::move(status), which, now - it->second.submitted};
-  taken.job = std::move(it->second);
   auto next = std::next(it);
-  Unqueue(lanes_[static_cast<int>(which)], it);
+  taken.job = UnqueueLocked(lanes_[static_cast<int>(which)], it);
   return next;
 }
 
@@ -195,8 +237,7 @@ bool WorkScheduler::TakeLocked(WorkLane which, absl::Time now, Taken* taken,
     }
     lane.virtual_time = it->first.first;
     taken->start = WorkStart{absl::OkStatus(), which, now - it->second.submitted};
-    taken->job = std::move(it->second);
-    Unqueue(lane, it);
+    taken->job = UnqueueLocked(lane, it);
     return true;
   }
   return false;
@@ -260,7 +301,23 @@ void WorkScheduler::Work(WorkLane which) {
 WorkScheduler::LaneStats WorkScheduler::stats(WorkLane which) const {
   std::lock_guard<std::mutex> lock(mu_);
   const Lane& lane = lanes_[static_cast<int>(which)];
-  return LaneStats{lane.workers, lane.running, static_cast<int64_t>(lane.queue.size())};
+  return LaneStats{lane.workers, lane.running, static_cast<int64_t>(lane.queue.size()),
+                   lane.queued_cost, static_cast<int64_t>(lane.queued_by_caller.size())};
+}
+
+WorkScheduler::BacklogStats WorkScheduler::backlog() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  BacklogStats stats;
+  for (const auto& [caller, waiting] : backlog_) stats.total += waiting;
+  stats.callers = static_cast<int64_t>(backlog_.size());
+  for (const Lane& lane : lanes_) stats.queued += lane.queued_cost;
+  return stats;
+}
+
+absl::Duration WorkScheduler::backlog(absl::string_view caller) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  const auto found = backlog_.find(caller);
+  return found == backlog_.end() ? absl::ZeroDuration() : found->second;
 }
 
 }  // namespace shapeid

@@ -32,6 +32,7 @@
 
 #include "absl/base/thread_annotations.h"
 #include "absl/status/status.h"
+#include "absl/strings/string_view.h"
 #include "absl/time/time.h"
 #include "server/memory_budget.h"
 
@@ -54,7 +55,10 @@ struct WorkSchedulerOptions {
   int heavy_nice = 10;
   // Work estimated to cost this much CPU time or more goes to the heavy lane.
   absl::Duration heavy_cost = absl::Milliseconds(20);
-  // Work waiting in one lane at once; more is refused (ResourceExhausted, retry later).
+  // Pieces of work waiting in one lane. A lane holding this many admits more only from a
+  // caller with fewer waiting there than its fair share (max_queued divided among the callers
+  // with work in the lane), and nothing past twice this: a caller that floods a lane is
+  // refused (ResourceExhausted) while the others keep their share.
   int64_t max_queued = 4096;
   // Estimated CPU time one caller may have waiting, over all lanes; more is refused, so that
   // one caller cannot queue hours of work ahead of everyone's deadlines.
@@ -66,7 +70,10 @@ struct WorkOrder {
   std::string caller;   // who it is for, for fairness: "key:NAME" or the client's host
   absl::Duration cost;  // estimated CPU time
   size_t memory = 0;    // working memory it needs while it runs, taken from the budget
-  bool store = false;   // waits on the gallery store rather than the CPU: the store lane
+  // Memory the call holds already and keeps while this runs (its cloud): with `memory`, it
+  // must fit one caller's share of the budget, or the work could never start.
+  size_t held = 0;
+  bool store = false;  // waits on the gallery store rather than the CPU: the store lane
   // Dropped (DeadlineExceeded) if not started by then.
   absl::Time deadline = absl::InfiniteFuture();
   // Dropped (Cancelled) if this returns true before it starts; may be empty. Called under
@@ -95,9 +102,12 @@ class WorkScheduler {
 
   // Queues `work`, to be called exactly once on one of the scheduler's threads: with OK when
   // it may run (its memory granted and held until it returns), or with the status it was
-  // dropped with. Refused at once, `work` never called: ResourceExhausted when the lane's
-  // queue is full, the caller's backlog is over its bound or the memory can never be granted
-  // (each message names the limit and its flag); Unavailable once stopped.
+  // dropped with. Refused at once, `work` never called: ResourceExhausted when the caller has
+  // its share of the lane's queue (max_queued), its backlog would pass max_caller_backlog, or
+  // the memory can never be granted (order.memory + order.held over a caller's share of the
+  // budget); each message names the limit and its flag. Unavailable once stopped. The
+  // order's cost counts in its caller's backlog from here until the work is started or
+  // dropped, exactly once.
   absl::Status Submit(WorkOrder order, std::function<void(const WorkStart&)> work);
 
   // The lane `order` would go to.
@@ -110,9 +120,23 @@ class WorkScheduler {
   struct LaneStats {
     int workers = 0;
     int running = 0;
-    int64_t queued = 0;
+    int64_t queued = 0;          // pieces
+    absl::Duration queued_cost;  // their estimated CPU time
+    int64_t queued_callers = 0;  // callers with work waiting in the lane
   };
   LaneStats stats(WorkLane lane) const;
+
+  // The callers' backlogs: estimated work admitted and not yet started or dropped. `total`
+  // (the sum over callers) always equals `queued` (the sum over the lanes' queues); debug
+  // builds assert it after every change. Both return to zero when the server is idle.
+  struct BacklogStats {
+    absl::Duration total;
+    absl::Duration queued;
+    int64_t callers = 0;  // callers with a backlog
+  };
+  BacklogStats backlog() const;
+  // One caller's backlog (zero when it has none).
+  absl::Duration backlog(absl::string_view caller) const;
   const WorkSchedulerOptions& options() const { return options_; }
 
  private:
@@ -129,6 +153,8 @@ class WorkScheduler {
     double virtual_time = 0;  // the start tag of the work dispatched last, in seconds
     std::map<std::string, double, std::less<>> last_finish;  // per caller
     std::map<Tag, Job> queue;
+    absl::Duration queued_cost;                                    // the sum of the queue's costs
+    std::map<std::string, int64_t, std::less<>> queued_by_caller;  // pieces in `queue`
     std::condition_variable ready;
   };
   // A job taken out of the queue, with what it needs to run or be told it was dropped.
@@ -153,7 +179,14 @@ class WorkScheduler {
   // finds that must not start go to `dropped`.
   bool TakeLocked(WorkLane lane, absl::Time now, Taken* taken, std::vector<Taken>* dropped)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
-  void Unqueue(Lane& lane, std::map<Tag, Job>::iterator it) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // Removes the job at `it` from its lane and releases its caller's backlog and share: the
+  // one place queued work leaves the queue, whatever ends it.
+  Job UnqueueLocked(Lane& lane, std::map<Tag, Job>::iterator it) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // Debug builds: the sum of the callers' backlogs equals the queued work.
+  void CheckBacklogLocked() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // ResourceExhausted when `caller` may not queue more in `lane` (see max_queued).
+  absl::Status ShareRefusalLocked(WorkLane lane, absl::string_view caller) const
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
 
   const WorkSchedulerOptions options_;
   const std::shared_ptr<MemoryBudget> budget_;
