@@ -5,7 +5,9 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
+#include "server/caller_identity.h"
 #include "server/grpc_status.h"
+#include "server/service_options.h"
 #include "server/stream_limiter.h"
 
 namespace shapeid {
@@ -13,19 +15,26 @@ namespace shapeid {
 Work Work::Inline(Step run) {
   Work work;
   work.pieces_.push_back(
-      Piece{/*inline_=*/true, /*store=*/false, absl::ZeroDuration(), 0, std::move(run)});
+      Piece{/*inline_=*/true, /*store=*/false, absl::ZeroDuration(), 0, std::move(run), nullptr});
   return work;
 }
 
 Work Work::Compute(absl::Duration cost, size_t memory, Step run) {
   Work work;
-  work.pieces_.push_back(Piece{false, false, cost, memory, std::move(run)});
+  work.pieces_.push_back(Piece{false, false, cost, memory, std::move(run), nullptr});
+  return work;
+}
+
+Work Work::Planned(std::function<WorkEstimate()> plan, Step run) {
+  Work work;
+  work.pieces_.push_back(
+      Piece{false, false, absl::ZeroDuration(), 0, std::move(run), std::move(plan)});
   return work;
 }
 
 Work Work::Store(absl::Duration cost, Step run) {
   Work work;
-  work.pieces_.push_back(Piece{false, /*store=*/true, cost, 0, std::move(run)});
+  work.pieces_.push_back(Piece{false, /*store=*/true, cost, 0, std::move(run), nullptr});
   return work;
 }
 
@@ -52,8 +61,13 @@ AdmittedCall::AdmittedCall(grpc::CallbackServerContext* context, const ServiceRu
   }
   pass_.emplace(*std::move(pass));
   record_.caller = std::string(pass_->caller());
-  caller_ =
-      record_.caller.empty() ? ClientOfPeer(context->peer()) : absl::StrCat("key:", record_.caller);
+  absl::StatusOr<std::string> caller = CallerOf(*context, record_.caller);
+  if (!caller.ok()) {
+    admission_ = caller.status();
+    pass_.reset();
+    return;
+  }
+  caller_ = *std::move(caller);
   // Unary calls have no ceiling: their size is bounded by the message limit instead.
   if (kind == CallGate::Kind::kStream) {
     if (const std::optional<absl::Time> cut = runtime_.gate->CutOff(*context)) cut_off_ = *cut;
@@ -79,6 +93,30 @@ absl::Status AdmittedCall::HoldMemory(size_t bytes, absl::string_view what) {
   return absl::OkStatus();
 }
 
+absl::Status AdmittedCall::HoldAnswer(const google::protobuf::MessageLite& response,
+                                      absl::string_view smaller) {
+  const size_t bytes = response.ByteSizeLong();
+  const size_t limit = runtime_.options->max_answer_bytes;
+  if (limit > 0 && bytes > limit) {
+    return absl::ResourceExhaustedError(absl::StrCat(
+        method(), ": the answer would be ", bytes, " bytes, more than this server sends in one ",
+        "message (", limit, ", --max_answer_bytes); ask for ", smaller));
+  }
+  return HoldMemory(2 * bytes,
+                    absl::StrCat("the answer (", bytes, " bytes; ask for ", smaller, ")"));
+}
+
+absl::Status AdmittedCall::Interruption() const {
+  if (context_->IsCancelled()) {
+    return absl::CancelledError("the call was cancelled; its work stopped");
+  }
+  if (absl::Now() >= deadline_) {
+    return absl::DeadlineExceededError(
+        "the call's deadline passed while its work ran; the work stopped");
+  }
+  return absl::OkStatus();
+}
+
 void AdmittedCall::Run(Work work, std::function<void(absl::Status)> done) {
   auto chain = std::make_shared<Chain>();
   chain->pieces = std::move(work.pieces_);
@@ -93,10 +131,16 @@ void AdmittedCall::RunNext(const std::shared_ptr<Chain>& chain) {
       if (absl::Status status = piece.run(); !status.ok()) return chain->done(std::move(status));
       continue;
     }
+    if (piece.plan) {
+      const WorkEstimate estimate = piece.plan();
+      piece.cost = estimate.cpu;
+      piece.memory = estimate.memory;
+    }
     WorkOrder order;
     order.caller = caller_;
     order.cost = piece.cost;
     order.memory = piece.memory;
+    order.held = memory_.bytes() + (held_elsewhere_ ? held_elsewhere_() : 0);
     order.store = piece.store;
     order.deadline = deadline_;
     grpc::CallbackServerContext* context = context_;

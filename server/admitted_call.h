@@ -19,11 +19,13 @@
 #include "absl/status/status.h"
 #include "absl/strings/string_view.h"
 #include "absl/time/time.h"
+#include "google/protobuf/message_lite.h"
 #include "grpcpp/grpcpp.h"
 #include "server/call_gate.h"
 #include "server/call_observer.h"
 #include "server/ceiling_alarm.h"
 #include "server/memory_budget.h"
+#include "server/work_costs.h"
 #include "server/work_scheduler.h"
 
 namespace shapeid {
@@ -55,6 +57,10 @@ class Work {
   // CPU work: `cost` its estimated time, `memory` the working memory it needs while it
   // runs (held from the budget; it waits in its lane until granted).
   static Work Compute(absl::Duration cost, size_t memory, Step run);
+  // CPU work whose cost is known only when the chain reaches it (a scene's objects, once
+  // the step before has found them): `plan` runs then, on the thread running the chain, and
+  // its estimate places the step as Compute's would.
+  static Work Planned(std::function<WorkEstimate()> plan, Step run);
   // Work that waits on the gallery store (a commit, a creation, a removal).
   static Work Store(absl::Duration cost, Step run);
 
@@ -69,6 +75,7 @@ class Work {
     absl::Duration cost;
     size_t memory = 0;
     Step run;
+    std::function<WorkEstimate()> plan;  // when set, gives cost and memory when reached
   };
   std::vector<Piece> pieces_;
 };
@@ -88,8 +95,9 @@ class AdmittedCall {
   CallRecord& record() { return record_; }
   const CallObserver& observer() const { return *runtime_.observer; }
   MemoryBudget* budget() const { return runtime_.budget; }
-  // Whom the call is for, for fair shares of the scheduler and the memory budget: "key:NAME"
-  // on a server with API keys, else the client's host (server/stream_limiter.h).
+  // Whom the call is for, for fair shares of the scheduler and the memory budget
+  // (server/caller_identity.h): "key:NAME", "cert:CN", or the client's host with the
+  // client's own caller id, if it sent one.
   const std::string& caller() const { return caller_; }
   // "Train", for messages.
   absl::string_view method() const { return record_.method; }
@@ -106,6 +114,20 @@ class AdmittedCall {
   // Holds `bytes` more of the memory budget until the call is concluded (a one-message
   // cloud); ResourceExhausted naming the limit.
   absl::Status HoldMemory(size_t bytes, absl::string_view what);
+  // Counts the answer `response` in the call's memory until it is sent (the message and its
+  // serialised copy). ResourceExhausted, saying what to ask for instead (`smaller`, e.g.
+  // "fewer neighbours (k)"), when it is larger than the service sends (--max_answer_bytes)
+  // or than the budget can hold.
+  absl::Status HoldAnswer(const google::protobuf::MessageLite& response, absl::string_view smaller);
+  // Why the call's work should stop now: Cancelled when the client cancelled or went away,
+  // DeadlineExceeded when its deadline (or the server's ceiling) has passed; else OK. Cheap:
+  // for work to ask between its pieces (the objects of a scene).
+  absl::Status Interruption() const;
+
+  // Memory the call holds outside HoldMemory (a stream's assembler holds its cloud's own
+  // grant): read when each step is submitted, so that work which, with it, could never fit
+  // a caller's share of the budget is refused at once instead of waiting for ever.
+  void CountHeld(std::function<size_t()> held) { held_elsewhere_ = std::move(held); }
 
   // Runs `work`'s chain, then `done` with its status, exactly once: the first step's error, a
   // refusal of the scheduler (queue full, backlog, memory), the drop of a step whose
@@ -134,6 +156,7 @@ class AdmittedCall {
   absl::Time cut_off_ = absl::InfiniteFuture();
   absl::Time deadline_ = absl::InfiniteFuture();  // the client's, or the ceiling
   MemoryBudget::Grant memory_;
+  std::function<size_t()> held_elsewhere_;
   CeilingAlarm ceiling_;
   grpc::Status final_status_;
 };
