@@ -117,8 +117,8 @@ absl::StatusOr<std::shared_ptr<Gallery>> GalleryToClassify(const GalleryRegistry
 Work ClassifyWork(std::shared_ptr<Gallery> gallery, const v1::ClassifyHeader& header, size_t points,
                   std::function<absl::StatusOr<PointCloud>()> cloud, AdmittedCall& call,
                   v1::ClassifyResponse* response) {
-  const WorkEstimate cost = EstimateClassify(*gallery->Snapshot(), points);
   const int k = static_cast<int>(std::min<uint32_t>(header.k(), 1 << 20));
+  const WorkEstimate cost = EstimateClassify(*gallery->Snapshot(), points, k);
   const SearchMode mode = header.exact() ? SearchMode::kExact : SearchMode::kDefault;
   return Work::Compute(cost.cpu, cost.memory, [gallery, k, mode, cloud, &call, response] {
     SHAPEID_ASSIGN_OR_RETURN(const PointCloud received, cloud());
@@ -130,7 +130,7 @@ Work ClassifyWork(std::shared_ptr<Gallery> gallery, const v1::ClassifyHeader& he
                               answer.describe_time);
     call.observer().Searched(call.record(), answer.knn.approximate, answer.search_time);
     ToProto(answer, received.size(), response);
-    return absl::OkStatus();
+    return call.HoldAnswer(*response, "fewer neighbours (k)");
   });
 }
 
@@ -178,27 +178,58 @@ absl::StatusOr<SceneCall> SceneCallOf(const GalleryRegistry& registry,
   return scene;
 }
 
-// Segments the frame `cloud` gives and classifies its objects against the snapshot the
-// gallery has when the work starts.
+// Segments the frame `cloud` gives, then classifies its objects against the snapshot the
+// gallery had when the segmentation started: two steps, the second planned from the
+// clusters the first found, so that a frame of thousands of objects goes to the heavy lane
+// with its true cost. Both stop when the call's deadline passes or it is cancelled.
 Work SceneWork(SceneCall scene, size_t points, std::function<absl::StatusOr<PointCloud>()> cloud,
                AdmittedCall& call, v1::RecognizeSceneResponse* response) {
-  const WorkEstimate cost =
-      EstimateScene(*scene.gallery->Snapshot(), points, scene.options.segmentation);
-  return Work::Compute(cost.cpu, cost.memory, [scene = std::move(scene), cloud, &call, response] {
-    SHAPEID_ASSIGN_OR_RETURN(const PointCloud frame, cloud());
-    const std::shared_ptr<const GallerySnapshot> snapshot = scene.gallery->Snapshot();
-    SHAPEID_ASSIGN_OR_RETURN(const SceneRecognition recognised,
-                             RecognizeScene(*snapshot, frame, scene.options));
-    const std::string& kind = snapshot->shared_descriptor()->spec().kind;
-    for (const RecognizedObject& object : recognised.objects) {
-      if (!object.status.ok()) continue;
-      call.observer().Described(call.record(), kind, object.classification.describe_time);
-      call.observer().Searched(call.record(), object.classification.knn.approximate,
-                               object.classification.search_time);
-    }
-    ToProto(recognised, frame.size(), scene.return_indices, response);
-    return absl::OkStatus();
-  });
+  struct Frame {
+    SceneCall scene;
+    PointCloud points;
+    std::shared_ptr<const GallerySnapshot> snapshot;
+    SceneSegmentation segmentation;
+    absl::Duration segment_time;
+  };
+  auto frame = std::make_shared<Frame>();
+  frame->scene = std::move(scene);
+  frame->scene.options.interrupt = [&call] { return call.Interruption(); };
+  const WorkEstimate segment = EstimateSceneSegmentation(points, frame->scene.options.segmentation);
+  return Work::Compute(
+             segment.cpu, segment.memory,
+             [frame, cloud] {
+               SHAPEID_ASSIGN_OR_RETURN(frame->points, cloud());
+               frame->snapshot = frame->scene.gallery->Snapshot();
+               const absl::Time start = absl::Now();
+               SHAPEID_ASSIGN_OR_RETURN(
+                   frame->segmentation,
+                   SegmentSceneForGallery(*frame->snapshot, frame->points, frame->scene.options));
+               frame->segment_time = absl::Now() - start;
+               return absl::OkStatus();
+             })
+      .Then(Work::Planned(
+          [frame] {
+            return EstimateSceneObjects(*frame->snapshot, frame->segmentation,
+                                        frame->scene.options.k, frame->scene.return_indices);
+          },
+          [frame, &call, response] {
+            SHAPEID_ASSIGN_OR_RETURN(
+                SceneRecognition recognised,
+                ClassifySceneObjects(*frame->snapshot, frame->points,
+                                     std::move(frame->segmentation), frame->scene.options));
+            recognised.segment_time = frame->segment_time;
+            const std::string& kind = frame->snapshot->shared_descriptor()->spec().kind;
+            for (const RecognizedObject& object : recognised.objects) {
+              if (!object.status.ok()) continue;
+              call.observer().Described(call.record(), kind, object.classification.describe_time);
+              call.observer().Searched(call.record(), object.classification.knn.approximate,
+                                       object.classification.search_time);
+            }
+            ToProto(recognised, frame->points.size(), frame->scene.return_indices, response);
+            return call.HoldAnswer(*response,
+                                   "fewer neighbours (k), no point indices, larger "
+                                   "min_cluster_points or a smaller region");
+          }));
 }
 
 class DescribeReactor final : public StreamReactor<v1::DescribeRequest, v1::DescribeResponse> {
@@ -209,6 +240,7 @@ class DescribeReactor final : public StreamReactor<v1::DescribeRequest, v1::Desc
         runtime_(runtime),
         assembler_(runtime.registry->limits().max_points_per_cloud, runtime.budget,
                    call().caller()) {
+    call().CountHeld([this] { return assembler_.held_bytes(); });
     StartReading();
   }
 
@@ -268,6 +300,7 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainRespo
         runtime_(runtime),
         assembler_(runtime.registry->limits().max_points_per_cloud, runtime.budget,
                    call().caller()) {
+    call().CountHeld([this] { return assembler_.held_bytes(); });
     StartReading();
   }
 
@@ -402,6 +435,7 @@ class ClassifyReactor final : public StreamReactor<v1::ClassifyRequest, v1::Clas
         runtime_(runtime),
         assembler_(runtime.registry->limits().max_points_per_cloud, runtime.budget,
                    call().caller()) {
+    call().CountHeld([this] { return assembler_.held_bytes(); });
     StartReading();
   }
 
@@ -459,6 +493,7 @@ class SceneReactor final
         runtime_(runtime),
         assembler_(runtime.registry->limits().max_points_per_cloud, runtime.budget,
                    call().caller()) {
+    call().CountHeld([this] { return assembler_.held_bytes(); });
     StartReading();
   }
 

@@ -86,10 +86,21 @@ class StreamReactor : public grpc::ServerReadReactor<grpc::ByteBuffer> {
     this->Finish(call_.Conclude(status, report));
   }
 
+  // Holds the bytes of the message just read, and of its parsed copy, from the budget.
+  absl::Status HoldMessage() {
+    MemoryBudget* budget = call_.budget();
+    const size_t bytes = 2 * raw_request_.Length();
+    if (budget == nullptr || bytes == 0) return absl::OkStatus();
+    absl::StatusOr<MemoryBudget::Grant> grant =
+        budget->Reserve(call_.caller(), bytes, "a message of the stream");
+    if (!grant.ok()) return grant.status();
+    message_memory_ = *std::move(grant);
+    return absl::OkStatus();
+  }
+
   // The message just read, parsed into request_.
   absl::Status ParseRequest() {
     ++messages_;
-    request_.Clear();
     if (grpc::SerializationTraits<Request>::Deserialize(&raw_request_, &request_).ok()) {
       return absl::OkStatus();
     }
@@ -105,10 +116,15 @@ class StreamReactor : public grpc::ServerReadReactor<grpc::ByteBuffer> {
       End();
       return;
     }
+    // The message as received and parsed is counted in the budget until OnMessage has moved
+    // its points into the call's cloud (which counts them itself).
+    absl::Status parsed = HoldMessage();
+    if (parsed.ok()) parsed = ParseRequest();
     // The ceiling may end the call while OnMessage works; its work is then dropped.
-    const absl::Status parsed = ParseRequest();
     absl::StatusOr<std::optional<Work>> next =
         parsed.ok() ? OnMessage(request_) : absl::StatusOr<std::optional<Work>>(parsed);
+    request_ = Request();  // frees the message's bytes, which Clear() would keep
+    message_memory_.Release();
     std::unique_lock<std::mutex> lock(mu_);
     if (state_ != State::kReading) return;
     if (!next.ok()) {
@@ -184,6 +200,7 @@ class StreamReactor : public grpc::ServerReadReactor<grpc::ByteBuffer> {
   State state_ ABSL_GUARDED_BY(mu_) = State::kReading;
   bool cut_ ABSL_GUARDED_BY(mu_) = false;
   grpc::ByteBuffer raw_request_;
+  MemoryBudget::Grant message_memory_;
   Request request_;
   int64_t messages_ = 0;
   Response response_;

@@ -1,6 +1,10 @@
 #include "server/work_costs.h"
 
 #include <algorithm>
+#include <cstdint>
+#include <vector>
+
+#include "core/gallery/sample_provenance.h"
 
 namespace shapeid {
 namespace {
@@ -22,7 +26,15 @@ constexpr double kAppendFixedSeconds = 0.5e-3;
 // candidate and cluster index lists, the grid, each object's copy).
 constexpr double kSegmentSecondsPerPoint = 60e-9;
 constexpr size_t kSegmentBytesPerPoint = 40;
-constexpr size_t kMaxCountedObjects = 64;
+// One object of a scene beyond describing and searching it: its geometry (a covariance and
+// its eigenvectors over its points) and the copy of its points, per point; and its
+// answer's fixed part (centroid, box, times, votes).
+constexpr double kObjectSecondsPerPoint = 30e-9;
+constexpr size_t kObjectAnswerBytes = 256;
+// One neighbour of an answer: built into the proto (id, label, distance, view, provenance
+// copied) and serialised; its bytes without provenance (a label of up to ~40 bytes).
+constexpr double kNeighborSeconds = 0.5e-6;
+constexpr size_t kNeighborBytes = 96;
 // One point tested against one RANSAC hypothesis (a multiply-add and a compare, vectorised).
 constexpr double kPlaneTestSeconds = 1e-9;
 // The sensor simulator's cost per input point for one synthetic view
@@ -49,36 +61,79 @@ WorkEstimate EstimateTrainSample(const Descriptor& descriptor, const AugmentOpti
   return estimate;
 }
 
-WorkEstimate EstimateClassify(const GallerySnapshot& snapshot, size_t points) {
+namespace {
+
+// Searching `snapshot` once with a query and its pose variants.
+absl::Duration SearchCost(const GallerySnapshot& snapshot) {
+  const double floats =
+      static_cast<double>(snapshot.index().num_rows()) * snapshot.dimension() * kQueryVectors;
+  return absl::Seconds(kSearchSecondsPerFloat * floats);
+}
+
+// The neighbours an answer with `k` (0: the gallery's) holds.
+size_t NeighborsOf(const GallerySnapshot& snapshot, int k) {
+  const int64_t wanted = k > 0 ? k : snapshot.options().knn.k;
+  return static_cast<size_t>(std::max<int64_t>(0, std::min(wanted, snapshot.num_samples())));
+}
+
+}  // namespace
+
+size_t EstimateNeighborBytes(const GallerySnapshot& snapshot, int k) {
+  const size_t neighbors = NeighborsOf(snapshot, k);
+  // A neighbour's provenance is within the documented limits, and all of them together are
+  // never more than the gallery holds.
+  const size_t provenance =
+      std::min(snapshot.provenance_bytes(),
+               neighbors * (kMaxSourceBytes + kMaxMetadataBytes + 4 * kMaxMetadataEntries));
+  return neighbors * kNeighborBytes + provenance;
+}
+
+WorkEstimate EstimateClassify(const GallerySnapshot& snapshot, size_t points, int k) {
   WorkEstimate estimate;
   if (const std::shared_ptr<const Descriptor>& descriptor = snapshot.shared_descriptor()) {
     estimate = EstimateDescribe(*descriptor, points);
   }
-  const double floats =
-      static_cast<double>(snapshot.index().num_rows()) * snapshot.dimension() * kQueryVectors;
-  estimate.cpu += absl::Seconds(kSearchSecondsPerFloat * floats);
+  estimate.cpu += SearchCost(snapshot) +
+                  absl::Seconds(kNeighborSeconds * static_cast<double>(NeighborsOf(snapshot, k)));
+  estimate.memory += EstimateNeighborBytes(snapshot, k);
   return estimate;
 }
 
-WorkEstimate EstimateScene(const GallerySnapshot& snapshot, size_t points,
-                           const SceneSegmentationOptions& segmentation) {
-  WorkEstimate estimate;
-  if (const std::shared_ptr<const Descriptor>& descriptor = snapshot.shared_descriptor()) {
-    estimate = EstimateDescribe(*descriptor, points);
-  }
-  const size_t objects =
-      std::min(kMaxCountedObjects, points / std::max<size_t>(segmentation.min_cluster_points, 1));
+WorkEstimate EstimateSceneSegmentation(size_t points,
+                                       const SceneSegmentationOptions& segmentation) {
   // Each hypothesis tests at most 4,096 drawn points (SegmentScene's scoring sample); the
   // adaptive stop usually ends far sooner, but a caller may ask for the most.
   const double ransac_tests = static_cast<double>(std::max(segmentation.max_planes, 0)) *
                               std::max(segmentation.plane_iterations, 0) *
                               static_cast<double>(std::min<size_t>(points, 4096));
-  const double floats = static_cast<double>(snapshot.index().num_rows()) * snapshot.dimension() *
-                        kQueryVectors * static_cast<double>(objects);
-  estimate.cpu += absl::Seconds(kSearchSecondsPerFloat * floats +
-                                kSegmentSecondsPerPoint * static_cast<double>(points) +
-                                kPlaneTestSeconds * ransac_tests);
-  estimate.memory += kSegmentBytesPerPoint * points;
+  WorkEstimate estimate;
+  estimate.cpu = absl::Seconds(kSegmentSecondsPerPoint * static_cast<double>(points) +
+                               kPlaneTestSeconds * ransac_tests);
+  estimate.memory = kSegmentBytesPerPoint * points;
+  return estimate;
+}
+
+WorkEstimate EstimateSceneObjects(const GallerySnapshot& snapshot,
+                                  const SceneSegmentation& segmentation, int k, bool indices) {
+  WorkEstimate estimate;
+  const Descriptor* descriptor = snapshot.shared_descriptor().get();
+  const absl::Duration search = SearchCost(snapshot);
+  const size_t neighbor_bytes = EstimateNeighborBytes(snapshot, k);
+  const double neighbor_seconds = kNeighborSeconds * static_cast<double>(NeighborsOf(snapshot, k));
+  size_t working = 0;
+  for (const std::vector<uint32_t>& cluster : segmentation.clusters) {
+    const size_t points = cluster.size();
+    if (descriptor != nullptr) {
+      const DescribeCost describe = descriptor->EstimateCost(points);
+      estimate.cpu += describe.cpu;
+      working = std::max(working, describe.working_bytes + points * 12);
+    }
+    estimate.cpu += search + absl::Seconds(neighbor_seconds +
+                                           kObjectSecondsPerPoint * static_cast<double>(points));
+    // The answer: each object with its neighbours, and its indices when asked for.
+    estimate.memory += kObjectAnswerBytes + neighbor_bytes + (indices ? 4 * points : 0);
+  }
+  estimate.memory += working;
   return estimate;
 }
 

@@ -28,14 +28,21 @@ WorkEstimate EstimateDescribe(const Descriptor& descriptor, size_t points);
 // Describing a training cloud and, with `augment` on, making and describing its views.
 WorkEstimate EstimateTrainSample(const Descriptor& descriptor, const AugmentOptions& augment,
                                  size_t points);
-// Describing a query and searching `snapshot` with it and its pose variants.
-WorkEstimate EstimateClassify(const GallerySnapshot& snapshot, size_t points);
-// Recognising a frame of `points` points with `segmentation`: every RANSAC hypothesis the
-// parameters allow, clustering, describing every point once (the objects together hold at
-// most the frame) and one search per object, as many as the frame could hold objects of
-// min_cluster_points (at most 64 counted).
-WorkEstimate EstimateScene(const GallerySnapshot& snapshot, size_t points,
-                           const SceneSegmentationOptions& segmentation);
+// Describing a query, searching `snapshot` with it and its pose variants, and answering
+// with `k` neighbours (0: the gallery's k). Its memory counts the answer, which may carry
+// each neighbour's provenance (EstimateNeighborBytes).
+WorkEstimate EstimateClassify(const GallerySnapshot& snapshot, size_t points, int k = 0);
+// The bytes `k` neighbours (0: the gallery's k) of `snapshot` can add to an answer: ids,
+// labels, distances and, for samples trained with provenance, their source and metadata.
+size_t EstimateNeighborBytes(const GallerySnapshot& snapshot, int k);
+// A scene's first half: finding the supports and the clusters of a frame of `points` points
+// with `segmentation` (every RANSAC hypothesis the parameters allow, then clustering).
+WorkEstimate EstimateSceneSegmentation(size_t points, const SceneSegmentationOptions& segmentation);
+// Its second half, planned once the clusters are known: describing each cluster and
+// searching `snapshot` with it, and the answer (each object with `k` neighbours, and its
+// points' indices when `indices`).
+WorkEstimate EstimateSceneObjects(const GallerySnapshot& snapshot,
+                                  const SceneSegmentation& segmentation, int k, bool indices);
 // Appending `vectors` descriptors to `snapshot`'s gallery: O(vectors), the index's blocks are
 // shared with the snapshot (the store's write, mostly waiting on the disk, is not counted).
 absl::Duration EstimateCommit(const GallerySnapshot& snapshot, int64_t vectors);

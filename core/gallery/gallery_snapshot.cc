@@ -8,6 +8,15 @@
 #include "core/status_macros.h"
 
 namespace shapeid {
+namespace {
+
+size_t ProvenanceBytes(const SampleProvenance& provenance) {
+  size_t bytes = provenance.source.size();
+  for (const auto& [key, value] : provenance.metadata) bytes += key.size() + value.size();
+  return bytes;
+}
+
+}  // namespace
 
 std::map<std::string, int64_t> GallerySnapshot::LabelCounts() const {
   std::map<std::string, int64_t> counts;
@@ -71,13 +80,18 @@ absl::Status GallerySnapshot::AddSample(const StoredSample& sample) {
   SHAPEID_RETURN_IF_ERROR(index_.Add(sample.id, sample.label, sample.features));
   if (!sample.provenance.empty()) {
     provenance_.Insert({sample.id, std::make_shared<const SampleProvenance>(sample.provenance)});
+    provenance_bytes_ += ProvenanceBytes(sample.provenance);
   }
   return absl::OkStatus();
 }
 
 absl::Status GallerySnapshot::RemoveSamples(absl::Span<const uint64_t> ids) {
   SHAPEID_RETURN_IF_ERROR(index_.Remove(ids));
-  for (uint64_t id : ids) provenance_.Erase(id);
+  for (uint64_t id : ids) {
+    if (const auto* entry = provenance_.Find(id))
+      provenance_bytes_ -= ProvenanceBytes(*entry->second);
+    provenance_.Erase(id);
+  }
   return absl::OkStatus();
 }
 

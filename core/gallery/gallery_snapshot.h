@@ -85,6 +85,8 @@ class GallerySnapshot {
   // times, versions and every sample in training order. O(num_samples * dimension).
   StoredGallery ToStored() const;
   const KnnIndex& index() const { return index_; }
+  // The bytes of provenance the samples hold: sources, keys and values. O(1).
+  size_t provenance_bytes() const { return provenance_bytes_; }
 
   int64_t num_samples() const { return index_.size(); }
   bool empty() const { return index_.empty(); }
@@ -169,6 +171,7 @@ class GallerySnapshot {
       absl::flat_hash_map<uint64_t, std::shared_ptr<const SampleProvenance>>>
       provenance_;
   uint64_t next_assigned_id_ = uint64_t{1} << 63;  // kFirstAssignedId
+  size_t provenance_bytes_ = 0;
   std::string incompatible_;
 };
 

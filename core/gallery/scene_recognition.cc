@@ -23,9 +23,15 @@ absl::Status CheckGallery(const GallerySnapshot& gallery) {
   return absl::OkStatus();
 }
 
+// Whether the cluster's points lie on a line: its box has no second extent, so no
+// descriptor could tell what it is (a wire, a scan line's streak).
+bool OnALine(const ClusterGeometry& geometry) {
+  return !(geometry.box.size[1] > 1e-5f * geometry.box.size[0]);
+}
+
 // Classifies the clusters of `result.segmentation`, moving them into `result.objects`.
-void ClassifyClusters(const GallerySnapshot& gallery, const PointCloud& frame,
-                      const SceneRecognitionOptions& options, SceneRecognition& result) {
+absl::Status ClassifyClusters(const GallerySnapshot& gallery, const PointCloud& frame,
+                              const SceneRecognitionOptions& options, SceneRecognition& result) {
   const absl::Time start = absl::Now();
   RigidTransform turn;  // identity unless the caller's frame or a plane gives up
   if (options.frame_to_gallery.has_value()) {
@@ -41,9 +47,21 @@ void ClassifyClusters(const GallerySnapshot& gallery, const PointCloud& frame,
   result.segmentation.clusters.clear();
   result.objects.resize(clusters.size());
   for (size_t c = 0; c < clusters.size(); ++c) {
+    if (options.interrupt) {
+      if (absl::Status stop = options.interrupt(); !stop.ok()) return stop;
+    }
     RecognizedObject& object = result.objects[c];
     object.indices = std::move(clusters[c]);
     object.geometry = DescribeClusterGeometry(frame, object.indices);
+    if (OnALine(object.geometry)) {
+      object.status = absl::InvalidArgumentError(
+          absl::StrCat("the object's ", object.indices.size(), " points ",
+                       object.geometry.box.size[0] > 0 ? "lie on a line" : "are all one point",
+                       ": there is no shape to recognise"));
+      object.classification.label = std::string(kUnknownLabel);
+      object.classification.unknown = true;
+      continue;
+    }
     PointCloud cloud;
     cloud.Reserve(object.indices.size());
     for (const uint32_t i : object.indices) cloud.Add(frame.point(i));
@@ -59,13 +77,14 @@ void ClassifyClusters(const GallerySnapshot& gallery, const PointCloud& frame,
     }
   }
   result.classify_time = absl::Now() - start;
+  return absl::OkStatus();
 }
 
 }  // namespace
 
-absl::StatusOr<SceneRecognition> RecognizeScene(const GallerySnapshot& gallery,
-                                                const PointCloud& frame,
-                                                const SceneRecognitionOptions& options) {
+absl::StatusOr<SceneSegmentation> SegmentSceneForGallery(const GallerySnapshot& gallery,
+                                                         const PointCloud& frame,
+                                                         const SceneRecognitionOptions& options) {
   if (absl::Status s = CheckGallery(gallery); !s.ok()) return s;
   const std::array<float, 3> gallery_up = gallery.shared_descriptor()->up_direction();
   SceneSegmentationOptions segmentation_options = options.segmentation;
@@ -77,13 +96,20 @@ absl::StatusOr<SceneRecognition> RecognizeScene(const GallerySnapshot& gallery,
                         r[1] * gallery_up[0] + r[4] * gallery_up[1] + r[7] * gallery_up[2],
                         r[2] * gallery_up[0] + r[5] * gallery_up[1] + r[8] * gallery_up[2]);
   }
-  SceneRecognition result;
+  if (options.interrupt) segmentation_options.interrupt = options.interrupt;
+  return SegmentScene(frame, segmentation_options);
+}
+
+absl::StatusOr<SceneRecognition> RecognizeScene(const GallerySnapshot& gallery,
+                                                const PointCloud& frame,
+                                                const SceneRecognitionOptions& options) {
   const absl::Time start = absl::Now();
-  absl::StatusOr<SceneSegmentation> segmentation = SegmentScene(frame, segmentation_options);
+  absl::StatusOr<SceneSegmentation> segmentation = SegmentSceneForGallery(gallery, frame, options);
   if (!segmentation.ok()) return segmentation.status();
-  result.segmentation = std::move(segmentation).value();
-  result.segment_time = absl::Now() - start;
-  ClassifyClusters(gallery, frame, options, result);
+  const absl::Duration segment_time = absl::Now() - start;
+  absl::StatusOr<SceneRecognition> result =
+      ClassifySceneObjects(gallery, frame, *std::move(segmentation), options);
+  if (result.ok()) result->segment_time = segment_time;
   return result;
 }
 
@@ -94,7 +120,7 @@ absl::StatusOr<SceneRecognition> ClassifySceneObjects(const GallerySnapshot& gal
   if (absl::Status s = CheckGallery(gallery); !s.ok()) return s;
   SceneRecognition result;
   result.segmentation = std::move(segmentation);
-  ClassifyClusters(gallery, frame, options, result);
+  if (absl::Status s = ClassifyClusters(gallery, frame, options, result); !s.ok()) return s;
   return result;
 }
 

@@ -5,6 +5,7 @@
 // gallery classifies each as the partial view it is.
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <vector>
 
@@ -36,12 +37,17 @@ struct SceneRecognitionOptions {
   bool up_from_plane = true;
   // Limits each object's cloud as Classify's limits do.
   CloudLimits limits;
+  // Asked between objects and between the segmentation's planes: a non-OK status (the
+  // caller's deadline passed, its call was cancelled) stops the work and is returned. Empty:
+  // never stop.
+  std::function<absl::Status()> interrupt;
 };
 
 struct RecognizedObject {
   // The gallery's answer for this object's points, as Classify gives it (label, or
   // kUnknownLabel when rejected; neighbours, votes). When the object could not be described
-  // (`status` not OK) the label is kUnknownLabel with no neighbours.
+  // (`status` not OK: its points lie on a line, or the descriptor refused them) the label
+  // is kUnknownLabel with no neighbours.
   GalleryClassification classification;
   absl::Status status;
   ClusterGeometry geometry;       // in the frame's coordinates
@@ -58,16 +64,26 @@ struct SceneRecognition {
 };
 
 // Errors: SegmentScene's (options out of range: InvalidArgument); the gallery's
-// (FailedPrecondition for an empty or incompatible gallery), checked before any work. An
-// object that fails to be described does not fail the frame: see RecognizedObject::status.
+// (FailedPrecondition for an empty or incompatible gallery), checked before any work;
+// options.interrupt's. An object that fails to be described does not fail the frame: see
+// RecognizedObject::status. The same as SegmentSceneForGallery, then ClassifySceneObjects.
 absl::StatusOr<SceneRecognition> RecognizeScene(const GallerySnapshot& gallery,
                                                 const PointCloud& frame,
                                                 const SceneRecognitionOptions& options);
 
+// RecognizeScene's first half: the frame's planes and clusters, with the segmentation's up
+// taken from options.frame_to_gallery when it does not give one. For callers that plan the
+// second half's cost from the clusters found (a server's scheduler). Errors as
+// RecognizeScene's.
+absl::StatusOr<SceneSegmentation> SegmentSceneForGallery(const GallerySnapshot& gallery,
+                                                         const PointCloud& frame,
+                                                         const SceneRecognitionOptions& options);
+
 // RecognizeScene's second half, for a frame segmented elsewhere (another library's planes
 // and clusters, with indices into `frame`): classifies each cluster as RecognizeScene does,
 // turned by options.frame_to_gallery or the first plane. `segmentation`'s clusters must be
-// non-empty and index finite points of `frame`. Errors: the gallery's, as RecognizeScene.
+// non-empty and index finite points of `frame`. Errors: the gallery's and options.interrupt's,
+// as RecognizeScene.
 absl::StatusOr<SceneRecognition> ClassifySceneObjects(const GallerySnapshot& gallery,
                                                       const PointCloud& frame,
                                                       SceneSegmentation segmentation,

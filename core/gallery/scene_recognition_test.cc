@@ -91,6 +91,46 @@ TEST(SceneRecognitionTest, AnObjectThatCannotBeDescribedIsUnknownNotAFailure) {
   for (size_t i = 0; i < 3; ++i) EXPECT_TRUE(scene->objects[i].status.ok());
 }
 
+// As the proto says: a cluster on a line (a wire, a scan line's streak) gets an error and
+// "unknown", though the default descriptor could describe it.
+TEST(SceneRecognitionTest, AnObjectOnALineIsUnknownWithTheReason) {
+  const std::shared_ptr<Gallery> gallery = ShapesGallery(true);
+  PointCloud frame = TableWithShapes();
+  for (int i = 0; i < 150; ++i) {
+    frame.Add(0.5f + 0.002f * static_cast<float>(i), 0.5f, kTableHeight + 0.2f);
+  }
+  const absl::StatusOr<SceneRecognition> scene =
+      RecognizeScene(*gallery->Snapshot(), frame, SceneRecognitionOptions());
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ASSERT_EQ(scene->objects.size(), 4u);
+  const RecognizedObject& wire = scene->objects.back();
+  EXPECT_EQ(wire.indices.size(), 150u);
+  EXPECT_EQ(wire.status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(wire.status.message(), HasSubstr("lie on a line"));
+  EXPECT_EQ(wire.classification.label, kUnknownLabel);
+  EXPECT_TRUE(wire.classification.knn.neighbors.empty());
+}
+
+// A caller's deadline or cancellation stops the work between objects, not after the frame.
+TEST(SceneRecognitionTest, AnInterruptionStopsTheWorkBetweenObjects) {
+  const std::shared_ptr<Gallery> gallery = ShapesGallery(true);
+  const PointCloud frame = TableWithShapes();
+  int asked = 0;
+  SceneRecognitionOptions options;
+  options.interrupt = [&asked] {
+    return ++asked > 3 ? absl::DeadlineExceededError("the caller's deadline passed")
+                       : absl::OkStatus();
+  };
+  // One plane, then clustering, then the first object: the second object is never described.
+  const absl::StatusOr<SceneRecognition> scene =
+      RecognizeScene(*gallery->Snapshot(), frame, options);
+  EXPECT_EQ(scene.status().code(), absl::StatusCode::kDeadlineExceeded);
+  EXPECT_EQ(asked, 4);
+  options.interrupt = [] { return absl::CancelledError("the call was cancelled"); };
+  EXPECT_EQ(RecognizeScene(*gallery->Snapshot(), frame, options).status().code(),
+            absl::StatusCode::kCancelled);
+}
+
 TEST(SceneRecognitionTest, EmptyGalleryIsRefusedBeforeAnyWork) {
   std::vector<std::vector<uint32_t>> truth;
   const absl::StatusOr<SceneRecognition> scene =

@@ -367,7 +367,11 @@ absl::StatusOr<SceneSegmentation> SegmentScene(const PointCloud& frame,
   const size_t min_plane_points = std::max<size_t>(
       3, static_cast<size_t>(std::ceil(options.min_plane_share * candidates.size())));
   SplitMix64 random(options.seed);
+  const auto interrupted = [&options] {
+    return options.interrupt ? options.interrupt() : absl::OkStatus();
+  };
   for (int p = 0; p < options.max_planes && candidates.size() >= min_plane_points; ++p) {
+    if (absl::Status stop = interrupted(); !stop.ok()) return stop;
     auto [plane, on_plane] = FindPlane(frame, candidates, options, random);
     if (on_plane.size() < min_plane_points || !Upright(plane, options)) break;
     // The normal's sign: up, else the frame's origin (the sensor, in its own frame) on the
@@ -384,6 +388,7 @@ absl::StatusOr<SceneSegmentation> SegmentScene(const PointCloud& frame,
     candidates = std::move(rest);
   }
 
+  if (absl::Status stop = interrupted(); !stop.ok()) return stop;
   absl::StatusOr<std::vector<std::vector<uint32_t>>> clusters =
       EuclideanClusters(frame, candidates, options.cluster_tolerance);
   if (!clusters.ok()) return clusters.status();

@@ -8,10 +8,12 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <vector>
 
 #include "Eigen/Core"
+#include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "core/point_cloud.h"
 
@@ -52,6 +54,9 @@ struct SceneSegmentationOptions {
   double max_plane_tilt_degrees = 15;  // in (0, 90]
   // Seeds RANSAC's draws: the same frame, options and seed give the same planes and clusters.
   uint64_t seed = 0;
+  // Asked before each plane and before clustering: a non-OK status (a caller's deadline, a
+  // cancelled call) stops the segmentation and is returned. Empty: never stop.
+  std::function<absl::Status()> interrupt;
 };
 
 // A removed plane: a x + b y + c z + d = 0 with (a, b, c) a unit normal, refitted by least
@@ -81,7 +86,7 @@ struct SceneSegmentation {
 // usable point, or whose every point lies on planes, gives no clusters (not an error).
 // Errors: InvalidArgument for options out of their ranges, a frame more than about 605,000
 // cluster tolerances across (2^20 grid cells of tolerance / sqrt(3): widen the tolerance or
-// set a region), or more than 2^32 - 2 points.
+// set a region), or more than 2^32 - 2 points; options.interrupt's.
 absl::StatusOr<SceneSegmentation> SegmentScene(const PointCloud& frame,
                                                const SceneSegmentationOptions& options);
 // SegmentScene's check of its options alone (InvalidArgument naming the field), for callers
