@@ -293,14 +293,33 @@ void ServerMetrics::CollectLive(std::vector<MetricFamily>* out) const {
         Family("shapeid_work_running", "Pieces of work running now, by lane.", MetricType::Gauge);
     MetricFamily queued = Family(
         "shapeid_work_queued", "Pieces of work waiting for a worker, by lane.", MetricType::Gauge);
+    MetricFamily queued_seconds =
+        Family("shapeid_work_queued_seconds",
+               "Estimated CPU time of the work waiting for a worker, by lane.", MetricType::Gauge);
     for (const WorkLaneState& lane : live.work()) {
       workers.metric.push_back(Gauge(lane.workers, {{"lane", lane.lane}}));
       running.metric.push_back(Gauge(lane.running, {{"lane", lane.lane}}));
       queued.metric.push_back(Gauge(static_cast<double>(lane.queued), {{"lane", lane.lane}}));
+      queued_seconds.metric.push_back(Gauge(lane.queued_seconds, {{"lane", lane.lane}}));
     }
     out->push_back(std::move(workers));
     out->push_back(std::move(running));
     out->push_back(std::move(queued));
+    out->push_back(std::move(queued_seconds));
+  }
+  if (live.backlog) {
+    const WorkBacklogState state = live.backlog();
+    MetricFamily backlog = Family(
+        "shapeid_caller_backlog_seconds",
+        "Estimated work admitted and not yet started, summed over callers (each bounded by "
+        "--max_caller_backlog_seconds); always sum(shapeid_work_queued_seconds), 0 when idle.",
+        MetricType::Gauge);
+    backlog.metric.push_back(Gauge(state.backlog_seconds));
+    out->push_back(std::move(backlog));
+    MetricFamily callers = Family("shapeid_callers_with_backlog",
+                                  "Callers with work waiting in the scheduler.", MetricType::Gauge);
+    callers.metric.push_back(Gauge(static_cast<double>(state.callers)));
+    out->push_back(std::move(callers));
   }
   if (live.memory) {
     const MemoryBudgetState memory = live.memory();

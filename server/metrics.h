@@ -63,6 +63,13 @@ struct WorkLaneState {
   int workers = 0;
   int running = 0;
   int64_t queued = 0;
+  double queued_seconds = 0;  // the queued pieces' estimated CPU time
+};
+
+// The scheduler's callers' backlogs at scrape time (WorkScheduler::BacklogStats).
+struct WorkBacklogState {
+  double backlog_seconds = 0;  // summed over callers; equals the lanes' queued_seconds summed
+  int64_t callers = 0;
 };
 
 // The memory budget (server/memory_budget.h) at scrape time.
@@ -78,6 +85,7 @@ struct LiveSources {
   std::function<bool()> serving;
   std::function<std::optional<ReplicationState>()> replication;
   std::function<std::vector<WorkLaneState>()> work;
+  std::function<WorkBacklogState()> backlog;
   std::function<MemoryBudgetState()> memory;
 };
 

@@ -193,9 +193,14 @@ absl::Status ShapeIdServer::StartMetrics(const MetricsOptions& options) {
     std::vector<WorkLaneState> lanes;
     for (const WorkLane lane : {WorkLane::kCheap, WorkLane::kHeavy, WorkLane::kStore}) {
       const WorkScheduler::LaneStats stats = service->scheduler().stats(lane);
-      lanes.push_back({WorkLaneName(lane), stats.workers, stats.running, stats.queued});
+      lanes.push_back({WorkLaneName(lane), stats.workers, stats.running, stats.queued,
+                       absl::ToDoubleSeconds(stats.queued_cost)});
     }
     return lanes;
+  };
+  live.backlog = [service] {
+    const WorkScheduler::BacklogStats backlog = service->scheduler().backlog();
+    return WorkBacklogState{absl::ToDoubleSeconds(backlog.total), backlog.callers};
   };
   live.memory = [service] {
     const MemoryBudget& budget = service->budget();

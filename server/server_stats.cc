@@ -62,7 +62,12 @@ void BuildServerStats(const ServerStatsSources& sources, v1::ServerStats* out) {
     work->set_workers(static_cast<uint32_t>(stats.workers));
     work->set_running(static_cast<uint32_t>(stats.running));
     work->set_queued(static_cast<uint64_t>(stats.queued));
+    ToProto(stats.queued_cost, work->mutable_queued_work());
+    work->set_queued_callers(static_cast<uint32_t>(stats.queued_callers));
   }
+  const WorkScheduler::BacklogStats backlog = sources.scheduler->backlog();
+  ToProto(backlog.total, out->mutable_caller_backlog());
+  out->set_callers_with_backlog(static_cast<uint32_t>(backlog.callers));
   out->set_memory_budget_bytes(sources.budget->total_bytes());
   out->set_memory_held_bytes(sources.budget->held_bytes());
   out->set_memory_held_peak_bytes(sources.budget->peak_bytes());
