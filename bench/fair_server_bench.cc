@@ -10,7 +10,16 @@
 //   fair_server_bench --server OLD/shapeid-server --no_budget_flags
 //                                            an older build (before issue 25) in the same way
 //   fair_server_bench --points 2000000 --seconds 5   smaller
+//   fair_server_bench --abuse cheap|scenes|huge_scenes|answers --flag=--memory_budget_mib=1024
+//                                            issue 39's floods: a read key keeping its share of
+//                                            the cheap lane full with 1,024-point
+//                                            ClassifyCloud calls; frames of thousands of
+//                                            objects; 10^7-point RecognizeScene calls that can
+//                                            never fit the budget; Classify with k = 2,000 of
+//                                            samples carrying provenance at its limits
 //
+// In every mode the lab also runs one heavy describe (1,000,000 points) idle and a few under
+// the abuse: its wait is what the abuser's work ahead of it costs it.
 // The server is a child process with its own data directory; the load generator shares the
 // machine, as in the issue's trial. Figures and their reading: docs/reliability.md.
 
@@ -21,8 +30,10 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -37,11 +48,13 @@
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
 #include "bench/bench_clouds.h"
+#include "bench/flooder.h"
 #include "bench/percentile.h"
 #include "client/client.h"
 #include "core/testing/test_clouds.h"
 #include "server/api_keys.h"
 #include "server/testing/child_server.h"
+#include "shapeid/v1/shapeid.grpc.pb.h"
 
 namespace shapeid {
 namespace {
@@ -50,6 +63,30 @@ using bench::Percentile;
 
 constexpr char kAbuserKey[] = "abuser-key-0123456789abcdefghijklmnopqrstuv";
 constexpr char kLabKey[] = "lab-key-0123456789abcdefghijklmnopqrstuvwxyz";
+constexpr char kReaderKey[] = "reader-key-0123456789abcdefghijklmnopqrstuv";
+
+// A frame of `specks` tiny objects (12 points, 1 cm apart, 1 m between objects) and no
+// support: what a careless segmentation of a noisy frame gives, thousands of clusters.
+std::string SpeckFrame(int specks) {
+  std::vector<float> xyz;
+  for (int i = 0; i < specks; ++i) {
+    for (int j = 0; j < 12; ++j) {
+      xyz.insert(xyz.end(), {static_cast<float>(i % 100) + 0.01f * static_cast<float>(j % 3),
+                             static_cast<float>(i / 100) + 0.01f * static_cast<float>(j / 3),
+                             0.013f * static_cast<float>(j % 2)});
+    }
+  }
+  return std::string(reinterpret_cast<const char*>(xyz.data()), xyz.size() * sizeof(float));
+}
+
+// Provenance at the documented limits (core/gallery/sample_provenance.h): a 4 KiB source and
+// 4 KiB of metadata.
+void FatProvenance(uint64_t id, v1::SampleHeader* sample) {
+  sample->set_source(absl::StrCat("file:///scans/", id, "/", std::string(4000, 's')));
+  for (int m = 0; m < 32; ++m) {
+    (*sample->mutable_metadata())[absl::StrCat("key", m)] = std::string(100, 'v');
+  }
+}
 
 // A TCP port free on the loopback now (the kernel's pick), for --health_listen.
 int FreePort() {
@@ -151,6 +188,15 @@ int Main(int argc, char** argv) {
   double idle_seconds = 5;
   bool no_budget_flags = false;
   std::vector<std::string> extra;
+  std::string mode = "describe";
+  int in_flight = 0;
+  int answer_samples = 2'000;
+  app.add_option("--abuse", mode,
+                 "describe (heavy Describe streams), cheap, scenes, huge_scenes or answers");
+  app.add_option("--in_flight", in_flight,
+                 "calls the abuser keeps open (0: 512 cheap, 4 scenes, 8 answers)");
+  app.add_option("--answer_samples", answer_samples,
+                 "samples with fat provenance in the answers mode's gallery (k = all of them)");
   app.add_option("--server", server_path, "the shapeid-server binary to measure");
   app.add_option("--points", points, "points per heavy Describe");
   app.add_option("--heavy", heavy, "heavy Describe streams the abuser keeps open at once");
@@ -160,15 +206,23 @@ int Main(int argc, char** argv) {
                "a server without --memory_budget_mib (older than issue 25)");
   app.add_option("--flag", extra, "an extra server flag (repeatable)");
   CLI11_PARSE(app, argc, argv);
+  if (mode != "describe" && mode != "cheap" && mode != "scenes" && mode != "huge_scenes" &&
+      mode != "answers") {
+    std::fprintf(stderr,
+                 "fair_server_bench: --abuse describe, cheap, scenes, huge_scenes or answers\n");
+    return 2;
+  }
+  if (in_flight <= 0) in_flight = mode == "cheap" ? 512 : mode == "answers" ? 8 : 4;
 
   const std::string dir = absl::StrCat(std::filesystem::temp_directory_path().string(),
                                        "/fair_server_bench_", getpid());
   std::filesystem::create_directories(dir);
   const std::string health_address = absl::StrCat("127.0.0.1:", FreePort());
-  std::vector<std::string> flags = {"--listen=127.0.0.1:0", "--health_listen=" + health_address,
-                                    "--data_dir=" + dir + "/data", "--log_level=warning",
-                                    absl::StrCat("--api_keys=abuser write ", Sha256Hex(kAbuserKey),
-                                                 ";lab write ", Sha256Hex(kLabKey))};
+  std::vector<std::string> flags = {
+      "--listen=127.0.0.1:0", "--health_listen=" + health_address, "--data_dir=" + dir + "/data",
+      "--log_level=warning",
+      absl::StrCat("--api_keys=abuser write ", Sha256Hex(kAbuserKey), ";lab write ",
+                   Sha256Hex(kLabKey), ";reader read ", Sha256Hex(kReaderKey))};
   flags.insert(flags.end(), extra.begin(), extra.end());
   ChildServer server;
   if (absl::Status s = server.Start(server_path, flags, dir + "/server.stderr"); !s.ok()) {
@@ -208,21 +262,106 @@ int Main(int argc, char** argv) {
   }
   const int64_t rss_before = server.ResidentBytes();
 
-  const PointCloud huge = bench::SurfaceCloud(points, 7);
+  if (mode == "answers") {
+    // The abuser's own gallery: samples whose provenance is at its limits.
+    v1::CreateGalleryRequest fat;
+    fat.set_name("fat");
+    if (absl::StatusOr<v1::Gallery> made = lab->CreateGallery(fat); !made.ok()) {
+      std::fprintf(stderr, "CreateGallery: %s\n", made.status().ToString().c_str());
+      return 1;
+    }
+    auto stub = v1::ShapeId::NewStub(
+        grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials()));
+    grpc::ClientContext context;
+    context.AddMetadata("authorization", absl::StrCat("Bearer ", kLabKey));
+    v1::TrainResponse trained;
+    auto writer = stub->Train(&context, &trained);
+    v1::TrainRequest request;
+    request.mutable_header()->set_gallery("fat");
+    writer->Write(request);
+    const std::string xyz(reinterpret_cast<const char*>(query.data()), query.size() * 12);
+    for (int i = 0; i < answer_samples; ++i) {
+      request.Clear();
+      request.mutable_sample()->set_label(absl::StrCat("kind", i % 4));
+      FatProvenance(static_cast<uint64_t>(i), request.mutable_sample());
+      writer->Write(request);
+      request.Clear();
+      request.mutable_points()->set_xyz(xyz);
+      writer->Write(request);
+    }
+    writer->WritesDone();
+    if (grpc::Status s = writer->Finish(); !s.ok()) {
+      std::fprintf(stderr, "Train (fat provenance): %s\n", s.error_message().c_str());
+      return 1;
+    }
+  }
+  // The lab's own heavy describe, idle: what its wait under the abuse is compared with.
+  const PointCloud lab_heavy = bench::SurfaceCloud(1'000'000, 11);
+  Series lab_heavy_idle;
+  for (int i = 0; i < 2; ++i) lab_heavy_idle.Add(absl::Now(), lab->Describe(lab_heavy).status());
+  const int64_t rss_idle = server.ResidentBytes();
+
   std::atomic<bool> stop{false};
   std::atomic<int> described{0};
   std::atomic<int64_t> rss_seen{0};
   std::vector<std::thread> abusers;
+  std::unique_ptr<bench::Flooder> flooder;
+  const PointCloud huge =
+      mode == "describe" || mode == "huge_scenes" ? bench::SurfaceCloud(points, 7) : PointCloud();
   const absl::Time abuse_start = absl::Now();
-  for (int i = 0; i < heavy; ++i) {
-    abusers.emplace_back([&] {
-      std::unique_ptr<Client> abuser = Connect(server.address(), kAbuserKey, absl::Minutes(10));
-      do {
-        const absl::Time start = absl::Now();
-        abuse.heavy.Add(start, abuser->Describe(huge).status());
-        described.fetch_add(1);
-      } while (!stop.load());
-    });
+  if (mode == "describe" || mode == "huge_scenes") {
+    for (int i = 0; i < heavy; ++i) {
+      abusers.emplace_back([&] {
+        std::unique_ptr<Client> abuser = Connect(server.address(), kAbuserKey, absl::Minutes(10));
+        do {
+          const absl::Time start = absl::Now();
+          if (mode == "describe") {
+            abuse.heavy.Add(start, abuser->Describe(huge).status());
+          } else {
+            abuse.heavy.Add(start,
+                            abuser->RecognizeScene("lab", huge, Client::SceneOptions()).status());
+          }
+          described.fetch_add(1);
+        } while (!stop.load());
+      });
+    }
+  } else {
+    auto request = std::make_shared<v1::ClassifyCloudRequest>();
+    auto scene = std::make_shared<v1::RecognizeSceneCloudRequest>();
+    if (mode == "scenes") {
+      scene->mutable_header()->set_gallery("lab");
+      scene->mutable_header()->mutable_segmentation()->set_max_planes(0);
+      scene->mutable_header()->mutable_segmentation()->set_min_cluster_points(10);
+      scene->mutable_header()->mutable_segmentation()->set_cluster_tolerance(0.05f);
+      scene->mutable_points()->set_xyz(SpeckFrame(5'000));
+    } else {
+      request->mutable_header()->set_gallery(mode == "answers" ? "fat" : "lab");
+      if (mode == "answers")
+        request->mutable_header()->set_k(static_cast<uint32_t>(answer_samples));
+      request->mutable_points()->set_xyz(
+          std::string(reinterpret_cast<const char*>(query.data()), query.size() * 12));
+    }
+    flooder = std::make_unique<bench::Flooder>(
+        server.address(),
+        [](grpc::ClientContext& context) {
+          context.AddMetadata("authorization", absl::StrCat("Bearer ", kReaderKey));
+          context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(60));
+        },
+        [request, scene, scenes = mode == "scenes"](v1::ShapeId::Stub& stub,
+                                                    grpc::ClientContext* context,
+                                                    std::function<void(grpc::Status)> done) {
+          if (scenes) {
+            auto response = std::make_shared<v1::RecognizeSceneResponse>();
+            stub.async()->RecognizeSceneCloud(context, scene.get(), response.get(),
+                                              [response, done](grpc::Status s) { done(s); });
+          } else {
+            auto response = std::make_shared<v1::ClassifyResponse>();
+            stub.async()->ClassifyCloud(context, request.get(), response.get(),
+                                        [response, done](grpc::Status s) { done(s); });
+          }
+        },
+        in_flight);
+    flooder->Start();
   }
   std::thread sampler([&] {
     while (!stop.load()) {
@@ -231,16 +370,31 @@ int Main(int argc, char** argv) {
     }
   });
   std::thread observer([&] { Observe(*lab, *main_probe, *port_probe, query, stop, abuse); });
-  // At least `seconds`, and until every abuser stream has finished one describe.
-  while (absl::Now() - abuse_start < absl::Seconds(seconds) || described.load() < heavy) {
+  Series lab_heavy_abuse;
+  std::thread lab_heavy_thread([&] {
+    std::unique_ptr<Client> own = Connect(server.address(), kLabKey, absl::Minutes(10));
+    while (!stop.load()) lab_heavy_abuse.Add(absl::Now(), own->Describe(lab_heavy).status());
+  });
+  // At least `seconds`, and until every abuser stream has finished one call.
+  while (absl::Now() - abuse_start < absl::Seconds(seconds) ||
+         (flooder == nullptr && described.load() < heavy)) {
     absl::SleepFor(absl::Milliseconds(100));
   }
   stop = true;
   observer.join();
   for (std::thread& thread : abusers) thread.join();
+  if (flooder != nullptr) flooder->Stop();
   sampler.join();
+  lab_heavy_thread.join();
   const double abuse_seconds = absl::ToDoubleSeconds(absl::Now() - abuse_start);
-
+  std::string flood_summary = "";
+  if (flooder != nullptr) {
+    const bench::FloodCounts counts = flooder->counts();
+    flood_summary =
+        absl::StrCat("; the reader's flood (", in_flight, " open): ", counts.ok, " answered, ",
+                     counts.refused, " refused RESOURCE_EXHAUSTED, ", counts.other, " other",
+                     counts.other > 0 ? " (" : "", counts.first_other, counts.other > 0 ? ")" : "");
+  }
   uint64_t budget = 0, held_peak = 0;
   if (absl::StatusOr<v1::ServerStats> stats = lab->GetServerStats(); stats.ok()) {
     budget = stats->memory_budget_bytes();
@@ -248,22 +402,27 @@ int Main(int argc, char** argv) {
   }
   const int64_t rss_peak = std::max<int64_t>(server.PeakResidentBytes(), rss_seen.load());
 
-  std::printf(
-      "\nabuse: %d stream(s) of %zu-point Describe (default spec) for %.1f s; %zu "
-      "describes done, failures: %s\n",
-      heavy, points, abuse_seconds, abuse.heavy.ms.size(), abuse.heavy.Failures().c_str());
+  if (flooder == nullptr) {
+    std::printf("\nabuse: %d stream(s) of %zu-point %s for %.1f s; %zu done, failures: %s\n", heavy,
+                points, mode == "describe" ? "Describe (default spec)" : "RecognizeScene",
+                abuse_seconds, abuse.heavy.ms.size(), abuse.heavy.Failures().c_str());
+  } else {
+    std::printf("\nabuse: %s for %.1f s%s\n", mode.c_str(), abuse_seconds, flood_summary.c_str());
+  }
   std::printf("\n%-28s %9s %9s %10s %10s %10s %9s  %s\n", "ms", "idle p50", "idle p99", "abuse p50",
               "abuse p99", "abuse max", "p99 ratio", "failures under abuse");
   PrintRow("lab ClassifyCloud (1,024)", idle.classify, abuse.classify);
   PrintRow("health, main port", idle.health_main, abuse.health_main);
   PrintRow("health, --health_listen", idle.health_port, abuse.health_port);
+  PrintRow("lab Describe (1,000,000)", lab_heavy_idle, lab_heavy_abuse);
   std::printf("\ncalls: lab %zu idle, %zu under abuse; probes %zu / %zu under abuse\n",
               idle.classify.ms.size(), abuse.classify.ms.size(), abuse.health_main.ms.size(),
               abuse.health_port.ms.size());
   std::printf(
-      "server memory: resident %.0f MiB before the abuse, peak %.0f MiB (+%.0f MiB); "
-      "budget %s, most held at once %.0f MiB\n",
-      rss_before / 1048576.0, rss_peak / 1048576.0, (rss_peak - rss_before) / 1048576.0,
+      "server memory: resident %.0f MiB empty (after the idle phase), %.0f MiB before the "
+      "abuse, peak %.0f MiB (+%.0f MiB); budget %s, most held at once %.0f MiB\n",
+      rss_before / 1048576.0, rss_idle / 1048576.0, rss_peak / 1048576.0,
+      (rss_peak - rss_before) / 1048576.0,
       no_budget_flags || budget == 0 ? "none" : absl::StrCat(budget >> 20, " MiB").c_str(),
       held_peak / 1048576.0);
   std::printf(
@@ -272,13 +431,19 @@ int Main(int argc, char** argv) {
       "\"classify_abuse_max_ms\":%.3f,\"classify_abuse_calls\":%zu,\"classify_failures\":%d,"
       "\"health_main_abuse_p99_ms\":%.3f,\"health_port_abuse_p99_ms\":%.3f,"
       "\"health_failures\":%d,\"rss_before_mib\":%.0f,\"rss_peak_mib\":%.0f,"
-      "\"budget_mib\":%llu}\n",
+      "\"budget_mib\":%llu,\"abuse\":\"%s\",\"lab_describe_idle_p50_ms\":%.1f,"
+      "\"lab_describe_abuse_max_ms\":%.1f,\"rss_within_budget\":%s}\n",
       points, heavy, Percentile(idle.classify.ms, 0.99), Percentile(abuse.classify.ms, 0.5),
       Percentile(abuse.classify.ms, 0.99), Percentile(abuse.classify.ms, 1.0),
       abuse.classify.ms.size(), abuse.classify.FailureCount(),
       Percentile(abuse.health_main.ms, 0.99), Percentile(abuse.health_port.ms, 0.99),
       abuse.health_main.FailureCount() + abuse.health_port.FailureCount(), rss_before / 1048576.0,
-      rss_peak / 1048576.0, static_cast<unsigned long long>(budget >> 20));
+      rss_peak / 1048576.0, static_cast<unsigned long long>(budget >> 20), mode.c_str(),
+      Percentile(lab_heavy_idle.ms, 0.5), Percentile(lab_heavy_abuse.ms, 1.0),
+      budget > 0 && static_cast<double>(rss_peak) <=
+                        1.1 * static_cast<double>(budget) + static_cast<double>(rss_before)
+          ? "true"
+          : "false");
   server.Terminate(absl::Seconds(30));
   std::filesystem::remove_all(dir);
   return 0;

@@ -6,10 +6,10 @@
 
 namespace shapeid::soak {
 
-const char* const kKindNames[kNumKinds] = {"train",          "classify_cloud",  "classify_stream",
-                                           "describe_cloud", "describe_stream", "create_gallery",
-                                           "get_gallery",    "list_galleries",  "remove_samples",
-                                           "delete_gallery", "export_gallery",  "import_gallery"};
+const char* const kKindNames[kNumKinds] = {
+    "train",          "classify_cloud", "classify_stream", "describe_cloud", "describe_stream",
+    "create_gallery", "get_gallery",    "list_galleries",  "remove_samples", "delete_gallery",
+    "export_gallery", "import_gallery", "recognize_scene"};
 
 void Recorder::Record(int client, Kind kind, int64_t ns, bool ok) {
   Slot& slot = slots_[static_cast<size_t>(client)];

@@ -26,6 +26,7 @@ enum Kind {
   kDeleteGallery,
   kExportGallery,
   kImportGallery,
+  kRecognizeScene,
   kNumKinds
 };
 

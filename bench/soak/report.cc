@@ -66,12 +66,14 @@ bool Report(const ReportSettings& settings, const LoadResult& load, const ErrorL
               ending.load_before.c_str(), mean_load, ending.load_after.c_str());
   std::printf("  health at the end %s\n",
               ending.health.ok() ? "SERVING" : ending.health.ToString().c_str());
+  std::printf("  backlog when idle %s\n", ending.backlog.ok() ? "0 (every admitted cost given back)"
+                                                              : ending.backlog.ToString().c_str());
   std::printf("  SIGTERM           exit status %d%s\n", ending.exit_status,
               ending.exit_status == -1 ? " (still running after 30 s; killed)" : "");
 
   const bool memory_ok = rss_warm > 0 && growth < settings.max_growth_percent;
-  bool pass =
-      error_count == 0 && load.server_died < 0 && ending.health.ok() && ending.exit_status == 0;
+  bool pass = error_count == 0 && load.server_died < 0 && ending.health.ok() &&
+              ending.backlog.ok() && ending.exit_status == 0;
   if (settings.skip_memory_check) {
     std::printf(
         "  memory check      DISABLED (--skip_memory_check): growth reported, not judged\n");

@@ -26,6 +26,7 @@ struct ReportSettings {
 // How the server and the machine ended the run.
 struct Ending {
   absl::Status health;   // the server's health check after the load
+  absl::Status backlog;  // the callers' backlog once idle: OK when back to zero
   int exit_status = -1;  // after SIGTERM; -1 if still running after 30 s (then killed)
   std::string load_before, load_after;  // load averages before and after the run
 };

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
+#include <cstring>
 #include <set>
 #include <utility>
 
@@ -73,9 +74,9 @@ Kind SoakClient::Next() {
   // Percent of the free draws; RemoveSamples, CreateGallery, ImportGallery (and a scratch
   // Train) follow from Train and DeleteGallery.
   static constexpr std::pair<Kind, int> kWeights[] = {
-      {kClassifyCloud, 32}, {kClassifyStream, 14}, {kDescribeCloud, 12},
-      {kDescribeStream, 6}, {kTrain, 18},          {kGetGallery, 8},
-      {kListGalleries, 4},  {kExportGallery, 3},   {kDeleteGallery, 3}};
+      {kClassifyCloud, 29}, {kClassifyStream, 14}, {kDescribeCloud, 12}, {kDescribeStream, 6},
+      {kTrain, 18},         {kGetGallery, 7},      {kListGalleries, 3},  {kExportGallery, 3},
+      {kDeleteGallery, 3},  {kRecognizeScene, 5}};
   int draw = std::uniform_int_distribution<int>(0, 99)(rng_);
   for (const auto& [kind, weight] : kWeights) {
     if (draw < weight) return kind;
@@ -114,14 +115,20 @@ absl::Status SoakClient::Run(Kind kind) {
       return Export();
     case kImportGallery:
       return ImportScratch();
+    case kRecognizeScene:
+      return RecognizeScene();
     case kNumKinds:
       break;
   }
   return absl::InternalError("no such request kind");
 }
 
-void SoakClient::SetDeadline(grpc::ClientContext& context) const {
-  context.set_deadline(absl::ToChronoTime(absl::Now() + settings_.deadline));
+void PrepareContext(const ClientSettings& settings, grpc::ClientContext& context) {
+  context.set_deadline(absl::ToChronoTime(absl::Now() + settings.deadline));
+  if (!settings.api_key.empty()) {
+    context.AddMetadata("authorization", absl::StrCat("Bearer ", settings.api_key));
+  }
+  if (!settings.caller_id.empty()) context.AddMetadata("shapeid-caller-id", settings.caller_id);
 }
 
 size_t SoakClient::RandomCloud() {
@@ -297,6 +304,57 @@ absl::Status SoakClient::Describe(bool stream) {
                             first_time || seen->second == values
                                 ? ""
                                 : "; values differ from the same cloud's earlier ones"));
+}
+
+// A tabletop frame: a 1.2 m square of table, 2 cm apart, and two of the pool's clouds, each
+// scaled to 30 cm and set on it 60 cm apart. The table is removed, both objects found, and
+// every label is one the gallery holds (or unknown).
+absl::Status SoakClient::RecognizeScene() {
+  std::vector<float> frame;
+  for (int i = 0; i < 60; ++i) {
+    for (int j = 0; j < 60; ++j) {
+      frame.insert(frame.end(), {-0.6f + 0.02f * i, -0.6f + 0.02f * j, 0.0f});
+    }
+  }
+  for (const float x : {-0.3f, 0.3f}) {
+    const std::string& xyz = pool_.xyz[RandomCloud()];
+    std::vector<float> object(xyz.size() / 4);
+    std::memcpy(object.data(), xyz.data(), object.size() * 4);
+    float low[3] = {1e30f, 1e30f, 1e30f}, high[3] = {-1e30f, -1e30f, -1e30f};
+    for (size_t i = 0; i < object.size(); ++i) {
+      low[i % 3] = std::min(low[i % 3], object[i]);
+      high[i % 3] = std::max(high[i % 3], object[i]);
+    }
+    const float scale =
+        0.3f / std::max({high[0] - low[0], high[1] - low[1], high[2] - low[2], 1e-6f});
+    for (size_t i = 0; i < object.size(); i += 3) {
+      frame.insert(frame.end(), {x + (object[i] - (low[0] + high[0]) / 2) * scale,
+                                 (object[i + 1] - (low[1] + high[1]) / 2) * scale,
+                                 0.02f + (object[i + 2] - low[2]) * scale});
+    }
+  }
+  v1::RecognizeSceneCloudRequest request;
+  request.mutable_header()->set_gallery(name_);
+  request.mutable_header()->set_expected_points(frame.size() / 3);
+  request.mutable_header()->mutable_segmentation()->set_cluster_tolerance(0.06f);
+  request.mutable_header()->mutable_segmentation()->set_min_cluster_points(100);
+  request.mutable_points()->set_xyz(frame.data(), frame.size() * 4);
+  grpc::ClientContext context;
+  SetDeadline(context);
+  v1::RecognizeSceneResponse response;
+  const grpc::Status status = stub_->RecognizeSceneCloud(&context, request, &response);
+  if (!status.ok()) return FromGrpcStatus(status);
+  bool labels_ok = true;
+  for (const v1::SceneObject& object : response.objects()) {
+    const std::string& label = object.classification().label();
+    labels_ok = labels_ok && (label == "unknown" ||
+                              std::any_of(held_.begin(), held_.end(),
+                                          [&](const Held& h) { return h.label == label; }));
+  }
+  return Check(response.planes_size() == 1 && response.objects_size() >= 2 && labels_ok,
+               absl::StrCat("RecognizeScene answer: ", response.planes_size(), " planes, ",
+                            response.objects_size(), " objects (expected 1 and at least 2), ",
+                            labels_ok ? "labels held" : "a label the gallery does not hold"));
 }
 
 }  // namespace shapeid::soak

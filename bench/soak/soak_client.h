@@ -28,7 +28,12 @@ namespace shapeid::soak {
 struct ClientSettings {
   size_t gallery_samples = 64;  // trim back to 3/4 of this once a Train passes it
   absl::Duration deadline = absl::Seconds(30);
+  std::string api_key;    // sent with every call when set
+  std::string caller_id;  // the shapeid-caller-id metadata when set
 };
+
+// Sets `context`'s deadline and the key and caller id `settings` give.
+void PrepareContext(const ClientSettings& settings, grpc::ClientContext& context);
 
 class SoakClient {
  public:
@@ -57,7 +62,7 @@ class SoakClient {
   // OK if `ok`, else Internal "check failed: `what`".
   static absl::Status Check(bool ok, const std::string& what);
 
-  void SetDeadline(grpc::ClientContext& context) const;
+  void SetDeadline(grpc::ClientContext& context) const { PrepareContext(settings_, context); }
   size_t RandomCloud();
   absl::Status CreateGallery(const std::string& name, uint32_t k);
   absl::Status Train(bool scratch, int n);
@@ -71,6 +76,7 @@ class SoakClient {
   absl::Status Export();
   absl::Status DeleteScratch();
   absl::Status ImportScratch();
+  absl::Status RecognizeScene();
 
   const Pool& pool_;
   const ClientSettings settings_;
