@@ -198,11 +198,106 @@ TEST(WorkSchedulerTest, RefusesWhatCanNeverFitOrWouldQueueTooMuch) {
   EXPECT_EQ(backlog.code(), absl::StatusCode::kResourceExhausted);
   EXPECT_THAT(backlog.message(), HasSubstr("--max_caller_backlog_seconds"));
   ASSERT_TRUE(scheduler.Submit(Order("b", kHeavy), journal.Entry("b")).ok());
-  const absl::Status full = scheduler.Submit(Order("c", kHeavy), never);
+  // The lane holds its limit (a's and b's): a newcomer still gets its share, one piece...
+  ASSERT_TRUE(scheduler.Submit(Order("c", kHeavy), journal.Entry("c")).ok());
+  const absl::Status share = scheduler.Submit(Order("c", kHeavy), never);
+  EXPECT_EQ(share.code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_THAT(share.message(), HasSubstr("its share of the lane"));
+  EXPECT_THAT(share.message(), HasSubstr("--max_queued_work"));
+  // ...and nothing passes twice the limit.
+  ASSERT_TRUE(scheduler.Submit(Order("d", kHeavy), journal.Entry("d")).ok());
+  const absl::Status full = scheduler.Submit(Order("e", kHeavy), never);
   EXPECT_EQ(full.code(), absl::StatusCode::kResourceExhausted);
-  EXPECT_THAT(full.message(), HasSubstr("--max_queued_work"));
+  EXPECT_THAT(full.message(), HasSubstr("twice its limit (--max_queued_work)"));
   busy.Release();
-  EXPECT_EQ(journal.WaitFor(2).size(), 2u);
+  EXPECT_EQ(journal.WaitFor(4).size(), 4u);
+}
+
+TEST(WorkSchedulerTest, ACallerThatFillsALaneIsRefusedItselfWhileOthersKeepTheirShare) {
+  WorkSchedulerOptions options = OneWorkerEach();
+  options.max_queued = 8;
+  WorkScheduler scheduler(options, nullptr);
+  Blocker busy(scheduler, Order("flooder", kCheap));
+  std::atomic<int> ran{0};
+  const auto count = [&ran](const WorkStart& start) {
+    if (start.status.ok()) ran.fetch_add(1);
+  };
+  int flooder_admitted = 0;
+  while (scheduler.Submit(Order("flooder", kCheap), count).ok()) ++flooder_admitted;
+  EXPECT_EQ(flooder_admitted, 8);
+  // Another caller gets half the lane (two callers share it), the flooder nothing more.
+  int lab_admitted = 0;
+  while (scheduler.Submit(Order("lab", kCheap), count).ok()) ++lab_admitted;
+  EXPECT_EQ(lab_admitted, 4);
+  EXPECT_EQ(scheduler.Submit(Order("flooder", kCheap), count).code(),
+            absl::StatusCode::kResourceExhausted);
+  const WorkScheduler::LaneStats cheap = scheduler.stats(WorkLane::kCheap);
+  EXPECT_EQ(cheap.queued, 12);
+  EXPECT_EQ(cheap.queued_callers, 2);
+  EXPECT_EQ(cheap.queued_cost, 12 * kCheap);
+  busy.Release();
+  while (ran.load() < 1 + 12) absl::SleepFor(absl::Milliseconds(1));
+}
+
+// What locked every loopback client out for good: the backlog of work that had started was
+// never given back, so it piled up over a long run until every call was refused.
+TEST(WorkSchedulerTest, ACallerMayRunFarMoreThanItsBacklogBoundOneAfterAnother) {
+  WorkSchedulerOptions options = OneWorkerEach();
+  options.max_caller_backlog = absl::Milliseconds(10);
+  WorkScheduler scheduler(options, nullptr);
+  for (int i = 0; i < 2000; ++i) {  // 2 s of estimated work through a 10 ms bound
+    std::promise<void> done;
+    ASSERT_TRUE(
+        scheduler.Submit(Order("robot", kCheap), [&](const WorkStart&) { done.set_value(); }).ok())
+        << "refused after " << i << " pieces";
+    done.get_future().wait();
+  }
+  const WorkScheduler::BacklogStats backlog = scheduler.backlog();
+  EXPECT_EQ(backlog.total, absl::ZeroDuration());
+  EXPECT_EQ(backlog.queued, absl::ZeroDuration());
+  EXPECT_EQ(backlog.callers, 0);
+}
+
+TEST(WorkSchedulerTest, BacklogIsGivenBackExactlyOnceWhateverEndsTheWork) {
+  auto scheduler = std::make_unique<WorkScheduler>(OneWorkerEach(), nullptr);
+  Blocker busy(*scheduler, Order("other", kHeavy));
+  Journal journal;
+  WorkOrder late = Order("robot", kHeavy);
+  late.deadline = absl::Now() + absl::Milliseconds(20);
+  ASSERT_TRUE(scheduler->Submit(late, journal.Entry("late")).ok());
+  std::atomic<bool> cancelled{false};
+  WorkOrder gone = Order("robot", kHeavy);
+  gone.cancelled = [&cancelled] { return cancelled.load(); };
+  ASSERT_TRUE(scheduler->Submit(gone, journal.Entry("gone")).ok());
+  ASSERT_TRUE(scheduler->Submit(Order("robot", kHeavy), journal.Entry("stopped")).ok());
+  ASSERT_TRUE(scheduler->Submit(Order("robot", kCheap), journal.Entry("ran")).ok());
+  EXPECT_EQ(scheduler->backlog("robot"), 3 * kHeavy + kCheap);
+  EXPECT_EQ(scheduler->backlog().total, scheduler->backlog().queued);
+  cancelled = true;
+  journal.WaitFor(3);  // dropped for its deadline, dropped as cancelled, and the cheap one ran
+  EXPECT_EQ(scheduler->backlog("robot"), kHeavy);
+  scheduler->Stop();
+  EXPECT_THAT(journal.WaitFor(4).back(), "stopped:CANCELLED");
+  EXPECT_EQ(scheduler->backlog("robot"), absl::ZeroDuration());
+  EXPECT_EQ(scheduler->backlog().total, absl::ZeroDuration());
+  busy.Release();
+  scheduler.reset();
+}
+
+TEST(WorkSchedulerTest, RefusesAtOnceWorkThatWithItsCloudCouldNeverFitACallersShare) {
+  auto budget = std::make_shared<MemoryBudget>(MemoryBudgetOptions{1000, 0.5});
+  WorkScheduler scheduler(OneWorkerEach(), budget);
+  WorkOrder order = Order("a", kCheap);
+  order.memory = 300;
+  order.held = 300;  // 600 > the 500 one caller may hold: it would wait for ever
+  const absl::Status refused =
+      scheduler.Submit(order, [](const WorkStart&) { ADD_FAILURE() << "refused work ran"; });
+  EXPECT_EQ(refused.code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_THAT(refused.message(), HasSubstr("--memory_budget_mib"));
+  order.held = 200;
+  std::promise<void> ran;
+  ASSERT_TRUE(scheduler.Submit(order, [&](const WorkStart&) { ran.set_value(); }).ok());
+  ran.get_future().wait();
 }
 
 TEST(WorkSchedulerTest, StopDropsQueuedWorkAndRefusesNewWork) {
