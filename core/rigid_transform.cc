@@ -1,6 +1,7 @@
 #include "core/rigid_transform.h"
 
 #include <cmath>
+#include <limits>
 
 #include "Eigen/Geometry"
 #include "absl/strings/str_cat.h"
@@ -39,6 +40,14 @@ absl::StatusOr<RigidTransform> RigidTransformFromRows(absl::Span<const double> r
         return absl::InvalidArgumentError(
             absl::StrCat("sensor transform: row ", i, " column ", j, " is not finite"));
       }
+      // The points are moved in float32: a number that is infinite there would make every
+      // point non-finite, and the error would then blame the points.
+      if (std::abs(v) > std::numeric_limits<float>::max()) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "sensor transform: row ", i, " column ", j, " (transform[", 4 * i + j, "]) is ", v,
+            ", beyond float32's range (|value| <= ", std::numeric_limits<float>::max(),
+            "); the points are moved in float32"));
+      }
       if (j < 3) {
         r(i, j) = v;
       } else {
@@ -67,13 +76,14 @@ absl::StatusOr<RigidTransform> RotationTakingUpTo(absl::Span<const double> up,
         absl::StrCat("sensor up: ", up.size(), " numbers; expected 3 (x, y, z)"));
   }
   const Eigen::Vector3d u(up[0], up[1], up[2]);
-  if (!u.allFinite() || !(u.norm() > 0)) {
+  // stableNorm: the squared norm of (1e200, 0, 0) is infinite and that of (1e-200, 0, 0) zero.
+  if (!u.allFinite() || !(u.stableNorm() > 0)) {
     return absl::InvalidArgumentError(
         absl::StrCat("sensor up: (", up[0], ", ", up[1], ", ", up[2],
                      ") is not a direction (zero length or not finite)"));
   }
   const Eigen::Vector3d to = Eigen::Vector3d(target[0], target[1], target[2]).normalized();
-  const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(u.normalized(), to);
+  const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(u.stableNormalized(), to);
   return FromEigen(q.toRotationMatrix(), Eigen::Vector3d::Zero());
 }
 

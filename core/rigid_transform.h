@@ -20,8 +20,8 @@ struct RigidTransform {
 };
 
 // From the 12 numbers of [R | t], row after row. InvalidArgument unless there are 12, all
-// finite, and R is a rotation: orthonormal within 1e-3 and of determinant +1 (a reflection
-// would mirror the object).
+// finite and within float32's range (the points are moved in float32), and R is a rotation:
+// orthonormal within 1e-3 and of determinant +1 (a reflection would mirror the object).
 absl::StatusOr<RigidTransform> RigidTransformFromRows(absl::Span<const double> rows);
 
 // The smallest rotation that turns the direction `up` (3 numbers, any length > 0) onto

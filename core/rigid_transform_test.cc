@@ -1,6 +1,7 @@
 #include "core/rigid_transform.h"
 
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include "gmock/gmock.h"
@@ -44,12 +45,35 @@ TEST(RigidTransformTest, RefusesWhatIsNotRigid) {
       {{1, 0.1, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}, "not a rotation"},
       {{-1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}, "reflection"},
       {{1, 0, 0, NAN, 0, 1, 0, 0, 0, 0, 1, 0}, "row 0 column 3 is not finite"},
+      // Finite as a double, infinite as the float32 the points are moved in.
+      {{1, 0, 0, 1e39, 0, 1, 0, 0, 0, 0, 1, 0},
+       "row 0 column 3 (transform[3]) is 1e+39, beyond float32's range (|value| <= "
+       "3.40282e+38)"},
+      {{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, -4e38}, "row 2 column 3 (transform[11]) is -4e+38"},
   };
   for (const auto& c : cases) {
     const auto t = RigidTransformFromRows(c.rows);
     ASSERT_FALSE(t.ok()) << c.message;
     EXPECT_EQ(t.status().code(), absl::StatusCode::kInvalidArgument);
     EXPECT_THAT(t.status().message(), HasSubstr(c.message));
+  }
+}
+
+TEST(RigidTransformTest, TheLargestFloat32TranslationIsAccepted) {
+  const double max = std::numeric_limits<float>::max();
+  const auto t =
+      RigidTransformFromRows(std::vector<double>{1, 0, 0, max, 0, 1, 0, -max, 0, 0, 1, 0});
+  ASSERT_TRUE(t.ok()) << t.status();
+  EXPECT_EQ(t->translation[0], std::numeric_limits<float>::max());
+}
+
+TEST(RigidTransformTest, UpOfAnyFiniteLengthIsADirection) {
+  const std::array<float, 3> z = {0, 0, 1};
+  // Their squared norms overflow and underflow a double.
+  for (const double length : {1e200, 1e-200}) {
+    const auto t = RotationTakingUpTo(std::vector<double>{0, -length, 0}, z);
+    ASSERT_TRUE(t.ok()) << length << ": " << t.status();
+    ExpectNear(Apply(*t, {0, -1, 0}), {0, 0, 1});
   }
 }
 

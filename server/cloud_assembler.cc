@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
+#include <string>
 #include <type_traits>
 #include <utility>
 
@@ -14,15 +16,10 @@ namespace {
 
 constexpr bool kHostBigEndian = __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__;
 constexpr char kAxisNames[3] = {'x', 'y', 'z'};
-// A point cut by a chunk's end is held until it is whole: this bounds that buffer (real
-// sensors' points are tens of bytes).
-constexpr uint32_t kMaxPointStep = 1 << 16;
 
-size_t TypeBytes(PointLayout::Type type) { return type == PointLayout::Type::kFloat64 ? 8 : 4; }
-
-// One coordinate of type T at `p`, byte-swapped when kSwap, rounded to float.
+// The bits of one coordinate of type T at `p`, byte-swapped when kSwap.
 template <typename T, bool kSwap>
-inline float Read(const char* p) {
+inline auto ReadBits(const char* p) {
   using Bits = std::conditional_t<sizeof(T) == 4, uint32_t, uint64_t>;
   Bits bits;
   std::memcpy(&bits, p, sizeof(T));
@@ -33,82 +30,79 @@ inline float Read(const char* p) {
       bits = __builtin_bswap64(bits);
     }
   }
-  T value;
-  std::memcpy(&value, &bits, sizeof(T));
-  return static_cast<float>(value);
+  return bits;
 }
 
-inline float ReadAny(const char* p, PointLayout::Type type, bool swap) {
+template <typename T, typename Bits>
+inline T FromBits(Bits bits) {
+  T value;
+  std::memcpy(&value, &bits, sizeof(T));
+  return value;
+}
+
+template <typename T, bool kSwap>
+inline T ReadRaw(const char* p) {
+  return FromBits<T>(ReadBits<T, kSwap>(p));
+}
+
+// True when float32 loses the finite `value` that rounded to `rounded`: beyond its range, or
+// not 0 and below its smallest normal (float32 data declared FLOAT64 reads like this).
+inline bool LostInFloat32(double value, float rounded) {
+  const bool overflow = !std::isfinite(rounded);
+  const bool underflow = (value != 0) & (std::abs(rounded) < std::numeric_limits<float>::min());
+  return std::isfinite(value) & (overflow | underflow);
+}
+
+// A cheap superset of LostInFloat32 on a float64's bits: finite, not 0, and of a magnitude
+// below float32's smallest normal or above its largest (one that rounds into range included).
+inline bool MaybeLostInFloat32(uint64_t bits) {
+  constexpr uint64_t kMagnitude = 0x7FFF'FFFF'FFFF'FFFF;
+  constexpr uint64_t kFloatMin = 0x3810'0000'0000'0000;  // 2^-126 as a float64
+  constexpr uint64_t kFloatMax = 0x47EF'FFFF'E000'0000;  // (2 - 2^-23) 2^127 as a float64
+  constexpr uint64_t kInfinity = 0x7FF0'0000'0000'0000;
+  const uint64_t magnitude = bits & kMagnitude;
+  return (magnitude - 1 < kFloatMin - 1) | ((magnitude > kFloatMax) & (magnitude < kInfinity));
+}
+
+// One coordinate of `type` at `p`, rounded to float; `*lost` is set when float32 loses it.
+inline float ReadAny(const char* p, PointLayout::Type type, bool swap, bool* lost) {
   if (type == PointLayout::Type::kFloat64) {
-    return swap ? Read<double, true>(p) : Read<double, false>(p);
+    const double value = swap ? ReadRaw<double, true>(p) : ReadRaw<double, false>(p);
+    const float rounded = static_cast<float>(value);
+    *lost |= LostInFloat32(value, rounded);
+    return rounded;
   }
-  return swap ? Read<float, true>(p) : Read<float, false>(p);
+  return swap ? ReadRaw<float, true>(p) : ReadRaw<float, false>(p);
 }
 
 // Decodes `count` points `step` bytes apart into `out`; returns the points written (fewer
-// than `count` when non-finite ones are dropped).
+// than `count` when non-finite ones are dropped). `*lost`: whether float32 may have lost a
+// FLOAT64 coordinate (MaybeLostInFloat32: the caller checks those points exactly).
 template <typename T, bool kSwap>
 size_t DecodeSameType(const char* in, size_t count, size_t step, const uint32_t offsets[3],
-                      bool drop_nonfinite, float* out) {
+                      bool drop_nonfinite, float* out, bool* lost) {
   size_t written = 0;
+  bool maybe_lost = false;
   for (size_t i = 0; i < count; ++i, in += step) {
-    const float x = Read<T, kSwap>(in + offsets[0]);
-    const float y = Read<T, kSwap>(in + offsets[1]);
-    const float z = Read<T, kSwap>(in + offsets[2]);
+    const auto bx = ReadBits<T, kSwap>(in + offsets[0]);
+    const auto by = ReadBits<T, kSwap>(in + offsets[1]);
+    const auto bz = ReadBits<T, kSwap>(in + offsets[2]);
+    if constexpr (std::is_same_v<T, double>) {
+      maybe_lost |= MaybeLostInFloat32(bx) | MaybeLostInFloat32(by) | MaybeLostInFloat32(bz);
+    }
+    const float x = static_cast<float>(FromBits<T>(bx));
+    const float y = static_cast<float>(FromBits<T>(by));
+    const float z = static_cast<float>(FromBits<T>(bz));
     out[3 * written] = x;
     out[3 * written + 1] = y;
     out[3 * written + 2] = z;
     written += !drop_nonfinite || (std::isfinite(x) && std::isfinite(y) && std::isfinite(z));
   }
+  *lost = maybe_lost;
   return written;
 }
 
 }  // namespace
-
-bool PointLayout::is_packed_float32() const {
-  const PointLayout packed;
-  if (point_step != packed.point_step || big_endian) return false;  // the default is little-endian
-  for (int a = 0; a < 3; ++a) {
-    if (xyz[a].offset != packed.xyz[a].offset || xyz[a].type != packed.xyz[a].type) return false;
-  }
-  return width == 0 || row_step == 0 || row_step == uint64_t{width} * point_step;
-}
-
-absl::Status ValidatePointLayout(const PointLayout& layout) {
-  if (layout.point_step == 0 || layout.point_step > kMaxPointStep) {
-    return absl::InvalidArgumentError(absl::StrCat("point layout: point_step ", layout.point_step,
-                                                   " is outside [1, ", kMaxPointStep, "] bytes"));
-  }
-  for (int a = 0; a < 3; ++a) {
-    const uint64_t end = uint64_t{layout.xyz[a].offset} + TypeBytes(layout.xyz[a].type);
-    if (end > layout.point_step) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "point layout: ", std::string(1, kAxisNames[a]), " at offset ", layout.xyz[a].offset,
-          " (", TypeBytes(layout.xyz[a].type), " bytes) ends past point_step ", layout.point_step));
-    }
-    for (int b = 0; b < a; ++b) {
-      const uint64_t begin_a = layout.xyz[a].offset, begin_b = layout.xyz[b].offset;
-      const uint64_t end_b = begin_b + TypeBytes(layout.xyz[b].type);
-      if (begin_a < end_b && begin_b < end) {
-        return absl::InvalidArgumentError(absl::StrCat(
-            "point layout: ", std::string(1, kAxisNames[b]), " and ", std::string(1, kAxisNames[a]),
-            " overlap (offsets ", begin_b, " and ", begin_a, ")"));
-      }
-    }
-  }
-  if (layout.width != 0 && layout.row_step != 0 &&
-      uint64_t{layout.row_step} < uint64_t{layout.width} * layout.point_step) {
-    return absl::InvalidArgumentError(absl::StrCat("point layout: row_step ", layout.row_step,
-                                                   " is less than width ", layout.width,
-                                                   " x point_step ", layout.point_step));
-  }
-  if ((layout.width == 0) != (layout.row_step == 0)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("point layout: width ", layout.width, " and row_step ", layout.row_step,
-                     " go together (both 0 for rows without padding)"));
-  }
-  return absl::OkStatus();
-}
 
 absl::Status CloudAssembler::Start(uint64_t expected_points, const WireCloudFormat& format) {
   SHAPEID_RETURN_IF_ERROR(ValidatePointLayout(format.layout));
@@ -117,12 +111,20 @@ absl::Status CloudAssembler::Start(uint64_t expected_points, const WireCloudForm
                                                      " points, more than the limit of ",
                                                      max_points_, " (max_points_per_cloud)"));
   }
+  if (format.layout.width != 0 && expected_points % format.layout.width != 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("the cloud announces ", expected_points, " points, not whole rows of width ",
+                     format.layout.width, " (an organised cloud is height x width points)"));
+  }
   started_ = true;
   expected_points_ = expected_points;
   format_ = format;
   sent_ = 0;
   partial_point_.clear();
   row_offset_ = 0;
+  survey_ = !format.layout.is_packed_float32();
+  if (survey_) layout_survey_.Reset(format.layout);
+  lost_coordinate_.reset();
   cloud_ = PointCloud();
   memory_.Release();
   return Reserve(expected_points);
@@ -172,13 +174,14 @@ void CloudAssembler::CopyPacked(absl::string_view bytes) {
     std::memcpy(xyz.data() + old_size, bytes.data(), bytes.size());
   } else {
     for (size_t i = 0; i < bytes.size() / 4; ++i) {
-      xyz[old_size + i] = Read<float, true>(bytes.data() + 4 * i);  // the wire is little-endian
+      xyz[old_size + i] = ReadRaw<float, true>(bytes.data() + 4 * i);  // the wire is little-endian
     }
   }
 }
 
 void CloudAssembler::Decode(const char* bytes, size_t count) {
   const PointLayout& layout = format_.layout;
+  if (survey_ && !layout_survey_.full()) layout_survey_.Add(bytes, count);
   std::vector<float>& xyz = cloud_.mutable_xyz();
   const size_t old_size = xyz.size();
   xyz.resize(old_size + 3 * count);
@@ -187,19 +190,23 @@ void CloudAssembler::Decode(const char* bytes, size_t count) {
   const uint32_t offsets[3] = {layout.xyz[0].offset, layout.xyz[1].offset, layout.xyz[2].offset};
   const PointLayout::Type type = layout.xyz[0].type;
   size_t written;
+  bool lost = false;
   if (layout.xyz[1].type == type && layout.xyz[2].type == type) {
     const bool f64 = type == PointLayout::Type::kFloat64;
     const bool drop = layout.drop_nonfinite;
     const size_t step = layout.point_step;
-    written = f64 ? (swap ? DecodeSameType<double, true>(bytes, count, step, offsets, drop, out)
-                          : DecodeSameType<double, false>(bytes, count, step, offsets, drop, out))
-                  : (swap ? DecodeSameType<float, true>(bytes, count, step, offsets, drop, out)
-                          : DecodeSameType<float, false>(bytes, count, step, offsets, drop, out));
+    const char* in = bytes;
+    written =
+        f64 ? (swap ? DecodeSameType<double, true>(in, count, step, offsets, drop, out, &lost)
+                    : DecodeSameType<double, false>(in, count, step, offsets, drop, out, &lost))
+            : (swap ? DecodeSameType<float, true>(in, count, step, offsets, drop, out, &lost)
+                    : DecodeSameType<float, false>(in, count, step, offsets, drop, out, &lost));
   } else {
     written = 0;
-    for (size_t i = 0; i < count; ++i, bytes += layout.point_step) {
+    const char* in = bytes;
+    for (size_t i = 0; i < count; ++i, in += layout.point_step) {
       for (int a = 0; a < 3; ++a) {
-        out[3 * written + a] = ReadAny(bytes + offsets[a], layout.xyz[a].type, swap);
+        out[3 * written + a] = ReadAny(in + offsets[a], layout.xyz[a].type, swap, &lost);
       }
       const float* p = out + 3 * written;
       written += !layout.drop_nonfinite ||
@@ -207,6 +214,23 @@ void CloudAssembler::Decode(const char* bytes, size_t count) {
     }
   }
   xyz.resize(old_size + 3 * written);
+  if (lost && !lost_coordinate_.has_value()) FindLostCoordinate(bytes, count);
+}
+
+void CloudAssembler::FindLostCoordinate(const char* bytes, size_t count) {
+  const PointLayout& layout = format_.layout;
+  const bool swap = layout.big_endian != kHostBigEndian;
+  for (size_t i = 0; i < count; ++i, bytes += layout.point_step) {
+    for (int a = 0; a < 3; ++a) {
+      if (layout.xyz[a].type != PointLayout::Type::kFloat64) continue;
+      const char* p = bytes + layout.xyz[a].offset;
+      const double value = swap ? ReadRaw<double, true>(p) : ReadRaw<double, false>(p);
+      if (LostInFloat32(value, static_cast<float>(value))) {
+        lost_coordinate_ = LostCoordinate{sent_ - count + i, a, value};
+        return;
+      }
+    }
+  }
 }
 
 absl::Status CloudAssembler::Append(absl::string_view bytes) {
@@ -272,9 +296,34 @@ absl::StatusOr<PointCloud> CloudAssembler::Finish() {
         absl::StrCat("the points ended inside a point: ", partial_point_.size(), " of its ",
                      format_.layout.point_step, " bytes (point_step) arrived"));
   }
+  const PointLayout& layout = format_.layout;
+  if (layout.width != 0 && (sent_ % layout.width != 0 || row_offset_ != 0)) {
+    // row_offset_ counts the bytes of a padded row; unpadded rows are their points.
+    const uint64_t row_bytes =
+        row_offset_ != 0 ? row_offset_ : (sent_ % layout.width) * layout.point_step;
+    return absl::InvalidArgumentError(
+        absl::StrCat("the points ended inside a row: ", row_bytes, " of its ", layout.row_step,
+                     " bytes (row_step) arrived; an organised cloud (width ", layout.width,
+                     ") is whole rows, padding included"));
+  }
   if (expected_points_ != 0 && sent_ != expected_points_) {
     return absl::InvalidArgumentError(
         absl::StrCat("the header announced ", expected_points_, " points but ", sent_, " arrived"));
+  }
+  if (survey_) SHAPEID_RETURN_IF_ERROR(layout_survey_.Verdict());
+  if (lost_coordinate_.has_value()) {
+    const LostCoordinate& lost = *lost_coordinate_;
+    const std::string where =
+        absl::StrCat("point ", lost.point, ": ", std::string(1, kAxisNames[lost.axis]), " = ",
+                     lost.value, " (FLOAT64)");
+    if (std::abs(lost.value) > std::numeric_limits<float>::max()) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          where, " does not fit in a float32 (|value| <= ", std::numeric_limits<float>::max(),
+          "); subtract an offset first (every descriptor is translation invariant)"));
+    }
+    return absl::InvalidArgumentError(absl::StrCat(
+        where, " is not 0 but below float32's smallest normal (", std::numeric_limits<float>::min(),
+        "): float32 data declared FLOAT64 reads like this; is the datatype right?"));
   }
   return std::move(cloud_);
 }

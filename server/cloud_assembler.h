@@ -1,9 +1,9 @@
 #ifndef SHAPEID_SERVER_CLOUD_ASSEMBLER_H_
 #define SHAPEID_SERVER_CLOUD_ASSEMBLER_H_
 
-#include <array>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -13,32 +13,9 @@
 #include "core/point_cloud.h"
 #include "core/rigid_transform.h"
 #include "server/memory_budget.h"
+#include "server/point_layout.h"
 
 namespace shapeid {
-
-// The byte layout of a cloud's point chunks (proto PointLayout, in sensor_msgs/PointCloud2's
-// terms). The default is packed little-endian float32 x y z, 12 bytes a point.
-struct PointLayout {
-  enum class Type { kFloat32, kFloat64 };
-  struct Coordinate {
-    uint32_t offset = 0;  // bytes from the start of the point
-    Type type = Type::kFloat32;
-  };
-  uint32_t point_step = 12;
-  std::array<Coordinate, 3> xyz = {{{0, Type::kFloat32}, {4, Type::kFloat32}, {8, Type::kFloat32}}};
-  bool big_endian = false;
-  uint32_t width = 0;     // points per row of an organised cloud; 0: rows are not padded
-  uint32_t row_step = 0;  // bytes from one row to the next, >= width * point_step
-  bool drop_nonfinite = false;
-
-  // The default layout (whatever drop_nonfinite says): chunks are copied as they are.
-  bool is_packed_float32() const;
-};
-
-// InvalidArgument naming the field when the layout does not hold together: a point_step of 0
-// or over 65,536 bytes, a coordinate past its point's end, coordinates that overlap, a row
-// shorter than its points.
-absl::Status ValidatePointLayout(const PointLayout& layout);
 
 // What a call's clouds are on the wire and how they are moved into the gallery's frame.
 struct WireCloudFormat {
@@ -62,7 +39,7 @@ class CloudAssembler {
   // Starts a new cloud in `format` (validated here: InvalidArgument naming the field).
   // `expected_points` (0: unknown; points sent, before any are dropped) is checked by Finish
   // and reserves memory; over the limit or the memory budget it is ResourceExhausted at once,
-  // before any point arrives.
+  // before any point arrives; not whole rows of an organised cloud (width), InvalidArgument.
   absl::Status Start(uint64_t expected_points, const WireCloudFormat& format = {});
 
   // Appends one chunk. In the default layout InvalidArgument if its size is not a multiple of
@@ -70,8 +47,10 @@ class CloudAssembler {
   // (with the numbers) once the points sent pass the limit or the cloud passes the budget.
   absl::Status Append(absl::string_view bytes);
 
-  // The cloud received since Start; InvalidArgument if it has fewer points than announced or
-  // the stream ended inside a point. Finiteness (unless dropped) and the other section-0
+  // The cloud received since Start; InvalidArgument if it has fewer points than announced,
+  // the stream ended inside a point or inside a row of an organised cloud, a declared layout
+  // other than the default looks mis-declared (LayoutSurvey), or a FLOAT64 coordinate is not
+  // 0 and outside float32's normal range. Finiteness (unless dropped) and the other section-0
   // checks are the descriptor's (core/point_cloud.h).
   absl::StatusOr<PointCloud> Finish();
 
@@ -90,8 +69,12 @@ class CloudAssembler {
   absl::Status Reserve(size_t points);
   // Counts `count` more points sent against the limit and makes room for them.
   absl::Status Admit(size_t count);
-  // Decodes `count` whole points at `bytes` (the layout's point_step apart) onto the cloud.
+  // Decodes `count` whole points at `bytes` (the layout's point_step apart) onto the cloud,
+  // the last `count` points sent; surveys them and notes the first FLOAT64 coordinate lost in
+  // float32.
   void Decode(const char* bytes, size_t count);
+  // Notes the first coordinate of the `count` points at `bytes` that float32 loses.
+  void FindLostCoordinate(const char* bytes, size_t count);
   // Appends packed float32 bytes as they are.
   void CopyPacked(absl::string_view bytes);
 
@@ -105,6 +88,15 @@ class CloudAssembler {
   size_t sent_ = 0;            // points sent in this cloud, dropped ones included
   std::string partial_point_;  // the bytes of a point cut by a chunk's end
   size_t row_offset_ = 0;      // bytes into the current row (padded rows only)
+  bool survey_ = false;        // a declared layout other than the default is surveyed
+  LayoutSurvey layout_survey_;
+  // The first FLOAT64 coordinate that is not 0 and outside float32's normal range.
+  struct LostCoordinate {
+    uint64_t point = 0;  // counting every point sent
+    int axis = 0;
+    double value = 0;
+  };
+  std::optional<LostCoordinate> lost_coordinate_;
   uint64_t points_received_ = 0;
   PointCloud cloud_;
 };

@@ -234,5 +234,110 @@ TEST(CloudAssemblerTest, ADeclaredLayoutMustEndOnAPointAndCountsSentPointsAgains
   EXPECT_THAT(over.status().message(), HasSubstr("more than the limit of 5 points"));
 }
 
+TEST(CloudAssemblerTest, AnOrganisedCloudIsWholeRows) {
+  PointLayout padded;  // 3 points a row, 5 bytes of padding
+  padded.point_step = 16;
+  padded.width = 3;
+  padded.row_step = 3 * 16 + 5;
+  const std::string bytes = SensorBytes(kSixPoints, padded);
+  ASSERT_EQ(bytes.size(), 2u * 53);
+  EXPECT_TRUE(Assemble(bytes, {padded, {}}, 7).ok());
+  // The last row's padding missing; a row's points missing.
+  const auto no_padding = Assemble(bytes.substr(0, 53 + 48), {padded, {}}, 7);
+  EXPECT_EQ(no_padding.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(no_padding.status().message(),
+            "the points ended inside a row: 48 of its 53 bytes (row_step) arrived; an organised "
+            "cloud (width 3) is whole rows, padding included");
+  EXPECT_THAT(Assemble(bytes.substr(0, 53 + 32), {padded, {}}, 7).status().message(),
+              HasSubstr("ended inside a row: 32 of its 53 bytes"));
+  PointLayout unpadded = padded;  // rows without padding
+  unpadded.row_step = 3 * 16;
+  const std::string rows = SensorBytes(kSixPoints, unpadded);
+  EXPECT_TRUE(Assemble(rows, {unpadded, {}}, 16).ok());
+  EXPECT_THAT(Assemble(rows.substr(0, 5 * 16), {unpadded, {}}, 16).status().message(),
+              HasSubstr("ended inside a row: 32 of its 48 bytes"));
+  // Announced points that are not whole rows: refused before any arrives.
+  const absl::Status announced = CloudAssembler(100).Start(5, {padded, {}});
+  EXPECT_EQ(announced.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(announced.message(),
+            "the cloud announces 5 points, not whole rows of width 3 (an organised cloud is "
+            "height x width points)");
+}
+
+TEST(CloudAssemblerTest, AFloat64CoordinateFloat32LosesIsRefused) {
+  using Type = PointLayout::Type;
+  PointLayout doubles;
+  doubles.point_step = 24;
+  doubles.xyz = {{{0, Type::kFloat64}, {8, Type::kFloat64}, {16, Type::kFloat64}}};
+  const auto decoded = [&](const std::vector<double>& xyz, bool drop) {
+    PointLayout layout = doubles;
+    layout.drop_nonfinite = drop;
+    std::string bytes(xyz.size() * 8, '\0');
+    std::memcpy(bytes.data(), xyz.data(), bytes.size());
+    return Assemble(bytes, {layout, {}}, 10);
+  };
+  const double max = std::numeric_limits<float>::max(), min = std::numeric_limits<float>::min();
+  std::vector<double> xyz = {1, 2, 3, 4, 5, 6, -max, min, 0, 7, 8, 9, 10, 11, 12, 13, 14, 15};
+  EXPECT_TRUE(decoded(xyz, false).ok());     // float32's extremes and 0 are float32 values
+  xyz[6] = std::nextafter(-max, -INFINITY);  // beyond float32's largest, but rounds to it
+  xyz[7] = std::nextafter(min, 0.0);         // below its smallest normal, but rounds to it
+  EXPECT_TRUE(decoded(xyz, false).ok());
+  xyz[7] = 1e-39;  // a float32 denormal: not kept whole
+  EXPECT_THAT(decoded(xyz, false).status().message(),
+              HasSubstr("point 2: y = 1e-39 (FLOAT64) is not 0 but below float32's smallest"));
+  xyz[6] = -max;
+  xyz[7] = min;
+  xyz[10] = 1e39;                          // point 3's y: infinite in float32
+  for (const bool drop : {false, true}) {  // not dropped as if it were infinite
+    const auto huge = decoded(xyz, drop);
+    EXPECT_EQ(huge.status().code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_EQ(huge.status().message(),
+              "point 3: y = 1e+39 (FLOAT64) does not fit in a float32 (|value| <= 3.40282e+38); "
+              "subtract an offset first (every descriptor is translation invariant)");
+  }
+  xyz[10] = 8;
+  xyz[5] = -1e-300;  // point 1's z: 0 in float32
+  EXPECT_EQ(decoded(xyz, false).status().message(),
+            "point 1: z = -1e-300 (FLOAT64) is not 0 but below float32's smallest normal "
+            "(1.17549e-38): float32 data declared FLOAT64 reads like this; is the datatype "
+            "right?");
+  // NaN and infinities are not lost: they are non-finite points, dropped when asked.
+  xyz[5] = std::numeric_limits<double>::infinity();
+  xyz[1] = NAN;
+  const auto dropped = decoded(xyz, true);
+  ASSERT_TRUE(dropped.ok()) << dropped.status();
+  EXPECT_EQ(dropped->size(), 4u);
+}
+
+TEST(CloudAssemblerTest, MisDeclaredLayoutsAreRefusedDroppingOrNot) {
+  // 48 points of a room in metres, big-endian bytes declared little-endian.
+  std::vector<float> room;
+  for (int i = 0; i < 48 * 3; ++i) room.push_back(0.37f * static_cast<float>(i % 17) - 2.9f);
+  PointLayout big_endian;
+  big_endian.point_step = 16;
+  big_endian.big_endian = true;
+  const std::string bytes = SensorBytes(room, big_endian);
+  EXPECT_TRUE(Assemble(bytes, {big_endian, {}}, 100).ok());
+  PointLayout declared = big_endian;
+  declared.big_endian = false;
+  for (const bool drop : {false, true}) {
+    declared.drop_nonfinite = drop;
+    const auto swapped = Assemble(bytes, {declared, {}}, 100);
+    EXPECT_EQ(swapped.status().code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_THAT(swapped.status().message(),
+                HasSubstr("point layout: the points look byte-swapped: "));
+  }
+  // The default layout's bytes are taken as they are: a cloud of float32 denormals or of
+  // values near float32's largest is valid there, and so is the same layout declared.
+  for (const float scale : {1e-40f, 1e38f}) {
+    std::vector<float> scaled;
+    for (float v : room) scaled.push_back(v * scale);
+    PointLayout packed;
+    EXPECT_TRUE(Assemble(Bytes(scaled), {packed, {}}, 120).ok()) << scale;
+    packed.drop_nonfinite = true;
+    EXPECT_TRUE(Assemble(Bytes(scaled), {packed, {}}, 120).ok()) << scale;
+  }
+}
+
 }  // namespace
 }  // namespace shapeid

@@ -524,6 +524,54 @@ TEST_F(GalleryServiceTest, StreamErrorsAreNamed) {
   EXPECT_EQ(Get("g").sample_count(), 3u);  // unchanged by every error above
 }
 
+// A Train stream's layout holds for every sample; a sample whose bytes betray it (here
+// little-endian among big-endian ones) fails the whole stream, named, and trains nothing.
+TEST_F(GalleryServiceTest, ASampleWhoseBytesBetrayTheLayoutFailsTheStream) {
+  ASSERT_TRUE(Create("g").ok());
+  const auto records = [](const PointCloud& cloud, bool big_endian) {
+    std::string bytes(cloud.size() * 16, '\0');  // x y z intensity
+    for (size_t i = 0; i < 3 * cloud.size(); ++i) {
+      char v[4];
+      std::memcpy(v, cloud.data() + i, 4);
+      if (big_endian) std::reverse(v, v + 4);  // this host is little-endian
+      std::memcpy(&bytes[i / 3 * 16 + i % 3 * 4], v, 4);
+    }
+    return bytes;
+  };
+  const auto train = [&](const std::vector<bool>& big_endian, v1::TrainResponse* response) {
+    grpc::ClientContext context;
+    auto writer = stub_->Train(&context, response);
+    v1::TrainRequest header;
+    header.mutable_header()->set_gallery("g");
+    v1::PointLayout* layout = header.mutable_header()->mutable_layout();
+    layout->set_point_step(16);
+    layout->set_is_bigendian(true);
+    v1::PointCoordinate* axes[3] = {layout->mutable_x(), layout->mutable_y(), layout->mutable_z()};
+    for (int a = 0; a < 3; ++a) {
+      axes[a]->set_offset(4 * a);
+      axes[a]->set_datatype(v1::FLOAT32);
+    }
+    bool open = writer->Write(header);
+    for (size_t s = 0; s < big_endian.size(); ++s) {
+      v1::TrainRequest sample, points;
+      sample.mutable_sample()->set_label(kShapeNames[s % 3]);
+      points.mutable_points()->set_xyz(records(Shape(s % 3, 40 + s), big_endian[s]));
+      open = open && writer->Write(sample) && writer->Write(points);
+    }
+    writer->WritesDone();
+    return writer->Finish();
+  };
+  v1::TrainResponse response;
+  const grpc::Status status = train({true, false, true}, &response);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(), HasSubstr("sample 1"));
+  EXPECT_THAT(status.error_message(), HasSubstr("the points look byte-swapped: "));
+  EXPECT_THAT(status.error_message(), HasSubstr("0 read little-endian; is is_bigendian right?"));
+  EXPECT_EQ(Get("g").sample_count(), 0u);
+  ASSERT_TRUE(train({true, true, true}, &response).ok());
+  EXPECT_EQ(response.gallery_sample_count(), 3u);
+}
+
 TEST_F(GalleryServiceTest, RejectDistanceAnswersUnknown) {
   ASSERT_TRUE(Create("strict", "rphsd:bins=30", 1e-9).ok());
   v1::TrainResponse trained;

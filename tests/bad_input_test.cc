@@ -15,6 +15,8 @@
 #include <unistd.h>
 #include <zlib.h>
 
+#include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -96,6 +98,25 @@ std::string BoxWith(size_t i, float x, float y, float z) {
   const float p[3] = {x, y, z};
   std::memcpy(&bytes[12 * i], p, sizeof p);
   return bytes;
+}
+
+// The box's first `n` points as a sensor's records (issue 39's layouts): `point_step` bytes
+// each, x y z as float32 or float64 at `offsets`, in the given byte order, other bytes 0xAB.
+std::string SensorRecords(uint32_t point_step, const std::array<uint32_t, 3>& offsets, bool float64,
+                          bool big_endian, size_t n = 48) {
+  const PointCloud box = ShapeCloud(0, 5, n);
+  std::string out(n * point_step, '\xAB');
+  for (size_t i = 0; i < n; ++i) {
+    for (int a = 0; a < 3; ++a) {
+      char bytes[8];
+      const double wide = box.point(i)[a];
+      const float narrow = box.point(i)[a];
+      std::memcpy(bytes, float64 ? static_cast<const void*>(&wide) : &narrow, float64 ? 8 : 4);
+      if (big_endian) std::reverse(bytes, bytes + (float64 ? 8 : 4));  // this host: little
+      std::memcpy(&out[i * point_step + offsets[a]], bytes, float64 ? 8 : 4);
+    }
+  }
+  return out;
 }
 
 std::string Identical(size_t n) {
@@ -652,6 +673,36 @@ std::vector<RpcCase> BadInputTest::RequestTable() {
     layout->Clear();
     layout->set_drop_nonfinite(true);
   });
+  // A sensor's layout of 48 points: `step` bytes, x y z of one type at `offsets`.
+  const auto sensor_header = [](uint32_t step, const std::array<uint32_t, 3>& offsets,
+                                v1::PointDatatype type, bool big_endian, bool drop = false,
+                                uint64_t expected = 48) {
+    v1::DescribeRequest r = DHeader("", "", expected);
+    v1::PointLayout* layout = r.mutable_header()->mutable_layout();
+    layout->set_point_step(step);
+    v1::PointCoordinate* axes[3] = {layout->mutable_x(), layout->mutable_y(), layout->mutable_z()};
+    for (int a = 0; a < 3; ++a) {
+      axes[a]->set_offset(offsets[a]);
+      axes[a]->set_datatype(type);
+    }
+    layout->set_is_bigendian(big_endian);
+    layout->set_drop_nonfinite(drop);
+    return r;
+  };
+  const auto padded_rows = [](v1::DescribeRequest r, uint32_t width, uint32_t row_step) {
+    r.mutable_header()->mutable_layout()->set_width(width);
+    r.mutable_header()->mutable_layout()->set_row_step(row_step);
+    return r;
+  };
+  const std::array<uint32_t, 3> xyz32 = {0, 4, 8}, xyz64 = {0, 8, 16};
+  const std::string records16 = SensorRecords(16, xyz32, false, false);  // x y z intensity
+  const std::string records32 = SensorRecords(32, xyz32, false, false);  // PCL's PointXYZI
+  const std::string doubles = SensorRecords(32, xyz64, true, false);
+  std::string lost_doubles = doubles;  // point 5's y: 1e-300, 0 in float32
+  const double tiny = 1e-300, too_large = 1e39;
+  std::memcpy(&lost_doubles[5 * 32 + 8], &tiny, 8);
+  std::string huge_doubles = doubles;  // point 7's x: 1e39, infinite in float32
+  std::memcpy(&huge_doubles[7 * 32], &too_large, 8);
 
   std::vector<RpcCase> rows = {
       // Describe: a sensor's layout and frame
@@ -702,6 +753,64 @@ std::vector<RpcCase> BadInputTest::RequestTable() {
       {"Describe: up and a transform",
        Describe({frame_header({0, 0, 1}, {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}), DPoints(box)}),
        kInvalid, "not both"},
+      {"Describe: a translation infinite in float32 (1e39)",
+       Describe({frame_header({}, {1, 0, 0, 1e39, 0, 1, 0, 0, 0, 0, 1, 0}), DPoints(box)}),
+       kInvalid,
+       "sensor transform: row 0 column 3 (transform[3]) is 1e+39, beyond float32's range"},
+
+      // Describe: a sensor's bytes never silently misread (issue 39)
+      {"Describe: a sensor layout declared right", Describe({sensor_header(
+                                                                 32, xyz64, v1::FLOAT64, true),
+                                                             DPoints(SensorRecords(
+                                                                 32, xyz64, true, true))}),
+       StatusCode::OK},
+      {"Describe: 16-byte points declared 12 bytes, row_step their length",
+       Describe({padded_rows(sensor_header(12, xyz32, v1::FLOAT32, false), 48, 48 * 16),
+                 DPoints(records16)}),
+       kInvalid,
+       "point layout: row_step 768 leaves 192 bytes after width 48 x point_step 12, room for 16 "
+       "more points; rows pad by less than one point (is point_step right?)"},
+      {"Describe: 32-byte points declared 16 bytes, row_step their length",
+       Describe({padded_rows(sensor_header(16, xyz32, v1::FLOAT32, false), 48, 48 * 32),
+                 DPoints(records32)}),
+       kInvalid, "row_step 1536 leaves 768 bytes after width 48 x point_step 16, room for 48"},
+      {"Describe: an organised cloud that ends inside a row",
+       Describe({padded_rows(sensor_header(16, xyz32, v1::FLOAT32, false, false, 0), 6, 6 * 16 + 4),
+                 DPoints(SensorRecords(16, xyz32, false, false, 6))}),
+       kInvalid,
+       "the points ended inside a row: 96 of its 100 bytes (row_step) arrived; an organised cloud "
+       "(width 6) is whole rows, padding included"},
+      {"Describe: an organised cloud announcing part of a row",
+       Describe({padded_rows(sensor_header(16, xyz32, v1::FLOAT32, false, false, 50), 6, 6 * 16),
+                 DPoints(records16)}),
+       kInvalid, "the cloud announces 50 points, not whole rows of width 6"},
+      {"Describe: little-endian bytes declared big-endian",
+       Describe({sensor_header(16, xyz32, v1::FLOAT32, true), DPoints(records16)}), kInvalid,
+       "point layout: the points look byte-swapped: "},
+      {"Describe: little-endian bytes declared big-endian, dropping non-finite points",
+       Describe({sensor_header(16, xyz32, v1::FLOAT32, true, true), DPoints(records16)}), kInvalid,
+       "(is_bigendian true), 0 read little-endian; is is_bigendian right?"},
+      {"Describe: big-endian float64 declared little-endian",
+       Describe({sensor_header(32, xyz64, v1::FLOAT64, false),
+                 DPoints(SensorRecords(32, xyz64, true, true))}),
+       kInvalid, "look byte-swapped"},
+      {"Describe: float32 data declared FLOAT64",
+       Describe({sensor_header(32, xyz64, v1::FLOAT64, false),
+                 DPoints(SensorRecords(32, xyz64, false, false))}),
+       kInvalid,
+       "point layout: the points look like FLOAT32 data declared FLOAT64: 144 of 144 coordinates "
+       "are implausible (not 0 and outside [2^-40, 2^40]) as declared, 0 read with FLOAT32 and "
+       "FLOAT64 exchanged at the same offsets; is the datatype of x, y and z right?"},
+      {"Describe: float64 data declared FLOAT32",
+       Describe({sensor_header(32, xyz64, v1::FLOAT32, false), DPoints(doubles)}), kInvalid,
+       "the points look like FLOAT64 data declared FLOAT32"},
+      {"Describe: a FLOAT64 coordinate of 1e-300, 0 in float32",
+       Describe({sensor_header(32, xyz64, v1::FLOAT64, false), DPoints(lost_doubles)}), kInvalid,
+       "point 5: y = 1e-300 (FLOAT64) is not 0 but below float32's smallest normal "
+       "(1.17549e-38): float32 data declared FLOAT64 reads like this; is the datatype right?"},
+      {"Describe: a FLOAT64 coordinate of 1e39, dropping non-finite points",
+       Describe({sensor_header(32, xyz64, v1::FLOAT64, false, true), DPoints(huge_doubles)}),
+       kInvalid, "point 7: x = 1e+39 (FLOAT64) does not fit in a float32 (|value| <= 3.40282e+38)"},
 
       // Describe
       {"Describe: points before the header", Describe({DPoints(box)}), kInvalid,

@@ -12,7 +12,11 @@ points' bytes and the `Layout` they are in.
   of padded rows): the server decodes it into the same float32 x y z. The declaration is
   checked here with the same errors as before forwarding, and so are the coordinates (one
   strided pass); the server's own checks remain (overlapping x, y, z: its
-  InvalidArgumentError). `encode(..., forward_point_cloud2=False)` converts it
+  InvalidArgumentError). So that a sensor's bytes are never silently misread, every field
+  (not only x, y, z) must fit in point_step, rows must pad by less than one point, and bytes
+  that betray a mis-declared layout are refused as the server refuses them: a wrong
+  is_bigendian or FLOAT32 and FLOAT64 exchanged (_layout_survey), a FLOAT64 coordinate
+  float32 cannot hold. `encode(..., forward_point_cloud2=False)` converts it
   into PACKED_XYZ32 instead (Client.train does so for a stream mixing layouts).
 
 Errors are raised before anything is sent: TypeError for something that is not a cloud or
@@ -26,11 +30,14 @@ import sys
 
 import numpy as np
 
+from . import _layout_survey
+
 __all__ = ["EncodedCloud", "Layout", "PACKED_XYZ32", "encode", "FLOAT32", "FLOAT64"]
 
 # sensor_msgs/PointField datatypes (the same numbers in ROS 1 and ROS 2).
 _DATATYPE_NAMES = {1: "INT8", 2: "UINT8", 3: "INT16", 4: "UINT16", 5: "INT32", 6: "UINT32",
                    7: "FLOAT32", 8: "FLOAT64"}
+_DATATYPE_SIZES = {1: 1, 2: 1, 3: 2, 4: 2, 5: 4, 6: 4, 7: 4, 8: 8}
 FLOAT32 = 7
 FLOAT64 = 8
 _FLOAT_SIZES = {FLOAT32: 4, FLOAT64: 8}
@@ -112,6 +119,7 @@ def encode(cloud, *, drop_non_finite=False, keep_non_finite=False, forward_point
             points, source = None, None
             if forward_point_cloud2:
                 values, source = _point_cloud2_values(declared, packed=False)
+                _check_narrowing(values, source, declared, width, what)
                 dropped = 0
                 # float64: `values` is their float32 rounding, isfinite's fast path is as quick
                 if source is not None or not _sums_finite(values):
@@ -123,6 +131,7 @@ def encode(cloud, *, drop_non_finite=False, keep_non_finite=False, forward_point
                                         num_points=declared.height * declared.width,
                                         layout=declared.layout, dropped_non_finite=0 if keep_non_finite else dropped)
             points, source = _point_cloud2_values(declared, packed=True)
+            _check_narrowing(points, source, declared, width, what)
             points = points.reshape(-1, 3)
     elif hasattr(cloud, "points") and not isinstance(cloud, (str, bytes, dict)):
         what = type(cloud).__name__ + ".points"
@@ -145,6 +154,7 @@ def encode(cloud, *, drop_non_finite=False, keep_non_finite=False, forward_point
 
 _F32LE = np.dtype("<f4")
 _FLOAT32_MAX = float(np.finfo(np.float32).max)
+_FLOAT32_MIN = float(np.finfo(np.float32).tiny)  # the smallest normal
 
 
 def _from_array(array):
@@ -282,11 +292,27 @@ def _declared_point_cloud2(msg):
                              "point_step %d" % (name, offset, size, point_step))
         offsets.append(offset)
         datatypes.append(datatype)
+    # Every field, not only x, y and z: a field past point_step is a point_step too small.
+    for field in msg.fields:
+        offset = int(field.offset)
+        size = _DATATYPE_SIZES.get(int(field.datatype), 1) * max(int(getattr(field, "count", 1)), 1)
+        if offset < 0 or offset + size > point_step:
+            raise ValueError("PointCloud2 field '%s' at offset %d (%d bytes) does not fit in "
+                             "point_step %d" % (getattr(field, "name", "?"), offset, size,
+                                                point_step))
+    padding = row_step - width * point_step
+    if padding >= point_step:  # as the server: what rows of points point_step too short are
+        raise ValueError("PointCloud2: row_step %d leaves %d bytes after width %d x point_step "
+                         "%d, room for %d more points; rows pad by less than one point (is "
+                         "point_step right?)" % (row_step, padding, width, point_step,
+                                                 padding // point_step))
     padded = row_step > width * point_step
     layout = Layout(point_step=point_step, offsets=tuple(offsets), datatypes=tuple(datatypes),
                     big_endian=big_endian, width=width if padded else 0,
                     row_step=row_step if padded else 0)
-    return _Declared(height, width, row_step, layout, data)
+    declared = _Declared(height, width, row_step, layout, data)
+    _layout_survey.check(declared)
+    return declared
 
 
 def _point_cloud2_values(declared, packed):
@@ -330,6 +356,31 @@ def _point_cloud2_values(declared, packed):
         return np.stack([points[name].reshape(-1).astype(np.float64) for name in "xyz"], axis=1)
 
     return out, (source if 8 in sizes else None)
+
+
+def _check_narrowing(values, source, declared, width, what):
+    """ValueError when a FLOAT64 coordinate is not 0 but below float32's smallest normal, as
+    float32 data declared FLOAT64 reads (the server refuses it too; one beyond float32's
+    range is _finite's). `values`: the float32 x y z; `source` as _point_cloud2_values."""
+    if source is None:
+        return
+    candidates = (np.abs(values) < _FLOAT32_MIN).reshape(-1, 3)  # 0 included: checked below
+    for axis, datatype in enumerate(declared.layout.datatypes):
+        if datatype != FLOAT64:
+            candidates[:, axis] = False  # (a broadcast & over 3 columns is 10 times slower)
+    if not candidates.any():
+        return
+    source = source() if callable(source) else source
+    lost = candidates & (source != 0)
+    if lost.any():
+        point, axis = np.argwhere(lost)[0]
+        where = "point %d" % point
+        if width:
+            where += " (row %d, column %d)" % divmod(int(point), width)
+        raise ValueError(
+            "%s: %s: %s = %r (FLOAT64) is not 0 but below float32's smallest normal (%.6g): "
+            "float32 data declared FLOAT64 reads like this; is the field's datatype right?"
+            % (what, where, "xyz"[axis], float(source[point, axis]), _FLOAT32_MIN))
 
 
 def _count(value, name):

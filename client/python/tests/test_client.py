@@ -125,6 +125,37 @@ def test_non_finite_in_a_forwarded_point_cloud2_named_by_the_client(client):
                           client.describe(np.delete(QUERY, 40, axis=0)).values)
 
 
+def test_mis_declared_point_cloud2s_are_refused_not_misread(client, trained):
+    """Issue 39's layouts, each of which gave wrong labels at 100 % confidence: refused
+    before anything is sent, dropping non-finite points or not (the server refuses the same
+    layouts sent raw: test_wire.py)."""
+    points = QUERY[:48]
+    short_step = ros2_message(points, LAYOUTS["xyzi16"])
+    short_step.point_step = 12
+    xyz_only32 = ros2_message(points, (32, ("x", 0, "f4"), ("y", 4, "f4"), ("z", 8, "f4")))
+    xyz_only32.point_step = 16
+    swapped = ros2_message(points, LAYOUTS["xyzi16"], big_endian=True)
+    swapped.is_bigendian = False
+    narrow = ros2_message(points, (32, ("x", 0, "f4"), ("y", 8, "f4"), ("z", 16, "f4")))
+    wide = ros2_message(points, LAYOUTS["xyz64"])
+    for f in narrow.fields:
+        f.datatype = shapeid.clouds.FLOAT64
+    for f in wide.fields[:3]:
+        f.datatype = shapeid.clouds.FLOAT32
+    cases = [(short_step, r"field 'intensity' at offset 12 \(4 bytes\) does not fit in "
+                          r"point_step 12"),
+             (xyz_only32, r"row_step 1536 leaves 768 bytes after width 48 x point_step 16"),
+             (swapped, r"the points look byte-swapped: .* is is_bigendian right\?$"),
+             (narrow, r"the points look like FLOAT32 data declared FLOAT64"),
+             (wide, r"the points look like FLOAT64 data declared FLOAT32")]
+    for message, error in cases:
+        for drop in (False, True):
+            with pytest.raises(ValueError, match=error):
+                client.classify(trained["name"], message, drop_non_finite=drop)
+            with pytest.raises(ValueError, match=error):
+                client.describe(message, drop_non_finite=drop)
+
+
 # ---------------------------------------------------------------------------------------------
 # The sensor's frame
 
@@ -205,6 +236,13 @@ def test_sensor_frame_refusals(client, trained):
         client.train(name, QUERY, "ball", transform=np.eye(3))
     with pytest.raises(ValueError, match=r"up must be 3 numbers"):
         client.classify(name, QUERY, up=(0, 1))
+    # Finite as a double, infinite in the float32 the points are moved in: the transform is
+    # named, not the points.
+    far = np.hstack([np.eye(3), [[1e39], [0], [0]]])
+    with pytest.raises(shapeid.InvalidArgumentError,
+                       match=r"sensor transform: row 0 column 3 \(transform\[3\]\) is 1e\+39, "
+                             r"beyond float32's range \(\|value\| <= 3.40282e\+38\)"):
+        client.classify(name, QUERY, transform=far)
 
 
 def test_train_classify_get_list_delete(client):

@@ -360,6 +360,109 @@ def test_mis_declared_point_cloud2(change, error, message):
         clouds.encode(mis_declared(change), forward_point_cloud2=False)
 
 
+# Issue 39: layouts that each gave wrong labels at 100 % confidence, now refused with the
+# reason, forwarded or converted. 48 points, as the issue's.
+ISSUE_POINTS = XYZ[:48]
+
+
+def refused(message, match, **kwargs):
+    for forward in (True, False):
+        with pytest.raises(ValueError, match=match):
+            clouds.encode(message, forward_point_cloud2=forward, **kwargs)
+
+
+def test_a_field_past_point_step_is_refused_whichever_field():
+    # 16-byte x y z intensity declared point_step=12: intensity does not fit.
+    message = ros2_message(ISSUE_POINTS, LAYOUTS["xyzi16"])
+    message.point_step = 12
+    assert message.row_step == len(message.data) == 48 * 16
+    refused(message, r"^PointCloud2 field 'intensity' at offset 12 \(4 bytes\) does not fit in "
+                     r"point_step 12$")
+    # A field of several values counts them all.
+    message = ros2_message(ISSUE_POINTS, LAYOUTS["xyzi16"])
+    field(message, "intensity").count = 2
+    refused(message, r"field 'intensity' at offset 12 \(8 bytes\) does not fit in point_step 16")
+
+
+def test_points_declared_shorter_than_they_are_are_refused():
+    # 32-byte points (PCL's PointXYZI: intensity at 16) declared point_step=16, row_step the
+    # data's length: intensity does not fit.
+    xyzi32 = (32, ("x", 0, "f4"), ("y", 4, "f4"), ("z", 8, "f4"), ("intensity", 16, "f4"))
+    message = ros2_message(ISSUE_POINTS, xyzi32)
+    message.point_step = 16
+    refused(message, r"field 'intensity' at offset 16 \(4 bytes\) does not fit in point_step 16")
+    # With only x y z declared, the rows' padding would hold 48 more points.
+    message = ros2_message(ISSUE_POINTS, xyzi32[:4])
+    message.point_step = 16
+    assert message.row_step == len(message.data) == 48 * 32
+    refused(message, r"^PointCloud2: row_step 1536 leaves 768 bytes after width 48 x point_step "
+                     r"16, room for 48 more points; rows pad by less than one point \(is "
+                     r"point_step right\?\)$")
+    # Padding of less than a point is what rows may have.
+    assert forwarded(ros2_message(ISSUE_POINTS, LAYOUTS["xyzi16"], height=6,
+                                  row_padding=15)) == ISSUE_POINTS.tobytes()
+
+
+@pytest.mark.parametrize("layout", ["xyzi16", "padded32", "xyz64", "mixed"])
+@pytest.mark.parametrize("big_endian", [False, True], ids=["little", "big"])
+def test_a_wrong_is_bigendian_is_named_not_blamed_on_nans(layout, big_endian):
+    points = ISSUE_POINTS.copy()
+    points[[3, 30]] = np.nan  # real missing returns do not hide it
+    message = ros2_message(points, LAYOUTS[layout], big_endian)
+    message.is_bigendian = not big_endian
+    swapped = (r"^PointCloud2: the points look byte-swapped: \d+ of \d+ coordinates are "
+               r"implausible \(not 0 and outside \[2\^-40, 2\^40\]\) as declared "
+               r"\(is_bigendian %s\), 0 read %s-endian; is is_bigendian right\?$"
+               % (not big_endian, "little" if not big_endian else "big"))
+    for drop in (False, True):  # dropping the NaNs would leave the rest misread
+        refused(message, swapped, drop_non_finite=drop)
+
+
+def test_float32_data_declared_float64_and_the_reverse_are_refused():
+    # float32 x y z at the offsets of float64 ones (the bytes between them 0xAB or zeros).
+    as32 = (32, ("x", 0, "f4"), ("y", 8, "f4"), ("z", 16, "f4"), ("intensity", 24, "f4"))
+    message = ros2_message(ISSUE_POINTS, as32)
+    for name in "xyz":
+        field(message, name).datatype = clouds.FLOAT64
+    refused(message, r"^PointCloud2: the points look like FLOAT32 data declared FLOAT64: 144 of "
+                     r"144 coordinates are implausible \(not 0 and outside \[2\^-40, 2\^40\]\) "
+                     r"as declared, 0 read with FLOAT32 and FLOAT64 exchanged at the same "
+                     r"offsets; are the datatypes of fields x, y and z right\?$")
+    message = ros2_message(ISSUE_POINTS, LAYOUTS["xyz64"])
+    for name in "xyz":
+        field(message, name).datatype = clouds.FLOAT32
+    refused(message, r"^PointCloud2: the points look like FLOAT64 data declared FLOAT32: ")
+
+
+def test_a_float64_coordinate_float32_cannot_hold_is_refused():
+    points = XYZ.astype(np.float64)
+    points[33, 2] = -1e-300  # 0 in float32
+    for layout in ("xyz64", "mixed"):
+        refused(ros2_message(points, LAYOUTS[layout]),
+                r"^PointCloud2: point 33: z = -1e-300 \(FLOAT64\) is not 0 but below float32's "
+                r"smallest normal \(1.17549e-38\): float32 data declared FLOAT64 reads like "
+                r"this; is the field's datatype right\?$")
+    organised = ros2_message(points, LAYOUTS["xyz64"], height=20)
+    refused(organised, r"point 33 \(row 1, column 8\): z = -1e-300")
+    points[33, 2] = 0  # 0 itself is a coordinate
+    assert forwarded(ros2_message(points, LAYOUTS["xyz64"])) == points.astype(np.float32).tobytes()
+
+
+def test_valid_sensor_clouds_of_extreme_scales_pass():
+    # Tiny, huge or integer coordinates, NaN-marked missing returns: read as declared, they
+    # are no better in another order or width, so they go (the server decides on them).
+    for points in (XYZ * np.float32(1e-30), XYZ * np.float32(1e37),
+                   np.round(XYZ * 10).astype(np.float32)):
+        for layout in ("xyzi16", "xyz64"):
+            for big_endian in (False, True):
+                message = ros2_message(points, LAYOUTS[layout], big_endian)
+                assert forwarded(message) == points.tobytes(), (layout, big_endian)
+    with_nans = XYZ.copy()
+    with_nans[::2] = np.nan
+    encoded = clouds.encode(ros2_message(with_nans, LAYOUTS["xyzi16"], True), drop_non_finite=True)
+    assert encoded.dropped_non_finite == 250
+
+
 def test_point_cloud2_of_a_million_points_checks_in_under_10_ms():
     n = 1_000_000
     points = np.random.default_rng(1).uniform(-5, 5, (n, 3)).astype(np.float32)
