@@ -102,6 +102,11 @@ TEST(ClientConnectTest, RejectsBadOptions) {
   status = Client::Connect(options).status();
   EXPECT_TRUE(absl::IsInvalidArgument(status)) << status;
   EXPECT_THAT(std::string(status.message()), HasSubstr("entry 2 '127.0.0.1'"));
+  options = ClientOptions();
+  options.max_receive_bytes = 0;
+  status = Client::Connect(options).status();
+  EXPECT_TRUE(absl::IsInvalidArgument(status)) << status;
+  EXPECT_THAT(std::string(status.message()), HasSubstr("max_receive_bytes"));
   // TLS checks one name for every replica: different hosts need the name given.
   options = ClientOptions();
   options.tls = true;
@@ -755,6 +760,45 @@ TEST(ClientChunkTest, BigCloudIsChunked) {
   ASSERT_TRUE(one_chunk.ok());
   const absl::Status status = (*one_chunk)->Describe(cloud).status();
   EXPECT_TRUE(absl::IsResourceExhausted(status)) << status;
+  // gRPC words the server's refusal as it would this client's; it stays the server's.
+  EXPECT_THAT(std::string(status.message()), HasSubstr("Received message larger than max"));
+  EXPECT_FALSE(IsClientReceiveLimit(status));
+}
+
+// Samples with the largest provenance allowed make a default ListSamples page and a Classify
+// with k = 1000 about 8.6 MB each: past gRPC's default receive limit (4 MiB), read whole.
+TEST_F(ClientTest, ReadsAnswersOfSamplesWithTheLargestProvenance) {
+  ASSERT_TRUE(client_testing::TrainFatProvenanceGallery(*client_, "fat", 1000).ok());
+  v1::ListSamplesRequest request;
+  request.set_gallery("fat");
+  absl::StatusOr<v1::ListSamplesResponse> page = client_->ListSamples(request);
+  ASSERT_TRUE(page.ok()) << page.status();
+  EXPECT_EQ(page->samples_size(), 1000);
+  EXPECT_GT(page->ByteSizeLong(), size_t{8} << 20);
+  EXPECT_EQ(page->samples(999).source().size(), 4096u);
+  EXPECT_EQ(page->samples(999).metadata_size(), 64);
+  EXPECT_TRUE(page->next_page_token().empty());
+  absl::StatusOr<v1::ClassifyResponse> answer = client_->Classify("fat", Shape(0, 1), 1000);
+  ASSERT_TRUE(answer.ok()) << answer.status();
+  EXPECT_EQ(answer->neighbors_size(), 1000);
+  EXPECT_GT(answer->ByteSizeLong(), size_t{8} << 20);
+
+  // Over a smaller limit of the client's own: refused by the client, which says so.
+  ClientOptions options = client_->options();
+  options.max_receive_bytes = 1 << 20;
+  absl::StatusOr<std::unique_ptr<Client>> small = Client::Connect(options);
+  ASSERT_TRUE(small.ok()) << small.status();
+  for (const absl::Status& refused : {(*small)->ListSamples(request).status(),
+                                      (*small)->Classify("fat", Shape(0, 1), 1000).status()}) {
+    EXPECT_TRUE(absl::IsResourceExhausted(refused)) << refused;
+    EXPECT_TRUE(IsClientReceiveLimit(refused)) << refused;
+    EXPECT_THAT(std::string(refused.message()),
+                AllOf(HasSubstr("the server's answer is "),
+                      HasSubstr(" bytes, more than this client's receive limit of 1048576 bytes: "
+                                "this client refused it, not the server")));
+  }
+  EXPECT_FALSE(IsClientReceiveLimit(
+      absl::ResourceExhaustedError("Received message larger than max (2000000 vs. 1048576)")));
 }
 
 TEST_F(ClientTest, ErrorsKeepCodeAndMessage) {
