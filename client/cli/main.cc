@@ -48,6 +48,8 @@ constexpr char kMainFooter[] =
     "  2  usage error: bad flags, spec or paths; nothing was done\n"
     "  3  the server is unreachable or did not answer in time\n"
     "  4  the server refused the command (unknown or existing gallery, bad argument...)\n"
+    "  5  the server's answer was larger than this client reads (256 MiB): this client\n"
+    "     refused it, not the server; ask for less (--k, --limit)\n"
     "\n"
     "Examples:\n"
     "  shapeid gallery create parts --spec rphsd --k 3\n"
