@@ -8,6 +8,11 @@ import socket
 
 import grpc
 
+# The largest answer the client reads by default, in bytes: the C++ client's
+# kClientMaxReceiveBytes (client/client_options.h), 256 MiB, the most a server's
+# --max_answer_bytes may be, so every answer of a shapeid server can be read.
+MAX_RECEIVE_BYTES = 256 << 20
+
 # Schemes whose targets gRPC parses itself ("unix:" is not one: "unix:A,unix:B" is our list).
 _GRPC_SCHEMES = ("dns:", "ipv4:", "ipv6:", "unix-abstract:", "xds:", "google-c2p:")
 
@@ -124,7 +129,8 @@ def _read_pem(path, what):
     return text
 
 
-def make_channel(target, load_balancing, tls, ca_file, cert_file, key_file, server_name):
+def make_channel(target, load_balancing, tls, ca_file, cert_file, key_file, server_name,
+                 max_receive_bytes=MAX_RECEIVE_BYTES):
     """A grpc channel for the Client's options; ValueError for a bad combination."""
     resolved = resolve(target)
     replicas = "," in target or target.startswith("dns:")
@@ -137,7 +143,8 @@ def make_channel(target, load_balancing, tls, ca_file, cert_file, key_file, serv
     else:
         raise ValueError("load_balancing must be round_robin or pick_first, got %r"
                          % (load_balancing,))
-    options = [("grpc.service_config", json.dumps(config))]
+    options = [("grpc.service_config", json.dumps(config)),
+               ("grpc.max_receive_message_length", max_receive_bytes)]
     if resolved.authority:
         options.append(("grpc.default_authority", resolved.authority))
     tls = tls or bool(ca_file or cert_file or key_file)
