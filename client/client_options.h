@@ -14,9 +14,14 @@ namespace shapeid {
 // of a shapeid server can be read.
 inline constexpr size_t kClientMaxReceiveBytes = size_t{256} << 20;
 
+// The port a target without one gets: shapeid-server's default --listen port.
+inline constexpr int kDefaultPort = 50051;
+
 // How a Client reaches a shapeid server. Every field has a usable default.
 struct ClientOptions {
   // Where the server is: one gRPC target, or a list of replicas.
+  // A host without a port ("127.0.0.1", "[::1]", "::1", "localhost", "dns:///NAME", a list
+  // entry) gets kDefaultPort.
   //  - One target: "HOST:PORT" (gRPC looks HOST up in DNS, again whenever connections fail),
   //    "dns:///NAME:PORT" (every A / AAAA record of NAME is a replica: the way to reach a set
   //    of replicas that changes, such as a Kubernetes headless Service), "unix:///PATH",

@@ -98,10 +98,10 @@ TEST(ClientConnectTest, RejectsBadOptions) {
   EXPECT_TRUE(absl::IsInvalidArgument(status)) << status;
   EXPECT_THAT(std::string(status.message()), HasSubstr("random"));
   options = ClientOptions();
-  options.target = "127.0.0.1:1,127.0.0.1";
+  options.target = "127.0.0.1:1,127.0.0.1:";
   status = Client::Connect(options).status();
   EXPECT_TRUE(absl::IsInvalidArgument(status)) << status;
-  EXPECT_THAT(std::string(status.message()), HasSubstr("entry 2 '127.0.0.1'"));
+  EXPECT_THAT(std::string(status.message()), HasSubstr("entry 2 '127.0.0.1:'"));
   options = ClientOptions();
   options.max_receive_bytes = 0;
   status = Client::Connect(options).status();
@@ -124,12 +124,42 @@ TEST(ClientConnectTest, RejectsBadOptions) {
 TEST(ClientTargetTest, OneGrpcTargetIsLeftAsItIs) {
   for (const char* target :
        {"127.0.0.1:50051", "recognizer:50051", "dns:///recognizer:50051", "unix:///tmp/s.sock",
-        "ipv4:127.0.0.1:1,127.0.0.1:2", "ipv6:[::1]:1,[::1]:2", "DNS:///a:1,b:2"}) {
+        "unix:s.sock", "ipv4:127.0.0.1:1,127.0.0.1:2", "ipv6:[::1]:1,[::1]:2", "DNS:///a:1,b:2",
+        "[::1]:7", "dns://8.8.8.8/recognizer:7", "dns:recognizer:7", "xds:///recognizer"}) {
     absl::StatusOr<ChannelTarget> resolved = ResolveChannelTarget(target);
     ASSERT_TRUE(resolved.ok()) << target << ": " << resolved.status();
     EXPECT_EQ(resolved->target, target);
     EXPECT_EQ(resolved->authority, "");
   }
+}
+
+// gRPC would dial "127.0.0.1" at port 0 (and a dns: name at 443): a host without a port
+// gets shapeid-server's default port, alone, in a dns: target and in a list.
+TEST(ClientTargetTest, HostsWithoutAPortGetTheDefaultPort) {
+  const struct {
+    const char* target;
+    const char* becomes;
+  } cases[] = {
+      {"127.0.0.1", "127.0.0.1:50051"},
+      {"localhost", "localhost:50051"},
+      {"recognizer.lab", "recognizer.lab:50051"},
+      {"[::1]", "[::1]:50051"},
+      {"::1", "[::1]:50051"},
+      {"2001:db8::7", "[2001:db8::7]:50051"},
+      {"dns:///recognizer", "dns:///recognizer:50051"},
+      {"dns://8.8.8.8/recognizer", "dns://8.8.8.8/recognizer:50051"},
+      {"dns:recognizer", "dns:recognizer:50051"},
+      {"127.0.0.1,127.0.0.1:7", "ipv4:127.0.0.1:50051,127.0.0.1:7"},
+      {"[::1],[::1]:7", "ipv6:[::1]:50051,[::1]:7"},
+  };
+  for (const auto& c : cases) {
+    absl::StatusOr<ChannelTarget> resolved = ResolveChannelTarget(c.target);
+    ASSERT_TRUE(resolved.ok()) << c.target << ": " << resolved.status();
+    EXPECT_EQ(resolved->target, c.becomes) << c.target;
+  }
+  absl::StatusOr<ChannelTarget> list = ResolveChannelTarget("127.0.0.1,127.0.0.2:7");
+  ASSERT_TRUE(list.ok()) << list.status();
+  EXPECT_EQ(list->authority, "127.0.0.1:50051");
 }
 
 TEST(ClientTargetTest, ListsBecomeOneTargetOfEveryAddress) {
@@ -168,13 +198,14 @@ TEST(ClientTargetTest, BadListsNameTheEntry) {
       {"127.0.0.1:1,,127.0.0.1:2", "entry 2 '' is empty"},
       {"127.0.0.1:1,", "entry 2 '' is empty"},
       {",127.0.0.1:1", "entry 1 '' is empty"},
-      {"127.0.0.1:1,localhost", "entry 2 'localhost' has no port"},
       {"127.0.0.1:1,localhost:", "entry 2 'localhost:' has no port"},
       {"127.0.0.1:1,localhost:0", "entry 2 'localhost:0' has no port, or a bad one"},
       {"127.0.0.1:1,localhost:65536", "'localhost:65536' has no port, or a bad one"},
       {"127.0.0.1:1,localhost:http", "'localhost:http' has no port, or a bad one"},
       {"127.0.0.1:1,:50051", "entry 2 ':50051' has no host"},
-      {"::1:50051,127.0.0.1:1", "entry 1 '::1:50051' has no port, or is an IPv6 address"},
+      {"::1:50051,127.0.0.1:1", "entry 1 '::1:50051' is neither HOST[:PORT] nor an IPv6"},
+      {"a:b:c,127.0.0.1:1", "entry 1 'a:b:c' is neither HOST[:PORT] nor an IPv6"},
+      {"[::1,127.0.0.1:1", "entry 1 '[::1' is neither"},
       {"unix:///tmp/a.sock,127.0.0.1:1", "entry 2 '127.0.0.1:1' mixes a unix: socket"},
       {"127.0.0.1:1,unix:///tmp/a.sock", "entry 2 'unix:///tmp/a.sock' mixes"},
       {"unix:///tmp/a.sock,unix:", "entry 2 'unix:' has no path"},

@@ -510,8 +510,8 @@ def test_options_are_checked():
             shapeid.Client("127.0.0.1:50051", **kwargs)
     with pytest.raises(ValueError, match="entry 2 '' is empty"):
         shapeid.Client("127.0.0.1:1,")
-    with pytest.raises(ValueError, match="an IPv6 address without brackets"):
-        shapeid.Client("::1:5,::2:5")
+    with pytest.raises(ValueError, match=r"is neither HOST\[:PORT\] nor an IPv6 address"):
+        shapeid.Client("a:b:c,127.0.0.1:5")
     with pytest.raises(ValueError, match="max_receive_bytes must be an integer from 1"):
         shapeid.Client("127.0.0.1:50051", max_receive_bytes=0)
 
@@ -538,6 +538,24 @@ def test_only_the_clients_own_receive_limit_is_called_its_own():
     assert own.client_limit
     assert own.message.startswith("the server's answer is 5000000 bytes, more than this "
                                   "client's receive limit of 1048576 bytes")
+
+
+def test_hosts_without_a_port_get_the_default_port():
+    from shapeid import _channel
+    assert shapeid.DEFAULT_PORT == 50051
+    for target, becomes in [("127.0.0.1", "127.0.0.1:50051"), ("localhost", "localhost:50051"),
+                            ("[::1]", "[::1]:50051"), ("::1", "[::1]:50051"),
+                            ("dns:///recognizer", "dns:///recognizer:50051"),
+                            ("dns://8.8.8.8/recognizer", "dns://8.8.8.8/recognizer:50051"),
+                            ("127.0.0.1,127.0.0.1:7", "ipv4:127.0.0.1:50051,127.0.0.1:7"),
+                            ("[::1],[::1]:7", "ipv6:[::1]:50051,[::1]:7"),
+                            # with a port, or no host: as they were
+                            ("127.0.0.1:7", "127.0.0.1:7"), ("[::1]:7", "[::1]:7"),
+                            ("dns:///recognizer:7", "dns:///recognizer:7"),
+                            ("unix:///tmp/s.sock", "unix:///tmp/s.sock"),
+                            ("ipv4:127.0.0.1:1,127.0.0.1:2", "ipv4:127.0.0.1:1,127.0.0.1:2")]:
+        assert _channel.resolve(target).target == becomes, target
+    assert _channel.resolve("127.0.0.1,127.0.0.2:7").authority == "127.0.0.1:50051"
 
 
 def test_large_answers_are_read_and_the_clients_own_limit_is_named(client, server, gallery):
