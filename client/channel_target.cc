@@ -17,6 +17,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
+#include "client/client_options.h"
 
 namespace shapeid {
 namespace {
@@ -30,6 +31,47 @@ bool HasGrpcScheme(absl::string_view text) {
   return std::any_of(
       std::begin(kGrpcSchemes), std::end(kGrpcSchemes),
       [&](absl::string_view scheme) { return absl::StartsWithIgnoreCase(text, scheme); });
+}
+
+// "HOST", "[V6]" or a bare "V6" address with ":kDefaultPort" added; anything else (a port is
+// there, or it is no host) as it is. A bare IPv6 address is all host, as gRPC reads it.
+std::string WithDefaultPort(absl::string_view host_port) {
+  if (host_port.empty()) return std::string(host_port);
+  const size_t colons = std::count(host_port.begin(), host_port.end(), ':');
+  bool add = false;
+  std::string host(host_port);
+  if (absl::StartsWith(host_port, "[")) {
+    add = absl::EndsWith(host_port, "]");
+  } else if (colons == 0) {
+    add = true;
+  } else if (colons >= 2) {
+    in6_addr address;
+    add = ::inet_pton(AF_INET6, host.c_str(), &address) == 1;
+    if (add) host = absl::StrCat("[", host, "]");
+  }
+  return add ? absl::StrCat(host, ":", kDefaultPort) : std::string(host_port);
+}
+
+// One target as gRPC takes it, with kDefaultPort where a host has no port: a plain HOST and
+// a dns: target's host (gRPC's DNS resolver would otherwise use 443). Other schemes as they
+// are.
+std::string OneTargetWithDefaultPort(absl::string_view target) {
+  if (absl::StartsWithIgnoreCase(target, "dns:")) {
+    // dns:[//AUTHORITY/]HOST[:PORT]
+    absl::string_view rest = target.substr(4);
+    size_t host_start = 4;
+    if (absl::StartsWith(rest, "//")) {
+      const size_t slash = rest.find('/', 2);
+      if (slash == absl::string_view::npos) return std::string(target);
+      host_start += slash + 1;
+    }
+    return absl::StrCat(target.substr(0, host_start), WithDefaultPort(target.substr(host_start)));
+  }
+  if (HasGrpcScheme(target) || absl::StartsWithIgnoreCase(target, "unix:") ||
+      absl::StrContains(target, "://")) {
+    return std::string(target);
+  }
+  return WithDefaultPort(target);
 }
 
 absl::Status BadEntry(absl::string_view entry, size_t index, absl::string_view why) {
@@ -104,7 +146,7 @@ absl::Status Lookup(absl::string_view entry, size_t index, const std::string& ho
 absl::StatusOr<ChannelTarget> ResolveChannelTarget(absl::string_view target) {
   ChannelTarget result;
   if (!absl::StrContains(target, ',') || HasGrpcScheme(target)) {
-    result.target = std::string(target);
+    result.target = OneTargetWithDefaultPort(target);
     return result;
   }
   const std::vector<absl::string_view> entries = absl::StrSplit(target, ',');
@@ -139,14 +181,16 @@ absl::StatusOr<ChannelTarget> ResolveChannelTarget(absl::string_view target) {
                       "is a gRPC target of its own; a list holds HOST:PORT or unix:PATH entries "
                       "(give a dns:/// target alone)");
     }
-    const size_t colon = entry.rfind(':');
-    if (colon == absl::string_view::npos) return BadEntry(entry, i, "has no port (HOST:PORT)");
-    absl::string_view host = entry.substr(0, colon);
-    const absl::string_view port = entry.substr(colon + 1);
+    const std::string host_port = WithDefaultPort(entry);
+    const size_t colon = host_port.rfind(':');
+    if (colon == std::string::npos) return BadEntry(entry, i, "has no port (HOST:PORT)");
+    absl::string_view host = absl::string_view(host_port).substr(0, colon);
+    const absl::string_view port = absl::string_view(host_port).substr(colon + 1);
     if (absl::StartsWith(host, "[") && absl::EndsWith(host, "]")) {
       host = host.substr(1, host.size() - 2);
     } else if (absl::StrContains(host, ':') || absl::StrContains(host, '[')) {
-      return BadEntry(entry, i, "has no port, or is an IPv6 address without brackets ([::1]:PORT)");
+      return BadEntry(entry, i,
+                      "is neither HOST[:PORT] nor an IPv6 address (with a port: [::1]:PORT)");
     }
     if (host.empty()) return BadEntry(entry, i, "has no host");
     int port_number = 0;
@@ -156,7 +200,7 @@ absl::StatusOr<ChannelTarget> ResolveChannelTarget(absl::string_view target) {
     }
     if (i == 0) {
       first_host = std::string(host);
-      result.authority = std::string(entry);
+      result.authority = host_port;
     } else if (!absl::EqualsIgnoreCase(host, first_host)) {
       result.one_host = false;
     }

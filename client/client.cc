@@ -6,15 +6,19 @@
 #include <condition_variable>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <mutex>
 #include <optional>
 #include <thread>
 #include <utility>
 
 #include "absl/strings/ascii.h"
+#include "absl/strings/cord.h"
 #include "absl/strings/escaping.h"
 #include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/strip.h"
 #include "client/channel_target.h"
 #include "core/request_id.h"
 #include "grpcpp/generic/generic_stub.h"
@@ -112,6 +116,35 @@ absl::StatusOr<std::string> ReadPemFile(const std::string& path, absl::string_vi
   return text;
 }
 
+// Marks a status as IsClientReceiveLimit's.
+constexpr char kClientReceiveLimitUrl[] = "shapeid.client/receive-limit";
+
+// gRPC's refusal of an answer over this channel's receive limit, "Received message larger
+// than max (N vs. M)", reads like the same refusal by a server of a request too large for
+// it; M being this client's limit tells them apart (this client's requests are chunks far
+// below any server's limit). OK for any other status.
+absl::Status ClientReceiveLimitStatus(const grpc::Status& status, size_t limit) {
+  constexpr absl::string_view kPrefix = "Received message larger than max (";
+  const std::string text = status.error_message();  // a copy: gRPC returns it by value
+  absl::string_view message = text;
+  if (status.error_code() != grpc::StatusCode::RESOURCE_EXHAUSTED ||
+      !absl::ConsumePrefix(&message, kPrefix) || !absl::ConsumeSuffix(&message, ")")) {
+    return absl::OkStatus();
+  }
+  const size_t vs = message.find(" vs. ");
+  uint64_t size = 0, max = 0;
+  if (vs == absl::string_view::npos || !absl::SimpleAtoi(message.substr(0, vs), &size) ||
+      !absl::SimpleAtoi(message.substr(vs + 5), &max) || max != limit) {
+    return absl::OkStatus();
+  }
+  absl::Status refused = absl::ResourceExhaustedError(absl::StrCat(
+      "the server's answer is ", size, " bytes, more than this client's receive limit of ", max,
+      " bytes: this client refused it, not the server; ask for less (a smaller page, fewer "
+      "neighbours)"));
+  refused.SetPayload(kClientReceiveLimitUrl, absl::Cord(absl::StrCat(size)));
+  return refused;
+}
+
 // The channel's target, balancing, credentials and arguments from `options`.
 absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const ClientOptions& options) {
   absl::StatusOr<ChannelTarget> target = ResolveChannelTarget(options.target);
@@ -141,6 +174,7 @@ absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const ClientOptions& 
                      options.load_balancing, "\""));
   }
   if (!target->authority.empty()) args.SetString(GRPC_ARG_DEFAULT_AUTHORITY, target->authority);
+  args.SetMaxReceiveMessageSize(static_cast<int>(options.max_receive_bytes));
   const bool tls = options.tls || !options.tls_ca_file.empty() || !options.tls_cert_file.empty() ||
                    !options.tls_key_file.empty();
   if (!tls) {
@@ -194,6 +228,10 @@ absl::Status FromGrpcStatus(const grpc::Status& status) {
   return absl::Status(static_cast<absl::StatusCode>(status.error_code()), status.error_message());
 }
 
+bool IsClientReceiveLimit(const absl::Status& status) {
+  return absl::IsResourceExhausted(status) && status.GetPayload(kClientReceiveLimitUrl).has_value();
+}
+
 absl::Status CheckRequestId(absl::string_view id) {
   constexpr char kRule[] = "a request id is 1 to 128 characters of A-Z a-z 0-9 . _ : / + = -";
   if (id.empty() || id.size() > kMaxRequestIdChars) {
@@ -218,6 +256,11 @@ absl::StatusOr<std::unique_ptr<Client>> Client::Connect(ClientOptions options) {
   }
   if (options.chunk_points < 1) {
     return absl::InvalidArgumentError("ClientOptions.chunk_points must be >= 1");
+  }
+  if (options.max_receive_bytes < 1 ||
+      options.max_receive_bytes > static_cast<size_t>(std::numeric_limits<int>::max())) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "ClientOptions.max_receive_bytes must be 1 to 2^31 - 1, got ", options.max_receive_bytes));
   }
   if (options.deadline <= absl::ZeroDuration()) {
     return absl::InvalidArgumentError(absl::StrCat("ClientOptions.deadline must be positive, got ",
@@ -276,6 +319,10 @@ absl::Status Client::Call(bool retry, bool corked, const Attempt& attempt,
         status.error_code() != grpc::StatusCode::CANCELLED) {
       break;
     }
+  }
+  if (absl::Status refused = ClientReceiveLimitStatus(status, options_.max_receive_bytes);
+      !refused.ok()) {
+    return refused;
   }
   return FromGrpcStatus(status);
 }

@@ -12,8 +12,9 @@
 // Results are the service's response messages (shapeid/v1/shapeid.pb.h): every field is
 // documented in the proto. Errors are the server's gRPC status as an absl::Status with the same
 // code and message (INVALID_ARGUMENT, NOT_FOUND, ALREADY_EXISTS, ...; see the proto's header),
-// or UNAVAILABLE / DEADLINE_EXCEEDED from the transport. A failed call changes nothing on the
-// server.
+// or UNAVAILABLE / DEADLINE_EXCEEDED from the transport, or RESOURCE_EXHAUSTED from this
+// client for an answer over ClientOptions::max_receive_bytes (IsClientReceiveLimit). A failed
+// call changes nothing on the server.
 //
 // Thread safety: a Client is safe to share; any number of threads may call any method at
 // once. Calls block the calling thread until the reply, the error or the deadline.
@@ -78,12 +79,12 @@ class Client {
  public:
   // Checks `options` (InvalidArgument for an empty target, a bad list of endpoints (see
   // ClientOptions::target), an unknown load_balancing, max_attempts < 1, chunk_points < 1,
-  // a non-positive deadline, a TLS file that cannot be read or is not PEM, a client
-  // certificate without its key, an API key with characters metadata cannot carry, a
-  // request_id that CheckRequestId refuses) and
-  // creates the channel. Touches the network only to look up the host names of a list of
-  // endpoints (Unavailable if DNS does not answer): a server that is down, or a TLS
-  // handshake that fails, shows up as UNAVAILABLE on the first call.
+  // a non-positive deadline, max_receive_bytes outside 1 to 2^31 - 1, a TLS file that cannot be
+  // read or is not PEM, a client certificate without its key, an API key with characters metadata
+  // cannot carry, a request_id that CheckRequestId refuses) and creates the channel. Touches the
+  // network only to look up the host names of a list of endpoints (Unavailable if DNS does not
+  // answer): a server that is down, or a TLS handshake that fails, shows up as UNAVAILABLE on the
+  // first call.
   static absl::StatusOr<std::unique_ptr<Client>> Connect(ClientOptions options);
 
   Client(const Client&) = delete;
@@ -297,6 +298,12 @@ class Client {
 
 // The one conversion of a gRPC status into an absl::Status: same code, same message.
 absl::Status FromGrpcStatus(const grpc::Status& status);
+
+// True when `status` is this client's own refusal of an answer larger than
+// ClientOptions::max_receive_bytes (RESOURCE_EXHAUSTED, "the server's answer is N bytes, more
+// than this client's receive limit of M bytes ..."): the server answered, the client would not
+// read it. False for every status a server sent, its RESOURCE_EXHAUSTED included.
+bool IsClientReceiveLimit(const absl::Status& status);
 
 // OK when `id` can be a ClientOptions::request_id: 1 to 128 characters of A-Z a-z 0-9 and
 // . _ : / + = - (what the server keeps; see the proto's header). InvalidArgument otherwise,

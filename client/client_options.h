@@ -8,9 +8,20 @@
 
 namespace shapeid {
 
+// The largest answer the project's clients (this library, the shapeid CLI, the Python
+// package's shapeid.MAX_RECEIVE_BYTES) accept by default: 256 MiB. A server sends at most its
+// --max_answer_bytes (32 MiB by default), which it refuses to set above this, so every answer
+// of a shapeid server can be read.
+inline constexpr size_t kClientMaxReceiveBytes = size_t{256} << 20;
+
+// The port a target without one gets: shapeid-server's default --listen port.
+inline constexpr int kDefaultPort = 50051;
+
 // How a Client reaches a shapeid server. Every field has a usable default.
 struct ClientOptions {
   // Where the server is: one gRPC target, or a list of replicas.
+  // A host without a port ("127.0.0.1", "[::1]", "::1", "localhost", "dns:///NAME", a list
+  // entry) gets kDefaultPort.
   //  - One target: "HOST:PORT" (gRPC looks HOST up in DNS, again whenever connections fail),
   //    "dns:///NAME:PORT" (every A / AAAA record of NAME is a replica: the way to reach a set
   //    of replicas that changes, such as a Kubernetes headless Service), "unix:///PATH",
@@ -67,6 +78,11 @@ struct ClientOptions {
   // soon as it reports NOT_SERVING or its connection drops: one going down costs this wait
   // to the call or two sent to it just then, not a wait per call.
   absl::Duration initial_backoff = absl::Milliseconds(100);
+
+  // The largest answer this client reads, in bytes (1 to 2^31 - 1). A larger one fails
+  // RESOURCE_EXHAUSTED in this client, whatever the server did: IsClientReceiveLimit (client.h)
+  // tells it from a server's refusal. The default reads any answer a shapeid server sends.
+  size_t max_receive_bytes = kClientMaxReceiveBytes;
 
   // Points per PointChunk message. The proto recommends 16,384 (192 KiB): far below any
   // message limit, large enough that per-message cost is negligible. Must be >= 1.

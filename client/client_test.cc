@@ -98,10 +98,15 @@ TEST(ClientConnectTest, RejectsBadOptions) {
   EXPECT_TRUE(absl::IsInvalidArgument(status)) << status;
   EXPECT_THAT(std::string(status.message()), HasSubstr("random"));
   options = ClientOptions();
-  options.target = "127.0.0.1:1,127.0.0.1";
+  options.target = "127.0.0.1:1,127.0.0.1:";
   status = Client::Connect(options).status();
   EXPECT_TRUE(absl::IsInvalidArgument(status)) << status;
-  EXPECT_THAT(std::string(status.message()), HasSubstr("entry 2 '127.0.0.1'"));
+  EXPECT_THAT(std::string(status.message()), HasSubstr("entry 2 '127.0.0.1:'"));
+  options = ClientOptions();
+  options.max_receive_bytes = 0;
+  status = Client::Connect(options).status();
+  EXPECT_TRUE(absl::IsInvalidArgument(status)) << status;
+  EXPECT_THAT(std::string(status.message()), HasSubstr("max_receive_bytes"));
   // TLS checks one name for every replica: different hosts need the name given.
   options = ClientOptions();
   options.tls = true;
@@ -119,12 +124,42 @@ TEST(ClientConnectTest, RejectsBadOptions) {
 TEST(ClientTargetTest, OneGrpcTargetIsLeftAsItIs) {
   for (const char* target :
        {"127.0.0.1:50051", "recognizer:50051", "dns:///recognizer:50051", "unix:///tmp/s.sock",
-        "ipv4:127.0.0.1:1,127.0.0.1:2", "ipv6:[::1]:1,[::1]:2", "DNS:///a:1,b:2"}) {
+        "unix:s.sock", "ipv4:127.0.0.1:1,127.0.0.1:2", "ipv6:[::1]:1,[::1]:2", "DNS:///a:1,b:2",
+        "[::1]:7", "dns://8.8.8.8/recognizer:7", "dns:recognizer:7", "xds:///recognizer"}) {
     absl::StatusOr<ChannelTarget> resolved = ResolveChannelTarget(target);
     ASSERT_TRUE(resolved.ok()) << target << ": " << resolved.status();
     EXPECT_EQ(resolved->target, target);
     EXPECT_EQ(resolved->authority, "");
   }
+}
+
+// gRPC would dial "127.0.0.1" at port 0 (and a dns: name at 443): a host without a port
+// gets shapeid-server's default port, alone, in a dns: target and in a list.
+TEST(ClientTargetTest, HostsWithoutAPortGetTheDefaultPort) {
+  const struct {
+    const char* target;
+    const char* becomes;
+  } cases[] = {
+      {"127.0.0.1", "127.0.0.1:50051"},
+      {"localhost", "localhost:50051"},
+      {"recognizer.lab", "recognizer.lab:50051"},
+      {"[::1]", "[::1]:50051"},
+      {"::1", "[::1]:50051"},
+      {"2001:db8::7", "[2001:db8::7]:50051"},
+      {"dns:///recognizer", "dns:///recognizer:50051"},
+      {"dns://8.8.8.8/recognizer", "dns://8.8.8.8/recognizer:50051"},
+      {"dns:recognizer", "dns:recognizer:50051"},
+      {"127.0.0.1,127.0.0.1:7", "ipv4:127.0.0.1:50051,127.0.0.1:7"},
+      {"[::1],[::1]:7", "ipv6:[::1]:50051,[::1]:7"},
+  };
+  for (const auto& c : cases) {
+    absl::StatusOr<ChannelTarget> resolved = ResolveChannelTarget(c.target);
+    ASSERT_TRUE(resolved.ok()) << c.target << ": " << resolved.status();
+    EXPECT_EQ(resolved->target, c.becomes) << c.target;
+  }
+  absl::StatusOr<ChannelTarget> list = ResolveChannelTarget("127.0.0.1,127.0.0.2:7");
+  ASSERT_TRUE(list.ok()) << list.status();
+  EXPECT_EQ(list->authority, "127.0.0.1:50051");
 }
 
 TEST(ClientTargetTest, ListsBecomeOneTargetOfEveryAddress) {
@@ -163,13 +198,14 @@ TEST(ClientTargetTest, BadListsNameTheEntry) {
       {"127.0.0.1:1,,127.0.0.1:2", "entry 2 '' is empty"},
       {"127.0.0.1:1,", "entry 2 '' is empty"},
       {",127.0.0.1:1", "entry 1 '' is empty"},
-      {"127.0.0.1:1,localhost", "entry 2 'localhost' has no port"},
       {"127.0.0.1:1,localhost:", "entry 2 'localhost:' has no port"},
       {"127.0.0.1:1,localhost:0", "entry 2 'localhost:0' has no port, or a bad one"},
       {"127.0.0.1:1,localhost:65536", "'localhost:65536' has no port, or a bad one"},
       {"127.0.0.1:1,localhost:http", "'localhost:http' has no port, or a bad one"},
       {"127.0.0.1:1,:50051", "entry 2 ':50051' has no host"},
-      {"::1:50051,127.0.0.1:1", "entry 1 '::1:50051' has no port, or is an IPv6 address"},
+      {"::1:50051,127.0.0.1:1", "entry 1 '::1:50051' is neither HOST[:PORT] nor an IPv6"},
+      {"a:b:c,127.0.0.1:1", "entry 1 'a:b:c' is neither HOST[:PORT] nor an IPv6"},
+      {"[::1,127.0.0.1:1", "entry 1 '[::1' is neither"},
       {"unix:///tmp/a.sock,127.0.0.1:1", "entry 2 '127.0.0.1:1' mixes a unix: socket"},
       {"127.0.0.1:1,unix:///tmp/a.sock", "entry 2 'unix:///tmp/a.sock' mixes"},
       {"unix:///tmp/a.sock,unix:", "entry 2 'unix:' has no path"},
@@ -755,6 +791,45 @@ TEST(ClientChunkTest, BigCloudIsChunked) {
   ASSERT_TRUE(one_chunk.ok());
   const absl::Status status = (*one_chunk)->Describe(cloud).status();
   EXPECT_TRUE(absl::IsResourceExhausted(status)) << status;
+  // gRPC words the server's refusal as it would this client's; it stays the server's.
+  EXPECT_THAT(std::string(status.message()), HasSubstr("Received message larger than max"));
+  EXPECT_FALSE(IsClientReceiveLimit(status));
+}
+
+// Samples with the largest provenance allowed make a default ListSamples page and a Classify
+// with k = 1000 about 8.6 MB each: past gRPC's default receive limit (4 MiB), read whole.
+TEST_F(ClientTest, ReadsAnswersOfSamplesWithTheLargestProvenance) {
+  ASSERT_TRUE(client_testing::TrainFatProvenanceGallery(*client_, "fat", 1000).ok());
+  v1::ListSamplesRequest request;
+  request.set_gallery("fat");
+  absl::StatusOr<v1::ListSamplesResponse> page = client_->ListSamples(request);
+  ASSERT_TRUE(page.ok()) << page.status();
+  EXPECT_EQ(page->samples_size(), 1000);
+  EXPECT_GT(page->ByteSizeLong(), size_t{8} << 20);
+  EXPECT_EQ(page->samples(999).source().size(), 4096u);
+  EXPECT_EQ(page->samples(999).metadata_size(), 64);
+  EXPECT_TRUE(page->next_page_token().empty());
+  absl::StatusOr<v1::ClassifyResponse> answer = client_->Classify("fat", Shape(0, 1), 1000);
+  ASSERT_TRUE(answer.ok()) << answer.status();
+  EXPECT_EQ(answer->neighbors_size(), 1000);
+  EXPECT_GT(answer->ByteSizeLong(), size_t{8} << 20);
+
+  // Over a smaller limit of the client's own: refused by the client, which says so.
+  ClientOptions options = client_->options();
+  options.max_receive_bytes = 1 << 20;
+  absl::StatusOr<std::unique_ptr<Client>> small = Client::Connect(options);
+  ASSERT_TRUE(small.ok()) << small.status();
+  for (const absl::Status& refused : {(*small)->ListSamples(request).status(),
+                                      (*small)->Classify("fat", Shape(0, 1), 1000).status()}) {
+    EXPECT_TRUE(absl::IsResourceExhausted(refused)) << refused;
+    EXPECT_TRUE(IsClientReceiveLimit(refused)) << refused;
+    EXPECT_THAT(std::string(refused.message()),
+                AllOf(HasSubstr("the server's answer is "),
+                      HasSubstr(" bytes, more than this client's receive limit of 1048576 bytes: "
+                                "this client refused it, not the server")));
+  }
+  EXPECT_FALSE(IsClientReceiveLimit(
+      absl::ResourceExhaustedError("Received message larger than max (2000000 vs. 1048576)")));
 }
 
 TEST_F(ClientTest, ErrorsKeepCodeAndMessage) {

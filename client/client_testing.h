@@ -2,16 +2,20 @@
 #define SHAPEID_CLIENT_CLIENT_TESTING_H_
 
 // Test-only fakes for the client's and the CLI's tests: a gRPC server on a free loopback port
-// serving one fake service, and a fake of the operations calls (GetServerStats, SetLogLevel)
-// that records the x-request-id each call carried.
+// serving one fake service, a fake of the operations calls (GetServerStats, SetLogLevel)
+// that records the x-request-id each call carried, and a gallery whose samples carry the
+// largest provenance allowed.
 
+#include <map>
 #include <memory>
 #include <mutex>
+#include <random>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "client/client.h"
 #include "grpcpp/grpcpp.h"
 #include "shapeid/v1/shapeid.grpc.pb.h"
 
@@ -102,6 +106,35 @@ class FakeOperationsService final : public v1::ShapeId::CallbackService {
   int unavailable_attempts_ = 0;
   std::vector<std::string> request_ids_;
 };
+
+// Creates gallery `name` (the server's default spec) and trains `count` samples of 100
+// random points (ids 1 to count, labels "a" and "b" in turn), each with the largest provenance
+// allowed (core/gallery/sample_provenance.h): a source of 4,096 bytes and 64 pairs of 4,096
+// bytes of keys and values, about 8.6 KB a sample on the wire. 1,000 of them (a default
+// ListSamples page, a Classify with k = 1000) pass gRPC's default 4 MiB receive limit.
+inline absl::Status TrainFatProvenanceGallery(Client& client, const std::string& name, int count) {
+  v1::CreateGalleryRequest create;
+  create.set_name(name);
+  if (absl::Status created = client.CreateGallery(create).status(); !created.ok()) {
+    return created;
+  }
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<PointCloud> clouds(static_cast<size_t>(count));
+  std::vector<TrainSample> samples;
+  for (int i = 0; i < count; ++i) {
+    for (int p = 0; p < 100; ++p) clouds[i].Add(u(rng), (1 + i % 2) * u(rng), 0.2f * u(rng));
+    TrainSample sample{i % 2 == 0 ? "a" : "b", static_cast<uint64_t>(i + 1), &clouds[i]};
+    sample.source = absl::StrCat("/scans/", i + 1, "/");
+    sample.source.resize(4096, 's');
+    for (int k = 0; k < 64; ++k) {
+      sample.metadata[absl::StrCat("k", k / 10, k % 10)] =
+          std::string(61, static_cast<char>('a' + k % 26));
+    }
+    samples.push_back(std::move(sample));
+  }
+  return client.Train(name, samples).status();
+}
 
 }  // namespace shapeid::client_testing
 

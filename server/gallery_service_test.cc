@@ -908,5 +908,95 @@ TEST_F(GalleryServiceTest, ProvenanceTravelsWithItsSamples) {
   EXPECT_EQ(page.samples(4).metadata().at("camera"), "d435");
 }
 
+// ListSamples fills a page by count and by bytes: with samples at the provenance limits
+// (about 8.6 KB each), a default page (1,000) stops before it passes max_answer_bytes, and
+// the pages still give every sample once, in id order, with a label or without.
+TEST_F(GalleryServiceTest, ListSamplesPagesStayWithinMaxAnswerBytes) {
+  const auto restart = [&](size_t max_answer_bytes) {
+    ServerOptions options;
+    options.listen = "127.0.0.1:0";
+    options.service.max_answer_bytes = max_answer_bytes;
+    auto server = ShapeIdServer::Start(options);
+    ASSERT_TRUE(server.ok()) << server.status();
+    server_ = std::move(server).value();
+    channel_ = grpc::CreateChannel(server_->address(), grpc::InsecureChannelCredentials());
+    stub_ = v1::ShapeId::NewStub(channel_);
+  };
+  std::vector<Sample> samples;
+  for (uint64_t id = 1; id <= 40; ++id) {
+    Sample s{id % 2 == 0 ? "even" : "odd", id, Shape(static_cast<int>(id % 3), 7 + id, 100)};
+    s.source = absl::StrCat("/scans/", id, "/");
+    s.source.resize(4096, 's');     // kMaxSourceBytes
+    for (int k = 0; k < 64; ++k) {  // kMaxMetadataEntries, kMaxMetadataBytes of keys and values
+      s.metadata[absl::StrCat("k", k / 10, k % 10)] =
+          std::string(61, static_cast<char>('a' + k % 26));
+    }
+    samples.push_back(std::move(s));
+  }
+  // Pages of `page_size` (0: the default) until the last; each page's size in bytes.
+  const auto list_all = [&](const std::string& label, uint32_t page_size,
+                            std::vector<uint64_t>* ids, std::vector<size_t>* page_bytes) {
+    v1::ListSamplesRequest request;
+    request.set_gallery("fat");
+    request.set_label(label);
+    request.set_page_size(page_size);
+    for (int pages = 0; pages < 100; ++pages) {
+      grpc::ClientContext context;
+      v1::ListSamplesResponse page;
+      const grpc::Status status = stub_->ListSamples(&context, request, &page);
+      ASSERT_TRUE(status.ok()) << status.error_message();
+      ASSERT_GT(page.samples_size(), 0);
+      page_bytes->push_back(page.ByteSizeLong());
+      for (const v1::SampleInfo& sample : page.samples()) {
+        ids->push_back(sample.sample_id());
+        EXPECT_EQ(sample.source(), samples[sample.sample_id() - 1].source);
+        EXPECT_EQ(sample.metadata_size(), 64);
+      }
+      if (page.next_page_token().empty()) return;
+      request.set_page_token(page.next_page_token());
+    }
+    FAIL() << "more than 100 pages";
+  };
+  std::vector<uint64_t> every(40), odd;
+  for (uint64_t id = 1; id <= 40; ++id) {
+    every[id - 1] = id;
+    if (id % 2 == 1) odd.push_back(id);
+  }
+
+  constexpr size_t kMaxAnswer = 64 << 10;
+  restart(kMaxAnswer);
+  v1::TrainResponse trained;
+  ASSERT_TRUE(Create("fat").ok());
+  ASSERT_TRUE(Train("fat", samples, &trained).ok());
+  std::vector<uint64_t> ids;
+  std::vector<size_t> bytes;
+  list_all("", 0, &ids, &bytes);
+  EXPECT_EQ(ids, every);
+  EXPECT_GE(bytes.size(), 6u);  // 40 x 8.6 KB in pages of at most 64 KiB
+  for (size_t b : bytes) EXPECT_LE(b, kMaxAnswer);
+  EXPECT_GT(bytes[0], kMaxAnswer - 9000);  // full: one more sample would not fit
+  // A page_size below what fits: pages cut by count, as before.
+  ids.clear();
+  bytes.clear();
+  list_all("", 3, &ids, &bytes);
+  EXPECT_EQ(ids, every);
+  EXPECT_EQ(bytes.size(), 14u);
+  ids.clear();
+  bytes.clear();
+  list_all("odd", 0, &ids, &bytes);
+  EXPECT_EQ(ids, odd);
+  for (size_t b : bytes) EXPECT_LE(b, kMaxAnswer);
+
+  // A limit below one sample (possible in ServiceOptions, not the flag): one sample a page.
+  restart(1000);
+  ASSERT_TRUE(Create("fat").ok());
+  ASSERT_TRUE(Train("fat", samples, &trained).ok());
+  ids.clear();
+  bytes.clear();
+  list_all("", 0, &ids, &bytes);
+  EXPECT_EQ(ids, every);
+  EXPECT_EQ(bytes.size(), 40u);
+}
+
 }  // namespace
 }  // namespace shapeid

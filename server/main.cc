@@ -17,6 +17,7 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/time/time.h"
+#include "client/client_options.h"
 #include "core/gallery/gallery_options.h"
 #include "server/api_keys.h"
 #include "server/security.h"
@@ -35,6 +36,11 @@ ABSL_FLAG(int64_t, max_points_per_cloud,
 ABSL_FLAG(int32_t, max_message_bytes, 16 << 20,
           "largest single gRPC message (clouds stream in chunks, so this bounds a chunk). "
           "Env: SHAPEID_MAX_MESSAGE_BYTES");
+ABSL_FLAG(int64_t, max_answer_bytes, 32 << 20,
+          "largest answer the server sends: ListSamples pages are cut to fit it, a larger "
+          "answer is refused RESOURCE_EXHAUSTED saying what to ask for instead. 1 MiB to "
+          "256 MiB (the project's clients read answers up to 256 MiB). "
+          "Env: SHAPEID_MAX_ANSWER_BYTES");
 ABSL_FLAG(std::string, data_dir, "shapeid-data",
           "directory where galleries persist (created if missing; one server per directory). "
           "Empty: keep galleries in memory only, lost at exit. Env: SHAPEID_DATA_DIR");
@@ -144,6 +150,10 @@ ABSL_FLAG(int32_t, shutdown_grace_seconds, 10,
 
 namespace {
 
+// The smallest --max_answer_bytes: far above one sample with the largest provenance
+// (core/gallery/sample_provenance.h: 8 KiB of source and metadata), or one neighbour.
+constexpr int64_t kMinAnswerBytes = 1 << 20;
+
 int g_stop_pipe[2] = {-1, -1};
 
 void OnStopSignal(int signal) {
@@ -161,6 +171,7 @@ bool ApplyEnvironment() {
                            "set_aside_damaged",
                            "max_points_per_cloud",
                            "max_message_bytes",
+                           "max_answer_bytes",
                            "approximate_min_vectors",
                            "approximate_lists",
                            "approximate_probes",
@@ -285,6 +296,18 @@ int main(int argc, char** argv) {
   options.gallery_limits.max_points_per_cloud =
       static_cast<size_t>(absl::GetFlag(FLAGS_max_points_per_cloud));
   options.max_message_bytes = absl::GetFlag(FLAGS_max_message_bytes);
+  if (absl::GetFlag(FLAGS_max_answer_bytes) < kMinAnswerBytes ||
+      absl::GetFlag(FLAGS_max_answer_bytes) >
+          static_cast<int64_t>(shapeid::kClientMaxReceiveBytes)) {
+    std::fprintf(stderr,
+                 "shapeid-server: --max_answer_bytes must be from %lld (1 MiB, more than one "
+                 "sample with the largest provenance) to %zu (256 MiB, the most the project's "
+                 "clients read); got %lld\n",
+                 static_cast<long long>(kMinAnswerBytes), shapeid::kClientMaxReceiveBytes,
+                 static_cast<long long>(absl::GetFlag(FLAGS_max_answer_bytes)));
+    return 2;
+  }
+  options.service.max_answer_bytes = static_cast<size_t>(absl::GetFlag(FLAGS_max_answer_bytes));
   options.data_dir = absl::GetFlag(FLAGS_data_dir);
   options.store = absl::GetFlag(FLAGS_store);
   if (absl::GetFlag(FLAGS_store_refresh_ms) < 10) {

@@ -12,6 +12,7 @@
 #include "core/descriptor_registry.h"
 #include "core/gallery/gallery.h"
 #include "core/status_macros.h"
+#include "google/protobuf/io/coded_stream.h"
 #include "server/cloud_calls.h"
 #include "server/proto_convert.h"
 #include "server/transfer_calls.h"
@@ -225,6 +226,36 @@ std::string PageToken(uint64_t incarnation, uint64_t last_id) {
   return absl::StrCat(incarnation, ".", last_id);
 }
 
+// What a ListSamplesResponse holds besides its samples: the page token (two uint64s and a
+// dot, 41 characters at most) and the gallery version, with their tags and lengths.
+constexpr size_t kPageOverheadBytes = 64;
+
+// `page`'s samples into `response`, in order, while the response stays within `max_bytes`
+// (but at least one sample), and the token of the next page: after the last sample sent,
+// whether the page was cut by its size in bytes or by its count.
+void FillSamplePage(const SamplePage& page, uint64_t incarnation, size_t max_bytes,
+                    v1::ListSamplesResponse* response) {
+  size_t bytes = kPageOverheadBytes;
+  bool cut = false;
+  for (const SampleInfo& sample : page.samples) {
+    v1::SampleInfo* out = response->add_samples();
+    ToProto(sample, out);
+    const size_t size = out->ByteSizeLong();
+    // The repeated field's tag (one byte) and length, then the message.
+    const size_t entry = 1 + google::protobuf::io::CodedOutputStream::VarintSize64(size) + size;
+    if (response->samples_size() > 1 && bytes + entry > max_bytes) {
+      response->mutable_samples()->RemoveLast();
+      cut = true;
+      break;
+    }
+    bytes += entry;
+  }
+  if (cut || page.more) {
+    response->set_next_page_token(
+        PageToken(incarnation, response->samples(response->samples_size() - 1).sample_id()));
+  }
+}
+
 absl::StatusOr<uint64_t> LastIdOfToken(absl::string_view token, uint64_t incarnation) {
   const std::vector<absl::string_view> parts = absl::StrSplit(token, '.');
   uint64_t token_incarnation = 0, last_id = 0;
@@ -264,18 +295,15 @@ grpc::ServerUnaryReactor* ShapeIdService::ListSamples(grpc::CallbackServerContex
         // A scan of the gallery's ids: priced like a removal's pass over its rows.
         const absl::Duration cost = EstimateRemove(*snapshot);
         return Work::Compute(
-            cost, 0, [&request, response, &call, after, snapshot = std::move(snapshot)] {
+            cost, 0,
+            [&request, response, &call, after, snapshot = std::move(snapshot),
+             max_bytes = options_.max_answer_bytes] {
               const uint32_t page_size =
                   request.page_size() == 0 ? kDefaultPageSize : request.page_size();
               const SamplePage page = snapshot->ListSamples(request.label(), after, page_size);
-              for (const SampleInfo& sample : page.samples)
-                ToProto(sample, response->add_samples());
-              if (page.more) {
-                response->set_next_page_token(
-                    PageToken(snapshot->incarnation(), page.samples.back().id));
-              }
+              FillSamplePage(page, snapshot->incarnation(), max_bytes, response);
               response->set_gallery_version(snapshot->version());
-              call.record().samples = static_cast<int64_t>(page.samples.size());
+              call.record().samples = response->samples_size();
               return absl::OkStatus();
             });
       });

@@ -254,10 +254,22 @@ TEST(CliDescribeTest, StandardInputWithAnInputFormat) {
       Shapeid({"describe", "--local", "--spec", kSpec, "--input-format", "pcd", "-"}, pcd);
   ASSERT_EQ(piped.exit_code, 0) << piped.err;
   EXPECT_EQ(TextValues(Lines(piped.out).at(0), "-"), TextValues(Lines(file.out).at(0), pcd));
-  // Without the format, one clear line naming the flag.
+  // Without the format, a usage error (exit 2) in one clear line naming the flag, from every
+  // command that reads clouds, before any is read or sent.
   const RunResult unnamed = Shapeid({"describe", "--local", "--spec", kSpec, "-"}, pcd);
-  EXPECT_EQ(unnamed.exit_code, 1);
+  EXPECT_EQ(unnamed.exit_code, 2);
+  EXPECT_EQ(unnamed.out, "");
+  EXPECT_THAT(unnamed.err,
+              StartsWith("shapeid: describe: standard input (\"-\") has no extension"));
   EXPECT_THAT(unnamed.err, HasSubstr("--input-format (pcd, ply,"));
+  for (const std::vector<std::string>& command :
+       std::vector<std::vector<std::string>>{{"train", "--gallery", "g", "--label", "box", "-"},
+                                             {"classify", "--gallery", "g", "-"},
+                                             {"scene", "--gallery", "g", "-"}}) {
+    const RunResult run = Shapeid(command, pcd);
+    EXPECT_EQ(run.exit_code, 2) << command[0] << ": " << run.err;
+    EXPECT_THAT(run.err, HasSubstr("--input-format (pcd, ply,")) << command[0];
+  }
   const RunResult unknown =
       Shapeid({"describe", "--local", "--spec", kSpec, "--input-format", "e57", "-"}, pcd);
   EXPECT_EQ(unknown.exit_code, 2);

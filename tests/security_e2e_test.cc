@@ -60,6 +60,22 @@ TEST(SecurityE2ETest, RefusesANetworkAddressWithoutTlsOrKeysInOneLine) {
   EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1) << log;
 }
 
+// --max_answer_bytes: at least 1 MiB, and at most what the project's clients read.
+TEST(SecurityE2ETest, RefusesAMaxAnswerBytesTheClientsCannotRead) {
+  for (const char* flag : {"--max_answer_bytes=1000", "--max_answer_bytes=268435457"}) {
+    ServerProcess server({flag});
+    EXPECT_TRUE(server.address().empty()) << flag << ": it must not listen";
+    EXPECT_EQ(server.WaitForExit(std::chrono::seconds(10)), 2) << flag;
+    EXPECT_THAT(server.StderrText(),
+                HasSubstr("--max_answer_bytes must be from 1048576 (1 MiB, more than one sample "
+                          "with the largest provenance) to 268435456 (256 MiB, the most the "
+                          "project's clients read)"))
+        << flag;
+  }
+  ServerProcess largest({"--max_answer_bytes=268435456"});
+  EXPECT_FALSE(largest.address().empty()) << largest.StderrText();
+}
+
 TEST(SecurityE2ETest, NewApiKeyAndHashApiKeyAgreeWithSha256sum) {
   int code = -1;
   const std::string out =

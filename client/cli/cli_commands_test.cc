@@ -16,6 +16,7 @@
 #include "client/cli/eval_command.h"
 #include "client/cli/gallery_commands.h"
 #include "client/cli/train_classify_commands.h"
+#include "client/client_testing.h"
 #include "core/io/pcd_writer.h"
 #include "core/testing/test_clouds.h"
 #include "gmock/gmock.h"
@@ -269,6 +270,55 @@ TEST_F(CliCommandsTest, UsageErrorsBeforeTouchingTheServer) {
   classify.paths = {Path("empty")};
   EXPECT_EQ(RunClassify(classify, Context()), kExitUsage);
   EXPECT_THAT(err_.contents(), HasSubstr("no point-cloud file"));
+}
+
+// Samples with the largest provenance make a default `gallery samples` page and a `classify
+// --k 1000` answer of about 8.6 MB, past gRPC's default 4 MiB: both read and printed. Over a
+// smaller limit of the client's own, the line says the refusal is this client's, with the
+// numbers, and the exit code is 5, not 4 (the server refused).
+TEST_F(CliCommandsTest, LargeAnswersAreReadAndTheClientsOwnLimitIsNamed) {
+  {
+    ClientOptions options;
+    options.target = server_->address();
+    absl::StatusOr<std::unique_ptr<Client>> client = Client::Connect(options);
+    ASSERT_TRUE(client.ok()) << client.status();
+    ASSERT_TRUE(client_testing::TrainFatProvenanceGallery(**client, "fat", 1000).ok());
+  }
+  GallerySamplesOptions samples;
+  samples.name = "fat";
+  Captured listed;
+  CliContext context = Context(OutputFormat::kJson);
+  context.out = listed.get();
+  ASSERT_EQ(RunGallerySamples(samples, context), kExitOk) << err_.contents();
+  EXPECT_EQ(PythonOnJsonLines(listed.contents(),
+                              "(len(rows), rows[-1][\"sample_id\"], len(rows[0][\"source\"]), "
+                              "len(rows[0][\"metadata\"]))"),
+            "(1000, 1000, 4096, 64)");
+
+  ClassifyOptions classify;
+  classify.gallery = "fat";
+  classify.call.k = 1000;
+  classify.paths = {Path(absl::StrCat("dataset/", kShapeNames[0], "/test/6.pcd"))};
+  Captured classified;
+  context = Context(OutputFormat::kJson);
+  context.out = classified.get();
+  ASSERT_EQ(RunClassify(classify, context), kExitOk) << err_.contents();
+  EXPECT_EQ(PythonOnJsonLines(classified.contents(), "[len(r[\"neighbors\"]) for r in rows]"),
+            "[1000]");
+
+  for (bool list : {true, false}) {
+    Captured err;
+    context = Context();
+    context.err = err.get();
+    context.client.max_receive_bytes = 1 << 20;
+    EXPECT_EQ(list ? RunGallerySamples(samples, context) : RunClassify(classify, context),
+              kExitAnswerTooLarge);
+    EXPECT_THAT(err.contents(),
+                AllOf(StartsWith(list ? "shapeid: gallery samples fat: the server's answer is "
+                                      : "shapeid: classify fat: the server's answer is "),
+                      HasSubstr(" bytes, more than this client's receive limit of 1048576 "
+                                "bytes: this client refused it, not the server")));
+  }
 }
 
 TEST_F(CliCommandsTest, EvalHoldOutAgainstTemporaryGalleryLeavesNoGallery) {

@@ -33,10 +33,12 @@ absl::StatusOr<OutputFormat> ParseOutputFormat(absl::string_view text) {
 int ExitCodeForStatus(const absl::Status& status) {
   if (status.ok()) return kExitOk;
   if (absl::IsUnavailable(status) || absl::IsDeadlineExceeded(status)) return kExitUnreachable;
+  if (IsClientReceiveLimit(status)) return kExitAnswerTooLarge;
   return kExitRefused;
 }
 
 bool StopsBatch(const absl::Status& status) {
+  if (IsClientReceiveLimit(status)) return true;
   switch (status.code()) {
     case absl::StatusCode::kUnavailable:
     case absl::StatusCode::kDeadlineExceeded:

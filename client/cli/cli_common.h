@@ -26,6 +26,9 @@ inline constexpr int kExitSomeInputsFailed = 1;  // the other inputs were still 
 inline constexpr int kExitUsage = 2;             // bad flags, spec or paths; nothing was done
 inline constexpr int kExitUnreachable = 3;       // no answer from the server (or deadline)
 inline constexpr int kExitRefused = 4;           // the server refused the whole command
+// The server answered, but with more than this client reads (kClientMaxReceiveBytes): the
+// refusal is this client's, not the server's.
+inline constexpr int kExitAnswerTooLarge = 5;
 
 // Kept for describe's original name of exit code 1.
 inline constexpr int kExitSomeFilesFailed = kExitSomeInputsFailed;
@@ -58,12 +61,13 @@ struct CliContext {
 };
 
 // The exit code for a command that failed as a whole with `status`: UNAVAILABLE and
-// DEADLINE_EXCEEDED mean the server did not answer (3); anything else the server said is a
-// refusal (4).
+// DEADLINE_EXCEEDED mean the server did not answer (3); an answer this client would not read
+// (IsClientReceiveLimit) is 5; anything else the server said is a refusal (4).
 int ExitCodeForStatus(const absl::Status& status);
 
 // True for errors that would fail every further input of a batch the same way (the server
-// is gone, the gallery does not exist or is empty, the caller may not do this), so a batch
+// is gone, the gallery does not exist or is empty, the caller may not do this, answers are
+// larger than this client reads), so a batch
 // stops at the first one instead of printing it a thousand times.
 bool StopsBatch(const absl::Status& status);
 

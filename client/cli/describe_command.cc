@@ -131,6 +131,10 @@ int RunDescribe(const DescribeOptions& options, const CliContext& context) {
     if (client == nullptr) return kExitUsage;
   }
 
+  if (absl::Status format = CheckStandardInputFormat(options.files, options.read); !format.ok()) {
+    PrintError(err, "describe", format);
+    return kExitUsage;
+  }
   std::vector<std::string> unsupported;
   absl::StatusOr<std::vector<std::string>> files = ExpandInputs(options.files, &unsupported);
   if (!files.ok()) {

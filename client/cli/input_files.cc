@@ -55,6 +55,18 @@ std::vector<fs::path> LabelFolders(const fs::path& dir, std::error_code& ec) {
 
 bool IsPointCloudFile(absl::string_view path) { return CloudFormatForPath(path).ok(); }
 
+absl::Status CheckStandardInputFormat(const std::vector<std::string>& paths,
+                                      const ReadOptions& options) {
+  if (options.input_format.has_value() ||
+      std::find(paths.begin(), paths.end(), "-") == paths.end()) {
+    return absl::OkStatus();
+  }
+  return absl::InvalidArgumentError(absl::StrCat(
+      "standard input (\"-\") has no extension to choose a reader by; give its format with "
+      "--input-format (",
+      absl::StrJoin(CloudFormatNames(), ", "), ")"));
+}
+
 std::string UnsupportedFilesMessage(const std::vector<std::string>& unsupported) {
   if (unsupported.empty()) return "";
   constexpr size_t kNamed = 3;

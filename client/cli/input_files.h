@@ -25,6 +25,12 @@ bool IsPointCloudFile(absl::string_view path);
 absl::StatusOr<std::vector<std::string>> ExpandInputs(
     const std::vector<std::string>& paths, std::vector<std::string>* unsupported = nullptr);
 
+// OK unless `paths` holds "-" (standard input) and `options` names no input_format: standard
+// input has no extension to choose a reader by, so that is a usage error, told before any
+// input is read. InvalidArgument naming --input-format and its formats.
+absl::Status CheckStandardInputFormat(const std::vector<std::string>& paths,
+                                      const ReadOptions& options);
+
 // The one stderr line that reports a walk's unsupported files: how many, the first few names,
 // the extensions shapeid reads, and the flag that ignores them. Empty when there are none.
 std::string UnsupportedFilesMessage(const std::vector<std::string>& unsupported);

@@ -111,6 +111,17 @@ TEST_F(InputFilesTest, ExpandKeepsMissingFilesAndRejectsEmptyFolders) {
   EXPECT_THAT(*ExpandInputs({P("weird.dat")}), ElementsAre(P("weird.dat")));
 }
 
+TEST_F(InputFilesTest, StandardInputNeedsAnInputFormat) {
+  ReadOptions options;
+  EXPECT_TRUE(CheckStandardInputFormat({P("a.pcd"), P("b.ply")}, options).ok());
+  const absl::Status status = CheckStandardInputFormat({P("a.pcd"), "-"}, options);
+  EXPECT_TRUE(absl::IsInvalidArgument(status)) << status;
+  EXPECT_THAT(status.message(), HasSubstr("standard input (\"-\")"));
+  EXPECT_THAT(status.message(), HasSubstr("--input-format (pcd, ply,"));
+  options.input_format = CloudFormat::kXyz;
+  EXPECT_TRUE(CheckStandardInputFormat({"-"}, options).ok());
+}
+
 TEST_F(InputFilesTest, LabelledFoldersWithAndWithoutTrainTestSplit) {
   Touch("flat/chair/1.pcd");
   Touch("flat/chair/2.pcd");

@@ -22,11 +22,12 @@ namespace {
 
 constexpr char kMainFooter[] =
     "Server: --server HOST:PORT, or the SHAPEID_SERVER environment variable (default\n"
-    "127.0.0.1:50051). Replicas: a comma list, HOST:PORT,HOST:PORT (names looked up once), or\n"
-    "dns:///NAME:PORT for every address of NAME; calls go to each in turn and a call a replica\n"
-    "cannot serve is retried on another (--load-balancing pick_first: one at a time). Global\n"
-    "flags (--server, --load-balancing, --timeout, --format, --quiet, --tls*, --api-key-file,\n"
-    "--request-id) go before or after the command.\n"
+    "127.0.0.1:50051; a host without a port gets 50051). Replicas: a comma list,\n"
+    "HOST:PORT,HOST:PORT (names looked up once), or dns:///NAME:PORT for every address of\n"
+    "NAME; calls go to each in turn and a call a replica cannot serve is retried on another\n"
+    "(--load-balancing pick_first: one at a time). Global flags (--server, --load-balancing,\n"
+    "--timeout, --format, --quiet, --tls*, --api-key-file, --request-id) go before or after\n"
+    "the command.\n"
     "\n"
     "Request ids: every call of one run carries the same x-request-id, which the server writes\n"
     "in its log: --request-id ID (SHAPEID_REQUEST_ID), or a random \"cli-\" and 16 hex digits.\n"
@@ -48,6 +49,8 @@ constexpr char kMainFooter[] =
     "  2  usage error: bad flags, spec or paths; nothing was done\n"
     "  3  the server is unreachable or did not answer in time\n"
     "  4  the server refused the command (unknown or existing gallery, bad argument...)\n"
+    "  5  the server's answer was larger than this client reads (256 MiB): this client\n"
+    "     refused it, not the server; ask for less (--k, --limit)\n"
     "\n"
     "Examples:\n"
     "  shapeid gallery create parts --spec rphsd --k 3\n"
@@ -157,8 +160,8 @@ int main(int argc, char** argv) {
   double timeout_seconds = 30;
   bool quiet = false;
   app.add_option("--server", context.client.target,
-                 "shapeid-server address: HOST:PORT, a comma list of replicas, or a gRPC target "
-                 "(dns:///NAME:PORT, unix:///PATH)")
+                 "shapeid-server address: HOST[:PORT] (port 50051 if none), a comma list of "
+                 "replicas, or a gRPC target (dns:///NAME:PORT, unix:///PATH)")
       ->envname("SHAPEID_SERVER")
       ->capture_default_str();
   app.add_option("--load-balancing", context.client.load_balancing,

@@ -382,6 +382,10 @@ int RunScene(const SceneCommandOptions& options, const CliContext& context) {
     }
     run.call.region = *std::move(region);
   }
+  if (absl::Status format = CheckStandardInputFormat(options.frames, options.read); !format.ok()) {
+    PrintError(context.err, "scene", format);
+    return kExitUsage;
+  }
   std::vector<std::string> unsupported;
   absl::StatusOr<std::vector<std::string>> frames = ExpandInputs(options.frames, &unsupported);
   if (!frames.ok()) {

@@ -69,6 +69,11 @@ int RunTrain(const TrainOptions& options, const CliContext& context) {
   std::vector<LabelledFile> files;
   std::vector<std::string> unsupported;
   if (!options.label.empty()) {
+    if (absl::Status format = CheckStandardInputFormat(options.paths, options.batch.read);
+        !format.ok()) {
+      PrintError(context.err, "train", format);
+      return kExitUsage;
+    }
     absl::StatusOr<std::vector<std::string>> paths = ExpandInputs(options.paths, &unsupported);
     if (!paths.ok()) {
       PrintError(context.err, "train", paths.status());
@@ -173,6 +178,11 @@ std::string ClassifyJsonLine(const std::string& file, const v1::ClassifyResponse
 }
 
 int RunClassify(const ClassifyOptions& options, const CliContext& context) {
+  if (absl::Status format = CheckStandardInputFormat(options.paths, options.batch.read);
+      !format.ok()) {
+    PrintError(context.err, "classify", format);
+    return kExitUsage;
+  }
   std::vector<std::string> unsupported;
   absl::StatusOr<std::vector<std::string>> paths = ExpandInputs(options.paths, &unsupported);
   if (!paths.ok()) {

@@ -11,6 +11,7 @@ deadlines, retries, API keys, TLS and threads. The generated protobuf messages a
 shapeid.v1 (shapeid_pb2, shapeid_pb2_grpc), for those who want the wire itself.
 """
 
+from ._channel import DEFAULT_PORT, MAX_RECEIVE_BYTES
 from .client import Client
 from .clouds import encode
 from .errors import (AbortedError, AlreadyExistsError, CancelledError, DataLossError,

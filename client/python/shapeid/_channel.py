@@ -8,6 +8,14 @@ import socket
 
 import grpc
 
+# The largest answer the client reads by default, in bytes: the C++ client's
+# kClientMaxReceiveBytes (client/client_options.h), 256 MiB, the most a server's
+# --max_answer_bytes may be, so every answer of a shapeid server can be read.
+MAX_RECEIVE_BYTES = 256 << 20
+
+# The port a host without one gets: shapeid-server's default (kDefaultPort).
+DEFAULT_PORT = 50051
+
 # Schemes whose targets gRPC parses itself ("unix:" is not one: "unix:A,unix:B" is our list).
 _GRPC_SCHEMES = ("dns:", "ipv4:", "ipv6:", "unix-abstract:", "xds:", "google-c2p:")
 
@@ -23,17 +31,54 @@ def _has_scheme(text):
     return text.lower().startswith(_GRPC_SCHEMES)
 
 
+def _with_default_port(host_port):
+    """"HOST", "[V6]" or a bare "V6" address with ":DEFAULT_PORT" added; anything else (a port
+    is there, or it is no host) as it is. A bare IPv6 address is all host, as gRPC reads it."""
+    if not host_port:
+        return host_port
+    if host_port.startswith("["):
+        return "%s:%d" % (host_port, DEFAULT_PORT) if host_port.endswith("]") else host_port
+    colons = host_port.count(":")
+    if colons == 0:
+        return "%s:%d" % (host_port, DEFAULT_PORT)
+    if colons >= 2:
+        try:
+            socket.inet_pton(socket.AF_INET6, host_port)
+        except (OSError, ValueError):
+            return host_port
+        return "[%s]:%d" % (host_port, DEFAULT_PORT)
+    return host_port
+
+
+def _one_target(target):
+    """One gRPC target with DEFAULT_PORT where a host has no port: a plain HOST and a dns:
+    target's host (gRPC's DNS resolver would otherwise use 443). Other schemes as they are."""
+    if target.lower().startswith("dns:"):
+        start = 4  # dns:[//AUTHORITY/]HOST[:PORT]
+        if target[4:].startswith("//"):
+            slash = target.find("/", 6)
+            if slash < 0:
+                return target
+            start = slash + 1
+        return target[:start] + _with_default_port(target[start:])
+    if _has_scheme(target) or target.lower().startswith("unix:") or "://" in target:
+        return target
+    return _with_default_port(target)
+
+
 def _bad(entry, index, why):
     return ValueError("target: entry %d '%s' %s" % (index + 1, entry, why))
 
 
 def resolve(target):
-    """`target` without a comma, or with a gRPC scheme, is one gRPC target, as it is.
-    Otherwise a list "HOST:PORT,HOST:PORT,..." or "unix:PATH,unix:PATH,...": host names are
-    looked up once and the list becomes "ipv4:..." / "ipv6:..." / "unix:...". ValueError
-    naming the entry for a malformed one; ConnectionError when DNS does not answer."""
+    """`target` without a comma, or with a gRPC scheme, is one gRPC target, as it is but for
+    DEFAULT_PORT added to a host without a port ("127.0.0.1", "[::1]", "::1", "localhost",
+    "dns:///NAME"). Otherwise a list "HOST[:PORT],HOST[:PORT],..." or
+    "unix:PATH,unix:PATH,...": host names are looked up once and the list becomes
+    "ipv4:..." / "ipv6:..." / "unix:...". ValueError naming the entry for a malformed one;
+    ConnectionError when DNS does not answer."""
     if "," not in target or _has_scheme(target):
-        return ChannelTarget(target)
+        return ChannelTarget(_one_target(target))
     unix_paths, addresses = [], []
     first_host, authority, one_host = None, "", True
     for i, raw in enumerate(target.split(",")):
@@ -59,20 +104,21 @@ def resolve(target):
         if _has_scheme(entry):
             raise _bad(entry, i, "is a gRPC target of its own; a list holds HOST:PORT or "
                                  "unix:PATH entries (give a dns:/// target alone)")
-        host, colon, port = entry.rpartition(":")
+        host_port = _with_default_port(entry)
+        host, colon, port = host_port.rpartition(":")
         if not colon:
             raise _bad(entry, i, "has no port (HOST:PORT)")
         if host.startswith("[") and host.endswith("]"):
             host = host[1:-1]
         elif ":" in host or "[" in host:
-            raise _bad(entry, i, "has no port, or is an IPv6 address without brackets "
-                                 "([::1]:PORT)")
+            raise _bad(entry, i, "is neither HOST[:PORT] nor an IPv6 address (with a port: "
+                                 "[::1]:PORT)")
         if not host:
             raise _bad(entry, i, "has no host")
         if not (port.isascii() and port.isdigit()) or not 1 <= int(port) <= 65535:
             raise _bad(entry, i, "has no port, or a bad one (HOST:PORT, PORT from 1 to 65535)")
         if i == 0:
-            first_host, authority = host, entry
+            first_host, authority = host, host_port
         elif host.lower() != first_host.lower():
             one_host = False
         addresses.extend(_lookup(entry, i, host, port))
@@ -124,7 +170,8 @@ def _read_pem(path, what):
     return text
 
 
-def make_channel(target, load_balancing, tls, ca_file, cert_file, key_file, server_name):
+def make_channel(target, load_balancing, tls, ca_file, cert_file, key_file, server_name,
+                 max_receive_bytes=MAX_RECEIVE_BYTES):
     """A grpc channel for the Client's options; ValueError for a bad combination."""
     resolved = resolve(target)
     replicas = "," in target or target.startswith("dns:")
@@ -137,7 +184,8 @@ def make_channel(target, load_balancing, tls, ca_file, cert_file, key_file, serv
     else:
         raise ValueError("load_balancing must be round_robin or pick_first, got %r"
                          % (load_balancing,))
-    options = [("grpc.service_config", json.dumps(config))]
+    options = [("grpc.service_config", json.dumps(config)),
+               ("grpc.max_receive_message_length", max_receive_bytes)]
     if resolved.authority:
         options.append(("grpc.default_authority", resolved.authority))
     tls = tls or bool(ca_file or cert_file or key_file)

@@ -9,6 +9,7 @@ import numpy as np
 from . import clouds as _clouds
 from . import gallery_file as _gallery_file
 from . import results as _results
+from ._channel import MAX_RECEIVE_BYTES
 from ._channel import make_channel as _make_channel
 from .errors import ShapeidError, error_for, from_rpc_error
 
@@ -54,7 +55,8 @@ class Client:
     def __init__(self, target="127.0.0.1:50051", *, deadline=30.0, max_attempts=3,
                  initial_backoff=0.1, chunk_points=16384, load_balancing="round_robin",
                  api_key=None, request_id=None, tls=False, tls_ca_file=None,
-                 tls_cert_file=None, tls_key_file=None, tls_server_name=None):
+                 tls_cert_file=None, tls_key_file=None, tls_server_name=None,
+                 max_receive_bytes=MAX_RECEIVE_BYTES):
         """Checks the options (ValueError naming the bad one) and opens the channel. Touches
         the network only to look up the host names of a list of replicas; a server that is
         down, or a TLS handshake that fails, shows as UnavailableError on the first call.
@@ -74,6 +76,10 @@ class Client:
           when it is not the target's host.
         chunk_points: points per PointChunk message; a cloud of at most this many points
           travels in one DescribeCloud / ClassifyCloud message.
+        max_receive_bytes: the largest answer this client reads (default MAX_RECEIVE_BYTES,
+          256 MiB: any answer a shapeid server sends). A larger one raises
+          ResourceExhaustedError with client_limit True: this client's refusal, not the
+          server's.
         """
         if not target:
             raise ValueError("target is empty")
@@ -83,6 +89,10 @@ class Client:
             raise ValueError("chunk_points must be an integer >= 1, got %r" % (chunk_points,))
         if not deadline or deadline <= 0:
             raise ValueError("deadline must be positive (seconds), got %r" % (deadline,))
+        if (not isinstance(max_receive_bytes, int) or
+                not 1 <= max_receive_bytes <= 2**31 - 1):
+            raise ValueError("max_receive_bytes must be an integer from 1 to 2^31 - 1, got %r"
+                             % (max_receive_bytes,))
         if initial_backoff < 0:
             raise ValueError("initial_backoff must be >= 0, got %r" % (initial_backoff,))
         metadata = []
@@ -102,8 +112,9 @@ class Client:
         self._initial_backoff = float(initial_backoff)
         self._chunk_points = chunk_points
         self._metadata = tuple(metadata)
+        self._max_receive_bytes = max_receive_bytes
         self._channel = _make_channel(target, load_balancing, tls, tls_ca_file, tls_cert_file,
-                                      tls_key_file, tls_server_name)
+                                      tls_key_file, tls_server_name, max_receive_bytes)
         self._stub = _pb_grpc.ShapeIdStub(self._channel)
         self._health_check = self._channel.unary_unary(
             "/grpc.health.v1.Health/Check", request_serializer=_identity,
@@ -505,7 +516,7 @@ class Client:
                 error = e
                 if e.code() not in _RETRIED:
                     break
-        raise from_rpc_error(error) from None
+        raise from_rpc_error(error, self._max_receive_bytes) from None
 
     def _unary(self, retry, method, request, timeout):
         return self._call(retry, lambda remaining: method(

@@ -12,6 +12,8 @@ A bad argument caught before anything is sent (a cloud of the wrong shape or typ
 option) is a plain TypeError or ValueError instead.
 """
 
+import re
+
 import grpc
 
 __all__ = [
@@ -50,7 +52,13 @@ class FailedPreconditionError(ShapeidError):
 
 class ResourceExhaustedError(ShapeidError):
     """Over a size limit (never succeeds as it is) or the server is busy (retry later, with
-    backoff): the message says which. Not retried by the client."""
+    backoff): the message says which. Not retried by the client. `client_limit` is True when
+    the limit is this client's own (an answer larger than its max_receive_bytes: the server
+    answered, the client would not read it), False for every refusal the server sent."""
+
+    def __init__(self, code, message, client_limit=False):
+        super().__init__(code, message)
+        self.client_limit = client_limit
 
 
 class PermissionDeniedError(ShapeidError):
@@ -107,8 +115,22 @@ def error_for(code, message):
     return _BY_CODE.get(code, ShapeidError)(code, message)
 
 
-def from_rpc_error(error):
-    """A grpc.RpcError (what grpcio raises) as the matching ShapeidError."""
+# gRPC's words for a message over a receive limit, the client's or the server's.
+_TOO_LARGE = re.compile(r"Received message larger than max \((\d+) vs\. (\d+)\)")
+
+
+def from_rpc_error(error, receive_limit=None):
+    """A grpc.RpcError (what grpcio raises) as the matching ShapeidError. gRPC words this
+    client's refusal of an answer over its `receive_limit` as a server words its refusal of
+    a request too large for it; the limit in the message tells them apart, and this client's
+    own refusal says so (ResourceExhaustedError.client_limit)."""
     code = error.code() if hasattr(error, "code") else grpc.StatusCode.UNKNOWN
     message = error.details() if hasattr(error, "details") else str(error)
+    if code == grpc.StatusCode.RESOURCE_EXHAUSTED and receive_limit is not None:
+        match = _TOO_LARGE.fullmatch(message or "")
+        if match and int(match.group(2)) == receive_limit:
+            return ResourceExhaustedError(
+                code, "the server's answer is %s bytes, more than this client's receive limit "
+                      "of %s bytes: this client refused it, not the server; ask for less (a "
+                      "smaller page, fewer neighbours)" % match.groups(), client_limit=True)
     return error_for(code or grpc.StatusCode.UNKNOWN, message or "")

@@ -548,8 +548,80 @@ def test_options_are_checked():
             shapeid.Client("127.0.0.1:50051", **kwargs)
     with pytest.raises(ValueError, match="entry 2 '' is empty"):
         shapeid.Client("127.0.0.1:1,")
-    with pytest.raises(ValueError, match="an IPv6 address without brackets"):
-        shapeid.Client("::1:5,::2:5")
+    with pytest.raises(ValueError, match=r"is neither HOST\[:PORT\] nor an IPv6 address"):
+        shapeid.Client("a:b:c,127.0.0.1:5")
+    with pytest.raises(ValueError, match="max_receive_bytes must be an integer from 1"):
+        shapeid.Client("127.0.0.1:50051", max_receive_bytes=0)
+
+
+def test_only_the_clients_own_receive_limit_is_called_its_own():
+    class Refusal(grpc.RpcError):
+        def __init__(self, details):
+            self._details = details
+
+        def code(self):
+            return grpc.StatusCode.RESOURCE_EXHAUSTED
+
+        def details(self):
+            return self._details
+
+    # gRPC words both sides' limits alike; the limit in the message tells them apart.
+    server_side = shapeid.errors.from_rpc_error(
+        Refusal("Received message larger than max (5000000 vs. 4194304)"), 1 << 20)
+    assert isinstance(server_side, shapeid.ResourceExhaustedError)
+    assert not server_side.client_limit
+    assert server_side.message == "Received message larger than max (5000000 vs. 4194304)"
+    own = shapeid.errors.from_rpc_error(
+        Refusal("Received message larger than max (5000000 vs. 1048576)"), 1 << 20)
+    assert own.client_limit
+    assert own.message.startswith("the server's answer is 5000000 bytes, more than this "
+                                  "client's receive limit of 1048576 bytes")
+
+
+def test_hosts_without_a_port_get_the_default_port():
+    from shapeid import _channel
+    assert shapeid.DEFAULT_PORT == 50051
+    for target, becomes in [("127.0.0.1", "127.0.0.1:50051"), ("localhost", "localhost:50051"),
+                            ("[::1]", "[::1]:50051"), ("::1", "[::1]:50051"),
+                            ("dns:///recognizer", "dns:///recognizer:50051"),
+                            ("dns://8.8.8.8/recognizer", "dns://8.8.8.8/recognizer:50051"),
+                            ("127.0.0.1,127.0.0.1:7", "ipv4:127.0.0.1:50051,127.0.0.1:7"),
+                            ("[::1],[::1]:7", "ipv6:[::1]:50051,[::1]:7"),
+                            # with a port, or no host: as they were
+                            ("127.0.0.1:7", "127.0.0.1:7"), ("[::1]:7", "[::1]:7"),
+                            ("dns:///recognizer:7", "dns:///recognizer:7"),
+                            ("unix:///tmp/s.sock", "unix:///tmp/s.sock"),
+                            ("ipv4:127.0.0.1:1,127.0.0.1:2", "ipv4:127.0.0.1:1,127.0.0.1:2")]:
+        assert _channel.resolve(target).target == becomes, target
+    assert _channel.resolve("127.0.0.1,127.0.0.2:7").authority == "127.0.0.1:50051"
+
+
+def test_large_answers_are_read_and_the_clients_own_limit_is_named(client, server, gallery):
+    # 1,000 samples with the largest provenance allowed (a source of 4,096 bytes, 64 pairs of
+    # 4,096 bytes of keys and values): a default list_samples page and a classify(k=1000)
+    # are about 8.6 MB each, past gRPC's default receive limit of 4 MiB.
+    sources = [("/scans/%d/" % i).ljust(4096, "s") for i in range(1000)]
+    metadata = {"k%02d" % k: chr(ord("a") + k % 26) * 61 for k in range(64)}
+    client.train(gallery, [shape(i % 3, 5000 + i, 100) for i in range(1000)],
+                 [SHAPES[i % 3] for i in range(1000)], ids=list(range(1, 1001)),
+                 sources=sources, metadata=metadata)
+    samples = list(client.list_samples(gallery))
+    assert [s.sample_id for s in samples] == list(range(1, 1001))
+    assert samples[-1].source == sources[-1] and samples[-1].metadata == metadata
+    assert len(client.classify(gallery, QUERY, k=1000).neighbors) == 1000
+    assert shapeid.MAX_RECEIVE_BYTES == 256 << 20
+
+    # Over a smaller limit of the client's own: its refusal, said to be its own.
+    with shapeid.Client(server.address, max_receive_bytes=1 << 20) as small:
+        for call in (lambda: list(small.list_samples(gallery)),
+                     lambda: small.classify(gallery, QUERY, k=1000)):
+            with pytest.raises(shapeid.ResourceExhaustedError) as caught:
+                call()
+            assert caught.value.client_limit
+            assert caught.value.code == grpc.StatusCode.RESOURCE_EXHAUSTED
+            assert caught.value.message.startswith("the server's answer is ")
+            assert ("bytes, more than this client's receive limit of 1048576 bytes: this "
+                    "client refused it, not the server") in caught.value.message
 
 
 def test_replica_lists_and_request_ids(server, trained):
