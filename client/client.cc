@@ -278,6 +278,11 @@ absl::StatusOr<std::unique_ptr<Client>> Client::Connect(ClientOptions options) {
   if (!options.request_id.empty()) {
     if (absl::Status id = CheckRequestId(options.request_id); !id.ok()) return id;
   }
+  if (!options.caller_id.empty() && !IsValidCallerId(options.caller_id)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "caller id '", options.caller_id,
+        "': a caller id is 1 to 64 characters of A-Z a-z 0-9 . _ : -"));
+  }
   absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = MakeChannel(options);
   if (!channel.ok()) return channel.status();
   return std::unique_ptr<Client>(new Client(std::move(options), *std::move(channel)));
@@ -309,6 +314,9 @@ absl::Status Client::Call(bool retry, bool corked, const Attempt& attempt,
     context.set_deadline(absl::ToChronoTime(deadline));
     if (!authorization_.empty()) context.AddMetadata("authorization", authorization_);
     if (!options_.request_id.empty()) context.AddMetadata("x-request-id", options_.request_id);
+    if (!options_.caller_id.empty()) {
+      context.AddMetadata(std::string(kCallerIdMetadata), options_.caller_id);
+    }
     if (corked) context.set_initial_metadata_corked(true);
     status = attempt(context);
     // CANCELLED too: this client cancels only calls it then stops (a failing export sink, an

@@ -114,6 +114,14 @@ struct ClientOptions {
   // refuses anything else: the server would replace it). Empty (the default): none is sent,
   // and the server makes a random id for each call.
   std::string request_id;
+
+  // Sent with every call as the metadata "shapeid-caller-id": on a server without API keys
+  // this client is then a caller of its own ("HOST/ID") for the server's fair shares, rather
+  // than one with every other process of its host (a fleet of robots on one machine: give
+  // each its own id). With a key or a client certificate it changes nothing: the key is the
+  // caller. 1 to 64 characters of A-Z a-z 0-9 . _ : - (Connect refuses anything else).
+  // Empty: none.
+  std::string caller_id;
 };
 
 }  // namespace shapeid

@@ -768,6 +768,54 @@ TEST(ClientFallbackTest, AServerWithoutScenesSaysSoAndKeepsItsOneMessageClassify
   server->Shutdown();
 }
 
+// A fleet on one host and no keys: each robot's caller id makes it a caller of its own for
+// the server's shares. One robot's stream holds almost a caller's share of the memory budget;
+// another robot's call still fits with an id of its own, and is refused without (both are then
+// the host, 127.0.0.1).
+TEST(ClientCallerIdTest, RobotsOnOneHostWithIdsGetAShareEach) {
+  ServerOptions server_options;
+  server_options.listen = "127.0.0.1:0";
+  server_options.service.memory_budget_bytes = 64 << 20;  // 32 MiB per caller
+  auto server = ShapeIdServer::Start(server_options);
+  ASSERT_TRUE(server.ok()) << server.status();
+  // Robot "arm-a" announces a 2,750,000-point cloud (33 MB held at once) and sends nothing.
+  auto stub = v1::ShapeId::NewStub(
+      grpc::CreateChannel((*server)->address(), grpc::InsecureChannelCredentials()));
+  grpc::ClientContext held;
+  held.AddMetadata("shapeid-caller-id", "arm-a");
+  v1::DescribeResponse ignored;
+  auto stream = stub->Describe(&held, &ignored);
+  v1::DescribeRequest header;
+  header.mutable_header()->set_expected_points(2'750'000);
+  ASSERT_TRUE(stream->Write(header));
+  const PointCloud cloud = Shape(0, 3, 40'000);  // 480 KB, held twice as a one-message call
+  ClientOptions options;
+  options.target = (*server)->address();
+  options.chunk_points = 100'000;
+  absl::Status same_host = absl::OkStatus();
+  for (int i = 0; i < 100 && same_host.ok(); ++i) {  // until the stream's memory is held
+    auto anonymous = Client::Connect(options);
+    ASSERT_TRUE(anonymous.ok());
+    same_host = (*anonymous)->Describe(cloud).status();
+    if (same_host.ok()) absl::SleepFor(absl::Milliseconds(20));
+  }
+  EXPECT_TRUE(absl::IsResourceExhausted(same_host)) << same_host;
+  EXPECT_THAT(std::string(same_host.message()), HasSubstr("this caller's calls already hold"));
+  options.caller_id = "arm-b";
+  auto own = Client::Connect(options);
+  ASSERT_TRUE(own.ok()) << own.status();
+  EXPECT_TRUE((*own)->Describe(cloud).ok());
+  held.TryCancel();
+  (void)stream->Finish();
+
+  for (const std::string& bad : {std::string("arm b"), std::string("a/b"), std::string(65, 'x')}) {
+    options.caller_id = bad;
+    const absl::Status refused = Client::Connect(options).status();
+    EXPECT_TRUE(absl::IsInvalidArgument(refused)) << bad;
+    EXPECT_THAT(std::string(refused.message()), HasSubstr("caller id"));
+  }
+}
+
 TEST(ClientChunkTest, BigCloudIsChunked) {
   // The server refuses any message over 256 KiB; the cloud is 1.2 MB, so it only gets
   // through in chunks (16,384 points = 192 KiB each).

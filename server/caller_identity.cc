@@ -1,22 +1,17 @@
 #include "server/caller_identity.h"
 
-#include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
+#include "core/request_id.h"
 #include "server/stream_limiter.h"
 
 namespace shapeid {
 namespace {
 
-bool IsCallerIdChar(char c) {
-  return absl::ascii_isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '_' || c == ':' ||
-         c == '-';
-}
-
 absl::string_view View(const grpc::string_ref& ref) { return {ref.data(), ref.size()}; }
 
 absl::Status MalformedCallerId() {
   return absl::InvalidArgumentError(absl::StrCat(
-      "the '", kCallerIdMetadata, "' metadata must be 1-", kMaxCallerIdBytes,
+      "the '", kCallerIdMetadata, "' metadata must be 1-", kMaxCallerIdChars,
       " characters of letters, digits and . _ : - (it names one robot of a fleet that shares a "
       "host)"));
 }
@@ -25,11 +20,7 @@ absl::Status MalformedCallerId() {
 
 absl::StatusOr<std::string> CallerOf(absl::string_view key_name, absl::string_view certificate_name,
                                      absl::string_view peer, absl::string_view caller_id) {
-  if (!caller_id.empty()) {
-    bool valid = caller_id.size() <= kMaxCallerIdBytes;
-    for (const char c : caller_id) valid = valid && IsCallerIdChar(c);
-    if (!valid) return MalformedCallerId();
-  }
+  if (!caller_id.empty() && !IsValidCallerId(caller_id)) return MalformedCallerId();
   if (!key_name.empty()) return absl::StrCat("key:", key_name);
   if (!certificate_name.empty()) return absl::StrCat("cert:", certificate_name);
   std::string host = ClientOfPeer(peer);

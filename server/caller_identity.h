@@ -7,7 +7,8 @@
 //   "key:NAME"   the API key the call presented (a server with keys);
 //   "cert:CN"    else the common name of a verified client certificate (mutual TLS);
 //   "HOST"       else the peer's address, without its port ("127.0.0.1", "::1").
-// Only a caller known by its host may add an id of its own (metadata kCallerIdMetadata):
+// Only a caller known by its host may add an id of its own (kCallerIdMetadata, whose rule is
+// core/request_id.h's IsValidCallerId):
 // "127.0.0.1/arm-left". That splits a fleet of robots that share one host and no key into
 // callers of their own, so one robot's burst of work cannot refuse its neighbours. Keys and
 // certificates are identities the operator issued: an id cannot split them (a key holder
@@ -20,10 +21,6 @@
 #include "grpcpp/grpcpp.h"
 
 namespace shapeid {
-
-inline constexpr absl::string_view kCallerIdMetadata = "shapeid-caller-id";
-// An id is 1-64 characters of [A-Za-z0-9._:-].
-inline constexpr size_t kMaxCallerIdBytes = 64;
 
 // The caller as above. `key_name` is the name of the key the call was admitted with, empty
 // without one. InvalidArgument naming the metadata when a caller id is malformed.

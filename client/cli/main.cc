@@ -17,6 +17,7 @@
 #include "client/cli/train_classify_commands.h"
 #include "client/cli/views_command.h"
 #include "core/io/point_cloud_reader.h"
+#include "core/request_id.h"
 
 namespace {
 
@@ -26,8 +27,8 @@ constexpr char kMainFooter[] =
     "HOST:PORT,HOST:PORT (names looked up once), or dns:///NAME:PORT for every address of\n"
     "NAME; calls go to each in turn and a call a replica cannot serve is retried on another\n"
     "(--load-balancing pick_first: one at a time). Global flags (--server, --load-balancing,\n"
-    "--timeout, --format, --quiet, --tls*, --api-key-file, --request-id) go before or after\n"
-    "the command.\n"
+    "--timeout, --format, --quiet, --tls*, --api-key-file, --request-id, --caller-id) go before\n"
+    "or after the command.\n"
     "\n"
     "Request ids: every call of one run carries the same x-request-id, which the server writes\n"
     "in its log: --request-id ID (SHAPEID_REQUEST_ID), or a random \"cli-\" and 16 hex digits.\n"
@@ -205,6 +206,15 @@ int main(int argc, char** argv) {
       ->check([](const std::string& id) {
         const absl::Status status = shapeid::CheckRequestId(id);
         return status.ok() ? std::string() : std::string(status.message());
+      });
+  app.add_option("--caller-id", context.client.caller_id,
+                 "This client's own name for the server's fair shares, on a server without API "
+                 "keys where several robots share one host (1-64 of A-Z a-z 0-9 . _ : -)")
+      ->envname("SHAPEID_CALLER_ID")
+      ->check([](const std::string& id) {
+        return shapeid::IsValidCallerId(id)
+                   ? std::string()
+                   : std::string("a caller id is 1 to 64 characters of A-Z a-z 0-9 . _ : -");
       });
 
   // describe

@@ -28,6 +28,9 @@ _RETRIED = (grpc.StatusCode.UNAVAILABLE, grpc.StatusCode.CANCELLED)
 _HEALTH_STATUSES = {0: "UNKNOWN", 1: "SERVING", 2: "NOT_SERVING", 3: "SERVICE_UNKNOWN"}
 _REQUEST_ID_CHARS = frozenset(
     "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789._:/+=-")
+# core/request_id.h's IsValidCallerId.
+_CALLER_ID_CHARS = frozenset(
+    "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789._:-")
 
 
 class Client:
@@ -54,7 +57,7 @@ class Client:
 
     def __init__(self, target="127.0.0.1:50051", *, deadline=30.0, max_attempts=3,
                  initial_backoff=0.1, chunk_points=16384, load_balancing="round_robin",
-                 api_key=None, request_id=None, tls=False, tls_ca_file=None,
+                 api_key=None, request_id=None, caller_id=None, tls=False, tls_ca_file=None,
                  tls_cert_file=None, tls_key_file=None, tls_server_name=None,
                  max_receive_bytes=MAX_RECEIVE_BYTES):
         """Checks the options (ValueError naming the bad one) and opens the channel. Touches
@@ -69,6 +72,10 @@ class Client:
         api_key: sent with every call as "authorization: Bearer KEY". Use TLS on a network.
         request_id: sent with every call as "x-request-id" (1 to 128 of A-Z a-z 0-9 ._:/+=-)
           so the server's logs find every call of a job.
+        caller_id: sent with every call as "shapeid-caller-id" (1 to 64 of A-Z a-z 0-9 ._:-):
+          on a server without API keys this client is then a caller of its own for the
+          server's fair shares, not one with every process of its host (one id per robot of
+          a fleet on one machine). With an api_key it changes nothing: the key is the caller.
         tls: turn TLS on (it is also on when any tls_* file is given). tls_ca_file: PEM of
           the CAs that may sign the server's certificate (None: the system's roots).
           tls_cert_file and tls_key_file: this client's certificate and key, for mutual TLS
@@ -106,6 +113,11 @@ class Client:
                 raise ValueError("request id %r: a request id is 1 to 128 characters of A-Z a-z "
                                  "0-9 . _ : / + = -" % (request_id,))
             metadata.append(("x-request-id", request_id))
+        if caller_id:
+            if len(caller_id) > 64 or not set(caller_id) <= _CALLER_ID_CHARS:
+                raise ValueError("caller id %r: a caller id is 1 to 64 characters of A-Z a-z 0-9 "
+                                 ". _ : -" % (caller_id,))
+            metadata.append(("shapeid-caller-id", caller_id))
         self._target = target
         self._deadline = float(deadline)
         self._max_attempts = max_attempts

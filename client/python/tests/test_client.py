@@ -632,6 +632,15 @@ def test_replica_lists_and_request_ids(server, trained):
         assert c.health().serving
 
 
+def test_caller_ids(server, trained):
+    # A robot of a fleet sharing one host names itself; the server accepts the metadata.
+    with shapeid.Client(server.address, caller_id="arm-left.7") as c:
+        assert c.classify(trained["name"], QUERY).label == "ball"
+    for bad in ("arm left", "a/b", "x" * 65, "caf\u00e9"):
+        with pytest.raises(ValueError, match="caller id"):
+            shapeid.Client(server.address, caller_id=bad)
+
+
 def test_one_client_shared_by_16_threads(client, trained):
     queries = [(kind, shape(kind, 7000 + i, 800)) for i in range(8) for kind in range(3)]
     reference = {id(q): client.classify(trained["name"], q, k=3) for _, q in queries}
