@@ -304,7 +304,7 @@ grpc::ServerUnaryReactor* ShapeIdService::ListSamples(grpc::CallbackServerContex
               FillSamplePage(page, snapshot->incarnation(), max_bytes, response);
               response->set_gallery_version(snapshot->version());
               call.record().samples = response->samples_size();
-              return absl::OkStatus();
+              return call.HoldAnswer(*response, "a smaller page_size");
             });
       });
 }
