@@ -91,7 +91,8 @@ absl::Status WorkScheduler::ShareRefusalLocked(WorkLane which, absl::string_view
   if (mine < share) {
     return absl::ResourceExhaustedError(absl::StrCat(
         "the server has ", queued, " pieces of ", WorkLaneName(which), " work waiting from ",
-        callers - 1, " callers, twice its limit (--max_queued_work); retry shortly"));
+        lane.queued_by_caller.size(), " callers, twice its limit (--max_queued_work); retry "
+        "shortly"));
   }
   return absl::ResourceExhaustedError(
       absl::StrCat("this caller has ", mine, " pieces of ", WorkLaneName(which),
