@@ -769,20 +769,19 @@ TEST(ClientFallbackTest, AServerWithoutScenesSaysSoAndKeepsItsOneMessageClassify
 }
 
 // A fleet on one host and no keys: each robot's caller id makes it a caller of its own for
-// the server's shares. One robot's stream holds almost a caller's share of the memory budget;
-// another robot's call still fits with an id of its own, and is refused without (both are then
-// the host, 127.0.0.1).
+// the server's shares. One robot without an id holds almost the host's share of the memory
+// budget with a stream; another robot's call is refused without an id (both are the host,
+// 127.0.0.1), and fits with one.
 TEST(ClientCallerIdTest, RobotsOnOneHostWithIdsGetAShareEach) {
   ServerOptions server_options;
   server_options.listen = "127.0.0.1:0";
   server_options.service.memory_budget_bytes = 64 << 20;  // 32 MiB per caller
   auto server = ShapeIdServer::Start(server_options);
   ASSERT_TRUE(server.ok()) << server.status();
-  // Robot "arm-a" announces a 2,750,000-point cloud (33 MB held at once) and sends nothing.
+  // The first robot announces a 2,750,000-point cloud (33 MB held at once), sends nothing.
   auto stub = v1::ShapeId::NewStub(
       grpc::CreateChannel((*server)->address(), grpc::InsecureChannelCredentials()));
   grpc::ClientContext held;
-  held.AddMetadata("shapeid-caller-id", "arm-a");
   v1::DescribeResponse ignored;
   auto stream = stub->Describe(&held, &ignored);
   v1::DescribeRequest header;

@@ -103,7 +103,7 @@ TEST(WorkCostsTest, AClassifysMemoryCountsItsAnswer) {
   const WorkEstimate many = EstimateClassify(*gallery, 1024, 10'000);
   EXPECT_GE(many.memory - one.memory, 9'999 * 64u);
   EXPECT_GT(many.cpu, one.cpu);
-  EXPECT_EQ(EstimateNeighborBytes(*gallery, 10'000), EstimateNeighborBytes(*gallery, 1 << 20))
+  EXPECT_EQ(EstimateNeighborBytes(*gallery, 20'000), EstimateNeighborBytes(*gallery, 1 << 20))
       << "never more neighbours than the gallery holds";
   EXPECT_EQ(EstimateNeighborBytes(*GalleryOf(3), 0), EstimateNeighborBytes(*GalleryOf(3), 1))
       << "0: the gallery's k, 1";

@@ -15,7 +15,7 @@
 //
 // Without --keys every robot calls from the same loopback host, as one caller: the case that
 // once locked every local client out once the leaked backlog passed the bound. With --keys N
-// the robots share N write keys. --flooders adds hostile callers (server/caller_identity.h: a
+// the robots share N keys. --flooders adds hostile callers (server/caller_identity.h: a
 // caller id of their own, or a read key each) that keep their share of the cheap lane full;
 // they must be refused themselves while no robot call fails. After the load the server's
 // caller backlog (GetServerStats) must be back to zero.
@@ -214,7 +214,7 @@ int Run(int argc, char** argv) {
       "--server_flag", server_flags,
       "a flag for the server (repeatable), e.g. --server_flag=--max_caller_backlog_seconds=1");
   app.add_option("--keys", keys,
-                 "robots share this many write keys (0: no keys, every robot the same loopback "
+                 "robots share this many keys (0: no keys, every robot the same loopback "
                  "caller)")
       ->capture_default_str();
   app.add_option("--flooders", flooders, "hostile callers flooding the cheap lane")
@@ -251,7 +251,7 @@ int Run(int argc, char** argv) {
               std::thread::hardware_concurrency(), bench::CpuModel().c_str(),
               ending.load_before.c_str());
   std::printf("clouds: %s\n", pool.source.c_str());
-  // Keys: the robots' (write), the flooders' (read) and an admin's for set-up and the stats.
+  // Keys: the robots', the flooders' (read) and an admin's for set-up and the stats.
   std::vector<std::string> robot_keys, flood_keys;
   ClientSettings admin;
   admin.deadline = absl::Seconds(deadline_seconds);
@@ -264,8 +264,9 @@ int Run(int argc, char** argv) {
       lines.push_back(absl::StrCat(name, " ", scope, " ", Sha256Hex(key)));
       return key;
     };
+    // Admin: the robots delete and recreate their scratch galleries.
     for (int k = 0; k < keys; ++k)
-      robot_keys.push_back(add_key(absl::StrCat("robots", k), "write"));
+      robot_keys.push_back(add_key(absl::StrCat("robots", k), "admin"));
     for (int f = 0; f < flooders; ++f)
       flood_keys.push_back(add_key(absl::StrCat("flood", f), "read"));
     admin.api_key = add_key("admin", "admin");
@@ -294,7 +295,7 @@ int Run(int argc, char** argv) {
   if (!server_flags.empty())
     std::printf("server flags: %s\n", absl::StrJoin(server_flags, " ").c_str());
   std::printf("callers: %s; %d flooder(s) keeping %d calls open each\n",
-              keys > 0 ? absl::StrCat("robots share ", keys, " write key(s)").c_str()
+              keys > 0 ? absl::StrCat("robots share ", keys, " key(s)").c_str()
                        : "every robot the same loopback caller (no keys)",
               flooders, flood_in_flight);
 
