@@ -304,7 +304,8 @@ grpc::ServerUnaryReactor* ShapeIdService::ListSamples(grpc::CallbackServerContex
               FillSamplePage(page, snapshot->incarnation(), max_bytes, response);
               response->set_gallery_version(snapshot->version());
               call.record().samples = response->samples_size();
-              return call.HoldAnswer(*response, "a smaller page_size");
+              // Cut to max_answer_bytes above, but for a single sample: held, never refused.
+              return call.HoldMemory(2 * response->ByteSizeLong(), "the page");
             });
       });
 }
