@@ -13,12 +13,17 @@
 //   restart_memory_bench --samples 60000 --no_provenance --reps 3
 //
 // The server is the only big process it measures; the load generator (this program) is not.
+//
+// --trim also reads VmRSS after calling malloc_trim(0) in the server (through gdb, which must
+// be installed and allowed to attach), after training and after the restart: what the heap
+// really holds, without the freed memory glibc keeps.
 
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -90,12 +95,22 @@ struct Options {
   int reps = 3;
   double settle_seconds = 3;
   bool keep_data = false;
+  bool trim = false;
 };
 
 struct Run {
   int64_t empty = 0, trained = 0, restarted = 0, restarted_peak = 0;
+  int64_t trained_trimmed = 0, restarted_trimmed = 0;  // --trim only
   double train_seconds = 0, load_seconds = 0;
 };
+
+// The server's VmRSS after it has called malloc_trim(0) (gdb attaches and calls it).
+int64_t TrimmedResidentBytes(const ChildServer& server) {
+  const std::string command = absl::StrCat(
+      "gdb -p ", server.pid(), " -batch -ex 'call (int)malloc_trim(0)' > /dev/null 2>&1");
+  if (std::system(command.c_str()) != 0) return 0;
+  return server.ResidentBytes();
+}
 
 absl::Status StartServer(const Options& o, ChildServer& server, const std::string& log) {
   return server.Start(
@@ -164,6 +179,7 @@ absl::StatusOr<Run> MeasureOnce(const Options& o) {
     run.train_seconds = absl::ToDoubleSeconds(absl::Now() - start);
     absl::SleepFor(absl::Seconds(o.settle_seconds));
     run.trained = server.ResidentBytes();
+    if (o.trim) run.trained_trimmed = TrimmedResidentBytes(server);
     if (server.Terminate(absl::Minutes(2)) != 0) {
       return absl::InternalError("the server did not exit cleanly on SIGTERM");
     }
@@ -182,6 +198,7 @@ absl::StatusOr<Run> MeasureOnce(const Options& o) {
   absl::SleepFor(absl::Seconds(o.settle_seconds));
   run.restarted = server.ResidentBytes();
   run.restarted_peak = server.PeakResidentBytes();
+  if (o.trim) run.restarted_trimmed = TrimmedResidentBytes(server);
   server.Terminate(absl::Minutes(2));
   return run;
 }
@@ -200,6 +217,7 @@ int Main(int argc, char** argv) {
   app.add_option("--reps", o.reps, "runs; the table gives each and the medians");
   app.add_option("--settle_seconds", o.settle_seconds, "pause before each RSS reading");
   app.add_flag("--keep_data", o.keep_data, "keep the last run's data directory (DIR/data)");
+  app.add_flag("--trim", o.trim, "also read VmRSS after malloc_trim(0) in the server (gdb)");
   CLI11_PARSE(app, argc, argv);
   if (o.dir.empty()) {
     o.dir = absl::StrCat(std::filesystem::temp_directory_path().string(), "/restart_memory_bench_",
@@ -232,6 +250,12 @@ int Main(int argc, char** argv) {
     std::printf("| %d | %.1f | %.1f | %.1f | %.3f | %.1f | %.2f | %.1f | %.1f |\n", r + 1,
                 empty.back(), trained.back(), restarted.back(), ratio.back(), peak.back(),
                 per_sample.back(), run->train_seconds, run->load_seconds);
+    if (o.trim) {
+      std::printf("|   | after malloc_trim(0): | %.1f | %.1f | %.3f | | | | |\n",
+                  MiB(run->trained_trimmed), MiB(run->restarted_trimmed),
+                  static_cast<double>(run->restarted_trimmed) /
+                      static_cast<double>(std::max<int64_t>(run->trained_trimmed, 1)));
+    }
     std::fflush(stdout);
   }
   std::printf("| median | %.1f | %.1f | %.1f | %.3f | %.1f | %.2f | | |\n", Median(empty),
