@@ -3,7 +3,7 @@
 
 // A GalleryStore that times every write of the store it wraps into the metrics
 // (shapeid_store_write_duration_seconds, shapeid_store_write_failures_total), so core/ and the
-// stores stay free of metrics. Reads (LoadAll) pass through untimed.
+// stores stay free of metrics. Reads (LoadAll, Load) pass through untimed.
 
 #include <memory>
 #include <vector>
@@ -25,6 +25,7 @@ class ObservedGalleryStore final : public GalleryStore {
   absl::Status RemoveSamples(absl::string_view name, absl::Span<const uint64_t> ids,
                              absl::Time updated, uint64_t version) override;
   absl::StatusOr<std::vector<StoredGallery>> LoadAll() override { return store_->LoadAll(); }
+  absl::Status Load(GalleryLoader& loader) override { return store_->Load(loader); }
 
  private:
   template <typename Write>

@@ -83,7 +83,7 @@ size_t EstimateNeighborBytes(const GallerySnapshot& snapshot, int k) {
   // A neighbour's provenance is within the documented limits, and all of them together are
   // never more than the gallery holds.
   const size_t provenance =
-      std::min(snapshot.provenance_bytes(),
+      std::min(static_cast<size_t>(std::max<int64_t>(snapshot.provenance_bytes(), 0)),
                neighbors * (kMaxSourceBytes + kMaxMetadataBytes + 4 * kMaxMetadataEntries));
   return neighbors * kNeighborBytes + provenance;
 }

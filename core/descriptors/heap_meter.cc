@@ -53,6 +53,8 @@ int64_t Stop() {
   return peak.load();
 }
 
+int64_t Live() { return live.load(); }
+
 }  // namespace shapeid::heap_meter
 
 #ifndef SHAPEID_HEAP_METER_OFF

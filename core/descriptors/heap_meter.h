@@ -26,6 +26,8 @@ bool Available();
 void Start();
 // Ends it and returns the peak of (bytes allocated - bytes freed) since Start.
 int64_t Stop();
+// (bytes allocated - bytes freed) since Start, now: what the code measured still holds.
+int64_t Live();
 
 }  // namespace shapeid::heap_meter
 

@@ -154,7 +154,7 @@ absl::StatusOr<std::unique_ptr<GallerySnapshot>> Gallery::EmptySnapshot(
 }
 
 absl::StatusOr<std::unique_ptr<GallerySnapshot>> Gallery::StoredSnapshot(
-    const StoredGallery& stored) {
+    const GalleryMetadata& stored) {
   SHAPEID_RETURN_IF_ERROR(ValidateGalleryName(stored.name));
   SHAPEID_RETURN_IF_ERROR(ValidateGalleryOptions(stored.options));
   absl::StatusOr<std::unique_ptr<Descriptor>> descriptor =
@@ -228,34 +228,49 @@ absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Restore(const StoredGallery& s
                                                           std::shared_ptr<GalleryStore> store,
                                                           ApproximateBuild approximate,
                                                           CatchUpFunction catch_up) {
-  const std::string where = absl::StrCat("restoring gallery '", stored.name, "': ");
+  SHAPEID_ASSIGN_OR_RETURN(Restorer restorer, Restorer::Begin(stored));
+  for (const StoredSample& sample : stored.samples) SHAPEID_RETURN_IF_ERROR(restorer.Add(sample));
+  return std::move(restorer).Finish(limits, std::move(store), approximate, std::move(catch_up));
+}
+
+absl::StatusOr<Gallery::Restorer> Gallery::Restorer::Begin(const GalleryMetadata& stored) {
+  std::string where = absl::StrCat("restoring gallery '", stored.name, "': ");
   absl::StatusOr<std::unique_ptr<GallerySnapshot>> empty = StoredSnapshot(stored);
   if (!empty.ok()) return Prefixed(where, empty.status());
-  std::unique_ptr<GallerySnapshot> snapshot = *std::move(empty);
-  uint64_t next_assigned = kFirstAssignedId;
-  for (const StoredSample& sample : stored.samples) {
-    if (sample.id == 0) {
-      return absl::DataLossError(absl::StrCat(where, "a sample has id 0, which is never stored"));
-    }
-    if (absl::Status s = ValidateLabel(sample.label); !s.ok()) return Prefixed(where, s);
-    if (absl::Status s = ValidateProvenance(sample.provenance); !s.ok()) {
-      return Prefixed(absl::StrCat(where, "sample id ", sample.id, ": "), s);
-    }
-    if (absl::Status s = snapshot->AddSample(sample); !s.ok()) {
-      return Prefixed(absl::StrCat(where, "sample id ", sample.id, ": "), s);
-    }
-    if (sample.id >= kFirstAssignedId) next_assigned = std::max(next_assigned, sample.id + 1);
+  return Restorer(std::move(where), *std::move(empty));
+}
+
+absl::Status Gallery::Restorer::AddWith(const StoredSample& sample, SampleProvenance provenance) {
+  if (sample.id == 0) {
+    return absl::DataLossError(absl::StrCat(where_, "a sample has id 0, which is never stored"));
   }
+  if (absl::Status s = ValidateLabel(sample.label); !s.ok()) return Prefixed(where_, s);
+  if (absl::Status s = ValidateProvenance(provenance); !s.ok()) {
+    return Prefixed(absl::StrCat(where_, "sample id ", sample.id, ": "), s);
+  }
+  if (absl::Status s =
+          snapshot_->AddSample(sample.id, sample.label, sample.features, std::move(provenance));
+      !s.ok()) {
+    return Prefixed(absl::StrCat(where_, "sample id ", sample.id, ": "), s);
+  }
+  if (sample.id >= kFirstAssignedId) next_assigned_ = std::max(next_assigned_, sample.id + 1);
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::shared_ptr<Gallery>> Gallery::Restorer::Finish(
+    const GalleryLimits& limits, std::shared_ptr<GalleryStore> store, ApproximateBuild approximate,
+    CatchUpFunction catch_up) && {
   if (approximate == ApproximateBuild::kNow) {
-    if (absl::Status s =
-            snapshot->index_.UpdateApproximate(limits.approximate, snapshot->options().knn.scaling);
+    if (absl::Status s = snapshot_->index_.UpdateApproximate(limits.approximate,
+                                                             snapshot_->options().knn.scaling);
         !s.ok()) {
-      return Prefixed(where, s);
+      return Prefixed(where_, s);
     }
   }
-  snapshot->next_assigned_id_ = next_assigned;
-  return std::shared_ptr<Gallery>(
-      new Gallery(stored.name, limits, std::move(store), std::move(catch_up), std::move(snapshot)));
+  snapshot_->next_assigned_id_ = next_assigned_;
+  std::string name = snapshot_->name();
+  return std::shared_ptr<Gallery>(new Gallery(std::move(name), limits, std::move(store),
+                                              std::move(catch_up), std::move(snapshot_)));
 }
 
 std::shared_ptr<const GallerySnapshot> Gallery::Snapshot() const {

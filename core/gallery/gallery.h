@@ -156,6 +156,34 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
       const StoredGallery& stored, const GalleryLimits& limits, std::shared_ptr<GalleryStore> store,
       ApproximateBuild approximate = ApproximateBuild::kNow, CatchUpFunction catch_up = nullptr);
 
+  // Restore one sample at a time, for a store read one sample at a time (GalleryStore::Load):
+  // Begin with the stored metadata, Add every sample in training order, Finish. Restore is
+  // these three over a StoredGallery; the errors are Restore's, each step's as it comes.
+  class Restorer {
+   public:
+    static absl::StatusOr<Restorer> Begin(const GalleryMetadata& stored);
+    // Checks and adds the next sample. The rvalue form takes the sample's provenance into the
+    // gallery as it is, where the other copies it; nothing else of `sample` is kept.
+    absl::Status Add(const StoredSample& sample) { return AddWith(sample, sample.provenance); }
+    absl::Status Add(StoredSample&& sample) {
+      return AddWith(sample, std::move(sample.provenance));
+    }
+    // The gallery of the samples added; the Restorer is spent.
+    absl::StatusOr<std::shared_ptr<Gallery>> Finish(
+        const GalleryLimits& limits, std::shared_ptr<GalleryStore> store,
+        ApproximateBuild approximate = ApproximateBuild::kNow,
+        CatchUpFunction catch_up = nullptr) &&;
+
+   private:
+    Restorer(std::string where, std::unique_ptr<GallerySnapshot> snapshot)
+        : where_(std::move(where)), snapshot_(std::move(snapshot)) {}
+    absl::Status AddWith(const StoredSample& sample, SampleProvenance provenance);
+
+    std::string where_;  // "restoring gallery 'NAME': "
+    std::unique_ptr<GallerySnapshot> snapshot_;
+    uint64_t next_assigned_ = kFirstAssignedId;
+  };
+
   Gallery(const Gallery&) = delete;
   Gallery& operator=(const Gallery&) = delete;
 
@@ -210,7 +238,7 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
   // An empty snapshot with the stored options and versions, marked incompatible() when this
   // server cannot compute the stored spec's descriptors identically.
   static absl::StatusOr<std::unique_ptr<GallerySnapshot>> StoredSnapshot(
-      const StoredGallery& stored);
+      const GalleryMetadata& stored);
 
   // Writes retry when a shared store answers Aborted (it found this server's copy behind):
   // catch_up_, then the write again, up to kStaleAttempts in all. NotFound is retried once

@@ -1,5 +1,6 @@
 #include "core/gallery/gallery_registry.h"
 
+#include <optional>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -15,6 +16,46 @@ absl::Status NoSuchGallery(absl::string_view name) {
   if (absl::Status valid = ValidateGalleryName(name); !valid.ok()) return valid;
   return absl::NotFoundError(absl::StrCat("no gallery named '", name, "'"));
 }
+
+// Rebuilds each gallery as the store reads it, a sample at a time, each sample's provenance
+// moved in: nothing stored is held twice.
+class RestoringLoader final : public GalleryLoader {
+ public:
+  RestoringLoader(const GalleryLimits& limits, std::shared_ptr<GalleryStore> store,
+                  CatchUpFunction catch_up)
+      : limits_(limits), store_(std::move(store)), catch_up_(std::move(catch_up)) {}
+
+  absl::Status Begin(const GalleryMetadata& gallery) override {
+    restorer_.reset();  // a gallery begun and not ended is dropped
+    SHAPEID_ASSIGN_OR_RETURN(Gallery::Restorer restorer, Gallery::Restorer::Begin(gallery));
+    restorer_.emplace(std::move(restorer));
+    return absl::OkStatus();
+  }
+  absl::Status Add(StoredSample& sample) override {
+    if (!restorer_.has_value())
+      return absl::InternalError("a stored sample came before its gallery");
+    return restorer_->Add(std::move(sample));
+  }
+  absl::Status End() override {
+    if (!restorer_.has_value())
+      return absl::InternalError("a stored gallery ended before it began");
+    absl::StatusOr<std::shared_ptr<Gallery>> gallery =
+        std::move(*restorer_).Finish(limits_, store_, Gallery::ApproximateBuild::kLater, catch_up_);
+    restorer_.reset();
+    if (!gallery.ok()) return gallery.status();
+    loaded_.push_back(*std::move(gallery));
+    return absl::OkStatus();
+  }
+
+  std::vector<std::shared_ptr<Gallery>>& loaded() { return loaded_; }
+
+ private:
+  const GalleryLimits limits_;
+  const std::shared_ptr<GalleryStore> store_;
+  const CatchUpFunction catch_up_;
+  std::optional<Gallery::Restorer> restorer_;
+  std::vector<std::shared_ptr<Gallery>> loaded_;
+};
 
 }  // namespace
 
@@ -34,14 +75,9 @@ void GalleryRegistry::WaitForApproximateIndexes() {
 }
 
 absl::Status GalleryRegistry::LoadFromStore() {
-  SHAPEID_ASSIGN_OR_RETURN(std::vector<StoredGallery> stored, store_->LoadAll());
-  std::vector<std::shared_ptr<Gallery>> loaded;
-  for (const StoredGallery& g : stored) {
-    SHAPEID_ASSIGN_OR_RETURN(
-        std::shared_ptr<Gallery> gallery,
-        Gallery::Restore(g, limits_, store_, Gallery::ApproximateBuild::kLater, catch_up_));
-    loaded.push_back(std::move(gallery));
-  }
+  RestoringLoader loader(limits_, store_, catch_up_);
+  SHAPEID_RETURN_IF_ERROR(store_->Load(loader));
+  std::vector<std::shared_ptr<Gallery>> loaded = std::move(loader.loaded());
   std::lock_guard<std::mutex> lock(mu_);
   if (galleries_.size() + loaded.size() > limits_.max_galleries) {
     return absl::ResourceExhaustedError(

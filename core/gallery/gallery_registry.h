@@ -41,7 +41,8 @@ class GalleryRegistry {
   GalleryRegistry(const GalleryRegistry&) = delete;
   GalleryRegistry& operator=(const GalleryRegistry&) = delete;
 
-  // Adds every gallery the store holds (call once, before serving). Errors: the store's;
+  // Adds every gallery the store holds (call once, before serving), each rebuilt as the
+  // store reads it (GalleryStore::Load), so that nothing stored is held twice. Errors: the store's;
   // a stored gallery that no longer validates (prefixed with its name); AlreadyExists if a
   // stored name is already registered. On error nothing is added.
   //

@@ -8,15 +8,6 @@
 #include "core/status_macros.h"
 
 namespace shapeid {
-namespace {
-
-size_t ProvenanceBytes(const SampleProvenance& provenance) {
-  size_t bytes = provenance.source.size();
-  for (const auto& [key, value] : provenance.metadata) bytes += key.size() + value.size();
-  return bytes;
-}
-
-}  // namespace
 
 std::map<std::string, int64_t> GallerySnapshot::LabelCounts() const {
   std::map<std::string, int64_t> counts;
@@ -76,11 +67,15 @@ SamplePage GallerySnapshot::ListSamples(absl::string_view label, uint64_t after_
   return page;
 }
 
-absl::Status GallerySnapshot::AddSample(const StoredSample& sample) {
-  SHAPEID_RETURN_IF_ERROR(index_.Add(sample.id, sample.label, sample.features));
-  if (!sample.provenance.empty()) {
-    provenance_.Insert({sample.id, std::make_shared<const SampleProvenance>(sample.provenance)});
-    provenance_bytes_ += ProvenanceBytes(sample.provenance);
+absl::Status GallerySnapshot::AddSample(uint64_t id, absl::string_view label,
+                                        absl::Span<const float> features,
+                                        SampleProvenance provenance) {
+  SHAPEID_RETURN_IF_ERROR(index_.Add(id, label, features));
+  if (!provenance.empty()) {
+    auto shared = std::make_shared<const SampleProvenance>(std::move(provenance));
+    provenance_bytes_ += static_cast<int64_t>(ProvenanceBytes(*shared));
+    provenance_memory_ += static_cast<int64_t>(ProvenanceMemoryBytes(*shared));
+    provenance_.Insert({id, std::move(shared)});
   }
   return absl::OkStatus();
 }
@@ -88,8 +83,10 @@ absl::Status GallerySnapshot::AddSample(const StoredSample& sample) {
 absl::Status GallerySnapshot::RemoveSamples(absl::Span<const uint64_t> ids) {
   SHAPEID_RETURN_IF_ERROR(index_.Remove(ids));
   for (uint64_t id : ids) {
-    if (const auto* entry = provenance_.Find(id))
-      provenance_bytes_ -= ProvenanceBytes(*entry->second);
+    const auto* entry = provenance_.Find(id);
+    if (entry == nullptr) continue;  // none, or a duplicate id already erased
+    provenance_bytes_ -= static_cast<int64_t>(ProvenanceBytes(*entry->second));
+    provenance_memory_ -= static_cast<int64_t>(ProvenanceMemoryBytes(*entry->second));
     provenance_.Erase(id);
   }
   return absl::OkStatus();

@@ -85,8 +85,6 @@ class GallerySnapshot {
   // times, versions and every sample in training order. O(num_samples * dimension).
   StoredGallery ToStored() const;
   const KnnIndex& index() const { return index_; }
-  // The bytes of provenance the samples hold: sources, keys and values. O(1).
-  size_t provenance_bytes() const { return provenance_bytes_; }
 
   int64_t num_samples() const { return index_.size(); }
   bool empty() const { return index_.empty(); }
@@ -99,6 +97,18 @@ class GallerySnapshot {
   std::map<std::string, int64_t> LabelCounts() const;
   // The provenance sample `id` was trained with; null when it has none or is absent.
   std::shared_ptr<const SampleProvenance> Provenance(uint64_t id) const;
+  // The bytes of provenance text the samples hold: sources, keys and values
+  // (ProvenanceBytes summed; at most 8 KiB a sample). O(1).
+  int64_t provenance_bytes() const { return provenance_bytes_; }
+  // An estimate of the memory the samples hold: their descriptors with the index over them
+  // (KnnIndex::memory_bytes: features, ids, labels, inverted lists) and their provenance
+  // (ProvenanceMemoryBytes summed, and its table). Counts all this snapshot references,
+  // what it shares with the gallery's other snapshots included; not the descriptor object
+  // or the metadata (a few KiB). O(1): kept up to date as samples are added and removed.
+  // docs/persistence.md states what a sample costs.
+  int64_t memory_bytes() const {
+    return index_.memory_bytes() + provenance_.memory_bytes() + provenance_memory_;
+  }
   // Up to `page_size` (>= 1) samples with ids above `after_id`, labelled `label` (empty:
   // any), in increasing id order: keyset paging, so that a sample added or removed while a
   // client pages through changes no other sample's page. O(num_samples * log(page_size)).
@@ -152,8 +162,14 @@ class GallerySnapshot {
   GallerySnapshot(const GallerySnapshot&) = default;
   GallerySnapshot& operator=(const GallerySnapshot&) = delete;
 
-  // The two ways samples change, which keep the index and the provenance in step.
-  absl::Status AddSample(const StoredSample& sample);
+  // The two ways samples change, which keep the index, the provenance and their sizes in
+  // step. The provenance is taken by value: a caller done with it moves it in, so that it is
+  // shared as it is, never copied.
+  absl::Status AddSample(uint64_t id, absl::string_view label, absl::Span<const float> features,
+                         SampleProvenance provenance);
+  absl::Status AddSample(const StoredSample& sample) {
+    return AddSample(sample.id, sample.label, sample.features, sample.provenance);
+  }
   absl::Status RemoveSamples(absl::Span<const uint64_t> ids);
 
   // The gallery's kNN options, with k replaced when `k` > 0.
@@ -170,8 +186,9 @@ class GallerySnapshot {
   knn_internal::SharedHashTable<
       absl::flat_hash_map<uint64_t, std::shared_ptr<const SampleProvenance>>>
       provenance_;
+  int64_t provenance_bytes_ = 0;                   // ProvenanceBytes over provenance_
+  int64_t provenance_memory_ = 0;                  // ProvenanceMemoryBytes over provenance_
   uint64_t next_assigned_id_ = uint64_t{1} << 63;  // kFirstAssignedId
-  size_t provenance_bytes_ = 0;
   std::string incompatible_;
 };
 

@@ -14,7 +14,56 @@ absl::Status NotStored(absl::string_view name) {
   return absl::InternalError(absl::StrCat("store holds no gallery '", name, "'"));
 }
 
+// Keeps every gallery that ends, whole.
+class Collector final : public GalleryLoader {
+ public:
+  absl::Status Begin(const GalleryMetadata& gallery) override {
+    current_ = StoredGallery();
+    static_cast<GalleryMetadata&>(current_) = gallery;
+    begun_ = true;
+    return absl::OkStatus();
+  }
+  absl::Status Add(StoredSample& sample) override {
+    if (!begun_) return absl::InternalError("a stored sample arrived before its gallery");
+    current_.samples.push_back(std::move(sample));
+    return absl::OkStatus();
+  }
+  absl::Status End() override {
+    if (!begun_) return absl::InternalError("a stored gallery ended before it began");
+    galleries_.push_back(std::move(current_));
+    current_ = StoredGallery();
+    begun_ = false;
+    return absl::OkStatus();
+  }
+  std::vector<StoredGallery> Take() { return std::move(galleries_); }
+
+ private:
+  std::vector<StoredGallery> galleries_;
+  StoredGallery current_;
+  bool begun_ = false;
+};
+
 }  // namespace
+
+absl::Status GalleryStore::Load(GalleryLoader& loader) {
+  absl::StatusOr<std::vector<StoredGallery>> all = LoadAll();
+  if (!all.ok()) return all.status();
+  for (StoredGallery& gallery : *all) {
+    if (absl::Status s = loader.Begin(gallery); !s.ok()) return s;
+    for (StoredSample& sample : gallery.samples) {
+      if (absl::Status s = loader.Add(sample); !s.ok()) return s;
+    }
+    if (absl::Status s = loader.End(); !s.ok()) return s;
+    gallery = StoredGallery();
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::vector<StoredGallery>> CollectGalleries(GalleryStore& store) {
+  Collector collector;
+  if (absl::Status s = store.Load(collector); !s.ok()) return s;
+  return collector.Take();
+}
 
 absl::Status InMemoryGalleryStore::SaveGallery(const StoredGallery& gallery) {
   std::lock_guard<std::mutex> lock(mu_);

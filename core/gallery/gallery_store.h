@@ -39,6 +39,21 @@ struct StoredGallery : GalleryMetadata {
   std::vector<StoredSample> samples;  // in training order (the kNN tie-break order)
 };
 
+// What GalleryStore::Load hands a store's galleries to, one sample at a time: for each
+// gallery Begin, its samples in training order, then End. A gallery begun and not ended (the
+// store found it damaged partway and set it aside) is dropped by the next Begin or, when Load
+// returns, by the loader's owner. An error the loader returns ends the load with that error,
+// unchanged: it is the loader's, never taken for damage in the store.
+class GalleryLoader {
+ public:
+  virtual ~GalleryLoader() = default;
+  virtual absl::Status Begin(const GalleryMetadata& gallery) = 0;
+  // The next sample of the gallery begun last. The loader may move anything out of `sample`
+  // (its provenance, say); the store fills every field again before the next call.
+  virtual absl::Status Add(StoredSample& sample) = 0;
+  virtual absl::Status End() = 0;
+};
+
 // Where galleries persist. The registry and the galleries call it BEFORE they publish a
 // change, and a store error fails the operation with nothing published; so with a durable
 // store, "the call returned OK" means "the change survives a restart".
@@ -68,9 +83,19 @@ class GalleryStore {
   // Every id is present in the gallery; no duplicates.
   virtual absl::Status RemoveSamples(absl::string_view name, absl::Span<const uint64_t> ids,
                                      absl::Time updated, uint64_t version) = 0;
-  // Everything saved, for GalleryRegistry::LoadFromStore at start-up.
+  // Everything saved, whole, sorted by name (tests, tools).
   virtual absl::StatusOr<std::vector<StoredGallery>> LoadAll() = 0;
+  // Everything saved, handed to `loader` a sample at a time: what GalleryRegistry::
+  // LoadFromStore reads at start-up. A store that reads one sample at a time holds each only
+  // until the loader has it, so a start-up never holds its galleries twice (a whole copy would
+  // double the memory at start-up, and glibc keeps the freed copy's pages: docs/persistence.md).
+  // The default hands over LoadAll()'s galleries, freeing each once handed over.
+  virtual absl::Status Load(GalleryLoader& loader);
 };
+
+// What `store`.Load hands over, collected whole: LoadAll for a store that reads through Load.
+// A gallery begun and not ended is left out.
+absl::StatusOr<std::vector<StoredGallery>> CollectGalleries(GalleryStore& store);
 
 // Brings this server's copy of gallery `name` up to date with a store shared by several
 // servers (after it answered Aborted): returns once this server's galleries hold every change

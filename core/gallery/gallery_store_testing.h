@@ -92,6 +92,23 @@ inline StoredGallery MakeGallery(std::string name, int dimension, int samples, u
   return g;
 }
 
+// Provenance at the limits of sample_provenance.h, different for every `i`: a 4,096-byte
+// source and 64 pairs of a 16-byte key and a 48-byte value (4,096 bytes of keys and values).
+inline SampleProvenance ProvenanceAtLimits(uint64_t i) {
+  const auto filled = [](const std::string& text, size_t bytes) {
+    std::string out;
+    while (out.size() < bytes) out += text;
+    return std::string(out.data(), bytes);  // no spare capacity, as a copy has none
+  };
+  SampleProvenance p;
+  p.source = filled(absl::StrCat("/data/scans/cloud-", i, ".pcd/"), kMaxSourceBytes);
+  for (int k = 0; k < 64; ++k) {
+    p.metadata.emplace_back(filled(absl::StrCat("key", k < 10 ? "0" : "", k, "-"), 16),
+                            filled(absl::StrCat("value of ", i, " at ", k, "; "), 48));
+  }
+  return p;
+}
+
 }  // namespace gallery_testing
 }  // namespace shapeid
 

@@ -6,6 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/gallery/gallery_options.h"
+#include "core/heap_chunk.h"
 
 namespace shapeid {
 
@@ -49,11 +50,13 @@ class Reader {
   bool String(std::string& text) {
     uint32_t size;
     if (!U32(size) || rest_.size() < size) return false;
-    text.assign(rest_.data(), size);
+    // Constructed, not assigned: assign() would leave a growth capacity (30 bytes for 16).
+    text = std::string(rest_.data(), size);
     rest_.remove_prefix(size);
     return true;
   }
   bool done() const { return rest_.empty(); }
+  size_t left() const { return rest_.size(); }
 
  private:
   absl::string_view rest_;
@@ -108,6 +111,24 @@ absl::Status ValidateProvenance(const SampleProvenance& provenance) {
   return absl::OkStatus();
 }
 
+size_t ProvenanceBytes(const SampleProvenance& provenance) {
+  size_t bytes = provenance.source.size();
+  for (const auto& [key, value] : provenance.metadata) bytes += key.size() + value.size();
+  return bytes;
+}
+
+size_t ProvenanceMemoryBytes(const SampleProvenance& provenance) {
+  size_t bytes = SharedHeapBytes<SampleProvenance>() + StringHeapBytes(provenance.source);
+  if (provenance.metadata.capacity() > 0) {
+    bytes += HeapChunkBytes(provenance.metadata.capacity() *
+                            sizeof(decltype(provenance.metadata)::value_type));
+  }
+  for (const auto& [key, value] : provenance.metadata) {
+    bytes += StringHeapBytes(key) + StringHeapBytes(value);
+  }
+  return bytes;
+}
+
 std::string EncodeProvenance(const SampleProvenance& provenance) {
   if (provenance.empty()) return "";
   std::string out(1, static_cast<char>(kEncodingVersion));
@@ -138,7 +159,9 @@ absl::StatusOr<SampleProvenance> DecodeProvenance(absl::string_view bytes) {
   Reader reader(body.substr(1));
   uint32_t entries;
   if (!reader.String(provenance.source) || !reader.U32(entries)) return damaged("truncated");
-  // Each entry takes at least 8 bytes, so a damaged count cannot make this loop long.
+  // Each entry takes at least 8 bytes, so a damaged count can neither make this loop long
+  // nor the reservation large.
+  provenance.metadata.reserve(std::min<size_t>(entries, reader.left() / 8));
   for (uint32_t i = 0; i < entries; ++i) {
     std::string key, value;
     if (!reader.String(key) || !reader.String(value)) return damaged("truncated metadata");

@@ -41,12 +41,22 @@ absl::Status NormalizeMetadata(std::vector<std::pair<std::string, std::string>>&
 // non-empty, sorted and unique, and the limits above hold; the message names what is wrong.
 absl::Status ValidateProvenance(const SampleProvenance& provenance);
 
+// The bytes of text `provenance` holds: its source and every key and value (what the limits
+// above bound: at most 8,192). What an answer that returns it carries, less framing.
+size_t ProvenanceBytes(const SampleProvenance& provenance);
+// An estimate of the heap `provenance` holds once shared in a gallery: its strings' and its
+// metadata vector's capacities and the shared object with its control block, each allocation
+// as glibc's malloc sizes it (core/heap_chunk.h). About 16 KiB at the limits.
+size_t ProvenanceMemoryBytes(const SampleProvenance& provenance);
+
 // The stores' byte form of a non-empty provenance: version byte 1, then the source, the
 // number of pairs and each key and value, every length and count a little-endian uint32,
 // then a CRC-32 (zlib's) of everything before it, little-endian. Empty provenance: "".
 std::string EncodeProvenance(const SampleProvenance& provenance);
 // The inverse; "" gives an empty provenance. DataLoss, saying what is wrong, for bytes that
-// are not such an encoding (damage caught by the CRC included).
+// are not such an encoding (damage caught by the CRC included). Strings and the metadata
+// vector are allocated at their exact sizes, as a copy of the provenance would be, so a
+// gallery loaded from a store holds what the one trained did.
 absl::StatusOr<SampleProvenance> DecodeProvenance(absl::string_view bytes);
 
 }  // namespace shapeid

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "core/gallery/gallery_store_testing.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 
@@ -31,6 +32,34 @@ TEST(SampleProvenanceTest, EncodeDecodeRoundTrips) {
   EXPECT_EQ(bytes[0], '\x01');
   EXPECT_EQ(static_cast<uint8_t>(bytes[1]), p.source.size());
   EXPECT_EQ(bytes.substr(5, p.source.size()), p.source);
+}
+
+TEST(SampleProvenanceTest, ProvenanceBytesCountTheText) {
+  EXPECT_EQ(ProvenanceBytes({}), 0u);
+  // "scans/chair/chair_0001.pcd", then the keys and values.
+  EXPECT_EQ(ProvenanceBytes(Example()), 26u + 6 + 14 + 8 + 4 + 7);
+  EXPECT_EQ(ProvenanceBytes(gallery_testing::ProvenanceAtLimits(1)),
+            kMaxSourceBytes + kMaxMetadataBytes);
+}
+
+// A gallery trained holds copies of its samples' provenance; one loaded from a store holds
+// what DecodeProvenance made. Both must take the same memory.
+TEST(SampleProvenanceTest, DecodingTakesTheMemoryOfACopy) {
+  SampleProvenance odd;  // sizes where growth would over-allocate: 20-byte values, 5 pairs
+  odd.source = std::string(100, 's');
+  for (int i = 0; i < 5; ++i)
+    odd.metadata.emplace_back(absl::StrCat("key", i), std::string(20, 'v'));
+  for (const SampleProvenance& p : {Example(), odd, gallery_testing::ProvenanceAtLimits(1)}) {
+    const absl::StatusOr<SampleProvenance> decoded = DecodeProvenance(EncodeProvenance(p));
+    ASSERT_TRUE(decoded.ok()) << decoded.status();
+    const SampleProvenance copy = p;
+    EXPECT_EQ(ProvenanceMemoryBytes(*decoded), ProvenanceMemoryBytes(copy));
+    EXPECT_EQ(decoded->metadata.capacity(), p.metadata.size());
+  }
+  // At the limits: 8 KiB of text in 130 allocations.
+  const size_t at_limits = ProvenanceMemoryBytes(gallery_testing::ProvenanceAtLimits(1));
+  EXPECT_GT(at_limits, 14000u);
+  EXPECT_LT(at_limits, 16384u);
 }
 
 TEST(SampleProvenanceTest, EmptyIsNoBytes) {

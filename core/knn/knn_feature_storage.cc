@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "core/heap_chunk.h"
 #include "core/knn/knn_shared_chunks.h"
 
 namespace shapeid {
@@ -32,6 +33,12 @@ std::size_t FeatureStorage::FloatsFor(int64_t rows) const {
   return (floats + kPageFloats - 1) / kPageFloats * kPageFloats;
 }
 
+int64_t FeatureStorage::memory_bytes() const {
+  return allocated_floats_ * static_cast<int64_t>(sizeof(float)) +
+         num_blocks() * static_cast<int64_t>(SharedHeapBytes<Block>()) +
+         static_cast<int64_t>(blocks_.capacity() * sizeof(blocks_[0]));
+}
+
 BlockedView FeatureStorage::BlockView(int64_t b) const {
   const int64_t first = b * rows_per_block_;
   return BlockedView{Data(b), std::min(rows_per_block_, rows_ - first), dim_, first};
@@ -50,13 +57,17 @@ FeatureStorage::Block& FeatureStorage::WritableLast(int64_t rows) {
   // Copy (a copy shares it) or grow; the new part is zero padding.
   auto block = std::make_shared<Block>(floats, 0.0f);
   std::copy_n(last->data(), last->size(), block->data());
+  allocated_floats_ += static_cast<int64_t>(floats) - static_cast<int64_t>(last->size());
   last = std::move(block);
   return *last;
 }
 
 void FeatureStorage::Append(const float* row) {
   const int64_t r = rows_ % rows_per_block_;
-  if (r == 0) blocks_.push_back(std::make_shared<Block>(FloatsFor(1), 0.0f));
+  if (r == 0) {
+    blocks_.push_back(std::make_shared<Block>(FloatsFor(1), 0.0f));
+    allocated_floats_ += static_cast<int64_t>(blocks_.back()->size());
+  }
   Block& block = WritableLast(r + 1);
   for (int j = 0; j < dim_; ++j) block[FeatureOffset(r, dim_, j)] = row[j];
   ++rows_;
@@ -64,7 +75,11 @@ void FeatureStorage::Append(const float* row) {
 
 void FeatureStorage::Truncate(int64_t rows) {
   if (rows >= rows_) return;
-  blocks_.resize(static_cast<std::size_t>((rows + rows_per_block_ - 1) / rows_per_block_));
+  const std::size_t kept = static_cast<std::size_t>((rows + rows_per_block_ - 1) / rows_per_block_);
+  for (std::size_t b = kept; b < blocks_.size(); ++b) {
+    allocated_floats_ -= static_cast<int64_t>(blocks_[b]->size());
+  }
+  blocks_.resize(kept);
   const int64_t used = rows % rows_per_block_;
   if (used == 0) {
     rows_ = rows;

@@ -34,6 +34,9 @@ class FeatureStorage {
   int64_t rows() const { return rows_; }
   int64_t rows_per_block() const { return rows_per_block_; }
   int64_t num_blocks() const { return static_cast<int64_t>(blocks_.size()); }
+  // The heap of this object's blocks (allocated floats, padding and room to grow included,
+  // counted whole even where a copy shares them) and of its block pointers. O(1).
+  int64_t memory_bytes() const;
 
   // Block b's rows, [b * rows_per_block(), min((b + 1) * rows_per_block(), rows())), as a
   // view whose rows are reported as gallery rows (row_base).
@@ -72,6 +75,7 @@ class FeatureStorage {
   int64_t rows_per_block_;
   int64_t rows_ = 0;
   std::vector<std::shared_ptr<Block>> blocks_;
+  int64_t allocated_floats_ = 0;  // over every block
 };
 
 }  // namespace knn_internal

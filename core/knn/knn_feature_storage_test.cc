@@ -34,6 +34,31 @@ TEST(FeatureStorageTest, AFullBlockIsWholeKernelBlocksInAHugePage) {
   EXPECT_EQ(FeatureStorage(2048).rows_per_block(), 256);
 }
 
+TEST(FeatureStorageTest, MemoryBytesFollowsTheBlocks) {
+  const int dim = 240;  // 2,176 rows per block
+  EXPECT_EQ(FeatureStorage(dim).memory_bytes(), 0);
+  // The last block grows by doubling (kernel blocks of 32 rows); a full one is a huge page.
+  const int64_t small = Filled(dim, 1).memory_bytes();
+  EXPECT_GE(small, 32 * dim * 4);
+  EXPECT_LT(small, 2 * 32 * dim * 4);
+  EXPECT_GE(Filled(dim, 40).memory_bytes(), 64 * dim * 4);
+  const FeatureStorage full = Filled(dim, 2176);
+  EXPECT_GE(full.memory_bytes(), static_cast<int64_t>(kHugePageBytes));
+  EXPECT_LT(full.memory_bytes(), static_cast<int64_t>(kHugePageBytes) + 4096);
+  // Counted in each copy; the copy's growth is its own.
+  FeatureStorage copy = full;
+  EXPECT_EQ(copy.memory_bytes(), full.memory_bytes());
+  copy.Append(Row(dim, 2176).data());
+  EXPECT_GE(copy.memory_bytes() - full.memory_bytes(), 32 * dim * 4);
+  EXPECT_LT(copy.memory_bytes() - full.memory_bytes(), 2 * 32 * dim * 4);
+  EXPECT_EQ(full.memory_bytes(), Filled(dim, 2176).memory_bytes());
+  // Truncating drops the second block; the first, kept, stays a full one.
+  copy.Truncate(100);
+  EXPECT_EQ(copy.num_blocks(), 1);
+  EXPECT_GE(copy.memory_bytes(), full.memory_bytes());
+  EXPECT_LT(copy.memory_bytes(), full.memory_bytes() + 32 * dim * 4);
+}
+
 TEST(FeatureStorageTest, RowsReadBackAcrossBlocks) {
   const int dim = 2048;  // 256 rows per block
   const FeatureStorage storage = Filled(dim, 1000);

@@ -5,6 +5,7 @@
 #include <thread>
 #include <utility>
 
+#include "core/heap_chunk.h"
 #include "core/knn/knn_kd_tree.h"
 #include "core/parallel_ranges.h"
 
@@ -79,6 +80,14 @@ void InvertedLists::Fill(const FeatureStorage& gallery, int64_t rows,
       data_[FeatureOffset(dst, dim_, j)] = gallery.At(row, j);
     }
   }
+}
+
+int64_t InvertedLists::memory_bytes() const {
+  return static_cast<int64_t>(
+      SharedHeapBytes<InvertedLists>() +
+      (centroids_.capacity() + data_.capacity()) * sizeof(float) +
+      (row_ids_.capacity() + list_start_.capacity() + list_size_.capacity()) * sizeof(int64_t) +
+      cell_of_row_.capacity() * sizeof(int32_t));
 }
 
 std::shared_ptr<const InvertedLists> InvertedLists::Build(SimdLevel level,

@@ -65,6 +65,8 @@ class InvertedLists {
   int64_t indexed_rows() const { return indexed_rows_; }
   int num_lists() const { return static_cast<int>(list_size_.size()); }
   int dim() const { return dim_; }
+  // The heap of the lists (a copy of every filed row), centroids and row tables. O(1).
+  int64_t memory_bytes() const;
   // Rows of each list (tests and benchmarks: how balanced the cells are).
   absl::Span<const int64_t> list_sizes() const { return list_size_; }
 

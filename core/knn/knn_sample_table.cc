@@ -1,5 +1,7 @@
 #include "core/knn/knn_sample_table.h"
 
+#include "core/heap_chunk.h"
+
 namespace shapeid {
 namespace knn_internal {
 
@@ -20,6 +22,12 @@ std::vector<uint64_t> SampleTable::IdsWithLabel(absl::string_view label) const {
     if (label_of_sample_[s] == l) ids.push_back(ids_[s]);
   }
   return ids;
+}
+
+int64_t SampleTable::memory_bytes() const {
+  return ids_.memory_bytes() + label_of_sample_.memory_bytes() + id_set_.memory_bytes() +
+         first_row_.memory_bytes() + sample_of_row_.memory_bytes() + labels_.memory_bytes() +
+         label_counts_.memory_bytes() + label_index_.memory_bytes() + label_text_bytes_;
 }
 
 void SampleTable::Append(uint64_t id, absl::string_view label, int64_t rows) {
@@ -44,6 +52,7 @@ void SampleTable::Append(uint64_t id, absl::string_view label, int64_t rows) {
     labels_.PushBack(std::string(label));
     label_counts_.PushBack(1);
     label_index_.Insert({std::string(label), l});
+    label_text_bytes_ += 2 * static_cast<int64_t>(StringHeapBytes(labels_[l]));
   }
   ids_.PushBack(id);
   label_of_sample_.PushBack(l);

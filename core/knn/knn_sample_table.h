@@ -44,6 +44,8 @@ class SampleTable {
   }
 
   int num_labels() const { return static_cast<int>(labels_.size()); }
+  // The heap of every part (ids, labels, rows, both hash tables, the labels' text). O(1).
+  int64_t memory_bytes() const;
   // Samples per distinct label, labels in order of first appearance. O(num_labels()).
   std::vector<std::pair<std::string, int64_t>> LabelCounts() const;
   // The ids of the samples labelled `label`, in insertion order. O(size()).
@@ -64,6 +66,7 @@ class SampleTable {
   SharedChunks<std::string> labels_;  // distinct, in order of first appearance
   SharedChunks<int64_t> label_counts_;
   SharedHashTable<absl::flat_hash_map<std::string, int32_t>> label_index_;
+  int64_t label_text_bytes_ = 0;  // the heap of the distinct labels' strings, in both places
 };
 
 }  // namespace knn_internal

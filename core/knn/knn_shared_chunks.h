@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "absl/hash/hash.h"
+#include "core/heap_chunk.h"
 
 namespace shapeid {
 namespace knn_internal {
@@ -75,6 +76,15 @@ class SharedChunks {
   }
   void Clear() { Truncate(0); }
 
+  // The heap this object's chunks take (every chunk holds room for kChunk entries), counted
+  // whole even where a copy shares them; entries' own heap (a long string's) not included. O(1).
+  int64_t memory_bytes() const {
+    return static_cast<int64_t>(chunks_.size() *
+                                    (SharedHeapBytes<std::vector<T>>() +
+                                     HeapChunkBytes(static_cast<std::size_t>(kChunk) * sizeof(T))) +
+                                chunks_.capacity() * sizeof(chunks_[0]));
+  }
+
   // For tests: chunk c, to see whether two copies share it.
   const void* chunk_address(int64_t c) const { return chunks_[static_cast<std::size_t>(c)].get(); }
   int64_t num_chunks() const { return static_cast<int64_t>(chunks_.size()); }
@@ -109,6 +119,12 @@ class SharedHashTable {
   SharedHashTable() : shards_(kShards) {}
 
   int64_t size() const { return size_; }
+  // The heap of this object's shards (each table's slots and control bytes, counted whole
+  // even where a copy shares the shard) and of its shard pointers; the entries' own heap (a
+  // long string key's, a shared_ptr's object) not included. O(1): kept as shards change.
+  int64_t memory_bytes() const {
+    return shard_bytes_ + static_cast<int64_t>(kShards * sizeof(shards_[0]));
+  }
   bool contains(const key_type& key) const { return Find(key) != nullptr; }
   // The entry of `key`, or nullptr. Valid until the next mutation.
   const value_type* Find(const key_type& key) const {
@@ -121,14 +137,15 @@ class SharedHashTable {
   bool Insert(value_type value) {
     const key_type& key = KeyOf(value);
     auto& shard = shards_[ShardOf(key)];
+    if (shard != nullptr && shard->contains(key)) return false;
+    const int64_t before = ShardBytes(shard.get());
     if (shard == nullptr) {
       shard = std::make_shared<Table>();
-    } else if (shard->contains(key)) {
-      return false;
     } else if (!SoleOwner(shard)) {
       shard = std::make_shared<Table>(*shard);
     }
     shard->insert(std::move(value));
+    shard_bytes_ += ShardBytes(shard.get()) - before;
     ++size_;
     return true;
   }
@@ -136,14 +153,17 @@ class SharedHashTable {
   bool Erase(const key_type& key) {
     auto& shard = shards_[ShardOf(key)];
     if (shard == nullptr || !shard->contains(key)) return false;
+    const int64_t before = ShardBytes(shard.get());
     if (!SoleOwner(shard)) shard = std::make_shared<Table>(*shard);
     shard->erase(key);
+    shard_bytes_ += ShardBytes(shard.get()) - before;
     --size_;
     return true;
   }
   void Clear() {
     for (auto& shard : shards_) shard.reset();
     size_ = 0;
+    shard_bytes_ = 0;
   }
 
   // For tests: shard s, to see whether two copies share it.
@@ -155,6 +175,16 @@ class SharedHashTable {
   }
 
  private:
+  // A shard's heap: the shared table and its slot array (capacity slots, a control byte each
+  // and a group's worth of cloned ones).
+  static int64_t ShardBytes(const Table* table) {
+    if (table == nullptr) return 0;
+    std::size_t bytes = SharedHeapBytes<Table>();
+    if (table->capacity() > 0) {
+      bytes += HeapChunkBytes(table->capacity() * (sizeof(value_type) + 1) + 16);
+    }
+    return static_cast<int64_t>(bytes);
+  }
   static const key_type& KeyOf(const key_type& key) { return key; }
   template <typename V>
   static const key_type& KeyOf(const std::pair<const key_type, V>& entry) {
@@ -163,6 +193,7 @@ class SharedHashTable {
 
   std::vector<std::shared_ptr<Table>> shards_;
   int64_t size_ = 0;
+  int64_t shard_bytes_ = 0;  // ShardBytes over every shard
 };
 
 }  // namespace knn_internal

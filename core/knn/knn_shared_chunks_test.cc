@@ -73,6 +73,22 @@ TEST(SharedChunksTest, TruncateKeepsThePrefixShared) {
   EXPECT_TRUE(copy.empty());
 }
 
+TEST(SharedChunksTest, MemoryBytesCountsWholeChunks) {
+  Chunks v;
+  EXPECT_EQ(v.memory_bytes(), 0);
+  v.PushBack(1);
+  const int64_t one = v.memory_bytes();
+  EXPECT_GE(one, Chunks::kChunk * 8);  // a chunk has room for all its entries at once
+  for (int64_t i = 1; i < Chunks::kChunk; ++i) v.PushBack(i);
+  EXPECT_EQ(v.memory_bytes(), one);
+  v.PushBack(-1);
+  EXPECT_GE(v.memory_bytes(), 2 * Chunks::kChunk * 8);
+  const Chunks copy = v;  // counted in each copy, shared or not
+  EXPECT_EQ(copy.memory_bytes(), v.memory_bytes());
+  v.Truncate(5);
+  EXPECT_LT(v.memory_bytes(), copy.memory_bytes());
+}
+
 TEST(SharedHashTableTest, SetInsertFindErase) {
   SharedHashTable<absl::flat_hash_set<uint64_t>> set;
   for (uint64_t id = 1; id <= 5000; ++id) ASSERT_TRUE(set.Insert(id));
@@ -106,6 +122,28 @@ TEST(SharedHashTableTest, CopyOnWriteTouchesOneShard) {
   EXPECT_EQ(copy.Find("label7")->second, 7);
   EXPECT_TRUE(copy.Erase("label7"));
   EXPECT_NE(original.Find("label7"), nullptr);
+}
+
+TEST(SharedHashTableTest, MemoryBytesIsKeptAsShardsChange) {
+  using Table = SharedHashTable<absl::flat_hash_set<uint64_t>>;
+  Table original;
+  const int64_t empty = original.memory_bytes();
+  EXPECT_EQ(empty, static_cast<int64_t>(Table::kShards * sizeof(std::shared_ptr<int>)));
+  for (uint64_t id = 1; id <= 20000; ++id) ASSERT_TRUE(original.Insert(id));
+  const int64_t full = original.memory_bytes();
+  EXPECT_GT(full - empty, 20000 * 9);  // 8 bytes and a control byte per id, at least
+  EXPECT_LT(full - empty, 20000 * 9 * 3);
+  // A copy counts what it holds; changing it leaves the original's count alone.
+  Table copy = original;
+  EXPECT_EQ(copy.memory_bytes(), full);
+  for (uint64_t id = 20001; id <= 40000; ++id) ASSERT_TRUE(copy.Insert(id));
+  EXPECT_GT(copy.memory_bytes(), full);
+  EXPECT_EQ(original.memory_bytes(), full);
+  for (uint64_t id = 1; id <= 40000; ++id) ASSERT_TRUE(copy.Erase(id));
+  EXPECT_GT(copy.memory_bytes(), empty);  // tables keep their slots when emptied
+  copy.Clear();
+  EXPECT_EQ(copy.memory_bytes(), empty);
+  EXPECT_EQ(original.memory_bytes(), full);
 }
 
 }  // namespace

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstddef>
 
+#include "core/heap_chunk.h"
+
 namespace shapeid {
 namespace knn_internal {
 
@@ -27,6 +29,13 @@ void RunningStatistics::Add(const float* row) {
     m2_[j] += delta * (x - mean_[j]);
     max_abs_[j] = std::max(max_abs_[j], std::fabs(xf));
   }
+}
+
+int64_t RunningStatistics::memory_bytes() const {
+  const std::size_t dim = mean_.size();
+  if (dim == 0) return 0;
+  return static_cast<int64_t>(2 * HeapChunkBytes(dim * sizeof(double)) +
+                              3 * HeapChunkBytes(dim * sizeof(float)));
 }
 
 void RunningStatistics::Reset() {

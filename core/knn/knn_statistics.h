@@ -30,6 +30,8 @@ class RunningStatistics {
 
   // The dim factors of `scaling`, or nullptr for kNone (all ones).
   const float* Factors(FeatureScaling scaling) const;
+  // The heap of the per-dimension arrays. O(1).
+  int64_t memory_bytes() const;
 
  private:
   double min_spread_;

@@ -86,8 +86,8 @@ absl::Status Damaged(const std::string& path, const absl::Status& status) {
   return absl::DataLossError(absl::StrCat("gallery file ", path, " is damaged: ", detail));
 }
 
-absl::StatusOr<StoredGallery> ReadGallery(SqliteDb& db, const std::string& path,
-                                          const std::string& name) {
+absl::StatusOr<GalleryMetadata> ReadGallery(SqliteDb& db, const std::string& path,
+                                            const std::string& name, GalleryLoader& loader) {
   const auto damaged = [&](absl::string_view what) {
     return absl::DataLossError(absl::StrCat("gallery file ", path, " is damaged: ", what));
   };
@@ -123,7 +123,7 @@ absl::StatusOr<StoredGallery> ReadGallery(SqliteDb& db, const std::string& path,
   SHAPEID_ASSIGN_OR_RETURN(const std::string check, db.QueryText("PRAGMA quick_check"));
   if (check != "ok") return damaged(absl::StrCat("SQLite integrity check: ", check));
 
-  StoredGallery g;
+  GalleryMetadata g;
   {
     SHAPEID_ASSIGN_OR_RETURN(
         SqliteStatement row,
@@ -157,12 +157,8 @@ absl::StatusOr<StoredGallery> ReadGallery(SqliteDb& db, const std::string& path,
     }
     if (g.dimension < 1) return damaged(absl::StrCat("dimension ", g.dimension));
   }
+  SHAPEID_RETURN_IF_ERROR(loader.Begin(g));
   {
-    // A capacity hint, O(log n): seq is the rowid, so max() is one b-tree descent, where
-    // count(*) would read every page a second time.
-    SHAPEID_ASSIGN_OR_RETURN(const int64_t last_seq,
-                             schema(db.QueryInt("SELECT coalesce(max(seq), 0) FROM samples")));
-    g.samples.reserve(static_cast<size_t>(last_seq));
     SHAPEID_ASSIGN_OR_RETURN(
         SqliteStatement rows,
         schema(db.Prepare(format >= kFirstFormatWithProvenance
@@ -170,10 +166,10 @@ absl::StatusOr<StoredGallery> ReadGallery(SqliteDb& db, const std::string& path,
                                 "ORDER BY seq"
                               : "SELECT seq, id, label, features, crc FROM samples ORDER BY seq")));
     const size_t bytes = static_cast<size_t>(g.dimension) * sizeof(float);
+    StoredSample sample;  // every field set again for each row; features keep their capacity
     while (true) {
       SHAPEID_ASSIGN_OR_RETURN(const bool more, rows.Step());
       if (!more) break;
-      StoredSample sample;
       sample.id = FromStoredId(rows.ColumnInt64(1));
       sample.label = rows.ColumnText(2);
       const absl::Span<const uint8_t> blob = rows.ColumnBlob(3);
@@ -189,6 +185,7 @@ absl::StatusOr<StoredGallery> ReadGallery(SqliteDb& db, const std::string& path,
           static_cast<uint32_t>(rows.ColumnInt64(4))) {
         return damaged(absl::StrCat(at, ": checksum mismatch"));
       }
+      sample.provenance = SampleProvenance();
       if (format >= kFirstFormatWithProvenance) {
         const absl::Span<const uint8_t> encoded = rows.ColumnBlob(5);
         absl::StatusOr<SampleProvenance> provenance = DecodeProvenance(
@@ -196,10 +193,10 @@ absl::StatusOr<StoredGallery> ReadGallery(SqliteDb& db, const std::string& path,
         if (!provenance.ok()) return damaged(absl::StrCat(at, ": ", provenance.status().message()));
         sample.provenance = *std::move(provenance);
       }
-      g.samples.push_back(std::move(sample));
+      SHAPEID_RETURN_IF_ERROR(loader.Add(sample));
     }
   }
-
+  SHAPEID_RETURN_IF_ERROR(loader.End());
   return g;
 }
 

@@ -86,11 +86,15 @@ absl::Status InsertSample(SqliteStatement& insert, int64_t format, const StoredS
 // SQLite's own words ("database disk image is malformed") with ours in front.
 absl::Status Damaged(const std::string& path, const absl::Status& status);
 
-// Verifies and reads the gallery `name` from `db`, the file at `path`: DataLoss for damage
-// (or a file that is not a shapeid gallery), FailedPrecondition for a newer format, the disk's
-// code (ResourceExhausted, Unavailable) when it cannot be read.
-absl::StatusOr<StoredGallery> ReadGallery(SqliteDb& db, const std::string& path,
-                                          const std::string& name);
+// Verifies and reads the gallery `name` from `db`, the file at `path`, into `loader`: Begin
+// with its metadata once the file and its gallery row check out, each sample as it is read
+// and checked (one StoredSample reused, so the read holds one sample at a time), End after
+// the last; returns the metadata. DataLoss for damage (or a file that is not a shapeid
+// gallery), FailedPrecondition for a newer format, the disk's code (ResourceExhausted,
+// Unavailable) when it cannot be read, the loader's error as it is. After an error the
+// loader may hold a gallery begun and not ended.
+absl::StatusOr<GalleryMetadata> ReadGallery(SqliteDb& db, const std::string& path,
+                                            const std::string& name, GalleryLoader& loader);
 
 }  // namespace sqlite_gallery_file
 }  // namespace shapeid

@@ -70,6 +70,28 @@ struct SqliteGalleryStore::OpenGallery {
   }
 };
 
+// Passes everything on to the loader and keeps its first error, which must end the load as it
+// is: a loader's error is never damage in the file, so never a reason to set the file aside.
+class SqliteGalleryStore::CheckedLoader final : public GalleryLoader {
+ public:
+  explicit CheckedLoader(GalleryLoader& loader) : loader_(loader) {}
+  absl::Status Begin(const GalleryMetadata& gallery) override {
+    return Checked(loader_.Begin(gallery));
+  }
+  absl::Status Add(StoredSample& sample) override { return Checked(loader_.Add(sample)); }
+  absl::Status End() override { return Checked(loader_.End()); }
+  const absl::Status& error() const { return error_; }
+
+ private:
+  absl::Status Checked(absl::Status status) {
+    if (error_.ok()) error_ = status;
+    return status;
+  }
+
+  GalleryLoader& loader_;
+  absl::Status error_;
+};
+
 absl::StatusOr<std::unique_ptr<SqliteGalleryStore>> SqliteGalleryStore::Open(
     SqliteGalleryStoreOptions options) {
   if (options.data_dir.empty()) return absl::InvalidArgumentError("data_dir is empty");
@@ -402,9 +424,10 @@ absl::Status SqliteGalleryStore::DeleteGallery(absl::string_view name) {
   return absl::OkStatus();
 }
 
-absl::StatusOr<StoredGallery> SqliteGalleryStore::LoadFile(const std::string& name,
-                                                           std::shared_ptr<OpenGallery>* out,
-                                                           absl::Status* unwritable) {
+absl::StatusOr<GalleryMetadata> SqliteGalleryStore::LoadFile(const std::string& name,
+                                                             CheckedLoader& loader,
+                                                             std::shared_ptr<OpenGallery>* out,
+                                                             absl::Status* unwritable) {
   const std::string path = GalleryPath(name);
   if (absl::Status s = ValidateGalleryName(name); !s.ok()) {
     return absl::DataLossError(
@@ -412,13 +435,14 @@ absl::StatusOr<StoredGallery> SqliteGalleryStore::LoadFile(const std::string& na
   }
   auto open = std::make_shared<OpenGallery>();
   std::lock_guard<std::mutex> lock(open->mu);
-  absl::StatusOr<StoredGallery> loaded;
+  absl::StatusOr<GalleryMetadata> loaded;
   if (read_only()) {
     *unwritable = absl::UnavailableError(read_only_);
   } else {
     absl::StatusOr<std::unique_ptr<SqliteDb>> db =
         SqliteDb::Open(path, SqliteDb::Mode::kReadWrite, options_.testing_vfs);
-    loaded = db.ok() ? ReadGallery(**db, path, name) : db.status();
+    loaded = db.ok() ? ReadGallery(**db, path, name, loader) : db.status();
+    if (!loader.error().ok()) return loader.error();
     if (loaded.ok() && (*db)->read_only()) {
       // unix opened it read-only by itself: read completely, but every write would fail.
       *unwritable = absl::UnavailableError(
@@ -436,7 +460,9 @@ absl::StatusOr<StoredGallery> SqliteGalleryStore::LoadFile(const std::string& na
     }
   }
   if (!loaded.ok()) {
-    loaded = ReadReadOnly(name);
+    // Read again from the start: the loader drops what the first read began.
+    loaded = ReadReadOnly(name, loader);
+    if (!loader.error().ok()) return loader.error();
     if (!loaded.ok() && IsDiskCondition(loaded.status())) {
       return absl::Status(
           loaded.status().code(),
@@ -454,7 +480,8 @@ absl::StatusOr<StoredGallery> SqliteGalleryStore::LoadFile(const std::string& na
   return loaded;
 }
 
-absl::StatusOr<StoredGallery> SqliteGalleryStore::ReadReadOnly(const std::string& name) {
+absl::StatusOr<GalleryMetadata> SqliteGalleryStore::ReadReadOnly(const std::string& name,
+                                                                 GalleryLoader& loader) {
   const std::string path = GalleryPath(name);
   // Committed transactions still in the -wal must be seen: an immutable open would ignore
   // them, so then the -wal is read into private memory instead (no -shm needed). The
@@ -469,7 +496,7 @@ absl::StatusOr<StoredGallery> SqliteGalleryStore::ReadReadOnly(const std::string
   std::string vfs = options_.testing_vfs;
   if (!vfs.empty() && mode == SqliteDb::Mode::kReadOnlyPrivateWal) vfs += "-none";
   SHAPEID_ASSIGN_OR_RETURN(std::unique_ptr<SqliteDb> db, SqliteDb::Open(path, mode, vfs));
-  return ReadGallery(*db, path, name);
+  return ReadGallery(*db, path, name, loader);
 }
 
 absl::Status SqliteGalleryStore::Reopen(absl::string_view name, absl::string_view what,
@@ -511,8 +538,8 @@ absl::Status SqliteGalleryStore::SetAsideFile(const std::string& name, const abs
   return absl::OkStatus();
 }
 
-absl::StatusOr<std::vector<StoredGallery>> SqliteGalleryStore::LoadAll() {
-  if (read_only() && !FileExists(galleries_dir_)) return std::vector<StoredGallery>{};
+absl::Status SqliteGalleryStore::Load(GalleryLoader& destination) {
+  if (read_only() && !FileExists(galleries_dir_)) return absl::OkStatus();
   SHAPEID_ASSIGN_OR_RETURN(const std::vector<std::string> entries, ListDirectory(galleries_dir_));
   // Finish what a crash interrupted: a deletion past its durable point, or a gallery that
   // was still being written (never acknowledged). Read-only, they are only skipped. Best
@@ -528,13 +555,14 @@ absl::StatusOr<std::vector<StoredGallery>> SqliteGalleryStore::LoadAll() {
   }
   if (cleaned) (void)SyncDirectory(galleries_dir_);
 
-  std::vector<StoredGallery> galleries;
+  CheckedLoader loader(destination);
   for (const std::string& entry : entries) {
     if (absl::StartsWith(entry, ".") || !absl::EndsWith(entry, kGallerySuffix)) continue;
     const std::string name = entry.substr(0, entry.size() - kGallerySuffix.size());
     std::shared_ptr<OpenGallery> open;
     absl::Status unwritable;
-    absl::StatusOr<StoredGallery> loaded = LoadFile(name, &open, &unwritable);
+    absl::StatusOr<GalleryMetadata> loaded = LoadFile(name, loader, &open, &unwritable);
+    if (!loader.error().ok()) return loader.error();
     if (!loaded.ok()) {
       if (!IsProvenDamage(loaded.status()) || !options_.set_aside_damaged || read_only()) {
         return absl::Status(loaded.status().code(), absl::StrCat("cannot load gallery '", name,
@@ -553,9 +581,8 @@ absl::StatusOr<std::vector<StoredGallery>> SqliteGalleryStore::LoadAll() {
       open_[name] = std::move(open);
       if (!unwritable.ok() && !read_only()) read_only_galleries_[name] = unwritable;
     }
-    galleries.push_back(*std::move(loaded));
   }
-  return galleries;
+  return absl::OkStatus();
 }
 
 }  // namespace shapeid

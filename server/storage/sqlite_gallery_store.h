@@ -104,7 +104,11 @@ class SqliteGalleryStore final : public GalleryStore {
   // disk's code (ResourceExhausted, Unavailable), a message saying that it is not damage and
   // what to do, and is never set aside. Proven damage fails LoadAll with DataLoss, or is set
   // aside (SqliteGalleryStoreOptions::set_aside_damaged).
-  absl::StatusOr<std::vector<StoredGallery>> LoadAll() override;
+  //
+  // Load reads each file a sample at a time into the loader (a gallery set aside partway is
+  // begun and never ended); LoadAll collects the same whole.
+  absl::Status Load(GalleryLoader& loader) override;
+  absl::StatusOr<std::vector<StoredGallery>> LoadAll() override { return CollectGalleries(*this); }
 
   struct SetAside {
     std::string name;      // gallery
@@ -131,6 +135,7 @@ class SqliteGalleryStore final : public GalleryStore {
 
  private:
   struct OpenGallery;
+  class CheckedLoader;
 
   SqliteGalleryStore(SqliteGalleryStoreOptions options, int lock_fd, std::string read_only);
 
@@ -145,12 +150,13 @@ class SqliteGalleryStore final : public GalleryStore {
   // Makes a file of a format before 3 able to hold provenance (see kFormatVersion).
   // Errors say "cannot <what> gallery 'NAME'", as ChangeSamples'.
   absl::Status AddProvenanceColumn(absl::string_view name, absl::string_view what);
-  // Verifies and reads one gallery file, for writing if it can (see LoadAll); `*unwritable`
-  // says why not.
-  absl::StatusOr<StoredGallery> LoadFile(const std::string& name, std::shared_ptr<OpenGallery>* out,
-                                         absl::Status* unwritable);
-  // Reads a gallery without writing anything, not even a -shm.
-  absl::StatusOr<StoredGallery> ReadReadOnly(const std::string& name);
+  // Verifies and reads one gallery file into `loader`, for writing if it can (see LoadAll);
+  // `*unwritable` says why not. The loader's own error is returned as it is.
+  absl::StatusOr<GalleryMetadata> LoadFile(const std::string& name, CheckedLoader& loader,
+                                           std::shared_ptr<OpenGallery>* out,
+                                           absl::Status* unwritable);
+  // Reads a gallery into `loader` without writing anything, not even a -shm.
+  absl::StatusOr<GalleryMetadata> ReadReadOnly(const std::string& name, GalleryLoader& loader);
   // Opens a gallery served read-only for writing, with g.mu held; "cannot <what> gallery
   // 'NAME': ..." if it still cannot be.
   absl::Status Reopen(absl::string_view name, absl::string_view what, OpenGallery& g);

@@ -13,7 +13,9 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <random>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -491,6 +493,69 @@ TEST(SqliteGalleryStoreTest, SetAsideMovesTheDamagedGalleryAndLoadsTheRest) {
   ASSERT_TRUE(again.ok()) << again.status();
   ASSERT_EQ(again->size(), 2u);
   ExpectSameStoredGallery((*again)[0], MakeGallery("bad", 4, 2, 8));
+}
+
+// Records what Load hands over; fails with `fail` at sample `fail_at` (counted from 1 over the
+// whole load) when that is set.
+class RecordingLoader final : public GalleryLoader {
+ public:
+  absl::Status Begin(const GalleryMetadata& gallery) override {
+    events.push_back(absl::StrCat("begin ", gallery.name));
+    return absl::OkStatus();
+  }
+  absl::Status Add(StoredSample& sample) override {
+    if (++added == fail_at) return fail;
+    addresses.insert(&sample);
+    ++samples_since_begin[events.back()];
+    return absl::OkStatus();
+  }
+  absl::Status End() override {
+    events.push_back("end");
+    return absl::OkStatus();
+  }
+
+  std::vector<std::string> events;
+  std::map<std::string, int> samples_since_begin;
+  std::set<const StoredSample*> addresses;
+  int added = 0;
+  int fail_at = 0;
+  absl::Status fail;
+};
+
+TEST(SqliteGalleryStoreTest, LoadHandsOverASampleAtATimeAndDropsAGalleryDamagedPartway) {
+  StoredGallery bad;
+  const std::string dir = StoreWithTwoGalleries(&bad);
+  const std::string path = dir + "/galleries/bad.gallery";
+  const float* f = bad.samples[17].features.data();
+  const long at = Find(path, std::string(reinterpret_cast<const char*>(f), 16 * sizeof(float)));
+  ASSERT_GE(at, 0);
+  Overwrite(path, at, std::string(4, '\x7f'));
+  auto store = OpenStore(dir, /*set_aside=*/true);
+  RecordingLoader loader;
+  ASSERT_TRUE(store->Load(loader).ok());
+  // "bad" is begun and handed its first 17 samples, then set aside, never ended.
+  EXPECT_THAT(loader.events, ElementsAre("begin bad", "begin good", "end"));
+  EXPECT_EQ(loader.samples_since_begin["begin bad"], 17);
+  EXPECT_EQ(loader.samples_since_begin["begin good"], 30);
+  EXPECT_EQ(loader.addresses.size(), 1u);  // one sample, refilled for every row
+  ASSERT_EQ(store->set_aside().size(), 1u);
+  EXPECT_EQ(store->set_aside()[0].name, "bad");
+}
+
+TEST(SqliteGalleryStoreTest, ALoadersErrorEndsTheLoadAsItIsAndSetsNothingAside) {
+  StoredGallery bad;
+  const std::string dir = StoreWithTwoGalleries(&bad);
+  for (const absl::Status& fail :
+       {absl::InvalidArgumentError("restoring: a bad label"), absl::DataLossError("id 0")}) {
+    auto store = OpenStore(dir, /*set_aside=*/true);
+    RecordingLoader loader;
+    loader.fail_at = 40;  // in "good"
+    loader.fail = fail;
+    EXPECT_EQ(store->Load(loader), fail);
+    EXPECT_THAT(store->set_aside(), IsEmpty());
+    EXPECT_TRUE(FileExists(dir + "/galleries/bad.gallery"));
+    EXPECT_TRUE(FileExists(dir + "/galleries/good.gallery"));
+  }
 }
 
 // A small tmpfs the test mounts, to fill or make read-only. Skips (saying why) where the
