@@ -298,7 +298,10 @@ int Main(int argc, char** argv) {
   // The lab's own heavy describe, idle: what its wait under the abuse is compared with.
   const PointCloud lab_heavy = bench::SurfaceCloud(1'000'000, 11);
   Series lab_heavy_idle;
-  for (int i = 0; i < 2; ++i) lab_heavy_idle.Add(absl::Now(), lab->Describe(lab_heavy).status());
+  for (int i = 0; i < 2; ++i) {
+    const absl::Time start = absl::Now();
+    lab_heavy_idle.Add(start, lab->Describe(lab_heavy).status());
+  }
   const int64_t rss_idle = server.ResidentBytes();
 
   std::atomic<bool> stop{false};
@@ -373,7 +376,10 @@ int Main(int argc, char** argv) {
   Series lab_heavy_abuse;
   std::thread lab_heavy_thread([&] {
     std::unique_ptr<Client> own = Connect(server.address(), kLabKey, absl::Minutes(10));
-    while (!stop.load()) lab_heavy_abuse.Add(absl::Now(), own->Describe(lab_heavy).status());
+    while (!stop.load()) {
+      const absl::Time start = absl::Now();
+      lab_heavy_abuse.Add(start, own->Describe(lab_heavy).status());
+    }
   });
   // At least `seconds`, and until every abuser stream has finished one call.
   while (absl::Now() - abuse_start < absl::Seconds(seconds) ||

@@ -35,6 +35,11 @@ bool MemoryBudget::FitsLocked(absl::string_view caller, size_t bytes) const {
   return bytes <= per_caller_ - std::min(mine, per_caller_);
 }
 
+bool MemoryBudget::FitsTotal(size_t bytes) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return total_ == 0 || bytes <= total_ - std::min(held_, total_);
+}
+
 bool MemoryBudget::Fits(absl::string_view caller, size_t bytes) const {
   std::lock_guard<std::mutex> lock(mu_);
   return FitsLocked(caller, bytes);

@@ -72,6 +72,9 @@ class MemoryBudget {
 
   // Whether Reserve(caller, bytes) would succeed now.
   bool Fits(absl::string_view caller, size_t bytes) const;
+  // Whether `bytes` fit in what no caller holds now (whoever asks: the server's total, not a
+  // caller's share).
+  bool FitsTotal(size_t bytes) const;
   // Whether Reserve(caller, bytes) could ever succeed (bytes within the caller's share).
   bool EverFits(size_t bytes) const { return total_ == 0 || bytes <= per_caller_; }
   // The status Reserve gives `caller` for `bytes` when it does not fit.

@@ -21,6 +21,9 @@ constexpr absl::Duration kSweepInterval = absl::Milliseconds(20);
 // Work that needs at most this much memory may start while an earlier piece of its lane
 // waits for the budget (a big piece waits for memory; small ones need not wait behind it).
 constexpr size_t kSmallMemory = size_t{1} << 20;
+// How long work refused by its own caller's share of the budget, while none of that caller's
+// work runs, waits before it is refused (see TakeLocked).
+constexpr absl::Duration kOwnShareGrace = absl::Seconds(1);
 
 int Cores() { return UsableCores(); }
 
@@ -228,9 +231,30 @@ bool WorkScheduler::TakeLocked(WorkLane which, absl::Time now, Taken* taken,
         continue;
       }
       absl::StatusOr<MemoryBudget::Grant> grant =
-          budget_->Reserve(order.caller, order.memory, "describing this cloud");
+          budget_->Reserve(order.caller, order.memory, "this call's work");
       if (!grant.ok()) {
-        blocked = true;
+        if (!budget_->FitsTotal(order.memory)) {
+          blocked = true;  // the server's budget is full: big work waits its turn for it
+          ++it;
+          continue;
+        }
+        // Its own caller's share refuses it: others' work need not wait behind it. When none
+        // of that caller's work runs, only its other waiting calls hold the share, and they
+        // wait for the same memory: after a grace period (an answer being sent also holds
+        // some), the call is refused rather than left to wait for its deadline.
+        Job& job = it->second;
+        if (RunningLocked(order.caller) > 0) {
+          job.own_share_blocked_since = absl::InfiniteFuture();
+        } else if (job.own_share_blocked_since == absl::InfiniteFuture()) {
+          job.own_share_blocked_since = now;
+        } else if (now - job.own_share_blocked_since >= kOwnShareGrace) {
+          absl::Status refused = grant.status();
+          refused = absl::ResourceExhaustedError(absl::StrCat(
+              refused.message(), "; none of this caller's work is running to give any back, "
+                                 "so it would wait for ever: send fewer large calls at once"));
+          it = DropLocked(which, it, std::move(refused), now, dropped);
+          continue;
+        }
         ++it;
         continue;
       }
@@ -262,7 +286,12 @@ void WorkScheduler::Work(WorkLane which) {
     }
     Taken taken;
     const bool have = !stopping_ && TakeLocked(which, now, &taken, &dropped);
-    if (have) ++lane.running;
+    std::string caller;
+    if (have) {
+      ++lane.running;
+      caller = taken.job.order.caller;
+      ++running_by_caller_[caller];
+    }
     if (have || !dropped.empty()) {
       lock.unlock();
       for (Taken& drop : dropped) drop.job.work(drop.start);
@@ -276,6 +305,10 @@ void WorkScheduler::Work(WorkLane which) {
       lock.lock();
       if (have) {
         --lane.running;
+        if (const auto mine = running_by_caller_.find(caller);
+            mine != running_by_caller_.end() && --mine->second <= 0) {
+          running_by_caller_.erase(mine);
+        }
         // Memory came back: work waiting in another lane may be able to start now. (This
         // worker itself takes its own lane's next work.)
         for (Lane& other : lanes_) {
@@ -297,6 +330,11 @@ void WorkScheduler::Work(WorkLane which) {
       --sleepers_;
     }
   }
+}
+
+int WorkScheduler::RunningLocked(absl::string_view caller) const {
+  const auto found = running_by_caller_.find(caller);
+  return found == running_by_caller_.end() ? 0 : found->second;
 }
 
 WorkScheduler::LaneStats WorkScheduler::stats(WorkLane which) const {

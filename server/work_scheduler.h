@@ -16,7 +16,9 @@
 // a long backlog does not delay another caller's next piece of work by more than about one
 // piece of its own. Work whose deadline has passed, or whose call was cancelled, is dropped
 // before it starts. Work that needs working memory starts only when the memory budget
-// (server/memory_budget.h) grants it, and holds it while it runs.
+// (server/memory_budget.h) grants it, and holds it while it runs. Work refused by its own
+// caller's share never delays other callers' work; when none of that caller's work is
+// running to give memory back, it is refused (ResourceExhausted) after a second.
 
 #include <condition_variable>
 #include <cstddef>
@@ -144,6 +146,9 @@ class WorkScheduler {
     WorkOrder order;
     std::function<void(const WorkStart&)> work;
     absl::Time submitted;
+    // Since when its memory has been refused by its own caller's share while none of that
+    // caller's work ran; InfiniteFuture: not so.
+    absl::Time own_share_blocked_since = absl::InfiniteFuture();
   };
   // Queued in the order of their start tags (start-time fair queuing), then of arrival.
   using Tag = std::pair<double, uint64_t>;
@@ -184,6 +189,8 @@ class WorkScheduler {
   Job UnqueueLocked(Lane& lane, std::map<Tag, Job>::iterator it) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   // Debug builds: the sum of the callers' backlogs equals the queued work.
   void CheckBacklogLocked() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // Pieces of `caller`'s work running now, in every lane.
+  int RunningLocked(absl::string_view caller) const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   // ResourceExhausted when `caller` may not queue more in `lane` (see max_queued).
   absl::Status ShareRefusalLocked(WorkLane lane, absl::string_view caller) const
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
@@ -194,6 +201,7 @@ class WorkScheduler {
   mutable std::mutex mu_;
   Lane lanes_[kNumWorkLanes] ABSL_GUARDED_BY(mu_);
   std::map<std::string, absl::Duration, std::less<>> backlog_ ABSL_GUARDED_BY(mu_);
+  std::map<std::string, int, std::less<>> running_by_caller_ ABSL_GUARDED_BY(mu_);
   uint64_t next_seq_ ABSL_GUARDED_BY(mu_) = 0;
   bool stopping_ ABSL_GUARDED_BY(mu_) = false;
   int sleepers_ ABSL_GUARDED_BY(mu_) = 0;  // workers waiting without a timeout

@@ -300,6 +300,35 @@ TEST(WorkSchedulerTest, RefusesAtOnceWorkThatWithItsCloudCouldNeverFitACallersSh
   ran.get_future().wait();
 }
 
+// Two large calls of one caller whose clouds fill its share: neither's work can ever get its
+// memory. It must neither hold up another caller's large work nor wait for its deadline.
+TEST(WorkSchedulerTest, WorkThatOnlyItsOwnCallersOtherCallsBlockIsRefusedAndBlocksNoOne) {
+  constexpr size_t kMiB = size_t{1} << 20;
+  auto budget = std::make_shared<MemoryBudget>(MemoryBudgetOptions{64 * kMiB, 0.5});
+  WorkScheduler scheduler(OneWorkerEach(), budget);
+  absl::StatusOr<MemoryBudget::Grant> cloud1 = budget->Reserve("robot", 12 * kMiB);
+  absl::StatusOr<MemoryBudget::Grant> cloud2 = budget->Reserve("robot", 12 * kMiB);
+  ASSERT_TRUE(cloud1.ok() && cloud2.ok());
+  WorkOrder stuck = Order("robot", kCheap);
+  stuck.memory = 10 * kMiB;  // with its own cloud 22 MiB: fits the 32 a caller may hold...
+  stuck.held = 12 * kMiB;    // ...but not beside the other call's 12
+  std::promise<absl::Status> refused;
+  const absl::Time submitted = absl::Now();
+  ASSERT_TRUE(
+      scheduler.Submit(stuck, [&](const WorkStart& start) { refused.set_value(start.status); })
+          .ok());
+  WorkOrder other = Order("lab", kCheap);
+  other.memory = 8 * kMiB;
+  std::promise<void> ran;
+  ASSERT_TRUE(scheduler.Submit(other, [&](const WorkStart&) { ran.set_value(); }).ok());
+  ran.get_future().wait();  // not behind the robot's
+  const absl::Status status = refused.get_future().get();
+  EXPECT_EQ(status.code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_THAT(status.message(), HasSubstr("send fewer large calls at once"));
+  EXPECT_LT(absl::Now() - submitted, absl::Seconds(10));
+  EXPECT_EQ(scheduler.backlog().total, absl::ZeroDuration());
+}
+
 TEST(WorkSchedulerTest, StopDropsQueuedWorkAndRefusesNewWork) {
   auto scheduler = std::make_unique<WorkScheduler>(OneWorkerEach(), nullptr);
   Blocker busy(*scheduler, Order("a", kHeavy));
