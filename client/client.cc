@@ -279,9 +279,9 @@ absl::StatusOr<std::unique_ptr<Client>> Client::Connect(ClientOptions options) {
     if (absl::Status id = CheckRequestId(options.request_id); !id.ok()) return id;
   }
   if (!options.caller_id.empty() && !IsValidCallerId(options.caller_id)) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "caller id '", options.caller_id,
-        "': a caller id is 1 to 64 characters of A-Z a-z 0-9 . _ : -"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("caller id '", options.caller_id,
+                     "': a caller id is 1 to 64 characters of A-Z a-z 0-9 . _ : -"));
   }
   absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = MakeChannel(options);
   if (!channel.ok()) return channel.status();

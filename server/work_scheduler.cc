@@ -92,10 +92,11 @@ absl::Status WorkScheduler::ShareRefusalLocked(WorkLane which, absl::string_view
   const int64_t share = std::max<int64_t>(1, options_.max_queued / callers);
   if (mine < share && queued < 2 * options_.max_queued) return absl::OkStatus();
   if (mine < share) {
-    return absl::ResourceExhaustedError(absl::StrCat(
-        "the server has ", queued, " pieces of ", WorkLaneName(which), " work waiting from ",
-        lane.queued_by_caller.size(), " callers, twice its limit (--max_queued_work); retry "
-        "shortly"));
+    return absl::ResourceExhaustedError(
+        absl::StrCat("the server has ", queued, " pieces of ", WorkLaneName(which),
+                     " work waiting from ", lane.queued_by_caller.size(),
+                     " callers, twice its limit (--max_queued_work); retry "
+                     "shortly"));
   }
   return absl::ResourceExhaustedError(
       absl::StrCat("this caller has ", mine, " pieces of ", WorkLaneName(which),
@@ -249,9 +250,10 @@ bool WorkScheduler::TakeLocked(WorkLane which, absl::Time now, Taken* taken,
           job.own_share_blocked_since = now;
         } else if (now - job.own_share_blocked_since >= kOwnShareGrace) {
           absl::Status refused = grant.status();
-          refused = absl::ResourceExhaustedError(absl::StrCat(
-              refused.message(), "; none of this caller's work is running to give any back, "
-                                 "so it would wait for ever: send fewer large calls at once"));
+          refused = absl::ResourceExhaustedError(
+              absl::StrCat(refused.message(),
+                           "; none of this caller's work is running to give any back, "
+                           "so it would wait for ever: send fewer large calls at once"));
           it = DropLocked(which, it, std::move(refused), now, dropped);
           continue;
         }
