@@ -35,6 +35,10 @@ constexpr size_t kObjectAnswerBytes = 256;
 // copied) and serialised; its bytes without provenance (a label of up to ~40 bytes).
 constexpr double kNeighborSeconds = 0.5e-6;
 constexpr size_t kNeighborBytes = 96;
+// An answer's bytes: copied into the proto (provenance's sources and metadata maps), then
+// serialised on the same worker (work_costs_test: 2,000 neighbours with provenance at its
+// limits, 17 MB, in ~30 ms), rounded up.
+constexpr double kAnswerSecondsPerByte = 3e-9;
 // One point tested against one RANSAC hypothesis (a multiply-add and a compare, vectorised).
 constexpr double kPlaneTestSeconds = 1e-9;
 // The sensor simulator's cost per input point for one synthetic view
@@ -93,9 +97,11 @@ WorkEstimate EstimateClassify(const GallerySnapshot& snapshot, size_t points, in
   if (const std::shared_ptr<const Descriptor>& descriptor = snapshot.shared_descriptor()) {
     estimate = EstimateDescribe(*descriptor, points);
   }
+  const size_t answer = EstimateNeighborBytes(snapshot, k);
   estimate.cpu += SearchCost(snapshot) +
-                  absl::Seconds(kNeighborSeconds * static_cast<double>(NeighborsOf(snapshot, k)));
-  estimate.memory += EstimateNeighborBytes(snapshot, k);
+                  absl::Seconds(kNeighborSeconds * static_cast<double>(NeighborsOf(snapshot, k)) +
+                                kAnswerSecondsPerByte * static_cast<double>(answer));
+  estimate.memory += answer;
   return estimate;
 }
 

@@ -17,6 +17,7 @@
 #include "core/gallery/gallery_store.h"
 #include "core/gallery/scene_recognition.h"
 #include "core/testing/test_clouds.h"
+#include "server/proto_convert.h"
 #include "core/views/augment.h"
 #include "gtest/gtest.h"
 
@@ -24,7 +25,8 @@ namespace shapeid {
 namespace {
 
 // A gallery of `samples` rphsd samples (features made up: only the sizes matter here).
-std::shared_ptr<const GallerySnapshot> GalleryOf(int64_t samples) {
+// With `fat_provenance`, each sample carries provenance at its documented limits.
+std::shared_ptr<const GallerySnapshot> GalleryOf(int64_t samples, bool fat_provenance = false) {
   StoredGallery stored;
   stored.name = "costs";
   stored.options.descriptor_spec = "rphsd";
@@ -38,6 +40,12 @@ std::shared_ptr<const GallerySnapshot> GalleryOf(int64_t samples) {
                         std::vector<float>(stored.dimension)};
     for (int j = 0; j < stored.dimension; ++j)
       sample.features[j] = static_cast<float>((i + j) % 13);
+    if (fat_provenance) {
+      sample.provenance.source = absl::StrCat("file:///scans/", i, "/", std::string(4000, 's'));
+      for (int m = 0; m < 32; ++m) {
+        sample.provenance.metadata.emplace_back(absl::StrCat("key", 10 + m), std::string(100, 'v'));
+      }
+    }
     stored.samples.push_back(std::move(sample));
   }
   auto gallery = Gallery::Restore(stored, GalleryLimits{}, nullptr);
@@ -156,13 +164,23 @@ TEST(WorkCostsTest, EstimatesFollowTheMeasuredWorkOverASpreadOfInputs) {
            MeasuredCpu([&] { ASSERT_TRUE((*descriptor)->Compute(cloud, &values).ok()); })});
     }
   }
-  for (const int64_t samples : {100, 50'000}) {
-    const auto gallery = GalleryOf(samples);
+  // A Classify's work: describing, searching, and its answer built and serialised, as the
+  // server's worker does.
+  for (const auto& [samples, fat] : {std::pair<int64_t, bool>{100, false}, {50'000, false},
+                                     {2'000, true}}) {
+    const auto gallery = GalleryOf(samples, fat);
     for (const int k : {1, 1'000}) {
       const PointCloud query = testing_clouds::ShapeCloud(2, 9, 1'024);
-      cases.push_back({absl::StrCat("classify ", samples, " samples k ", k),
+      cases.push_back({absl::StrCat("classify ", samples, " samples", fat ? " (provenance)" : "",
+                                    " k ", k),
                        EstimateClassify(*gallery, 1'024, k), MeasuredCpu([&] {
-                         ASSERT_TRUE(gallery->Classify(query, limits, k).ok());
+                         absl::StatusOr<GalleryClassification> answer =
+                             gallery->Classify(query, limits, k);
+                         ASSERT_TRUE(answer.ok());
+                         v1::ClassifyResponse response;
+                         ToProto(*answer, query.size(), &response);
+                         std::string bytes;
+                         ASSERT_TRUE(response.SerializeToString(&bytes));
                        })});
     }
   }
