@@ -105,8 +105,9 @@ int FreePort() {
 }
 
 std::unique_ptr<Client> Connect(const std::string& target, const std::string& key,
-                                absl::Duration deadline) {
+                                absl::Duration deadline, size_t chunk_points = 0) {
   ClientOptions options;
+  if (chunk_points > 0) options.chunk_points = chunk_points;
   options.target = target;
   options.api_key = key;
   options.deadline = deadline;
@@ -192,7 +193,8 @@ int Main(int argc, char** argv) {
   int in_flight = 0;
   int answer_samples = 2'000;
   app.add_option("--abuse", mode,
-                 "describe (heavy Describe streams), cheap, scenes, huge_scenes or answers");
+                 "describe (heavy Describe streams), cheap, scenes, huge_scenes, answers or "
+                 "streams (--heavy streams of --points in 12 MB messages)");
   app.add_option("--in_flight", in_flight,
                  "calls the abuser keeps open (0: 512 cheap, 4 scenes, 8 answers)");
   app.add_option("--answer_samples", answer_samples,
@@ -207,11 +209,16 @@ int Main(int argc, char** argv) {
   app.add_option("--flag", extra, "an extra server flag (repeatable)");
   CLI11_PARSE(app, argc, argv);
   if (mode != "describe" && mode != "cheap" && mode != "scenes" && mode != "huge_scenes" &&
-      mode != "answers") {
+      mode != "answers" && mode != "streams") {
     std::fprintf(stderr,
-                 "fair_server_bench: --abuse describe, cheap, scenes, huge_scenes or answers\n");
+                 "fair_server_bench: --abuse describe, cheap, scenes, huge_scenes, answers or "
+                 "streams\n");
     return 2;
   }
+  // Many streams at once, each a cloud in messages of a million points (12 MB): what gRPC
+  // buffers before the service sees a message.
+  const bool streams = mode == "streams";
+  if (streams) mode = "describe";
   if (in_flight <= 0) in_flight = mode == "cheap" ? 512 : mode == "answers" ? 8 : 4;
 
   const std::string dir = absl::StrCat(std::filesystem::temp_directory_path().string(),
@@ -315,7 +322,8 @@ int Main(int argc, char** argv) {
   if (mode == "describe" || mode == "huge_scenes") {
     for (int i = 0; i < heavy; ++i) {
       abusers.emplace_back([&] {
-        std::unique_ptr<Client> abuser = Connect(server.address(), kAbuserKey, absl::Minutes(10));
+        std::unique_ptr<Client> abuser = Connect(server.address(), kAbuserKey, absl::Minutes(10),
+                                                 streams ? 1'000'000 : 0);
         do {
           const absl::Time start = absl::Now();
           if (mode == "describe") {
