@@ -998,5 +998,54 @@ TEST_F(GalleryServiceTest, ListSamplesPagesStayWithinMaxAnswerBytes) {
   EXPECT_EQ(bytes.size(), 40u);
 }
 
+// A Classify whose answer (k neighbours, each with its provenance) would pass
+// max_answer_bytes is refused saying what to ask for; one that fits is answered, and the
+// memory its answer held is given back.
+TEST_F(GalleryServiceTest, AClassifyAnswerOverMaxAnswerBytesIsRefusedNamingK) {
+  ServerOptions options;
+  options.listen = "127.0.0.1:0";
+  options.service.max_answer_bytes = 64 << 10;
+  auto server = ShapeIdServer::Start(options);
+  ASSERT_TRUE(server.ok()) << server.status();
+  server_ = std::move(server).value();
+  channel_ = grpc::CreateChannel(server_->address(), grpc::InsecureChannelCredentials());
+  stub_ = v1::ShapeId::NewStub(channel_);
+  std::vector<Sample> samples;
+  for (uint64_t id = 1; id <= 20; ++id) {
+    Sample s{id % 2 == 0 ? "even" : "odd", id, Shape(static_cast<int>(id % 3), 7 + id, 100)};
+    s.source = std::string(4096, 's');
+    s.metadata["camera"] = std::string(4000, 'c');
+    samples.push_back(std::move(s));
+  }
+  v1::TrainResponse trained;
+  ASSERT_TRUE(Create("fat").ok());
+  ASSERT_TRUE(Train("fat", samples, &trained).ok());
+  const auto classify = [&](uint32_t k, v1::ClassifyResponse* response) {
+    v1::ClassifyCloudRequest request;
+    request.mutable_header()->set_gallery("fat");
+    request.mutable_header()->set_k(k);
+    const PointCloud query = Shape(1, 99, 100);
+    request.mutable_points()->set_xyz(std::string(reinterpret_cast<const char*>(query.data()),
+                                                  query.size() * 12));
+    grpc::ClientContext context;
+    return stub_->ClassifyCloud(&context, request, response);
+  };
+  v1::ClassifyResponse response;
+  const grpc::Status refused = classify(20, &response);  // 20 x 8 KB: 160 KB
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_THAT(refused.error_message(), HasSubstr("--max_answer_bytes"));
+  EXPECT_THAT(refused.error_message(), HasSubstr("fewer neighbours (k)"));
+  const grpc::Status fits = classify(5, &response);
+  ASSERT_TRUE(fits.ok()) << fits.error_message();
+  EXPECT_EQ(response.neighbors_size(), 5);
+  EXPECT_EQ(response.neighbors(0).source(), std::string(4096, 's'));
+  grpc::ClientContext stats_context;
+  v1::ServerStats stats;
+  ASSERT_TRUE(stub_->GetServerStats(&stats_context, v1::GetServerStatsRequest(), &stats).ok());
+  EXPECT_EQ(stats.memory_held_bytes(), 0u);
+  EXPECT_GE(stats.memory_held_peak_bytes(), 2 * response.ByteSizeLong());
+  EXPECT_EQ(stats.caller_backlog().seconds() + stats.caller_backlog().nanos(), 0);
+}
+
 }  // namespace
 }  // namespace shapeid
