@@ -74,10 +74,16 @@ Table MethodTable(const v1::ServerStats& stats, bool csv) {
 }
 
 Table WorkTable(const v1::ServerStats& stats) {
-  Table table{{"WORK", "WORKERS", "RUNNING", "QUEUED"}, {}, {false, true, true, true}};
+  // ESTIMATED: the queued pieces' estimated CPU time; CALLERS: how many callers they are from.
+  Table table{{"WORK", "WORKERS", "RUNNING", "QUEUED", "ESTIMATED", "CALLERS"},
+              {},
+              {false, true, true, true, true, true}};
   for (const v1::WorkLaneStats& lane : stats.work()) {
     table.rows.push_back({lane.lane(), GroupDigits(lane.workers()), GroupDigits(lane.running()),
-                          GroupDigits(lane.queued())});
+                          GroupDigits(lane.queued()),
+                          lane.queued() == 0 ? std::string("0")
+                                             : FormatSeconds(DurationSeconds(lane.queued_work())),
+                          GroupDigits(lane.queued_callers())});
   }
   return table;
 }
@@ -194,9 +200,13 @@ std::string StatsJson(const v1::ServerStats& stats, const std::string& target) {
     for (const v1::WorkLaneStats& lane : stats.work()) {
       absl::StrAppend(&lanes, lanes.empty() ? "" : ",", "{\"lane\":", JsonString(lane.lane()),
                       ",\"workers\":", lane.workers(), ",\"running\":", lane.running(),
-                      ",\"queued\":", lane.queued(), "}");
+                      ",\"queued\":", lane.queued(), ",\"queued_work_seconds\":",
+                      CsvSeconds(lane.queued_work()), ",\"queued_callers\":",
+                      lane.queued_callers(), "}");
     }
-    work = absl::StrCat(",\"memory_budget_bytes\":", stats.memory_budget_bytes(),
+    work = absl::StrCat(",\"caller_backlog_seconds\":", CsvSeconds(stats.caller_backlog()),
+                        ",\"callers_with_backlog\":", stats.callers_with_backlog(),
+                        ",\"memory_budget_bytes\":", stats.memory_budget_bytes(),
                         ",\"memory_held_bytes\":", stats.memory_held_bytes(),
                         ",\"memory_held_peak_bytes\":", stats.memory_held_peak_bytes(),
                         ",\"work\":[", lanes, "]");

@@ -84,7 +84,15 @@ v1::ServerStats SharedServer() {
     work->set_workers(lane.workers);
     work->set_running(lane.running);
     work->set_queued(lane.queued);
+    if (lane.queued > 0) {  // 1,234 pieces of 50 ms from 3 callers
+      work->mutable_queued_work()->set_seconds(61);
+      work->mutable_queued_work()->set_nanos(700000000);
+      work->set_queued_callers(3);
+    }
   }
+  stats.mutable_caller_backlog()->set_seconds(61);
+  stats.mutable_caller_backlog()->set_nanos(700000000);
+  stats.set_callers_with_backlog(3);
   stats.set_memory_budget_bytes(uint64_t{2048} << 20);
   stats.set_memory_held_bytes(uint64_t{1900} << 20);
   stats.set_memory_held_peak_bytes(uint64_t{2047} << 20);
@@ -269,10 +277,11 @@ TEST_F(SchedulerStatsTest, StatsTableShowsCallMemoryWaitsAndLanes) {
   EXPECT_EQ(lines[6], "ClassifyCloud  1,204,331      12  710 µs  2.4 ms     15 µs     31 ms");
   EXPECT_EQ(lines[7], "Train                  0       0       -       -         -         -");
   EXPECT_EQ(lines[8], "");
-  EXPECT_EQ(lines[9], "WORK   WORKERS  RUNNING  QUEUED");
-  EXPECT_EQ(lines[10], "cheap        2        2       0");
-  EXPECT_EQ(lines[11], "heavy        1        1   1,234");
-  EXPECT_EQ(lines[12], "store        2        0       0");
+  // The queued work's estimated CPU time, and how many callers it is from.
+  EXPECT_EQ(lines[9], "WORK   WORKERS  RUNNING  QUEUED  ESTIMATED  CALLERS");
+  EXPECT_EQ(lines[10], "cheap        2        2       0          0        0");
+  EXPECT_EQ(lines[11], "heavy        1        1   1,234     61.7 s        3");
+  EXPECT_EQ(lines[12], "store        2        0       0          0        0");
   EXPECT_EQ(lines[13], "");
   EXPECT_EQ(lines[14], "GALLERY  SAMPLES  VERSION");
   EXPECT_EQ(err_.contents(), "");
@@ -282,11 +291,15 @@ TEST_F(SchedulerStatsTest, StatsJsonCarriesWaitsLanesAndMemoryInBytes) {
   ASSERT_EQ(RunStats(Context(OutputFormat::kJson)), kExitOk) << err_.contents();
   EXPECT_EQ(PythonOnJsonLines(out_.contents(),
                               "[(r[\"memory_budget_bytes\"], r[\"memory_held_bytes\"], "
-                              "r[\"memory_held_peak_bytes\"], r[\"work\"]) for r in rows]"),
-            "[(2147483648, 1992294400, 2146435072, "
-            "[{'lane': 'cheap', 'workers': 2, 'running': 2, 'queued': 0}, "
-            "{'lane': 'heavy', 'workers': 1, 'running': 1, 'queued': 1234}, "
-            "{'lane': 'store', 'workers': 2, 'running': 0, 'queued': 0}])]");
+                              "r[\"memory_held_peak_bytes\"], r[\"caller_backlog_seconds\"], "
+                              "r[\"callers_with_backlog\"], r[\"work\"]) for r in rows]"),
+            "[(2147483648, 1992294400, 2146435072, 61.7, 3, "
+            "[{'lane': 'cheap', 'workers': 2, 'running': 2, 'queued': 0, "
+            "'queued_work_seconds': 0, 'queued_callers': 0}, "
+            "{'lane': 'heavy', 'workers': 1, 'running': 1, 'queued': 1234, "
+            "'queued_work_seconds': 61.7, 'queued_callers': 3}, "
+            "{'lane': 'store', 'workers': 2, 'running': 0, 'queued': 0, "
+            "'queued_work_seconds': 0, 'queued_callers': 0}])]");
   EXPECT_EQ(PythonOnJsonLines(out_.contents(),
                               "[[(m[\"method\"], m[\"latency_p99_seconds\"], "
                               "m[\"wait_p50_seconds\"], m[\"wait_p99_seconds\"]) "
@@ -319,7 +332,8 @@ TEST_F(SchedulerStatsTest, AnIdleServerWithoutABudgetShowsItsLanes) {
   EXPECT_THAT(
       out_.contents(),
       AllOf(HasSubstr("\ncall memory held 0 MiB  peak 0 MiB  budget none\n\nno calls yet\n"
-                      "\nWORK   WORKERS  RUNNING  QUEUED\ncheap        1        0       0\n"),
+                      "\nWORK   WORKERS  RUNNING  QUEUED  ESTIMATED  CALLERS\n"
+                      "cheap        1        0       0          0        0\n"),
             Not(HasSubstr("GALLERY"))));
   Captured json;
   context.out = json.get();
