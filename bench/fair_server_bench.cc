@@ -322,8 +322,8 @@ int Main(int argc, char** argv) {
   if (mode == "describe" || mode == "huge_scenes") {
     for (int i = 0; i < heavy; ++i) {
       abusers.emplace_back([&] {
-        std::unique_ptr<Client> abuser = Connect(server.address(), kAbuserKey, absl::Minutes(10),
-                                                 streams ? 1'000'000 : 0);
+        std::unique_ptr<Client> abuser =
+            Connect(server.address(), kAbuserKey, absl::Minutes(10), streams ? 1'000'000 : 0);
         do {
           const absl::Time start = absl::Now();
           if (mode == "describe") {

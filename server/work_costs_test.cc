@@ -17,9 +17,9 @@
 #include "core/gallery/gallery_store.h"
 #include "core/gallery/scene_recognition.h"
 #include "core/testing/test_clouds.h"
-#include "server/proto_convert.h"
 #include "core/views/augment.h"
 #include "gtest/gtest.h"
+#include "server/proto_convert.h"
 
 namespace shapeid {
 namespace {
@@ -166,22 +166,21 @@ TEST(WorkCostsTest, EstimatesFollowTheMeasuredWorkOverASpreadOfInputs) {
   }
   // A Classify's work: describing, searching, and its answer built and serialised, as the
   // server's worker does.
-  for (const auto& [samples, fat] : {std::pair<int64_t, bool>{100, false}, {50'000, false},
-                                     {2'000, true}}) {
+  for (const auto& [samples, fat] :
+       {std::pair<int64_t, bool>{100, false}, {50'000, false}, {2'000, true}}) {
     const auto gallery = GalleryOf(samples, fat);
     for (const int k : {1, 1'000}) {
       const PointCloud query = testing_clouds::ShapeCloud(2, 9, 1'024);
-      cases.push_back({absl::StrCat("classify ", samples, " samples", fat ? " (provenance)" : "",
-                                    " k ", k),
-                       EstimateClassify(*gallery, 1'024, k), MeasuredCpu([&] {
-                         absl::StatusOr<GalleryClassification> answer =
-                             gallery->Classify(query, limits, k);
-                         ASSERT_TRUE(answer.ok());
-                         v1::ClassifyResponse response;
-                         ToProto(*answer, query.size(), &response);
-                         std::string bytes;
-                         ASSERT_TRUE(response.SerializeToString(&bytes));
-                       })});
+      cases.push_back(
+          {absl::StrCat("classify ", samples, " samples", fat ? " (provenance)" : "", " k ", k),
+           EstimateClassify(*gallery, 1'024, k), MeasuredCpu([&] {
+             absl::StatusOr<GalleryClassification> answer = gallery->Classify(query, limits, k);
+             ASSERT_TRUE(answer.ok());
+             v1::ClassifyResponse response;
+             ToProto(*answer, query.size(), &response);
+             std::string bytes;
+             ASSERT_TRUE(response.SerializeToString(&bytes));
+           })});
     }
   }
   // Scenes: a table with a few shapes, and a frame of thousands of tiny clusters.

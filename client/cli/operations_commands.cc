@@ -79,11 +79,11 @@ Table WorkTable(const v1::ServerStats& stats) {
               {},
               {false, true, true, true, true, true}};
   for (const v1::WorkLaneStats& lane : stats.work()) {
-    table.rows.push_back({lane.lane(), GroupDigits(lane.workers()), GroupDigits(lane.running()),
-                          GroupDigits(lane.queued()),
-                          lane.queued() == 0 ? std::string("0")
-                                             : FormatSeconds(DurationSeconds(lane.queued_work())),
-                          GroupDigits(lane.queued_callers())});
+    table.rows.push_back(
+        {lane.lane(), GroupDigits(lane.workers()), GroupDigits(lane.running()),
+         GroupDigits(lane.queued()),
+         lane.queued() == 0 ? std::string("0") : FormatSeconds(DurationSeconds(lane.queued_work())),
+         GroupDigits(lane.queued_callers())});
   }
   return table;
 }
@@ -200,9 +200,9 @@ std::string StatsJson(const v1::ServerStats& stats, const std::string& target) {
     for (const v1::WorkLaneStats& lane : stats.work()) {
       absl::StrAppend(&lanes, lanes.empty() ? "" : ",", "{\"lane\":", JsonString(lane.lane()),
                       ",\"workers\":", lane.workers(), ",\"running\":", lane.running(),
-                      ",\"queued\":", lane.queued(), ",\"queued_work_seconds\":",
-                      CsvSeconds(lane.queued_work()), ",\"queued_callers\":",
-                      lane.queued_callers(), "}");
+                      ",\"queued\":", lane.queued(),
+                      ",\"queued_work_seconds\":", CsvSeconds(lane.queued_work()),
+                      ",\"queued_callers\":", lane.queued_callers(), "}");
     }
     work = absl::StrCat(",\"caller_backlog_seconds\":", CsvSeconds(stats.caller_backlog()),
                         ",\"callers_with_backlog\":", stats.callers_with_backlog(),

@@ -329,12 +329,11 @@ TEST_F(SchedulerStatsTest, AnIdleServerWithoutABudgetShowsItsLanes) {
   CliContext context = Context();
   context.client.target = target;
   ASSERT_EQ(RunStats(context), kExitOk) << err_.contents();
-  EXPECT_THAT(
-      out_.contents(),
-      AllOf(HasSubstr("\ncall memory held 0 MiB  peak 0 MiB  budget none\n\nno calls yet\n"
-                      "\nWORK   WORKERS  RUNNING  QUEUED  ESTIMATED  CALLERS\n"
-                      "cheap        1        0       0          0        0\n"),
-            Not(HasSubstr("GALLERY"))));
+  EXPECT_THAT(out_.contents(),
+              AllOf(HasSubstr("\ncall memory held 0 MiB  peak 0 MiB  budget none\n\nno calls yet\n"
+                              "\nWORK   WORKERS  RUNNING  QUEUED  ESTIMATED  CALLERS\n"
+                              "cheap        1        0       0          0        0\n"),
+                    Not(HasSubstr("GALLERY"))));
   Captured json;
   context.out = json.get();
   context.format = OutputFormat::kJson;
