@@ -88,7 +88,10 @@ size_t DecodeSameType(const char* in, size_t count, size_t step, const uint32_t 
     const auto by = ReadBits<T, kSwap>(in + offsets[1]);
     const auto bz = ReadBits<T, kSwap>(in + offsets[2]);
     if constexpr (std::is_same_v<T, double>) {
-      maybe_lost |= MaybeLostInFloat32(bx) | MaybeLostInFloat32(by) | MaybeLostInFloat32(bz);
+      // Branch-free; clang refuses `|` between bools.
+      maybe_lost |= MaybeLostInFloat32(bx);
+      maybe_lost |= MaybeLostInFloat32(by);
+      maybe_lost |= MaybeLostInFloat32(bz);
     }
     const float x = static_cast<float>(FromBits<T>(bx));
     const float y = static_cast<float>(FromBits<T>(by));
