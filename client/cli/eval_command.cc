@@ -67,6 +67,11 @@ int RunEval(const EvalOptions& options, const CliContext& context) {
              "evaluate on temporary in-process galleries)\n");
     return kExitUsage;
   }
+  if (!options.local && options.create.learn == "mlp") {
+    WriteAll(context.err,
+             "shapeid: eval: --learn mlp needs --local: servers do not fit trained heads yet\n");
+    return kExitUsage;
+  }
   absl::StatusOr<EvalPlan> plan =
       PlanEval(options.dataset, !options.gallery.empty(), options.folds, options.seed);
   if (!plan.ok()) return usage(plan.status());

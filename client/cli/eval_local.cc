@@ -13,6 +13,7 @@
 #include "client/cli/describe_command.h"
 #include "client/cli/input_files.h"
 #include "core/gallery/gallery.h"
+#include "core/gallery/gallery_head.h"
 #include "core/gallery/gallery_options.h"
 #include "core/gallery/gallery_snapshot.h"
 #include "core/io/point_cloud_reader.h"
@@ -149,6 +150,21 @@ class LocalEvalBackend final : public EvalBackend {
         Gallery::Restore(stored, empty_->limits(), /*store=*/nullptr);
     if (!gallery.ok()) return {"eval: train", gallery.status()};
     gallery_ = *std::move(gallery);
+    if (options_.create.learn == "mlp") {
+      // What a server's gallery does once trained (gallery_head.h), on this thread.
+      absl::StatusOr<GalleryHead> head = FitGalleryHead(*gallery_->Snapshot(), HeadOptions{});
+      run.learn = "mlp";
+      if (head.ok()) {
+        run.fit_seconds += absl::ToDoubleSeconds(head->fit_time);
+        run.head_holdout_rows += static_cast<uint64_t>(head->holdout_rows);
+        run.head_holdout_right += static_cast<uint64_t>(head->holdout_right);
+        const absl::Status set =
+            gallery_->SetHead(std::make_shared<const GalleryHead>(*std::move(head)));
+        if (!set.ok()) return {"eval: learn", set};
+      } else if (head.status().code() != absl::StatusCode::kFailedPrecondition) {
+        return {"eval: learn", head.status()};
+      }  // too small a gallery to fit: the kNN vote answers, as on a server
+    }
     run.descriptor_spec = stored.options.descriptor_spec;
     run.k =
         options_.create.k != 0 ? options_.create.k : static_cast<uint32_t>(stored.options.knn.k);

@@ -153,6 +153,15 @@ std::string FormatEvalTable(const EvalRun& run, const EvalMetrics& metrics) {
                     FormatSeconds(run.train_seconds));
   }
   absl::StrAppend(&out, "  testing ", FormatSeconds(run.test_seconds));
+  if (!run.learn.empty()) {
+    absl::StrAppend(&out, "  head (", run.learn, ") fitted in ", FormatSeconds(run.fit_seconds));
+    if (run.head_holdout_rows > 0) {
+      absl::StrAppend(&out, ", ",
+                      FormatPercent(static_cast<double>(run.head_holdout_right) /
+                                    static_cast<double>(run.head_holdout_rows)),
+                      " % on held-out training vectors");
+    }
+  }
   if (!run.failed_files.empty()) absl::StrAppend(&out, "  failed ", run.failed_files.size());
   out += "\n";
 
@@ -277,7 +286,14 @@ std::string FormatEvalJson(const EvalRun& run, const EvalMetrics& metrics, bool 
                   ",\"median_call_seconds\":", JsonNumber(metrics.median_call_seconds),
                   ",\"train_samples\":", run.train_samples,
                   ",\"train_seconds\":", JsonNumber(run.train_seconds),
-                  ",\"test_seconds\":", JsonNumber(run.test_seconds), ",\"classes\":[");
+                  ",\"test_seconds\":", JsonNumber(run.test_seconds));
+  if (!run.learn.empty()) {
+    absl::StrAppend(&out, ",\"learn\":", JsonString(run.learn),
+                    ",\"fit_seconds\":", JsonNumber(run.fit_seconds),
+                    ",\"head_holdout_rows\":", run.head_holdout_rows,
+                    ",\"head_holdout_right\":", run.head_holdout_right);
+  }
+  out += ",\"classes\":[";
   for (size_t i = 0; i < metrics.classes.size(); ++i) {
     const ClassScore& c = metrics.classes[i];
     absl::StrAppend(&out, i == 0 ? "" : ",", "{\"label\":", JsonString(c.label),

@@ -54,6 +54,13 @@ struct EvalRun {
   std::string server_version;  // the server's shapeid version; empty in-process or unknown
   double train_seconds = 0;    // wall time spent training, total over folds
   double test_seconds = 0;     // wall time spent classifying, total over folds
+  // --learn mlp: each round's gallery fitted its trained head (core/gallery/gallery_head.h)
+  // before testing; fit time and the heads' held-out rows (and those answered right), summed
+  // over rounds. Empty `learn`: the kNN vote alone.
+  std::string learn;
+  double fit_seconds = 0;
+  uint64_t head_holdout_rows = 0;
+  uint64_t head_holdout_right = 0;
   std::vector<std::string> failed_files;  // files that could not be read or classified
   std::vector<EvalPrediction> predictions;
 };

@@ -25,6 +25,7 @@ struct GalleryCreateOptions {
   uint32_t augment_views = 0;
   bool augment_random_pose = false;
   std::string augment_mix;  // "", "camera" or "varied"
+  std::string learn;        // eval --local only: "", "off" or "mlp" (core/gallery/gallery_head.h)
   bool exist_ok = false;    // an existing gallery is success (scripts re-run safely)
 };
 

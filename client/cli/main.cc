@@ -371,6 +371,12 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(2, 100));
   eval_cmd->add_option("--seed", eval.seed, "Seed of the k-fold shuffle")->capture_default_str();
   AddGalleryKnobs(eval_cmd, &eval.create);
+  eval_cmd
+      ->add_option("--learn", eval.create.learn,
+                   "With --local: mlp fits each round's gallery its trained head (a small "
+                   "network over the gallery's vectors, issue 40) before testing, and answers "
+                   "with the head and the kNN vote together; off (default): the kNN vote")
+      ->check(CLI::IsMember({"off", "mlp"}));
   eval_cmd->add_option("--report", eval.report_html, "Also write a self-contained HTML report");
   eval_cmd->add_flag("--predictions", eval.with_predictions,
                      "json: include every test cloud's prediction");

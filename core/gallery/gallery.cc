@@ -395,6 +395,7 @@ absl::StatusOr<std::shared_ptr<const GallerySnapshot>> Gallery::Mutate(const Ori
   // The copy shares the index's blocks (O(blocks)); readers keep using `current` meanwhile.
   std::shared_ptr<GallerySnapshot> next(new GallerySnapshot(*current));
   if (change != nullptr) SHAPEID_RETURN_IF_ERROR(change(*next));
+  next->RefreshHeadAnswers();
   // Seconds when the index has to be built; readers meanwhile use `current`.
   SHAPEID_RETURN_IF_ERROR(next->index_.UpdateApproximate(
       limits_.approximate, next->options().knn.scaling, origin.cancel_));
@@ -467,6 +468,14 @@ absl::Status Gallery::UpdateApproximateIndex(const std::atomic<bool>* cancel) {
     return !current.index_.ApproximateInStep(limits_.approximate, current.options().knn.scaling);
   };
   return Mutate(Origin::Derived(cancel), out_of_step, nullptr).status();
+}
+
+absl::Status Gallery::SetHead(std::shared_ptr<const GalleryHead> head) {
+  const Change set = [&](GallerySnapshot& next) {
+    next.head_ = head;
+    return absl::OkStatus();
+  };
+  return Mutate(Origin::Derived(nullptr), nullptr, set).status();
 }
 
 absl::StatusOr<int64_t> Gallery::RemoveSamples(absl::Span<const uint64_t> ids,

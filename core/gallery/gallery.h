@@ -213,6 +213,10 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
   // turns true meanwhile.
   absl::Status UpdateApproximateIndex(const std::atomic<bool>* cancel = nullptr);
 
+  // Publishes a snapshot with the same samples and version that holds `head` (null: none).
+  // Derived state: not stored here, nothing to do once deleted.
+  absl::Status SetHead(std::shared_ptr<const GalleryHead> head);
+
   // Replication, for a store shared by several servers: apply a change another server has
   // already stored, without writing to the store. `version` is the gallery's version after
   // the change. A change this gallery already holds (version <= its own) is skipped;

@@ -125,7 +125,7 @@ absl::StatusOr<GalleryClassification> GallerySnapshot::Classify(const PointCloud
   queries.insert(queries.end(), variants.begin(), variants.end());
   const absl::Time described = absl::Now();
   SHAPEID_ASSIGN_OR_RETURN(KnnResult knn, index_.Classify(queries, KnnFor(k), mode));
-  GalleryClassification answer = Answer(std::move(knn));
+  GalleryClassification answer = Answer(std::move(knn), queries);
   answer.describe_time = described - start;
   answer.search_time = absl::Now() - described;
   return answer;
@@ -140,7 +140,7 @@ absl::StatusOr<GalleryClassification> GallerySnapshot::ClassifyFeatures(
   }
   const absl::Time start = absl::Now();
   SHAPEID_ASSIGN_OR_RETURN(KnnResult knn, index_.Classify(features, KnnFor(k), mode));
-  GalleryClassification answer = Answer(std::move(knn));
+  GalleryClassification answer = Answer(std::move(knn), features);
   answer.search_time = absl::Now() - start;
   return answer;
 }
@@ -151,13 +151,44 @@ KnnOptions GallerySnapshot::KnnFor(int k) const {
   return knn;
 }
 
-GalleryClassification GallerySnapshot::Answer(KnnResult knn) const {
+void GallerySnapshot::RefreshHeadAnswers() {
+  head_answers_ = false;
+  if (head_ == nullptr || head_->classifier.dimension() != dimension()) return;
+  const std::vector<std::pair<std::string, int64_t>> counts = index_.LabelCounts();
+  if (counts.size() != head_->labels.size()) return;
+  for (const auto& [label, count] : counts) {
+    if (head_->ClassOf(label) < 0) return;
+  }
+  head_answers_ = true;
+}
+
+GalleryClassification GallerySnapshot::Answer(KnnResult knn,
+                                              absl::Span<const float> queries) const {
   GalleryClassification answer;
   // A non-empty index always returns at least one neighbour.
   answer.unknown = meta_.options.reject_distance > 0 && !knn.neighbors.empty() &&
                    knn.neighbors.front().distance > meta_.options.reject_distance;
   answer.label = answer.unknown ? std::string(kUnknownLabel) : knn.label;
   answer.confidence = answer.unknown ? 0.0 : knn.confidence;
+  if (!answer.unknown && head_answers_) {
+    // The head's probabilities (averaged over the query's pose variants) and the kNN vote's
+    // shares, half each: on views made by other code the two together beat either alone
+    // (docs/accuracy.md, "A gallery that learns").
+    absl::StatusOr<std::vector<float>> scores = head_->classifier.Probabilities(queries);
+    if (scores.ok()) {
+      double total = 0;
+      for (const ClassVote& vote : knn.votes) total += vote.weight;
+      for (float& score : *scores) score *= 0.5f;
+      for (const ClassVote& vote : knn.votes) {
+        const int c = head_->ClassOf(vote.label);
+        if (c >= 0 && total > 0) (*scores)[c] += static_cast<float>(0.5 * vote.weight / total);
+      }
+      const size_t best = std::max_element(scores->begin(), scores->end()) - scores->begin();
+      answer.label = head_->labels[best];
+      answer.confidence = (*scores)[best];
+      answer.by_head = true;
+    }
+  }
   answer.provenance.reserve(knn.neighbors.size());
   for (const auto& neighbor : knn.neighbors) answer.provenance.push_back(Provenance(neighbor.id));
   answer.knn = std::move(knn);

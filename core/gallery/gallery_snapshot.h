@@ -14,6 +14,7 @@
 #include "absl/time/time.h"
 #include "absl/types/span.h"
 #include "core/descriptor.h"
+#include "core/gallery/gallery_head.h"
 #include "core/gallery/gallery_metadata.h"
 #include "core/gallery/gallery_options.h"
 #include "core/gallery/gallery_store.h"
@@ -36,6 +37,10 @@ struct GalleryClassification {
   KnnResult knn;
   // Each neighbour's provenance, in knn.neighbors' order; null for a sample trained without.
   std::vector<std::shared_ptr<const SampleProvenance>> provenance;
+  // True when the gallery's trained head (gallery_head.h) took part: label and confidence are
+  // then the best of the head's probabilities and the kNN vote shares, half each; false when
+  // the kNN vote alone answered. knn is the search's either way.
+  bool by_head = false;
   // Server-side time spent computing the descriptor and searching the index.
   absl::Duration describe_time;
   absl::Duration search_time;
@@ -114,6 +119,12 @@ class GallerySnapshot {
   // client pages through changes no other sample's page. O(num_samples * log(page_size)).
   SamplePage ListSamples(absl::string_view label, uint64_t after_id, size_t page_size) const;
 
+  // The trained head last fitted for this gallery (gallery_head.h), or null. It answers
+  // Classify only while head_answers(): its labels are exactly the gallery's; a head fitted
+  // before a label was added or removed is kept (for its figures) but answers nothing.
+  const std::shared_ptr<const GalleryHead>& head() const { return head_; }
+  bool head_answers() const { return head_answers_; }
+
   // GalleryMetadata's fields.
   absl::Time created() const { return meta_.created; }
   uint64_t incarnation() const { return meta_.incarnation; }
@@ -174,8 +185,11 @@ class GallerySnapshot {
 
   // The gallery's kNN options, with k replaced when `k` > 0.
   KnnOptions KnnFor(int k) const;
-  // Applies the reject rule to a kNN result.
-  GalleryClassification Answer(KnnResult knn) const;
+  // Applies the reject rule to a kNN result and, when the head answers, the head's label for
+  // `queries` (the query's vectors) in place of the vote.
+  GalleryClassification Answer(KnnResult knn, absl::Span<const float> queries) const;
+  // Sets head_answers_ from head_ and the samples' labels; after any change of either.
+  void RefreshHeadAnswers();
   // FailedPrecondition when incompatible(), else OK.
   absl::Status CheckCompatible() const;
 
@@ -190,6 +204,8 @@ class GallerySnapshot {
   int64_t provenance_memory_ = 0;                  // ProvenanceMemoryBytes over provenance_
   uint64_t next_assigned_id_ = uint64_t{1} << 63;  // kFirstAssignedId
   std::string incompatible_;
+  std::shared_ptr<const GalleryHead> head_;
+  bool head_answers_ = false;
 };
 
 }  // namespace shapeid

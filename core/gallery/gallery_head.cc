@@ -1,0 +1,162 @@
+#include "core/gallery/gallery_head.h"
+
+#include <algorithm>
+#include <cstring>
+#include <map>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "core/gallery/gallery_snapshot.h"
+#include "core/learning/binary_codec.h"
+#include "core/random.h"
+
+namespace shapeid {
+namespace {
+
+constexpr char kMagic[8] = {'S', 'H', 'P', 'D', 'H', 'E', 'A', 'D'};
+constexpr uint32_t kFormatVersion = 1;
+constexpr uint32_t kMaxLabels = 1 << 16;
+
+// Whether sample `id` is held out: a hash of the id alone, so that a sample stays on its side
+// of the split as the gallery grows and shrinks.
+bool HeldOut(uint64_t id, int per_mille) {
+  return per_mille > 0 &&
+         SplitMix64(id ^ 0x5eedf00dull).Next() % 1000 < static_cast<uint64_t>(per_mille);
+}
+
+}  // namespace
+
+absl::Status ValidateHeadOptions(const HeadOptions& options) {
+  if (absl::Status valid = ValidateMlpOptions(options.mlp); !valid.ok()) return valid;
+  if (options.holdout_per_mille < 0 || options.holdout_per_mille > 500) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("held-out per mille must be in [0, 500], not ", options.holdout_per_mille));
+  }
+  if (options.min_samples < 2) return absl::InvalidArgumentError("min samples must be >= 2");
+  return absl::OkStatus();
+}
+
+int GalleryHead::ClassOf(absl::string_view label) const {
+  const auto found = std::lower_bound(labels.begin(), labels.end(), label);
+  return found != labels.end() && *found == label ? static_cast<int>(found - labels.begin()) : -1;
+}
+
+std::string GalleryHead::Serialize() const {
+  ByteWriter out;
+  out.Bytes(absl::string_view(kMagic, sizeof(kMagic)));
+  out.U32(kFormatVersion);
+  out.U64(fitted_version);
+  out.U64(static_cast<uint64_t>(fitted_samples));
+  out.U64(static_cast<uint64_t>(fitted_rows));
+  out.U64(static_cast<uint64_t>(holdout_samples));
+  out.U64(static_cast<uint64_t>(holdout_rows));
+  out.U64(static_cast<uint64_t>(holdout_right));
+  out.U64(static_cast<uint64_t>(absl::ToInt64Microseconds(fit_time)));
+  out.U32(static_cast<uint32_t>(labels.size()));
+  for (const std::string& label : labels) out.String(label);
+  out.String(classifier.Serialize());
+  return std::move(out).Finish();
+}
+
+absl::StatusOr<GalleryHead> GalleryHead::Parse(absl::string_view bytes) {
+  auto bad = [](absl::string_view why) {
+    return absl::DataLossError(absl::StrCat("not a shapeid gallery head: ", why));
+  };
+  if (bytes.size() < sizeof(kMagic) || std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0) {
+    return bad("no magic");
+  }
+  ByteReader reader;
+  if (!reader.Open(bytes)) return bad("checksum mismatch (a truncated or altered file)");
+  absl::string_view magic;
+  reader.Bytes(sizeof(kMagic), magic);
+  uint32_t version = 0;
+  if (!reader.U32(version) || version != kFormatVersion) {
+    return bad(absl::StrCat("format version ", version, ", this build reads ", kFormatVersion));
+  }
+  GalleryHead head;
+  uint64_t counts[5] = {};
+  uint64_t micros = 0;
+  if (!reader.U64(head.fitted_version)) return bad("truncated");
+  for (uint64_t& count : counts) {
+    if (!reader.U64(count) || count > (uint64_t{1} << 40)) return bad("a count out of range");
+  }
+  if (!reader.U64(micros) || micros > (uint64_t{1} << 50)) return bad("a time out of range");
+  head.fitted_samples = static_cast<int64_t>(counts[0]);
+  head.fitted_rows = static_cast<int64_t>(counts[1]);
+  head.holdout_samples = static_cast<int64_t>(counts[2]);
+  head.holdout_rows = static_cast<int64_t>(counts[3]);
+  head.holdout_right = static_cast<int64_t>(counts[4]);
+  if (head.holdout_right > head.holdout_rows) return bad("more right than held out");
+  head.fit_time = absl::Microseconds(static_cast<int64_t>(micros));
+  uint32_t num_labels = 0;
+  if (!reader.U32(num_labels) || num_labels < 2 || num_labels > kMaxLabels ||
+      num_labels > reader.left() / 4) {
+    return bad("label count out of range");
+  }
+  head.labels.resize(num_labels);
+  for (std::string& label : head.labels) {
+    if (!reader.String(kMaxLabelBytes, label)) return bad("a label out of range");
+  }
+  if (!std::is_sorted(head.labels.begin(), head.labels.end()) ||
+      std::adjacent_find(head.labels.begin(), head.labels.end()) != head.labels.end()) {
+    return bad("labels not sorted and distinct");
+  }
+  uint32_t size = 0;
+  absl::string_view net;
+  if (!reader.U32(size) || !reader.Bytes(size, net) || reader.left() != 0) {
+    return bad("the classifier's length does not match");
+  }
+  absl::StatusOr<MlpClassifier> classifier = MlpClassifier::Parse(net);
+  if (!classifier.ok()) return classifier.status();
+  if (classifier->num_classes() != static_cast<int>(num_labels)) {
+    return bad("the classifier's classes are not the labels");
+  }
+  head.classifier = *std::move(classifier);
+  return head;
+}
+
+absl::StatusOr<GalleryHead> FitGalleryHead(const GallerySnapshot& snapshot,
+                                           const HeadOptions& options,
+                                           const FitProgress& progress) {
+  if (absl::Status valid = ValidateHeadOptions(options); !valid.ok()) return valid;
+  const KnnIndex& index = snapshot.index();
+  const std::map<std::string, int64_t> counts = snapshot.LabelCounts();
+  if (index.size() < options.min_samples || counts.size() < 2) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "gallery '", snapshot.name(), "' has ", index.size(), " samples of ", counts.size(),
+        " labels; a head needs at least ", options.min_samples, " samples of 2 labels"));
+  }
+  const absl::Time start = absl::Now();
+  GalleryHead head;
+  head.fitted_version = snapshot.version();
+  for (const auto& [label, count] : counts) head.labels.push_back(label);
+  const int d = index.dimension();
+  TrainingRows fit, held;
+  fit.dimension = held.dimension = d;
+  fit.num_classes = held.num_classes = static_cast<int>(head.labels.size());
+  std::vector<float> views;
+  for (int64_t s = 0; s < index.size(); ++s) {
+    const int cls = head.ClassOf(index.LabelAt(s));
+    const int n = index.ViewsAt(s);
+    views.resize(static_cast<size_t>(n) * d);
+    index.CopyFeatures(s, views.data());
+    TrainingRows& rows = HeldOut(index.IdAt(s), options.holdout_per_mille) ? held : fit;
+    (&rows == &held ? head.holdout_samples : head.fitted_samples) += 1;
+    rows.features.insert(rows.features.end(), views.begin(), views.end());
+    rows.classes.insert(rows.classes.end(), n, cls);
+  }
+  head.fitted_rows = fit.rows();
+  head.holdout_rows = held.rows();
+  absl::StatusOr<MlpClassifier> classifier = MlpClassifier::Fit(fit, options.mlp, progress);
+  if (!classifier.ok()) return classifier.status();
+  head.classifier = *std::move(classifier);
+  for (int64_t r = 0; r < held.rows(); ++r) {
+    const std::vector<float> p =
+        *head.classifier.Probabilities({&held.features[r * d], static_cast<size_t>(d)});
+    head.holdout_right += std::max_element(p.begin(), p.end()) - p.begin() == held.classes[r];
+  }
+  head.fit_time = absl::Now() - start;
+  return head;
+}
+
+}  // namespace shapeid
