@@ -81,6 +81,11 @@ ABSL_FLAG(int32_t, max_streams_per_client, 64,
 ABSL_FLAG(int32_t, max_call_seconds, 600,
           "a stream still running after this long (its client asked for a later deadline, or "
           "none) is ended DEADLINE_EXCEEDED; 0: no limit. Env: SHAPEID_MAX_CALL_SECONDS");
+ABSL_FLAG(std::string, learn, "mlp",
+          "mlp: fit every gallery of 20 samples or more, of two labels or more, a trained head "
+          "in the background once it has been quiet for 2 s (a small network over its vectors, "
+          "at the lowest CPU priority, inside the memory budget), which then answers Classify "
+          "with the kNN vote; off: the kNN vote alone. Env: SHAPEID_LEARN");
 ABSL_FLAG(int64_t, memory_budget_mib, 0,
           "memory calls may hold beyond the galleries: clouds in transit and describing's "
           "working memory. A call past it is refused RESOURCE_EXHAUSTED (or its work waits for "
@@ -180,6 +185,7 @@ bool ApplyEnvironment() {
                            "max_samples_per_train",
                            "max_streams_per_client",
                            "max_call_seconds",
+                           "learn",
                            "memory_budget_mib",
                            "memory_caller_share",
                            "workers",
@@ -355,6 +361,12 @@ int main(int argc, char** argv) {
   options.service.memory_budget_bytes = static_cast<size_t>(absl::GetFlag(FLAGS_memory_budget_mib))
                                         << 20;
   options.service.memory_caller_share = absl::GetFlag(FLAGS_memory_caller_share);
+  const std::string learn = absl::GetFlag(FLAGS_learn);
+  if (learn != "mlp" && learn != "off") {
+    std::fprintf(stderr, "shapeid-server: --learn=%s: use mlp or off\n", learn.c_str());
+    return 2;
+  }
+  options.learn = learn == "mlp";
   options.service.work.cheap_workers = absl::GetFlag(FLAGS_workers);
   options.service.work.heavy_workers = absl::GetFlag(FLAGS_heavy_workers);
   options.service.work.store_workers = absl::GetFlag(FLAGS_store_workers);

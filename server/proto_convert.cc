@@ -258,6 +258,17 @@ void ToProto(const GallerySnapshot& snapshot, v1::Gallery* out) {
   out->set_incompatible(snapshot.incompatible());
   out->set_vector_count(static_cast<uint64_t>(snapshot.index().num_rows()));
   out->set_approximate_lists(static_cast<uint32_t>(snapshot.index().approximate_lists()));
+  if (const std::shared_ptr<const GalleryHead>& head = snapshot.head(); head != nullptr) {
+    v1::GalleryHead* h = out->mutable_head();
+    h->set_fitted_version(head->fitted_version);
+    h->set_answers(snapshot.head_answers());
+    h->set_fitted_samples(static_cast<uint64_t>(head->fitted_samples));
+    h->set_fitted_vectors(static_cast<uint64_t>(head->fitted_rows));
+    h->set_holdout_samples(static_cast<uint64_t>(head->holdout_samples));
+    h->set_holdout_vectors(static_cast<uint64_t>(head->holdout_rows));
+    h->set_holdout_accuracy(head->holdout_accuracy());
+    ToProto(head->fit_time, h->mutable_fit_time());
+  }
 }
 
 void ToProto(const GalleryClassification& answer, size_t num_points, v1::ClassifyResponse* out) {
@@ -287,6 +298,7 @@ void ToProto(const GalleryClassification& answer, size_t num_points, v1::Classif
   ToProto(answer.describe_time, out->mutable_describe_time());
   ToProto(answer.search_time, out->mutable_search_time());
   out->set_approximate(answer.knn.approximate);
+  out->set_by_head(answer.by_head);
 }
 
 namespace {

@@ -142,6 +142,19 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
   server->service_ = std::make_unique<ShapeIdService>(
       options.service, server->registry_, *keys, CallObserver(server->metrics_, server->logger_));
   server->security_ = DescribeSecurity(options.security, **keys);
+  if (options.learn) {
+    GalleryLearnerOptions learner = options.learner;
+    // A fit's working copy of the vectors is held in the memory budget, as the server's own
+    // caller: a fit that does not fit now waits for a later try.
+    learner.reserve = [budget = server->service_->shared_budget()](
+                          int64_t bytes) -> absl::StatusOr<std::shared_ptr<void>> {
+      absl::StatusOr<MemoryBudget::Grant> grant =
+          budget->Reserve("server:learn", static_cast<size_t>(bytes), "fitting a gallery's head");
+      if (!grant.ok()) return grant.status();
+      return std::shared_ptr<void>(std::make_shared<MemoryBudget::Grant>(*std::move(grant)));
+    };
+    server->learner_options_ = std::move(learner);
+  }
   server->service_->HoldUntilLoaded();
 
   grpc::ServerBuilder builder;
@@ -251,6 +264,9 @@ absl::StatusOr<LoadReport> ShapeIdServer::LoadGalleries() {
   if (shut_down_) return report;
   service_->StartServing();
   SetServing(true);
+  if (learner_options_.has_value()) {
+    learner_ = std::make_unique<GalleryLearner>(*learner_options_, registry_.get());
+  }
   if (follower_ != nullptr) {
     // From here on other replicas' changes are applied as they come; losing PostgreSQL for
     // longer than the refresh bound takes this replica out of service until it is back.
@@ -263,6 +279,7 @@ absl::StatusOr<LoadReport> ShapeIdServer::LoadGalleries() {
 }
 
 void ShapeIdServer::Shutdown(absl::Duration grace) {
+  learner_.reset();  // a fit in progress stops within one mini-batch
   if (shut_down_ || server_ == nullptr) return;
   // First, so that it cannot turn the service back to serving while it drains.
   if (follower_ != nullptr) follower_->Stop();

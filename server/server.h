@@ -2,11 +2,13 @@
 #define SHAPEID_SERVER_SERVER_H_
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "absl/status/statusor.h"
 #include "absl/time/time.h"
+#include "core/gallery/gallery_learner.h"
 #include "grpcpp/generic/async_generic_service.h"
 #include "grpcpp/grpcpp.h"
 #include "prometheus/exposer.h"
@@ -102,6 +104,9 @@ class ShapeIdServer {
   std::string store_description_;
   std::shared_ptr<GalleryRegistry> registry_;
   std::unique_ptr<ShapeIdService> service_;
+  // With options.learn, from LoadGalleries on; stopped first, before what it uses.
+  std::optional<GalleryLearnerOptions> learner_options_;
+  std::unique_ptr<GalleryLearner> learner_;
   // Points the metrics at this server's state and, with `options.listen`, serves them.
   absl::Status StartMetrics(const MetricsOptions& options);
   // Sets the health of the main port and of the health-only port alike.

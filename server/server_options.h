@@ -4,6 +4,7 @@
 #include <string>
 
 #include "absl/time/time.h"
+#include "core/gallery/gallery_learner.h"
 #include "core/gallery/gallery_options.h"
 #include "server/logger.h"
 #include "server/metrics.h"
@@ -49,6 +50,11 @@ struct ServerOptions {
   ServiceOptions service;
   // Points per cloud (every RPC's), samples per gallery and number of galleries.
   GalleryLimits gallery_limits;
+  // Fit every gallery a trained head in the background (core/gallery/gallery_learner.h), with
+  // these options. Off by default for embedding (tests, benchmarks: answers that stay the
+  // kNN vote's); shapeid-server's --learn defaults to mlp.
+  bool learn = false;
+  GalleryLearnerOptions learner;
   // The log (a line per call at info) and the Prometheus endpoint (docs/operations.md).
   LoggerOptions log;
   MetricsOptions metrics;

@@ -255,6 +255,62 @@ TEST(ShapeIdServerTest, ApproximateSearchAboveTheThresholdAndExactOnRequest) {
   EXPECT_EQ(again->neighbors(0).sample_id(), 1u);
 }
 
+// --learn: the server fits a trained head once a gallery settles; Classify then answers with it
+// and GetGallery shows it. Heads are derived state: a restarted server fits the same one.
+TEST(ShapeIdServerTest, ALearningServerFitsAHeadAndFitsTheSameAfterARestart) {
+  const std::string dir = ScratchDir();
+  ServerOptions options;
+  options.listen = "127.0.0.1:0";
+  options.data_dir = dir;
+  options.learn = true;
+  options.learner.settle = absl::Milliseconds(50);
+  options.learner.poll = absl::Milliseconds(10);
+  options.learner.head.mlp.hidden = {16};
+  options.learner.head.mlp.epochs = 10;
+  std::vector<PointCloud> clouds;
+  for (uint32_t i = 0; i < 30; ++i) clouds.push_back(testing_clouds::ShapeCloud(i % 3, i, 200));
+  const auto wait_for_head = [](Client& client) {
+    for (int i = 0; i < 3000 && !client.GetGallery("lab")->has_head(); ++i) {
+      absl::SleepFor(absl::Milliseconds(10));
+    }
+    return *client.GetGallery("lab");
+  };
+  v1::Gallery first;
+  {
+    auto server = ShapeIdServer::Start(options);
+    ASSERT_TRUE(server.ok()) << server.status();
+    auto client = ClientFor(**server);
+    v1::CreateGalleryRequest create;
+    create.set_name("lab");
+    ASSERT_TRUE(client->CreateGallery(create).ok());
+    std::vector<TrainSample> samples;
+    for (uint32_t i = 0; i < clouds.size(); ++i) {
+      samples.push_back({std::string(testing_clouds::kShapeNames[i % 3]), i + 1, &clouds[i]});
+    }
+    ASSERT_TRUE(client->Train("lab", samples).ok());
+    first = wait_for_head(*client);
+    ASSERT_TRUE(first.has_head());
+    EXPECT_EQ(first.head().fitted_version(), first.version());
+    EXPECT_TRUE(first.head().answers());
+    EXPECT_EQ(first.head().fitted_samples() + first.head().holdout_samples(), 30u);
+    auto answer = client->Classify("lab", clouds[4]);
+    ASSERT_TRUE(answer.ok()) << answer.status();
+    EXPECT_TRUE(answer->by_head());
+    EXPECT_EQ(answer->label(), testing_clouds::kShapeNames[1]);
+    EXPECT_GT(answer->neighbors_size(), 0);
+  }
+  auto server = ShapeIdServer::Start(options);
+  ASSERT_TRUE(server.ok()) << server.status();
+  auto client = ClientFor(**server);
+  const v1::Gallery again = wait_for_head(*client);
+  ASSERT_TRUE(again.has_head());
+  // (A data_dir gallery restarts at version 0: SQLite stores no version, PostgreSQL does.)
+  EXPECT_EQ(again.head().fitted_version(), again.version());
+  EXPECT_EQ(again.head().fitted_samples(), first.head().fitted_samples());
+  EXPECT_EQ(again.head().holdout_accuracy(), first.head().holdout_accuracy());
+  EXPECT_TRUE(client->Classify("lab", clouds[4])->by_head());
+}
+
 TEST(ShapeIdServerTest, RefusesInvalidApproximateOptions) {
   ServerOptions options;
   options.listen = "127.0.0.1:0";

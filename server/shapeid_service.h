@@ -139,6 +139,7 @@ class ShapeIdService final : public ShapeIdRawService {
   bool serving() const { return gate_.tracker().state() == CallTracker::State::kServing; }
   const WorkScheduler& scheduler() const { return scheduler_; }
   const MemoryBudget& budget() const { return *budget_; }
+  const std::shared_ptr<MemoryBudget>& shared_budget() const { return budget_; }
 
  private:
   const ServiceOptions options_;

@@ -128,6 +128,22 @@ step "Creating gallery 'objects' (DFSD in the upright frame, +y up; 1-NN)"
 step "Training: every training view, 4 parallel streams"
 "$shapeid" train --gallery objects --jobs 4 "$views"
 
+# Train is instant (kNN over the stored views); once the gallery has been quiet for 2 s the
+# server fits it a trained head in the background (--learn=mlp, the default; docs/accuracy.md),
+# which then answers Classify together with the kNN vote.
+step "The gallery learns: the server fits its trained head in the background"
+for _ in $(seq 600); do
+  "$shapeid" gallery show objects --format json | grep -q '"head"' && break
+  sleep 0.2
+done
+"$shapeid" gallery show objects | grep '^learned'
+echo "what the head adds on these views, in this process with the server's own code:"
+for learn in off mlp; do
+  printf '  --learn %-4s ' "$learn"
+  "$shapeid" eval --local --quiet --spec dfsd:frame=upright,up=y --learn "$learn" --jobs 4 \
+    "$views" | sed -n 2p
+done
+
 step "Batch-classifying the held-out views (first lines; all in $demo/predictions.csv)"
 "$shapeid" classify --gallery objects --jobs 4 --quiet "$views"/chess-knight/test "$views"/sofa/test |
   head -8

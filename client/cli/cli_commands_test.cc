@@ -158,6 +158,47 @@ TEST_F(CliCommandsTest, AugmentedGalleryShowsItsViewsAndDescriptorCount) {
             "[(2, True)]");
 }
 
+TEST_F(CliCommandsTest, ALearningServersGalleryShowsItsHeadAndClassifyWhoAnswered) {
+  server_->Shutdown(absl::ZeroDuration());
+  ServerOptions server_options;
+  server_options.listen = "127.0.0.1:0";
+  server_options.learn = true;
+  server_options.learner.settle = absl::Milliseconds(20);
+  server_options.learner.poll = absl::Milliseconds(10);
+  server_options.learner.head.min_samples = 6;
+  server_options.learner.head.mlp.epochs = 5;
+  server_ = *ShapeIdServer::Start(server_options);
+  ASSERT_EQ(CreateAndTrain("shapes"), kExitOk) << err_.contents();
+  std::string shown;
+  for (int i = 0; i < 2000 && shown.find("\"head\"") == std::string::npos; ++i) {
+    absl::SleepFor(absl::Milliseconds(10));
+    Captured json;
+    CliContext context = Context(OutputFormat::kJson);
+    context.out = json.get();
+    ASSERT_EQ(RunGalleryShow("shapes", context), kExitOk);
+    shown = json.contents();
+  }
+  EXPECT_EQ(PythonOnJsonLines(shown,
+                              "[(r[\"head\"][\"answers\"], r[\"head\"][\"fitted_version\"] == "
+                              "r[\"version\"], r[\"head\"][\"fitted_samples\"] + "
+                              "r[\"head\"][\"holdout_samples\"]) for r in rows]"),
+            "[(True, True, 18)]");
+  Captured table;
+  CliContext context = Context();
+  context.out = table.get();
+  ASSERT_EQ(RunGalleryShow("shapes", context), kExitOk);
+  EXPECT_THAT(table.contents(), AllOf(HasSubstr("learned     head fitted on version "),
+                                      HasSubstr("held-out vectors; answers with the vote")));
+  ClassifyOptions classify;
+  classify.gallery = "shapes";
+  classify.paths = {Path("dataset/sphere/test/6.pcd")};
+  Captured answer;
+  context = Context(OutputFormat::kJson);
+  context.out = answer.get();
+  ASSERT_EQ(RunClassify(classify, context), kExitOk);
+  EXPECT_THAT(answer.contents(), HasSubstr("\"by_head\":true"));
+}
+
 TEST_F(CliCommandsTest, BadKnobsAreUsageErrors) {
   GalleryCreateOptions create;
   create.name = "x";

@@ -38,6 +38,33 @@ bool PrintRows(const Table& table, const CliContext& context) {
                   context.format == OutputFormat::kCsv ? RenderCsv(table) : RenderTable(table));
 }
 
+// ,"head":{...} when the server has fitted the gallery a head, else nothing.
+std::string HeadJson(const v1::Gallery& g) {
+  if (!g.has_head()) return "";
+  const v1::GalleryHead& h = g.head();
+  return absl::StrCat(
+      ",\"head\":{\"fitted_version\":", h.fitted_version(),
+      ",\"answers\":", h.answers() ? "true" : "false", ",\"fitted_samples\":", h.fitted_samples(),
+      ",\"fitted_vectors\":", h.fitted_vectors(), ",\"holdout_samples\":", h.holdout_samples(),
+      ",\"holdout_vectors\":", h.holdout_vectors(),
+      ",\"holdout_accuracy\":", JsonNumber(h.holdout_accuracy()),
+      ",\"fit_seconds\":", JsonNumber(h.fit_time().seconds() + 1e-9 * h.fit_time().nanos()), "}");
+}
+
+// The `learned` line of `gallery show`.
+std::string HeadLine(const v1::Gallery& g) {
+  if (!g.has_head()) return "not yet (kNN vote alone)";
+  const v1::GalleryHead& h = g.head();
+  std::string state = h.answers() ? "answers with the vote" : "idle: labels changed since";
+  if (h.answers() && h.fitted_version() != g.version()) state += "; refit pending";
+  return absl::StrCat(
+      "head fitted on version ", h.fitted_version(), " (", h.fitted_samples(), " samples, ",
+      h.fitted_vectors(), " vectors) in ",
+      absl::StrFormat("%.1f s; %.1f %%", h.fit_time().seconds() + 1e-9 * h.fit_time().nanos(),
+                      100 * h.holdout_accuracy()),
+      " on ", h.holdout_vectors(), " held-out vectors; ", state);
+}
+
 std::vector<std::string> GalleryRow(const v1::Gallery& g) {
   return {g.name(),
           g.descriptor_spec(),
@@ -82,7 +109,7 @@ int PrintGallery(const v1::Gallery& g, const CliContext& context) {
                          g.augmentation().mix() == v1::VIEW_MIX_VARIED ? ", varied views" : "", ")")
           : std::string("off"),
       "\n", "samples     ", g.sample_count(), " in ", g.label_counts_size(), " labels (",
-      g.vector_count(), " descriptors)\n", "search      ",
+      g.vector_count(), " descriptors)\n", "learned     ", HeadLine(g), "\n", "search      ",
       g.approximate_lists() > 0
           ? absl::StrCat("approximate, ", g.approximate_lists(),
                          " cells (classify --exact searches every descriptor)")
@@ -136,7 +163,7 @@ std::string GalleryJson(const v1::Gallery& g) {
       ",\"augment_views\":", g.augmentation().views(),
       ",\"augment_random_pose\":", g.augmentation().random_pose() ? "true" : "false",
       ",\"augment_mix\":\"", g.augmentation().mix() == v1::VIEW_MIX_VARIED ? "varied" : "camera",
-      "\"", ",\"label_counts\":[", labels, "]",
+      "\"", HeadJson(g), ",\"label_counts\":[", labels, "]",
       ",\"create_time\":", JsonString(Timestamp(g.create_time())),
       ",\"update_time\":", JsonString(Timestamp(g.update_time())), ",\"version\":", g.version(),
       ",\"descriptor_version\":", g.descriptor_version(),

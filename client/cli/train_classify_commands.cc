@@ -166,15 +166,15 @@ std::string ClassifyJsonLine(const std::string& file, const v1::ClassifyResponse
     absl::StrAppend(&votes, "{\"label\":", JsonString(v.label()),
                     ",\"weight\":", JsonNumber(v.weight()), "}");
   }
-  return absl::StrCat("{\"file\":", JsonString(file), ",\"label\":", JsonString(r.label()),
-                      ",\"unknown\":", r.unknown() ? "true" : "false",
-                      ",\"confidence\":", JsonNumber(r.confidence()),
-                      ",\"points\":", r.num_points(), ",\"neighbors\":[", neighbors,
-                      "],\"votes\":[", votes,
-                      "],\"describe_seconds\":", JsonNumber(DurationSeconds(r.describe_time())),
-                      ",\"search_seconds\":", JsonNumber(DurationSeconds(r.search_time())),
-                      ",\"approximate\":", r.approximate() ? "true" : "false",
-                      ",\"seconds\":", JsonNumber(seconds), "}\n");
+  return absl::StrCat(
+      "{\"file\":", JsonString(file), ",\"label\":", JsonString(r.label()),
+      ",\"unknown\":", r.unknown() ? "true" : "false",
+      ",\"confidence\":", JsonNumber(r.confidence()), ",\"points\":", r.num_points(),
+      ",\"neighbors\":[", neighbors, "],\"votes\":[", votes,
+      "],\"describe_seconds\":", JsonNumber(DurationSeconds(r.describe_time())),
+      ",\"search_seconds\":", JsonNumber(DurationSeconds(r.search_time())),
+      ",\"approximate\":", r.approximate() ? "true" : "false",
+      ",\"by_head\":", r.by_head() ? "true" : "false", ",\"seconds\":", JsonNumber(seconds), "}\n");
 }
 
 int RunClassify(const ClassifyOptions& options, const CliContext& context) {

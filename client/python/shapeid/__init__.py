@@ -19,7 +19,7 @@ from .errors import (AbortedError, AlreadyExistsError, CancelledError, DataLossE
                      NotFoundError, PermissionDeniedError, ResourceExhaustedError,
                      ShapeidError, UnauthenticatedError, UnavailableError, UnimplementedError)
 from .results import (Augmentation, ClassifyResult, DescribeResult, DescriptorKind,
-                      DescriptorParameter, Gallery, GalleryStats, Health, LogLevel, MethodStats,
+                      DescriptorParameter, Gallery, GalleryHead, GalleryStats, Health, LogLevel, MethodStats,
                       Neighbor, OrientedBox, RemoveResult, Sample, SceneObject, ScenePlane,
                       SceneResult, ServerStats, TrainResult, Vote, WorkLaneStats)
 

@@ -13,7 +13,7 @@ import numpy as np
 __all__ = [
     "Neighbor", "Vote", "ClassifyResult", "OrientedBox", "SceneObject", "ScenePlane",
     "SceneResult", "DescribeResult", "TrainResult", "Augmentation",
-    "Gallery", "RemoveResult", "DescriptorParameter", "DescriptorKind", "MethodStats",
+    "Gallery", "GalleryHead", "RemoveResult", "DescriptorParameter", "DescriptorKind", "MethodStats",
     "WorkLaneStats", "GalleryStats", "ServerStats", "Health", "LogLevel",
 ]
 
@@ -81,6 +81,7 @@ class ClassifyResult:
     describe_seconds: float
     search_seconds: float
     approximate: bool          # the search read the approximate index
+    by_head: bool = False      # the gallery's trained head answered with the vote
 
     @classmethod
     def from_proto(cls, r):
@@ -90,7 +91,8 @@ class ClassifyResult:
                               for n in r.neighbors],
                    votes=[Vote(v.label, v.weight) for v in r.votes],
                    num_points=r.num_points, describe_seconds=_seconds(r.describe_time),
-                   search_seconds=_seconds(r.search_time), approximate=r.approximate)
+                   search_seconds=_seconds(r.search_time), approximate=r.approximate,
+                   by_head=r.by_head)
 
 
 def _vector(v):
@@ -256,6 +258,7 @@ class Gallery:
     augmentation: Augmentation
     vector_count: int
     approximate_lists: int  # 0: exact search
+    head: Optional["GalleryHead"] = None  # the trained head, once the server has fitted one
 
     @classmethod
     def from_proto(cls, g):
@@ -268,7 +271,27 @@ class Gallery:
                    version=g.version, descriptor_version=g.descriptor_version,
                    software_version=g.software_version, incompatible=g.incompatible,
                    augmentation=Augmentation.from_proto(g.augmentation),
-                   vector_count=g.vector_count, approximate_lists=g.approximate_lists)
+                   vector_count=g.vector_count, approximate_lists=g.approximate_lists,
+                   head=GalleryHead.from_proto(g.head) if g.HasField("head") else None)
+
+
+@dataclasses.dataclass(slots=True)
+class GalleryHead:
+    fitted_version: int     # the gallery version it was fitted on
+    answers: bool           # its labels are the gallery's: it answers Classify with the vote
+    fitted_samples: int
+    fitted_vectors: int
+    holdout_samples: int    # held out of the fit (about one in ten) ...
+    holdout_vectors: int
+    holdout_accuracy: float  # ... and the share of their vectors it got right
+    fit_seconds: float
+
+    @classmethod
+    def from_proto(cls, h):
+        return cls(fitted_version=h.fitted_version, answers=h.answers,
+                   fitted_samples=h.fitted_samples, fitted_vectors=h.fitted_vectors,
+                   holdout_samples=h.holdout_samples, holdout_vectors=h.holdout_vectors,
+                   holdout_accuracy=h.holdout_accuracy, fit_seconds=_seconds(h.fit_time))
 
 
 @dataclasses.dataclass(slots=True)

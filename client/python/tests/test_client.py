@@ -364,6 +364,23 @@ def test_augmentation_and_reject_distance(client):
     client.delete_gallery("augmented")
 
 
+def test_a_gallery_learns_its_head_and_the_answer_says_so(client, gallery):
+    # The test server runs with shapeid-server's default --learn=mlp: a gallery of 20 samples
+    # or more gets a trained head once it has been quiet for 2 s.
+    clouds = [shape(kind, 500 + 10 * i + kind, 256) for i in range(8) for kind in range(3)]
+    client.train(gallery, clouds, [SHAPES[kind] for _ in range(8) for kind in range(3)])
+    deadline = time.monotonic() + 60
+    while client.get_gallery(gallery).head is None and time.monotonic() < deadline:
+        time.sleep(0.1)
+    info = client.get_gallery(gallery)
+    assert info.head is not None, "no head 60 s after training"
+    assert info.head.answers and info.head.fitted_version == info.version
+    assert info.head.fitted_samples + info.head.holdout_samples == 24
+    assert 0 <= info.head.holdout_accuracy <= 1 and info.head.fit_seconds > 0
+    answer = client.classify(gallery, shape(1, 7, 256))
+    assert answer.by_head and answer.label == "ball" and answer.neighbors
+
+
 def test_big_clouds_stream_in_chunks_with_the_same_answers(server, client, trained):
     points = shape(1, 42, 5000)
     small = shapeid.Client(server.address, chunk_points=700)  # 5000 points: 8 chunks
