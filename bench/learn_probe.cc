@@ -312,8 +312,8 @@ int Main(int argc, char** argv) {
       int most_confident = best(first);
       float top = 0;
       for (size_t v = 0; v * d < query.vectors.size(); ++v) {
-        const std::vector<float> p = *head->classifier.Probabilities(
-            {query.vectors.data() + v * d, static_cast<size_t>(d)});
+        const std::vector<float> p =
+            *head->classifier.Probabilities({query.vectors.data() + v * d, static_cast<size_t>(d)});
         if (p[best(p)] > top) {
           top = p[best(p)];
           most_confident = best(p);
@@ -328,8 +328,7 @@ int Main(int argc, char** argv) {
         "[%s] head %.1f %% (first pose %.1f %%, most confident pose %.1f %%), head+kNN %.1f %%; "
         "held out %.1f %%, fit %.0f s, head %.0f us a query\n",
         config.c_str(), 100.0 * right_mean / tests, 100.0 * right_first / tests,
-        100.0 * right_max / tests,
-        100.0 * right_mix / tests, 100 * head->holdout_accuracy(),
+        100.0 * right_max / tests, 100.0 * right_mix / tests, 100 * head->holdout_accuracy(),
         absl::ToDoubleSeconds(head->fit_time), head_us);
     fflush(stdout);
   }
