@@ -66,9 +66,9 @@ TEST(GalleryLearnerTest, FitsAGalleryOnceItSettlesAndAgainAfterItChanges) {
   ASSERT_TRUE(gallery->Train(Shapes(2, 10)).ok());
   const uint64_t version = gallery->Snapshot()->version();
   ASSERT_TRUE(WaitFor([&] { return gallery->Snapshot()->head()->fitted_version == version; }));
-  EXPECT_EQ(gallery->Snapshot()->head()->fitted_samples +
-                gallery->Snapshot()->head()->holdout_samples,
-            18);
+  EXPECT_EQ(
+      gallery->Snapshot()->head()->fitted_samples + gallery->Snapshot()->head()->holdout_samples,
+      18);
 }
 
 TEST(GalleryLearnerTest, LeavesSmallAndSingleLabelGalleriesToKnn) {
