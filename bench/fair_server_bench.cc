@@ -10,6 +10,10 @@
 //   fair_server_bench --server OLD/shapeid-server --no_budget_flags
 //                                            an older build (before issue 25) in the same way
 //   fair_server_bench --points 2000000 --seconds 5   smaller
+//   fair_server_bench --abuse learn          issue 40: the server fits a trained head over a
+//                                            gallery of --learn_samples clouds with 16 views each
+//                                            (trained before the phase), at nice 19; the phase
+//                                            lasts until the head is published
 //   fair_server_bench --abuse cheap|scenes|huge_scenes|answers --flag=--memory_budget_mib=1024
 //                                            issue 39's floods: a read key keeping its share of
 //                                            the cheap lane full with 1,024-point
@@ -192,6 +196,7 @@ int Main(int argc, char** argv) {
   std::string mode = "describe";
   int in_flight = 0;
   int answer_samples = 2'000;
+  int learn_samples = 4'000;
   app.add_option("--abuse", mode,
                  "describe (heavy Describe streams), cheap, scenes, huge_scenes, answers or "
                  "streams (--heavy streams of --points in 12 MB messages)");
@@ -199,6 +204,8 @@ int Main(int argc, char** argv) {
                  "calls the abuser keeps open (0: 512 cheap, 4 scenes, 8 answers)");
   app.add_option("--answer_samples", answer_samples,
                  "samples with fat provenance in the answers mode's gallery (k = all of them)");
+  app.add_option("--learn_samples", learn_samples,
+                 "the learn mode's gallery: clouds, each stored with 16 augmented views");
   app.add_option("--server", server_path, "the shapeid-server binary to measure");
   app.add_option("--points", points, "points per heavy Describe");
   app.add_option("--heavy", heavy, "heavy Describe streams the abuser keeps open at once");
@@ -209,10 +216,10 @@ int Main(int argc, char** argv) {
   app.add_option("--flag", extra, "an extra server flag (repeatable)");
   CLI11_PARSE(app, argc, argv);
   if (mode != "describe" && mode != "cheap" && mode != "scenes" && mode != "huge_scenes" &&
-      mode != "answers" && mode != "streams") {
+      mode != "answers" && mode != "streams" && mode != "learn") {
     std::fprintf(stderr,
-                 "fair_server_bench: --abuse describe, cheap, scenes, huge_scenes, answers or "
-                 "streams\n");
+                 "fair_server_bench: --abuse describe, cheap, scenes, huge_scenes, answers, "
+                 "streams or learn\n");
     return 2;
   }
   // Many streams at once, each a cloud in messages of a million points (12 MB): what gRPC
@@ -302,6 +309,31 @@ int Main(int argc, char** argv) {
       return 1;
     }
   }
+  if (mode == "learn") {
+    // The abuser's gallery, trained now: the abuse phase is its head's fit alone.
+    std::unique_ptr<Client> abuser = Connect(server.address(), kAbuserKey, absl::Minutes(10));
+    v1::CreateGalleryRequest big;
+    big.set_name("big");
+    big.mutable_augmentation()->set_views(16);
+    if (absl::StatusOr<v1::Gallery> made = abuser->CreateGallery(big); !made.ok()) {
+      std::fprintf(stderr, "CreateGallery: %s\n", made.status().ToString().c_str());
+      return 1;
+    }
+    for (int first = 0; first < learn_samples; first += 500) {
+      std::vector<PointCloud> batch;
+      std::vector<TrainSample> train;
+      for (int i = first; i < std::min(learn_samples, first + 500); ++i) {
+        batch.push_back(testing_clouds::ShapeCloud(i % 4, static_cast<uint32_t>(5000 + i), 512));
+      }
+      for (size_t i = 0; i < batch.size(); ++i) {
+        train.push_back({absl::StrCat("kind", (first + i) % 4), 0, &batch[i]});
+      }
+      if (absl::StatusOr<v1::TrainResponse> t = abuser->Train("big", train); !t.ok()) {
+        std::fprintf(stderr, "Train (big): %s\n", t.status().ToString().c_str());
+        return 1;
+      }
+    }
+  }
   // The lab's own heavy describe, idle: what its wait under the abuse is compared with.
   const PointCloud lab_heavy = bench::SurfaceCloud(1'000'000, 11);
   Series lab_heavy_idle;
@@ -336,7 +368,7 @@ int Main(int argc, char** argv) {
         } while (!stop.load());
       });
     }
-  } else {
+  } else if (mode != "learn") {
     auto request = std::make_shared<v1::ClassifyCloudRequest>();
     auto scene = std::make_shared<v1::RecognizeSceneCloudRequest>();
     if (mode == "scenes") {
@@ -389,10 +421,24 @@ int Main(int argc, char** argv) {
       lab_heavy_abuse.Add(start, own->Describe(lab_heavy).status());
     }
   });
-  // At least `seconds`, and until every abuser stream has finished one call.
+  // At least `seconds`, and until every abuser stream has finished one call (learn: until
+  // the head is published, at most 10 minutes).
+  const auto fitted = [&] {
+    absl::StatusOr<v1::Gallery> big = lab->GetGallery("big");
+    return big.ok() && big->has_head() && big->head().fitted_version() == big->version();
+  };
+  absl::Duration head_after = absl::InfiniteDuration();
   while (absl::Now() - abuse_start < absl::Seconds(seconds) ||
-         (flooder == nullptr && described.load() < heavy)) {
+         (mode == "describe" || mode == "huge_scenes" ? described.load() < heavy
+          : mode == "learn" ? !fitted() && absl::Now() - abuse_start < absl::Minutes(10)
+                            : false)) {
+    if (mode == "learn" && head_after == absl::InfiniteDuration() && fitted()) {
+      head_after = absl::Now() - abuse_start;
+    }
     absl::SleepFor(absl::Milliseconds(100));
+  }
+  if (mode == "learn" && head_after == absl::InfiniteDuration() && fitted()) {
+    head_after = absl::Now() - abuse_start;
   }
   stop = true;
   observer.join();
@@ -416,7 +462,11 @@ int Main(int argc, char** argv) {
   }
   const int64_t rss_peak = std::max<int64_t>(server.PeakResidentBytes(), rss_seen.load());
 
-  if (flooder == nullptr) {
+  if (mode == "learn") {
+    std::printf("\nabuse: the server fitting the head of %d clouds x 17 vectors: published %s "
+                "after the phase began (%.1f s observed)\n",
+                learn_samples, absl::FormatDuration(head_after).c_str(), abuse_seconds);
+  } else if (flooder == nullptr) {
     std::printf("\nabuse: %d stream(s) of %zu-point %s for %.1f s; %zu done, failures: %s\n", heavy,
                 points, mode == "describe" ? "Describe (default spec)" : "RecognizeScene",
                 abuse_seconds, abuse.heavy.ms.size(), abuse.heavy.Failures().c_str());
