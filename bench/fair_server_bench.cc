@@ -463,9 +463,10 @@ int Main(int argc, char** argv) {
   const int64_t rss_peak = std::max<int64_t>(server.PeakResidentBytes(), rss_seen.load());
 
   if (mode == "learn") {
-    std::printf("\nabuse: the server fitting the head of %d clouds x 17 vectors: published %s "
-                "after the phase began (%.1f s observed)\n",
-                learn_samples, absl::FormatDuration(head_after).c_str(), abuse_seconds);
+    std::printf(
+        "\nabuse: the server fitting the head of %d clouds x 17 vectors: published %s "
+        "after the phase began (%.1f s observed)\n",
+        learn_samples, absl::FormatDuration(head_after).c_str(), abuse_seconds);
   } else if (flooder == nullptr) {
     std::printf("\nabuse: %d stream(s) of %zu-point %s for %.1f s; %zu done, failures: %s\n", heavy,
                 points, mode == "describe" ? "Describe (default spec)" : "RecognizeScene",

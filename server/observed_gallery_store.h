@@ -26,6 +26,10 @@ class ObservedGalleryStore final : public GalleryStore {
                              absl::Time updated, uint64_t version) override;
   absl::StatusOr<std::vector<StoredGallery>> LoadAll() override { return store_->LoadAll(); }
   absl::Status Load(GalleryLoader& loader) override { return store_->Load(loader); }
+  // Derived state, written once per fit: not timed as a write.
+  absl::Status SaveHead(absl::string_view name, absl::string_view bytes) override {
+    return store_->SaveHead(name, bytes);
+  }
 
  private:
   template <typename Write>

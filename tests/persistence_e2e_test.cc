@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
 #include "client/client.h"
 #include "core/point_cloud.h"
 #include "core/testing/test_clouds.h"
@@ -152,6 +153,51 @@ TEST(PersistenceE2ETest, RestartAndCrashGiveBitIdenticalAnswers) {
       server->Kill();
     }
   }
+}
+
+// Issue 40: a gallery's trained head is kept beside it (NAME.head), so a server killed with
+// SIGKILL serves it again at once, without fitting; a head fitted on other samples than those
+// loaded (a crash between a change and its refit) is left out.
+TEST(PersistenceE2ETest, AFittedHeadSurvivesAKillAndOnlyForItsOwnSamples) {
+  const std::string dir = ScratchDir("data");
+  v1::GalleryHead head;
+  {
+    auto server = StartOn(dir);  // --learn=mlp, the default
+    auto client = Connect(*server);
+    v1::CreateGalleryRequest create;
+    create.set_name("lab");
+    ASSERT_TRUE(client->CreateGallery(create).ok());
+    for (int kind = 0; kind < 3; ++kind) {
+      ASSERT_TRUE(Train(*client, "lab", kShapes[kind], kind, 100 + 10 * kind, 8).ok());
+    }
+    for (int i = 0; i < 6000; ++i) {
+      const v1::Gallery gallery = *client->GetGallery("lab");
+      if (gallery.has_head() && gallery.head().fitted_version() == gallery.version()) {
+        head = gallery.head();
+        break;
+      }
+      absl::SleepFor(absl::Milliseconds(10));
+    }
+    ASSERT_EQ(head.fitted_samples() + head.holdout_samples(), 24u) << "no head in 60 s";
+    server->Kill();
+  }
+  {
+    auto server = StartOn(dir, {"--learn=off"});  // nothing is fitted: the head was kept
+    auto client = Connect(*server);
+    const v1::Gallery gallery = *client->GetGallery("lab");
+    ASSERT_TRUE(gallery.has_head());
+    EXPECT_EQ(gallery.head().fitted_version(), gallery.version());
+    EXPECT_EQ(gallery.head().holdout_accuracy(), head.holdout_accuracy());
+    EXPECT_EQ(gallery.head().fitted_vectors(), head.fitted_vectors());
+    EXPECT_TRUE(client->Classify("lab", ShapeCloud(1, 999, 300))->by_head());
+    // A change the head was not refitted for (learning is off), then a crash.
+    ASSERT_TRUE(Train(*client, "lab", kShapes[0], 0, 500, 1).ok());
+    server->Kill();
+  }
+  auto server = StartOn(dir, {"--learn=off"});
+  auto client = Connect(*server);
+  EXPECT_FALSE(client->GetGallery("lab")->has_head());
+  EXPECT_FALSE(client->Classify("lab", ShapeCloud(1, 999, 300))->by_head());
 }
 
 TEST(PersistenceE2ETest, DeleteAndRemoveAreDurable) {

@@ -470,12 +470,18 @@ absl::Status Gallery::UpdateApproximateIndex(const std::atomic<bool>* cancel) {
   return Mutate(Origin::Derived(cancel), out_of_step, nullptr).status();
 }
 
-absl::Status Gallery::SetHead(std::shared_ptr<const GalleryHead> head) {
+absl::Status Gallery::SetHead(std::shared_ptr<const GalleryHead> head, KeepHead keep) {
+  absl::Status kept;
   const Change set = [&](GallerySnapshot& next) {
     next.head_ = head;
+    // Under the writer lock, so a delete cannot come between and leave a head behind.
+    if (keep == KeepHead::kInStore && head != nullptr && store_ != nullptr) {
+      kept = store_->SaveHead(name_, head->Serialize());
+    }
     return absl::OkStatus();
   };
-  return Mutate(Origin::Derived(nullptr), nullptr, set).status();
+  SHAPEID_RETURN_IF_ERROR(Mutate(Origin::Derived(nullptr), nullptr, set).status());
+  return kept;
 }
 
 absl::StatusOr<int64_t> Gallery::RemoveSamples(absl::Span<const uint64_t> ids,

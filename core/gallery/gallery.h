@@ -214,8 +214,11 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
   absl::Status UpdateApproximateIndex(const std::atomic<bool>* cancel = nullptr);
 
   // Publishes a snapshot with the same samples and version that holds `head` (null: none).
-  // Derived state: not stored here, nothing to do once deleted.
-  absl::Status SetHead(std::shared_ptr<const GalleryHead> head);
+  // Derived state: nothing to do once deleted. With `keep`, the store also keeps the head
+  // (GalleryStore::SaveHead) so that a restart need not fit it again; the head is published
+  // even if the store fails, whose error is then returned.
+  enum class KeepHead { kNo, kInStore };
+  absl::Status SetHead(std::shared_ptr<const GalleryHead> head, KeepHead keep = KeepHead::kNo);
 
   // Replication, for a store shared by several servers: apply a change another server has
   // already stored, without writing to the store. `version` is the gallery's version after

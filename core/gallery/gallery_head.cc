@@ -46,6 +46,7 @@ std::string GalleryHead::Serialize() const {
   out.Bytes(absl::string_view(kMagic, sizeof(kMagic)));
   out.U32(kFormatVersion);
   out.U64(fitted_version);
+  out.U64(samples_fingerprint);
   out.U64(static_cast<uint64_t>(fitted_samples));
   out.U64(static_cast<uint64_t>(fitted_rows));
   out.U64(static_cast<uint64_t>(holdout_samples));
@@ -76,7 +77,9 @@ absl::StatusOr<GalleryHead> GalleryHead::Parse(absl::string_view bytes) {
   GalleryHead head;
   uint64_t counts[5] = {};
   uint64_t micros = 0;
-  if (!reader.U64(head.fitted_version)) return bad("truncated");
+  if (!reader.U64(head.fitted_version) || !reader.U64(head.samples_fingerprint)) {
+    return bad("truncated");
+  }
   for (uint64_t& count : counts) {
     if (!reader.U64(count) || count > (uint64_t{1} << 40)) return bad("a count out of range");
   }
@@ -115,6 +118,25 @@ absl::StatusOr<GalleryHead> GalleryHead::Parse(absl::string_view bytes) {
   return head;
 }
 
+uint64_t SamplesFingerprint(const GallerySnapshot& snapshot) {
+  const KnnIndex& index = snapshot.index();
+  uint64_t hash = 0xcbf29ce484222325ull;  // FNV-1a over (id, label) in order
+  const auto mix = [&hash](const void* data, size_t size) {
+    for (size_t i = 0; i < size; ++i) {
+      hash = (hash ^ static_cast<const unsigned char*>(data)[i]) * 0x100000001b3ull;
+    }
+  };
+  for (int64_t s = 0; s < index.size(); ++s) {
+    const uint64_t id = index.IdAt(s);
+    const std::string& label = index.LabelAt(s);
+    const uint64_t size = label.size();
+    mix(&id, sizeof(id));
+    mix(&size, sizeof(size));
+    mix(label.data(), label.size());
+  }
+  return hash;
+}
+
 absl::StatusOr<GalleryHead> FitGalleryHead(const GallerySnapshot& snapshot,
                                            const HeadOptions& options,
                                            const FitProgress& progress) {
@@ -129,6 +151,7 @@ absl::StatusOr<GalleryHead> FitGalleryHead(const GallerySnapshot& snapshot,
   const absl::Time start = absl::Now();
   GalleryHead head;
   head.fitted_version = snapshot.version();
+  head.samples_fingerprint = SamplesFingerprint(snapshot);
   for (const auto& [label, count] : counts) head.labels.push_back(label);
   const int d = index.dimension();
   TrainingRows fit, held;

@@ -45,7 +45,10 @@ struct GalleryHead {
   MlpClassifier classifier;
   std::vector<std::string> labels;  // class i's label; sorted (byte order)
   uint64_t fitted_version = 0;      // the snapshot version it was fitted on
-  int64_t fitted_samples = 0;       // samples (and rows: vectors) fitted on
+  // SamplesFingerprint of the samples it was fitted on: a head kept by a store is used after
+  // a restart only for exactly those samples (versions do not survive every store).
+  uint64_t samples_fingerprint = 0;
+  int64_t fitted_samples = 0;  // samples (and rows: vectors) fitted on
   int64_t fitted_rows = 0;
   int64_t holdout_samples = 0;  // samples held out, and the vectors among them that the
   int64_t holdout_rows = 0;     // head answered right
@@ -63,6 +66,9 @@ struct GalleryHead {
   std::string Serialize() const;
   static absl::StatusOr<GalleryHead> Parse(absl::string_view bytes);
 };
+
+// A hash of a snapshot's sample ids and labels in training order. O(samples).
+uint64_t SamplesFingerprint(const GallerySnapshot& snapshot);
 
 // Fits a head over `snapshot`'s vectors. FailedPrecondition when the gallery has fewer than
 // options.min_samples samples or fewer than two labels (kNN answers it alone); InvalidArgument

@@ -152,7 +152,10 @@ void GalleryLearner::Fit(const std::shared_ptr<Gallery>& gallery) {
     if (head.status().code() != absl::StatusCode::kCancelled) ++failures_;
     return;
   }
-  if (gallery->SetHead(std::make_shared<const GalleryHead>(*std::move(head))).ok()) ++fits_;
+  // Published even when the store cannot keep it (the next restart then fits it again).
+  (void)gallery->SetHead(std::make_shared<const GalleryHead>(*std::move(head)),
+                         Gallery::KeepHead::kInStore);
+  ++fits_;
 }
 
 }  // namespace shapeid

@@ -7,13 +7,15 @@
 // views and published with Gallery::SetHead, so Classify answers with the head and the kNN
 // vote together from then on. A change of the samples makes the head stale; it keeps
 // answering while its labels are the gallery's, and is refitted once the gallery settles
-// again.
+// again. Each head is also handed to the store (GalleryStore::SaveHead), which gives it back
+// at the next start for the same samples, so a restart need not fit it again.
 //
 // The fitting thread runs at the lowest CPU priority (nice 19): on a busy machine requests
 // come first, and a fit only uses what they leave. A fit stops, publishing nothing, when the
 // learner stops, when the gallery is deleted, or when its memory cannot be reserved (it is
-// tried again later). Heads are derived state, deterministic for one gallery's samples: they
-// are not stored, and a restarted server or a replica fits the same head again.
+// tried again later). Heads are derived state, deterministic for one gallery's samples: a
+// store that keeps none (PostgreSQL today) makes a restarted server or a replica fit the same
+// head again.
 
 #include <atomic>
 #include <condition_variable>

@@ -8,6 +8,7 @@
 #include "core/gallery/gallery.h"
 #include "core/gallery/gallery_registry.h"
 #include "core/gallery/gallery_snapshot.h"
+#include "core/gallery/gallery_store.h"
 #include "core/gallery/gallery_test_shapes.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
@@ -135,6 +136,37 @@ TEST(GalleryLearnerTest, ADeletedGallerysFitIsAbandoned) {
   ASSERT_TRUE(registry.Delete("shapes").ok());
   EXPECT_TRUE(WaitFor([&] { return learner.fitting().empty(); }));
   EXPECT_EQ(learner.fits(), 0);
+}
+
+TEST(GalleryLearnerTest, AStoreGivesTheHeadBackAtTheNextStartForTheSameSamplesOnly) {
+  auto store = std::make_shared<InMemoryGalleryStore>();
+  std::shared_ptr<const GalleryHead> fitted;
+  {
+    GalleryRegistry registry({}, store);
+    GalleryLearner learner(Quick(), &registry);
+    std::shared_ptr<Gallery> gallery = *registry.Create("shapes", GalleryOptions{});
+    ASSERT_TRUE(gallery->Train(Shapes(4)).ok());
+    ASSERT_TRUE(WaitFor([&] { return gallery->Snapshot()->head() != nullptr; }));
+    fitted = gallery->Snapshot()->head();
+  }
+  {
+    GalleryRegistry restarted({}, store);  // no learner: whatever head it has was kept
+    ASSERT_TRUE(restarted.LoadFromStore().ok());
+    std::shared_ptr<Gallery> gallery = *restarted.Get("shapes");
+    const std::shared_ptr<const GallerySnapshot> snapshot = gallery->Snapshot();
+    ASSERT_NE(snapshot->head(), nullptr);
+    EXPECT_EQ(snapshot->head()->classifier.Serialize(), fitted->classifier.Serialize());
+    EXPECT_EQ(snapshot->head()->fitted_version, snapshot->version());
+    EXPECT_TRUE(snapshot->head_answers());
+    // A change without a refit: the kept head no longer matches the samples.
+    ASSERT_TRUE(gallery->Train({{0, "box", Box(99)}}).ok());
+  }
+  GalleryRegistry again({}, store);
+  ASSERT_TRUE(again.LoadFromStore().ok());
+  EXPECT_EQ((*again.Get("shapes"))->Snapshot()->head(), nullptr);
+  // Deleting the gallery drops its head with it.
+  ASSERT_TRUE(again.Delete("shapes").ok());
+  EXPECT_EQ(store->SaveHead("shapes", "x").code(), absl::StatusCode::kInternal);  // no gallery
 }
 
 }  // namespace

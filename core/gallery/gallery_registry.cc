@@ -4,6 +4,7 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "core/gallery/gallery_head.h"
 #include "core/status_macros.h"
 
 namespace shapeid {
@@ -45,6 +46,20 @@ class RestoringLoader final : public GalleryLoader {
     if (!gallery.ok()) return gallery.status();
     loaded_.push_back(*std::move(gallery));
     return absl::OkStatus();
+  }
+
+  // The head the store kept, for the gallery just loaded: used only if it was fitted on
+  // exactly these samples (else a crash came between a change and the head's refit, and the
+  // learner fits it again). A head that does not parse is left out the same way.
+  absl::Status Head(absl::string_view bytes) override {
+    if (loaded_.empty()) return absl::InternalError("a stored head came before its gallery");
+    const std::shared_ptr<Gallery>& gallery = loaded_.back();
+    absl::StatusOr<GalleryHead> head = GalleryHead::Parse(bytes);
+    if (!head.ok()) return absl::OkStatus();
+    const std::shared_ptr<const GallerySnapshot> snapshot = gallery->Snapshot();
+    if (head->samples_fingerprint != SamplesFingerprint(*snapshot)) return absl::OkStatus();
+    head->fitted_version = snapshot->version();  // versions restart in some stores
+    return gallery->SetHead(std::make_shared<const GalleryHead>(*std::move(head)));
   }
 
   std::vector<std::shared_ptr<Gallery>>& loaded() { return loaded_; }

@@ -78,6 +78,36 @@ absl::Status InMemoryGalleryStore::DeleteGallery(absl::string_view name) {
   auto it = galleries_.find(name);
   if (it == galleries_.end()) return NotStored(name);
   galleries_.erase(it);
+  if (auto head = heads_.find(name); head != heads_.end()) heads_.erase(head);
+  return absl::OkStatus();
+}
+
+absl::Status InMemoryGalleryStore::SaveHead(absl::string_view name, absl::string_view bytes) {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (!failure_.ok()) return failure_;
+  if (galleries_.find(name) == galleries_.end()) return NotStored(name);
+  heads_[std::string(name)] = std::string(bytes);
+  return absl::OkStatus();
+}
+
+absl::Status InMemoryGalleryStore::Load(GalleryLoader& loader) {
+  absl::StatusOr<std::vector<StoredGallery>> all = LoadAll();
+  if (!all.ok()) return all.status();
+  std::map<std::string, std::string, std::less<>> heads;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    heads = heads_;
+  }
+  for (StoredGallery& gallery : *all) {
+    if (absl::Status s = loader.Begin(gallery); !s.ok()) return s;
+    for (StoredSample& sample : gallery.samples) {
+      if (absl::Status s = loader.Add(sample); !s.ok()) return s;
+    }
+    if (absl::Status s = loader.End(); !s.ok()) return s;
+    if (auto head = heads.find(gallery.name); head != heads.end()) {
+      if (absl::Status s = loader.Head(head->second); !s.ok()) return s;
+    }
+  }
   return absl::OkStatus();
 }
 

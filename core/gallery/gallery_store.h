@@ -52,6 +52,12 @@ class GalleryLoader {
   // (its provenance, say); the store fills every field again before the next call.
   virtual absl::Status Add(StoredSample& sample) = 0;
   virtual absl::Status End() = 0;
+  // The trained head (GalleryHead::Serialize's bytes) the store kept for the gallery ended
+  // last, if it kept one; derived state, checked against the samples by the loader.
+  virtual absl::Status Head(absl::string_view bytes) {
+    (void)bytes;
+    return absl::OkStatus();
+  }
 };
 
 // Where galleries persist. The registry and the galleries call it BEFORE they publish a
@@ -83,6 +89,15 @@ class GalleryStore {
   // Every id is present in the gallery; no duplicates.
   virtual absl::Status RemoveSamples(absl::string_view name, absl::Span<const uint64_t> ids,
                                      absl::Time updated, uint64_t version) = 0;
+  // Keeps a gallery's trained head (GalleryHead::Serialize's bytes) in place of the one kept
+  // before, to be handed back by Load after its samples. Derived state: a store may keep none
+  // (the default), and a gallery then fits its head again after a restart. The write is
+  // atomic: a crash leaves the old head or the new one. DeleteGallery drops it.
+  virtual absl::Status SaveHead(absl::string_view name, absl::string_view bytes) {
+    (void)name;
+    (void)bytes;
+    return absl::OkStatus();
+  }
   // Everything saved, whole, sorted by name (tests, tools).
   virtual absl::StatusOr<std::vector<StoredGallery>> LoadAll() = 0;
   // Everything saved, handed to `loader` a sample at a time: what GalleryRegistry::
@@ -132,6 +147,8 @@ class InMemoryGalleryStore final : public GalleryStore {
   absl::Status RemoveSamples(absl::string_view name, absl::Span<const uint64_t> ids,
                              absl::Time updated, uint64_t version) override;
   absl::StatusOr<std::vector<StoredGallery>> LoadAll() override;
+  absl::Status SaveHead(absl::string_view name, absl::string_view bytes) override;
+  absl::Status Load(GalleryLoader& loader) override;
 
   // Every later call fails with `status` (until called again with OkStatus()).
   void SetFailure(absl::Status status);
@@ -142,6 +159,7 @@ class InMemoryGalleryStore final : public GalleryStore {
   mutable std::mutex mu_;
   absl::Status failure_ ABSL_GUARDED_BY(mu_);
   std::map<std::string, StoredGallery, std::less<>> galleries_ ABSL_GUARDED_BY(mu_);
+  std::map<std::string, std::string, std::less<>> heads_ ABSL_GUARDED_BY(mu_);
 };
 
 }  // namespace shapeid

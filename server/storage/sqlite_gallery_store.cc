@@ -16,6 +16,8 @@
 #include "absl/strings/strip.h"
 #include "absl/time/clock.h"
 #include "core/gallery/gallery_options.h"
+#include "core/io/file_writer.h"
+#include "core/io/point_cloud_reader.h"
 #include "core/status_macros.h"
 #include "server/storage/file_util.h"
 #include "server/storage/sample_checksum.h"
@@ -38,6 +40,9 @@ using sqlite_gallery_file::ReadGallery;
 namespace {
 
 constexpr absl::string_view kGallerySuffix = ".gallery";
+// A gallery's trained head (GalleryStore::SaveHead), beside its file; NAME.head.tmp while
+// being written.
+constexpr absl::string_view kHeadSuffix = ".head";
 
 std::string UtcStamp() {
   return absl::FormatTime("%Y%m%dT%H%M%SZ", absl::Now(), absl::UTCTimeZone());
@@ -156,6 +161,23 @@ SqliteGalleryStore::~SqliteGalleryStore() {
 
 std::string SqliteGalleryStore::GalleryPath(absl::string_view name) const {
   return absl::StrCat(galleries_dir_, "/", name, kGallerySuffix);
+}
+
+std::string SqliteGalleryStore::HeadPath(absl::string_view name) const {
+  return absl::StrCat(galleries_dir_, "/", name, kHeadSuffix);
+}
+
+absl::Status SqliteGalleryStore::SaveHead(absl::string_view name, absl::string_view bytes) {
+  SHAPEID_RETURN_IF_ERROR(CheckWritable(absl::StrCat("keep the head of gallery '", name, "'")));
+  SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<OpenGallery> g, Find(name));
+  std::lock_guard<std::mutex> lock(g->mu);  // not beside a delete of the gallery
+  absl::Status status = WriteFileAtomically(HeadPath(name), bytes);
+  if (status.ok()) status = SyncDirectory(galleries_dir_);
+  if (!status.ok()) {
+    return absl::Status(status.code(), absl::StrCat("cannot keep the head of gallery '", name,
+                                                    "': ", status.message()));
+  }
+  return absl::OkStatus();
 }
 
 std::vector<SqliteGalleryStore::SetAside> SqliteGalleryStore::set_aside() const {
@@ -418,7 +440,8 @@ absl::Status SqliteGalleryStore::DeleteGallery(absl::string_view name) {
     read_only_galleries_.erase(std::string(name));
   }
   // Best effort: start-up removes whatever a crash leaves here.
-  for (const std::string& leftover : {doomed, path + "-wal", path + "-shm"}) {
+  for (const std::string& leftover :
+       {doomed, path + "-wal", path + "-shm", HeadPath(name), HeadPath(name) + ".tmp"}) {
     (void)RemoveFileIfExists(leftover);
   }
   return absl::OkStatus();
@@ -548,8 +571,9 @@ absl::Status SqliteGalleryStore::Load(GalleryLoader& destination) {
   // again.
   bool cleaned = false;
   for (const std::string& entry : entries) {
-    if (!read_only() && absl::StartsWith(entry, ".") &&
-        (absl::StrContains(entry, ".deleted") || absl::StrContains(entry, ".tmp"))) {
+    if (!read_only() && ((absl::StartsWith(entry, ".") && (absl::StrContains(entry, ".deleted") ||
+                                                           absl::StrContains(entry, ".tmp"))) ||
+                         absl::EndsWith(entry, absl::StrCat(kHeadSuffix, ".tmp")))) {
       cleaned |= RemoveFileIfExists(absl::StrCat(galleries_dir_, "/", entry)).ok();
     }
   }
@@ -580,6 +604,12 @@ absl::Status SqliteGalleryStore::Load(GalleryLoader& destination) {
       std::lock_guard<std::mutex> lock(mu_);
       open_[name] = std::move(open);
       if (!unwritable.ok() && !read_only()) read_only_galleries_[name] = unwritable;
+    }
+    // Derived state: a head that cannot be read is left out, and the gallery fits it again.
+    if (FileExists(HeadPath(name))) {
+      if (absl::StatusOr<std::string> head = ReadFileContents(HeadPath(name)); head.ok()) {
+        SHAPEID_RETURN_IF_ERROR(destination.Head(*head));
+      }
     }
   }
   return absl::OkStatus();

@@ -108,6 +108,9 @@ class SqliteGalleryStore final : public GalleryStore {
   // Load reads each file a sample at a time into the loader (a gallery set aside partway is
   // begun and never ended); LoadAll collects the same whole.
   absl::Status Load(GalleryLoader& loader) override;
+  // The head goes to NAME.head beside the gallery's file, written atomically (a temporary
+  // file, fsync, rename, fsync of the directory); Load hands it over after the gallery.
+  absl::Status SaveHead(absl::string_view name, absl::string_view bytes) override;
   absl::StatusOr<std::vector<StoredGallery>> LoadAll() override { return CollectGalleries(*this); }
 
   struct SetAside {
@@ -132,6 +135,8 @@ class SqliteGalleryStore final : public GalleryStore {
   bool read_only() const { return !read_only_.empty(); }
   // The database file of gallery `name` (which may not exist).
   std::string GalleryPath(absl::string_view name) const;
+  // The file of its trained head (which may not exist).
+  std::string HeadPath(absl::string_view name) const;
 
  private:
   struct OpenGallery;

@@ -513,6 +513,10 @@ class RecordingLoader final : public GalleryLoader {
     events.push_back("end");
     return absl::OkStatus();
   }
+  absl::Status Head(absl::string_view bytes) override {
+    events.push_back(absl::StrCat("head ", bytes));
+    return absl::OkStatus();
+  }
 
   std::vector<std::string> events;
   std::map<std::string, int> samples_since_begin;
@@ -543,6 +547,34 @@ TEST(SqliteGalleryStoreTest, LoadHandsOverASampleAtATimeAndDropsAGalleryDamagedP
   EXPECT_EQ(loader.addresses["begin good"].size(), 1u);
   ASSERT_EQ(store->set_aside().size(), 1u);
   EXPECT_EQ(store->set_aside()[0].name, "bad");
+}
+
+TEST(SqliteGalleryStoreTest, AKeptHeadComesBackAfterItsGalleryAndGoesWithIt) {
+  const std::string dir = ScratchDir("data");
+  {
+    auto store = OpenStore(dir);
+    ASSERT_TRUE(store->LoadAll().ok());
+    ASSERT_TRUE(store->SaveGallery(MakeGallery("a", 4, 2, 1)).ok());
+    ASSERT_TRUE(store->SaveGallery(MakeGallery("b", 4, 2, 2)).ok());
+    ASSERT_TRUE(store->SaveHead("a", "first").ok());
+    ASSERT_TRUE(store->SaveHead("a", "second").ok());  // replaces the first
+    EXPECT_EQ(store->SaveHead("none", "x").code(), absl::StatusCode::kInternal);
+  }
+  // What a crash while writing a head leaves behind: removed at the next start.
+  std::ofstream(dir + "/galleries/b.head.tmp") << "partial";
+  {
+    auto store = OpenStore(dir);
+    RecordingLoader loader;
+    ASSERT_TRUE(store->Load(loader).ok());
+    EXPECT_THAT(loader.events, ElementsAre("begin a", "end", "head second", "begin b", "end"));
+    EXPECT_FALSE(FileExists(dir + "/galleries/b.head.tmp"));
+    ASSERT_TRUE(store->DeleteGallery("a").ok());
+    EXPECT_FALSE(FileExists(store->HeadPath("a")));
+  }
+  auto store = OpenStore(dir);
+  RecordingLoader loader;
+  ASSERT_TRUE(store->Load(loader).ok());
+  EXPECT_THAT(loader.events, ElementsAre("begin b", "end"));
 }
 
 TEST(SqliteGalleryStoreTest, ALoadersErrorEndsTheLoadAsItIsAndSetsNothingAside) {
