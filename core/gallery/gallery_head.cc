@@ -24,7 +24,38 @@ bool HeldOut(uint64_t id, int per_mille) {
          SplitMix64(id ^ 0x5eedf00dull).Next() % 1000 < static_cast<uint64_t>(per_mille);
 }
 
+// The chance that a view (1 and up) of a sample is read, and the chance that a sample's own
+// descriptor is, so that a fit reads about max_vectors vectors.
+struct Sampling {
+  double own = 1.0;
+  double views = 1.0;
+};
+
+Sampling SamplingFor(int64_t samples, int64_t rows, int64_t max_vectors) {
+  Sampling sampling;
+  if (rows <= max_vectors) return sampling;
+  if (samples >= max_vectors) {
+    sampling.own = static_cast<double>(max_vectors) / static_cast<double>(samples);
+    sampling.views = 0;
+  } else {
+    sampling.views =
+        static_cast<double>(max_vectors - samples) / static_cast<double>(rows - samples);
+  }
+  return sampling;
+}
+
+// A uniform draw in [0, 1) fixed by (id, view).
+double Draw(uint64_t id, int view) {
+  return static_cast<double>(
+             SplitMix64(id * 0x9e3779b97f4a7c15ull + static_cast<uint64_t>(view)).Next() >> 11) *
+         0x1.0p-53;
+}
+
 }  // namespace
+
+int64_t FitVectors(const GallerySnapshot& snapshot, const HeadOptions& options) {
+  return std::min<int64_t>(snapshot.index().num_rows(), options.max_vectors);
+}
 
 absl::Status ValidateHeadOptions(const HeadOptions& options) {
   if (absl::Status valid = ValidateMlpOptions(options.mlp); !valid.ok()) return valid;
@@ -33,6 +64,9 @@ absl::Status ValidateHeadOptions(const HeadOptions& options) {
         absl::StrCat("held-out per mille must be in [0, 500], not ", options.holdout_per_mille));
   }
   if (options.min_samples < 2) return absl::InvalidArgumentError("min samples must be >= 2");
+  if (options.max_vectors < options.min_samples) {
+    return absl::InvalidArgumentError("max vectors must be >= min samples");
+  }
   return absl::OkStatus();
 }
 
@@ -157,16 +191,26 @@ absl::StatusOr<GalleryHead> FitGalleryHead(const GallerySnapshot& snapshot,
   TrainingRows fit, held;
   fit.dimension = held.dimension = d;
   fit.num_classes = held.num_classes = static_cast<int>(head.labels.size());
+  const Sampling sampling = SamplingFor(index.size(), index.num_rows(), options.max_vectors);
   std::vector<float> views;
   for (int64_t s = 0; s < index.size(); ++s) {
+    const uint64_t id = index.IdAt(s);
     const int cls = head.ClassOf(index.LabelAt(s));
     const int n = index.ViewsAt(s);
     views.resize(static_cast<size_t>(n) * d);
     index.CopyFeatures(s, views.data());
-    TrainingRows& rows = HeldOut(index.IdAt(s), options.holdout_per_mille) ? held : fit;
+    TrainingRows& rows = HeldOut(id, options.holdout_per_mille) ? held : fit;
     (&rows == &held ? head.holdout_samples : head.fitted_samples) += 1;
-    rows.features.insert(rows.features.end(), views.begin(), views.end());
-    rows.classes.insert(rows.classes.end(), n, cls);
+    for (int v = 0; v < n; ++v) {
+      if (Draw(id, v) >= (v == 0 ? sampling.own : sampling.views)) continue;
+      rows.features.insert(rows.features.end(), views.begin() + static_cast<size_t>(v) * d,
+                           views.begin() + static_cast<size_t>(v + 1) * d);
+      rows.classes.push_back(cls);
+    }
+  }
+  if (fit.rows() == 0) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("gallery '", snapshot.name(), "': no vector left to fit after sampling"));
   }
   head.fitted_rows = fit.rows();
   head.holdout_rows = held.rows();

@@ -37,6 +37,10 @@ struct HeadOptions {
   int holdout_per_mille = 100;
   // Galleries with fewer samples or fewer than two labels are not fitted (FailedPrecondition).
   int min_samples = 20;
+  // A fit reads at most about this many vectors, so that its time and memory stay bounded
+  // however large the gallery: each sample's own descriptor first, then its views, each
+  // kept by a hash of (id, view) with the probability that fills the rest.
+  int64_t max_vectors = 250'000;
 };
 
 absl::Status ValidateHeadOptions(const HeadOptions& options);
@@ -69,6 +73,9 @@ struct GalleryHead {
 
 // A hash of a snapshot's sample ids and labels in training order. O(samples).
 uint64_t SamplesFingerprint(const GallerySnapshot& snapshot);
+
+// The vectors a fit of `snapshot` reads: min(its vectors, about options.max_vectors).
+int64_t FitVectors(const GallerySnapshot& snapshot, const HeadOptions& options);
 
 // Fits a head over `snapshot`'s vectors. FailedPrecondition when the gallery has fewer than
 // options.min_samples samples or fewer than two labels (kNN answers it alone); InvalidArgument

@@ -63,6 +63,25 @@ TEST(GalleryHeadTest, FitsOverEverySampleAndViewHoldingASliceOut) {
             head->classifier.Serialize());
 }
 
+TEST(GalleryHeadTest, ALargeGallerysFitReadsAboutMaxVectorsEveryOwnDescriptorFirst) {
+  const std::shared_ptr<const GallerySnapshot> snapshot = ShapesGallery()->Snapshot();
+  ASSERT_EQ(snapshot->index().num_rows(), 90);  // 30 samples, 2 views each
+  HeadOptions options = FastHead();
+  options.max_vectors = 45;  // the 30 own descriptors and about 15 of the 60 views
+  const GalleryHead head = *FitGalleryHead(*snapshot, options);
+  const int64_t read = head.fitted_rows + head.holdout_rows;
+  EXPECT_GE(read, 30);
+  EXPECT_LE(read, 60);
+  EXPECT_EQ(FitVectors(*snapshot, options), 45);
+  EXPECT_EQ(FitGalleryHead(*snapshot, options)->fitted_rows, head.fitted_rows);  // same draw
+  options.max_vectors = 15;  // fewer than the samples: half of the own descriptors, no view
+  const GalleryHead fewer = *FitGalleryHead(*snapshot, options);
+  EXPECT_GT(fewer.fitted_rows + fewer.holdout_rows, 5);
+  EXPECT_LT(fewer.fitted_rows + fewer.holdout_rows, 25);
+  options.max_vectors = 1;
+  EXPECT_EQ(FitGalleryHead(*snapshot, options).status().code(), absl::StatusCode::kInvalidArgument);
+}
+
 TEST(GalleryHeadTest, ASmallOrOneLabelGalleryIsLeftToKnn) {
   const std::shared_ptr<Gallery> gallery = ShapesGallery(1);
   HeadOptions options = FastHead();

@@ -36,7 +36,7 @@ int64_t FitBytes(const GallerySnapshot& snapshot, const HeadOptions& options) {
     units = hidden;
   }
   parameters += (units + 1) * snapshot.index().num_labels();
-  const int64_t rows = snapshot.index().num_rows();
+  const int64_t rows = FitVectors(snapshot, options);
   return rows * (snapshot.dimension() + 1) * 4 + 4 * 4 * parameters + (int64_t{1} << 20);
 }
 
