@@ -321,6 +321,26 @@ void ServerMetrics::CollectLive(std::vector<MetricFamily>* out) const {
     callers.metric.push_back(Gauge(static_cast<double>(state.callers)));
     out->push_back(std::move(callers));
   }
+  if (live.learner) {
+    if (const std::optional<LearnerState> learner = live.learner(); learner.has_value()) {
+      MetricFamily fits = Family("shapeid_head_fits_total",
+                                 "Trained heads fitted and published since start (--learn=mlp).",
+                                 MetricType::Counter);
+      fits.metric.push_back(Counter(static_cast<double>(learner->fits)));
+      out->push_back(std::move(fits));
+      MetricFamily failures = Family(
+          "shapeid_head_fit_failures_total",
+          "Fits that failed (their memory could not be held, say) since start; retried later.",
+          MetricType::Counter);
+      failures.metric.push_back(Counter(static_cast<double>(learner->failures)));
+      out->push_back(std::move(failures));
+      MetricFamily fitting =
+          Family("shapeid_head_fitting", "1 while a gallery's head is being fitted, else 0.",
+                 MetricType::Gauge);
+      fitting.metric.push_back(Gauge(learner->fitting ? 1 : 0));
+      out->push_back(std::move(fitting));
+    }
+  }
   if (live.memory) {
     const MemoryBudgetState memory = live.memory();
     MetricFamily budget = Family("shapeid_memory_budget_bytes",

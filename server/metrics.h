@@ -80,6 +80,13 @@ struct MemoryBudgetState {
 };
 
 // Read at scrape time; each may be empty. Called from the scraping thread.
+// The background fitting of galleries' trained heads (core/gallery/gallery_learner.h).
+struct LearnerState {
+  int64_t fits = 0;
+  int64_t failures = 0;
+  bool fitting = false;
+};
+
 struct LiveSources {
   std::function<int64_t()> calls_in_flight;
   std::function<bool()> serving;
@@ -87,6 +94,7 @@ struct LiveSources {
   std::function<std::vector<WorkLaneState>()> work;
   std::function<WorkBacklogState()> backlog;
   std::function<MemoryBudgetState()> memory;
+  std::function<std::optional<LearnerState>()> learner;  // nullopt: the server does not learn
 };
 
 // One call, as the service saw it when it answered.

@@ -185,6 +185,13 @@ TEST(ServerMetricsTest, LiveStateReplicationAndProcess) {
   live.replication = [] { return std::optional<ReplicationState>(); };
   metrics.SetSources(std::weak_ptr<const GalleryRegistry>(), live);
   EXPECT_THAT(Scrape(metrics), Not(HasSubstr("shapeid_store_reachable")));
+  // The learner's series only where the server learns (--learn=mlp).
+  EXPECT_THAT(Scrape(metrics), Not(HasSubstr("shapeid_head_fits_total")));
+  live.learner = [] { return std::optional<LearnerState>(LearnerState{4, 1, true}); };
+  metrics.SetSources(std::weak_ptr<const GalleryRegistry>(), live);
+  EXPECT_EQ(Value(metrics, "shapeid_head_fits_total"), 4);
+  EXPECT_EQ(Value(metrics, "shapeid_head_fit_failures_total"), 1);
+  EXPECT_EQ(Value(metrics, "shapeid_head_fitting"), 1);
 }
 
 TEST(ServerMetricsTest, DescribeSearchAndStoreWrites) {

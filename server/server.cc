@@ -8,6 +8,7 @@
 
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "absl/time/clock.h"
 #include "grpcpp/ext/proto_server_reflection_plugin.h"
 #include "grpcpp/generic/async_generic_service.h"
@@ -153,6 +154,14 @@ absl::StatusOr<std::unique_ptr<ShapeIdServer>> ShapeIdServer::Bind(const ServerO
       if (!grant.ok()) return grant.status();
       return std::shared_ptr<void>(std::make_shared<MemoryBudget::Grant>(*std::move(grant)));
     };
+    learner.on_fitted = [logger = server->logger_](const std::string& gallery,
+                                                   const GalleryHead& head) {
+      logger->Info(absl::StrFormat("gallery '%s': head fitted on %d vectors in %.1f s, %.1f %% "
+                                   "on %d held-out vectors",
+                                   gallery, head.fitted_rows, absl::ToDoubleSeconds(head.fit_time),
+                                   100 * head.holdout_accuracy(), head.holdout_rows),
+                   {{"gallery", gallery}, {"fitted_vectors", head.fitted_rows}});
+    };
     server->learner_options_ = std::move(learner);
   }
   server->service_->HoldUntilLoaded();
@@ -215,6 +224,11 @@ absl::Status ShapeIdServer::StartMetrics(const MetricsOptions& options) {
     const WorkScheduler::BacklogStats backlog = service->scheduler().backlog();
     return WorkBacklogState{absl::ToDoubleSeconds(backlog.total), backlog.callers};
   };
+  live.learner = [this]() -> std::optional<LearnerState> {
+    const GalleryLearner* learner = learner_for_metrics_.load();
+    if (learner == nullptr) return std::nullopt;
+    return LearnerState{learner->fits(), learner->failures(), !learner->fitting().empty()};
+  };
   live.memory = [service] {
     const MemoryBudget& budget = service->budget();
     return MemoryBudgetState{budget.total_bytes(), budget.held_bytes(), budget.peak_bytes()};
@@ -266,6 +280,7 @@ absl::StatusOr<LoadReport> ShapeIdServer::LoadGalleries() {
   SetServing(true);
   if (learner_options_.has_value()) {
     learner_ = std::make_unique<GalleryLearner>(*learner_options_, registry_.get());
+    learner_for_metrics_ = learner_.get();
   }
   if (follower_ != nullptr) {
     // From here on other replicas' changes are applied as they come; losing PostgreSQL for
@@ -279,7 +294,7 @@ absl::StatusOr<LoadReport> ShapeIdServer::LoadGalleries() {
 }
 
 void ShapeIdServer::Shutdown(absl::Duration grace) {
-  learner_.reset();  // a fit in progress stops within one mini-batch
+  if (learner_ != nullptr) learner_->Stop();  // a fit in progress stops within a mini-batch
   if (shut_down_ || server_ == nullptr) return;
   // First, so that it cannot turn the service back to serving while it drains.
   if (follower_ != nullptr) follower_->Stop();

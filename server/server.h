@@ -1,6 +1,7 @@
 #ifndef SHAPEID_SERVER_SERVER_H_
 #define SHAPEID_SERVER_SERVER_H_
 
+#include <atomic>
 #include <memory>
 #include <optional>
 #include <string>
@@ -107,6 +108,9 @@ class ShapeIdServer {
   // With options.learn, from LoadGalleries on; stopped first, before what it uses.
   std::optional<GalleryLearnerOptions> learner_options_;
   std::unique_ptr<GalleryLearner> learner_;
+  // learner_ for the metrics' scrapes, which may come before it exists; it is stopped, never
+  // destroyed, before the metrics' sources are cleared.
+  std::atomic<const GalleryLearner*> learner_for_metrics_{nullptr};
   // Points the metrics at this server's state and, with `options.listen`, serves them.
   absl::Status StartMetrics(const MetricsOptions& options);
   // Sets the health of the main port and of the health-only port alike.

@@ -47,13 +47,15 @@ GalleryLearner::GalleryLearner(GalleryLearnerOptions options, GalleryRegistry* r
   thread_ = std::thread([this] { Run(); });
 }
 
-GalleryLearner::~GalleryLearner() {
+GalleryLearner::~GalleryLearner() { Stop(); }
+
+void GalleryLearner::Stop() {
   {
     std::lock_guard<std::mutex> lock(mu_);
     stop_ = true;
   }
   wake_.notify_all();
-  thread_.join();
+  if (thread_.joinable()) thread_.join();
 }
 
 void GalleryLearner::Nudge() {
@@ -153,9 +155,10 @@ void GalleryLearner::Fit(const std::shared_ptr<Gallery>& gallery) {
     return;
   }
   // Published even when the store cannot keep it (the next restart then fits it again).
-  (void)gallery->SetHead(std::make_shared<const GalleryHead>(*std::move(head)),
-                         Gallery::KeepHead::kInStore);
+  auto published = std::make_shared<const GalleryHead>(*std::move(head));
+  (void)gallery->SetHead(published, Gallery::KeepHead::kInStore);
   ++fits_;
+  if (options_.on_fitted) options_.on_fitted(gallery->name(), *published);
 }
 
 }  // namespace shapeid

@@ -47,14 +47,20 @@ struct GalleryLearnerOptions {
   // says why not (the fit is then tried later); null: nothing is counted. The returned
   // object releases the memory when destroyed.
   std::function<absl::StatusOr<std::shared_ptr<void>>(int64_t bytes)> reserve;
+  // Called on the fitting thread after each head is published (a log line, say); may be null.
+  std::function<void(const std::string& gallery, const GalleryHead& head)> on_fitted;
 };
 
 class GalleryLearner {
  public:
   // Starts the fitting thread. `registry` must outlive the learner.
   GalleryLearner(GalleryLearnerOptions options, GalleryRegistry* registry);
-  // Stops the thread: a fit in progress is abandoned within one mini-batch.
+  // Stop(), then gone.
   ~GalleryLearner();
+
+  // Stops the thread: a fit in progress is abandoned within one mini-batch. Idempotent; the
+  // counters stay readable.
+  void Stop();
 
   GalleryLearner(const GalleryLearner&) = delete;
   GalleryLearner& operator=(const GalleryLearner&) = delete;
