@@ -1,7 +1,7 @@
 #ifndef SHAPEID_CORE_GALLERY_GALLERY_HEAD_H_
 #define SHAPEID_CORE_GALLERY_GALLERY_HEAD_H_
 
-// A gallery's trained head (issue 40): an MLP classifier (core/learning) fitted over every
+// A gallery's trained head: an MLP classifier (core/learning) fitted over every
 // vector the gallery stores, its samples' descriptors and their augmented views, that answers
 // Classify together with the kNN vote once fitted (GalleryClassification::by_head). The kNN
 // search still runs: its neighbours, distances and provenance are returned with the answer,
@@ -26,8 +26,8 @@ namespace shapeid {
 class GallerySnapshot;
 
 struct HeadOptions {
-  // MlpOptions' defaults with input noise 0.3: measured on views made by other code
-  // (bench/learn_probe, docs/accuracy.md).
+  // MlpOptions' defaults with input noise: a regulariser against the simulator's signature
+  // in the augmented views (docs/accuracy.md has the figures).
   MlpOptions mlp = [] {
     MlpOptions options;
     options.input_noise = 0.3;

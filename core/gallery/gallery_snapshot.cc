@@ -172,8 +172,7 @@ GalleryClassification GallerySnapshot::Answer(KnnResult knn,
   answer.confidence = answer.unknown ? 0.0 : knn.confidence;
   if (!answer.unknown && head_answers_) {
     // The head's probabilities (averaged over the query's pose variants) and the kNN vote's
-    // shares, half each: on views made by other code the two together beat either alone
-    // (docs/accuracy.md, "A gallery that learns").
+    // shares, half each: each corrects the other's mistakes on views unlike the gallery's.
     absl::StatusOr<std::vector<float>> scores = head_->classifier.Probabilities(queries);
     if (scores.ok()) {
       double total = 0;

@@ -2,7 +2,7 @@
 #define SHAPEID_CORE_LEARNING_MLP_CLASSIFIER_H_
 
 // A small multilayer perceptron that learns classes from feature vectors (descriptors), fitted
-// and answered in C++ with Eigen: the trained head of a gallery that learns (issue 40).
+// and answered in C++ with Eigen: the trained head of a gallery (core/gallery/gallery_head.h).
 //
 // Network: standardised input (each feature's training mean and spread), then `hidden` fully
 // connected ReLU layers with dropout while fitting, then a linear layer to one logit a class;
