@@ -54,6 +54,17 @@ std::unique_ptr<Client> ClientFor(const ShapeIdServer& server) {
   return *std::move(client);
 }
 
+// Trains clouds[begin, end) into gallery "lab": cloud i is testing_clouds::ShapeCloud kind
+// i % 3, labelled by its shape's name, with id i + 1.
+void TrainShapes(Client& client, const std::vector<PointCloud>& clouds, uint32_t begin,
+                 uint32_t end) {
+  std::vector<TrainSample> samples;
+  for (uint32_t i = begin; i < end; ++i) {
+    samples.push_back({std::string(testing_clouds::kShapeNames[i % 3]), i + 1, &clouds[i]});
+  }
+  ASSERT_TRUE(client.Train("lab", samples).ok());
+}
+
 TEST(ShapeIdServerTest, NotServingUntilEveryGalleryIsLoaded) {
   const std::string dir = ScratchDir();
   WriteStoredGallery(dir);
@@ -201,11 +212,7 @@ TEST(ShapeIdServerTest, ApproximateSearchAboveTheThresholdAndExactOnRequest) {
   std::vector<PointCloud> clouds;
   for (uint32_t i = 0; i < 150; ++i) clouds.push_back(testing_clouds::ShapeCloud(i % 3, i, 200));
   auto train = [&](Client& client, uint32_t begin, uint32_t end) {
-    std::vector<TrainSample> samples;
-    for (uint32_t i = begin; i < end; ++i) {
-      samples.push_back({std::string(testing_clouds::kShapeNames[i % 3]), i + 1, &clouds[i]});
-    }
-    ASSERT_TRUE(client.Train("lab", samples).ok());
+    TrainShapes(client, clouds, begin, end);
   };
   {
     auto server = ShapeIdServer::Start(options);
@@ -283,11 +290,7 @@ TEST(ShapeIdServerTest, ALearningServerFitsAHeadAndFitsTheSameAfterARestart) {
     v1::CreateGalleryRequest create;
     create.set_name("lab");
     ASSERT_TRUE(client->CreateGallery(create).ok());
-    std::vector<TrainSample> samples;
-    for (uint32_t i = 0; i < clouds.size(); ++i) {
-      samples.push_back({std::string(testing_clouds::kShapeNames[i % 3]), i + 1, &clouds[i]});
-    }
-    ASSERT_TRUE(client->Train("lab", samples).ok());
+    TrainShapes(*client, clouds, 0, static_cast<uint32_t>(clouds.size()));
     first = wait_for_head(*client);
     ASSERT_TRUE(first.has_head());
     EXPECT_EQ(first.head().fitted_version(), first.version());

@@ -6,8 +6,8 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "core/binary_codec.h"
 #include "core/gallery/gallery_snapshot.h"
-#include "core/learning/binary_codec.h"
 #include "core/random.h"
 
 namespace shapeid {
@@ -132,7 +132,7 @@ absl::StatusOr<GalleryHead> GalleryHead::Parse(absl::string_view bytes) {
   }
   head.labels.resize(num_labels);
   for (std::string& label : head.labels) {
-    if (!reader.String(kMaxLabelBytes, label)) return bad("a label out of range");
+    if (!reader.String(label, kMaxLabelBytes)) return bad("a label out of range");
   }
   if (!std::is_sorted(head.labels.begin(), head.labels.end()) ||
       std::adjacent_find(head.labels.begin(), head.labels.end()) != head.labels.end()) {

@@ -4,10 +4,10 @@
 #include <string>
 #include <vector>
 
+#include "core/binary_codec.h"
 #include "core/gallery/gallery.h"
 #include "core/gallery/gallery_snapshot.h"
 #include "core/gallery/gallery_test_shapes.h"
-#include "core/learning/binary_codec.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 

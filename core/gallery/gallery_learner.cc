@@ -29,13 +29,8 @@ bool WantsHead(const GallerySnapshot& snapshot, const HeadOptions& options) {
 // The working memory of a fit: a copy of every vector, the network with its AdamW state,
 // and a mini-batch's activations, with room to spare.
 int64_t FitBytes(const GallerySnapshot& snapshot, const HeadOptions& options) {
-  int64_t parameters = 0;
-  int64_t units = snapshot.dimension();
-  for (const int hidden : options.mlp.hidden) {
-    parameters += (units + 1) * hidden;
-    units = hidden;
-  }
-  parameters += (units + 1) * snapshot.index().num_labels();
+  const int64_t parameters = MlpClassifier::ParametersFor(snapshot.dimension(), options.mlp.hidden,
+                                                          snapshot.index().num_labels());
   const int64_t rows = FitVectors(snapshot, options);
   return rows * (snapshot.dimension() + 1) * 4 + 4 * 4 * parameters + (int64_t{1} << 20);
 }

@@ -1,10 +1,9 @@
 #include "core/gallery/sample_provenance.h"
 
-#include <zlib.h>
-
 #include <algorithm>
 
 #include "absl/strings/str_cat.h"
+#include "core/binary_codec.h"
 #include "core/gallery/gallery_options.h"
 #include "core/heap_chunk.h"
 
@@ -20,47 +19,6 @@ absl::Status CheckUtf8(absl::string_view what, absl::string_view text) {
   return absl::InvalidArgumentError(
       absl::StrCat(what, " ", QuoteForMessage(text), " is not valid UTF-8 (at byte ", bad, ")"));
 }
-
-void PutU32(uint32_t value, std::string& out) {
-  for (int i = 0; i < 4; ++i) out.push_back(static_cast<char>((value >> (8 * i)) & 0xff));
-}
-
-void PutString(absl::string_view text, std::string& out) {
-  PutU32(static_cast<uint32_t>(text.size()), out);
-  out.append(text.data(), text.size());
-}
-
-uint32_t Crc(absl::string_view bytes) {
-  if (bytes.empty()) return 0;
-  return static_cast<uint32_t>(
-      crc32_z(0, reinterpret_cast<const Bytef*>(bytes.data()), bytes.size()));
-}
-
-// Reads the encoding front to back; every read checks the bytes left.
-class Reader {
- public:
-  explicit Reader(absl::string_view bytes) : rest_(bytes) {}
-  bool U32(uint32_t& value) {
-    if (rest_.size() < 4) return false;
-    value = 0;
-    for (int i = 0; i < 4; ++i) value |= uint32_t{static_cast<uint8_t>(rest_[i])} << (8 * i);
-    rest_.remove_prefix(4);
-    return true;
-  }
-  bool String(std::string& text) {
-    uint32_t size;
-    if (!U32(size) || rest_.size() < size) return false;
-    // Constructed, not assigned: assign() would leave a growth capacity (30 bytes for 16).
-    text = std::string(rest_.data(), size);
-    rest_.remove_prefix(size);
-    return true;
-  }
-  bool done() const { return rest_.empty(); }
-  size_t left() const { return rest_.size(); }
-
- private:
-  absl::string_view rest_;
-};
 
 }  // namespace
 
@@ -131,15 +89,15 @@ size_t ProvenanceMemoryBytes(const SampleProvenance& provenance) {
 
 std::string EncodeProvenance(const SampleProvenance& provenance) {
   if (provenance.empty()) return "";
-  std::string out(1, static_cast<char>(kEncodingVersion));
-  PutString(provenance.source, out);
-  PutU32(static_cast<uint32_t>(provenance.metadata.size()), out);
+  ByteWriter out;
+  out.Bytes(std::string(1, static_cast<char>(kEncodingVersion)));
+  out.String(provenance.source);
+  out.U32(static_cast<uint32_t>(provenance.metadata.size()));
   for (const auto& [key, value] : provenance.metadata) {
-    PutString(key, out);
-    PutString(value, out);
+    out.String(key);
+    out.String(value);
   }
-  PutU32(Crc(out), out);
-  return out;
+  return std::move(out).Finish();
 }
 
 absl::StatusOr<SampleProvenance> DecodeProvenance(absl::string_view bytes) {
@@ -149,14 +107,13 @@ absl::StatusOr<SampleProvenance> DecodeProvenance(absl::string_view bytes) {
     return absl::DataLossError(absl::StrCat("sample provenance: ", what));
   };
   if (bytes.size() < 1 + 4 + 4 + 4) return damaged(absl::StrCat(bytes.size(), " bytes"));
-  const absl::string_view body = bytes.substr(0, bytes.size() - 4);
-  uint32_t stored_crc;
-  Reader(bytes.substr(bytes.size() - 4)).U32(stored_crc);
-  if (Crc(body) != stored_crc) return damaged("checksum mismatch");
-  if (static_cast<uint8_t>(body[0]) != kEncodingVersion) {
-    return damaged(absl::StrCat("encoding version ", static_cast<int>(body[0])));
+  ByteReader reader;
+  if (!reader.Open(bytes)) return damaged("checksum mismatch");
+  absl::string_view version;
+  reader.Bytes(1, version);
+  if (static_cast<uint8_t>(version[0]) != kEncodingVersion) {
+    return damaged(absl::StrCat("encoding version ", static_cast<int>(version[0])));
   }
-  Reader reader(body.substr(1));
   uint32_t entries;
   if (!reader.String(provenance.source) || !reader.U32(entries)) return damaged("truncated");
   // Each entry takes at least 8 bytes, so a damaged count can neither make this loop long
@@ -167,7 +124,7 @@ absl::StatusOr<SampleProvenance> DecodeProvenance(absl::string_view bytes) {
     if (!reader.String(key) || !reader.String(value)) return damaged("truncated metadata");
     provenance.metadata.emplace_back(std::move(key), std::move(value));
   }
-  if (!reader.done()) return damaged("bytes after the metadata");
+  if (reader.left() != 0) return damaged("bytes after the metadata");
   return provenance;
 }
 

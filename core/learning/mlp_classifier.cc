@@ -7,7 +7,7 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
-#include "core/learning/binary_codec.h"
+#include "core/binary_codec.h"
 #include "core/random.h"
 
 namespace shapeid {
@@ -25,6 +25,14 @@ struct AdamState {
   Eigen::ArrayXf m, v;
   explicit AdamState(Eigen::Index n) : m(Eigen::ArrayXf::Zero(n)), v(Eigen::ArrayXf::Zero(n)) {}
 };
+
+// Turns a row of logits into probabilities, in place (shifted by its largest for range).
+template <typename Row>
+void Softmax(Row&& row) {
+  const float top = row.maxCoeff();
+  row = (row.array() - top).exp().matrix();
+  row /= row.sum();
+}
 
 }  // namespace
 
@@ -62,6 +70,16 @@ absl::Status ValidateMlpOptions(const MlpOptions& options) {
     return absl::InvalidArgumentError("label smoothing must be in [0, 1)");
   }
   return absl::OkStatus();
+}
+
+int64_t MlpClassifier::ParametersFor(int dimension, const std::vector<int>& hidden, int classes) {
+  int64_t parameters = 0;
+  int64_t inputs = dimension;
+  for (const int units : hidden) {
+    parameters += (inputs + 1) * units;
+    inputs = units;
+  }
+  return parameters + (inputs + 1) * classes;
 }
 
 int64_t MlpClassifier::parameters() const {
@@ -132,10 +150,7 @@ absl::StatusOr<MlpClassifier> MlpClassifier::Fit(const TrainingRows& rows,
   std::vector<int> units = {d};
   units.insert(units.end(), options.hidden.begin(), options.hidden.end());
   units.push_back(classes);
-  int64_t parameters = 0;
-  for (size_t l = 0; l + 1 < units.size(); ++l) {
-    parameters += int64_t{units[l]} * units[l + 1] + units[l + 1];
-  }
+  const int64_t parameters = ParametersFor(d, options.hidden, classes);
   if (parameters > kMaxParameters) {
     return absl::InvalidArgumentError(
         absl::StrCat(parameters, " parameters: at most ", kMaxParameters));
@@ -217,9 +232,7 @@ absl::StatusOr<MlpClassifier> MlpClassifier::Fit(const TrainingRows& rows,
       // Softmax cross-entropy with smoothed targets: delta = p - target, averaged on the batch.
       delta = z;
       for (int r = 0; r < b; ++r) {
-        const float top = delta.row(r).maxCoeff();
-        delta.row(r) = (delta.row(r).array() - top).exp().matrix();
-        delta.row(r) /= delta.row(r).sum();
+        Softmax(delta.row(r));
         delta.row(r).array() -= smooth / classes;
         delta(r, rows.classes[order[start + r]]) -= 1.0f - smooth;
       }
@@ -275,13 +288,11 @@ absl::StatusOr<std::vector<float>> MlpClassifier::Probabilities(
   const Eigen::Index n = static_cast<Eigen::Index>(features.size() / dimension_);
   const Eigen::Map<const Matrix> x(features.data(), n, dimension_);
   Matrix input = (x.rowwise() - offset_.transpose()).array().rowwise() * scale_.transpose().array();
-  Matrix logits = Logits(input);
+  Matrix logits = Logits(input);  // softmaxed row by row below
   std::vector<float> mean(num_classes(), 0.0f);
   for (Eigen::Index r = 0; r < n; ++r) {
-    const float top = logits.row(r).maxCoeff();
-    Eigen::RowVectorXf p = (logits.row(r).array() - top).exp().matrix();
-    p /= p.sum();
-    for (int c = 0; c < num_classes(); ++c) mean[c] += p[c] / static_cast<float>(n);
+    Softmax(logits.row(r));
+    for (int c = 0; c < num_classes(); ++c) mean[c] += logits(r, c) / static_cast<float>(n);
   }
   return mean;
 }

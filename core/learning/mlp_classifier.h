@@ -66,6 +66,10 @@ class MlpClassifier {
   static absl::StatusOr<MlpClassifier> Fit(const TrainingRows& rows, const MlpOptions& options,
                                            const FitProgress& progress = nullptr);
 
+  // Weights and biases of a network over `dimension` features with `hidden` layers and
+  // `classes` outputs: what Fit makes and parameters() counts.
+  static int64_t ParametersFor(int dimension, const std::vector<int>& hidden, int classes);
+
   int dimension() const { return dimension_; }
   int num_classes() const { return biases_.empty() ? 0 : static_cast<int>(biases_.back().size()); }
   // Weights and biases of every layer.

@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "core/learning/binary_codec.h"
+#include "core/binary_codec.h"
 #include "core/random.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
@@ -64,6 +64,7 @@ TEST(MlpClassifierTest, LearnsClassesNoLinearRuleSeparatesAndAnswersUnseenRows) 
   EXPECT_EQ(net->dimension(), 4);
   EXPECT_EQ(net->num_classes(), 3);
   EXPECT_EQ(net->parameters(), (4 * 32 + 32) + (32 * 32 + 32) + (32 * 3 + 3));
+  EXPECT_EQ(MlpClassifier::ParametersFor(4, {32, 32}, 3), net->parameters());
   EXPECT_GT(Accuracy(*net, Rings(200, 1)), 0.95) << "training rows";
   EXPECT_GT(Accuracy(*net, Rings(100, 2)), 0.95);
 }

@@ -1,12 +1,14 @@
-#ifndef SHAPEID_CORE_LEARNING_BINARY_CODEC_H_
-#define SHAPEID_CORE_LEARNING_BINARY_CODEC_H_
+#ifndef SHAPEID_CORE_BINARY_CODEC_H_
+#define SHAPEID_CORE_BINARY_CODEC_H_
 
-// The little-endian encoding of learned models and heads: fixed-width integers, float32 runs
-// and length-prefixed strings, closed by a CRC-32 (zlib's) of everything before it. The
+// The project's little-endian binary encoding (sample provenance, learned models, gallery
+// heads): fixed-width integers, float32 runs and length-prefixed strings, closed by a CRC-32
+// (zlib's) of everything before it. The
 // reader checks every length against the bytes left before it allocates, so a hostile file
 // can neither crash it nor make it allocate more than the file could fill.
 
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <cstring>
 #include <string>
@@ -92,11 +94,13 @@ class ByteReader {
     bytes_.remove_prefix(n);
     return true;
   }
-  bool String(size_t max_size, std::string& out) {
+  // A length-prefixed string of at most `max_size` bytes. Constructed, not assigned: assign()
+  // would leave a growth capacity (30 bytes for 16), which held provenance would pay for.
+  bool String(std::string& out, size_t max_size = SIZE_MAX) {
     uint32_t size = 0;
     absl::string_view view;
     if (!U32(size) || size > max_size || !Bytes(size, view)) return false;
-    out.assign(view.data(), view.size());
+    out = std::string(view.data(), view.size());
     return true;
   }
   size_t left() const { return bytes_.size(); }
@@ -107,4 +111,4 @@ class ByteReader {
 
 }  // namespace shapeid
 
-#endif  // SHAPEID_CORE_LEARNING_BINARY_CODEC_H_
+#endif  // SHAPEID_CORE_BINARY_CODEC_H_

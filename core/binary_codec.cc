@@ -1,4 +1,4 @@
-#include "core/learning/binary_codec.h"
+#include "core/binary_codec.h"
 
 #include <zlib.h>
 
