@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <map>
 #include <utility>
 
 #include "absl/strings/numbers.h"
@@ -77,6 +78,11 @@ CREATE TABLE IF NOT EXISTS shapeid_log_floor (
   one BOOLEAN PRIMARY KEY DEFAULT TRUE CHECK (one),
   seq BIGINT NOT NULL);
 INSERT INTO shapeid_log_floor (seq) VALUES (0) ON CONFLICT DO NOTHING;
+-- A gallery's trained head (GalleryHead::Serialize's bytes, their own CRC): derived state,
+-- checked against the samples by the loader, so it needs no place in the change log.
+CREATE TABLE IF NOT EXISTS shapeid_heads (
+  incarnation BIGINT PRIMARY KEY,
+  head BYTEA NOT NULL);
 )sql";
 
 constexpr char kGalleryColumns[] =
@@ -317,6 +323,8 @@ absl::Status PostgresGalleryStore::DeleteGallery(absl::string_view name) {
     const int64_t incarnation = row.Int(0, 0);
     SHAPEID_RETURN_IF_ERROR(c.Exec(what, "DELETE FROM shapeid_samples WHERE incarnation = $1",
                                    PgParams().Int(incarnation)));
+    SHAPEID_RETURN_IF_ERROR(c.Exec(what, "DELETE FROM shapeid_heads WHERE incarnation = $1",
+                                   PgParams().Int(incarnation)));
     return LogChange(c, what, name, incarnation, static_cast<uint64_t>(row.Int(0, 1)), "delete", {},
                      absl::Now());
   });
@@ -463,6 +471,50 @@ absl::StatusOr<std::vector<StoredGallery>> PostgresGalleryStore::LoadAll() {
   }
   loaded_position_.store(seq);
   return all;
+}
+
+absl::Status PostgresGalleryStore::SaveHead(absl::string_view name, absl::string_view bytes) {
+  const std::string what = absl::StrCat("cannot keep the trained head of gallery '", name, "'");
+  // One statement, so atomic; a gallery deleted meanwhile matches no row and keeps nothing.
+  return WithConnection(what, [&](PgConnection& c) {
+    return c.Exec(what,
+                  "INSERT INTO shapeid_heads (incarnation, head) SELECT incarnation, $2 FROM "
+                  "shapeid_galleries WHERE name = $1 ON CONFLICT (incarnation) DO UPDATE SET "
+                  "head = EXCLUDED.head",
+                  PgParams()
+                      .Text(std::string(name))
+                      .Bytes(absl::MakeConstSpan(reinterpret_cast<const uint8_t*>(bytes.data()),
+                                                 bytes.size())));
+  });
+}
+
+absl::Status PostgresGalleryStore::Load(GalleryLoader& loader) {
+  SHAPEID_ASSIGN_OR_RETURN(std::vector<StoredGallery> all, LoadAll());
+  // Read after the galleries, outside their snapshot: a head fitted on other samples than
+  // those loaded is refused by the loader's fingerprint check and fitted again.
+  std::map<int64_t, std::string> heads;
+  const absl::Status read = WithConnection("cannot read trained heads", [&](PgConnection& c) {
+    SHAPEID_ASSIGN_OR_RETURN(PgResult rows,
+                             c.Query("cannot read trained heads",
+                                     "SELECT incarnation, head FROM shapeid_heads", PgParams(),
+                                     /*binary=*/true));
+    for (int r = 0; r < rows.rows(); ++r) {
+      heads[rows.BinaryInt(r, 0)] = std::string(rows.Value(r, 1));
+    }
+    return absl::OkStatus();
+  });
+  // Heads are derived: without them every gallery still loads, and fits its head again.
+  if (!read.ok()) heads.clear();
+  for (StoredGallery& gallery : all) {
+    SHAPEID_RETURN_IF_ERROR(loader.Begin(gallery));
+    for (StoredSample& sample : gallery.samples) SHAPEID_RETURN_IF_ERROR(loader.Add(sample));
+    SHAPEID_RETURN_IF_ERROR(loader.End());
+    if (auto head = heads.find(static_cast<int64_t>(gallery.incarnation)); head != heads.end()) {
+      SHAPEID_RETURN_IF_ERROR(loader.Head(head->second));
+    }
+    gallery = StoredGallery();
+  }
+  return absl::OkStatus();
 }
 
 absl::Status PostgresGalleryStore::ReadSnapshot(

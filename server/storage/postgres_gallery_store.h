@@ -134,6 +134,10 @@ class PostgresGalleryStore final : public GalleryStore {
   // Every gallery, in one snapshot of the database; remembers where the change log stood
   // (loaded_position), so following starts from there.
   absl::StatusOr<std::vector<StoredGallery>> LoadAll() override;
+  // LoadAll's galleries, each followed by its trained head where one is kept.
+  absl::Status Load(GalleryLoader& loader) override;
+  // Keeps the head in shapeid_heads, by the gallery's incarnation; DeleteGallery drops it.
+  absl::Status SaveHead(absl::string_view name, absl::string_view bytes) override;
 
   // The log position the last LoadAll read its galleries at (0 before).
   int64_t loaded_position() const { return loaded_position_.load(); }

@@ -1,6 +1,7 @@
 #include "server/storage/postgres_gallery_store.h"
 
 #include <atomic>
+#include <map>
 #include <memory>
 #include <random>
 #include <set>
@@ -100,6 +101,56 @@ TEST_F(PostgresGalleryStoreTest, EveryWriteSurvivesBitForBit) {
 
 // Rows as an earlier release wrote them (literal SQL; the sample's CRC-32 computed outside
 // shapeid) load with every field, and take changes.
+// Records what Load hands over: each gallery's name as it ends, and the head after it.
+class HeadRecorder final : public GalleryLoader {
+ public:
+  absl::Status Begin(const GalleryMetadata& gallery) override {
+    current_ = gallery.name;
+    return absl::OkStatus();
+  }
+  absl::Status Add(StoredSample&) override { return absl::OkStatus(); }
+  absl::Status End() override {
+    ended_.push_back(current_);
+    return absl::OkStatus();
+  }
+  absl::Status Head(absl::string_view bytes) override {
+    heads_[ended_.back()] = std::string(bytes);
+    return absl::OkStatus();
+  }
+  std::vector<std::string> ended_;
+  std::map<std::string, std::string> heads_;
+
+ private:
+  std::string current_;
+};
+
+TEST_F(PostgresGalleryStoreTest, ATrainedHeadSurvivesARestartAndGoesWithItsGallery) {
+  const std::string head(std::string("SHPDHEAD\0\xff binary bytes", 23));
+  {
+    auto store = Open();
+    ASSERT_NE(store, nullptr);
+    ASSERT_TRUE(store->LoadAll().ok());
+    ASSERT_TRUE(store->SaveGallery(MakeGallery("a", 4, 3, 1)).ok());
+    ASSERT_TRUE(store->SaveGallery(MakeGallery("b", 4, 3, 2)).ok());
+    ASSERT_TRUE(store->SaveHead("a", "an older head").ok());
+    ASSERT_TRUE(store->SaveHead("a", head).ok()) << "a later fit replaces the head";
+    ASSERT_TRUE(store->SaveHead("b", "b's head").ok());
+    ASSERT_TRUE(store->SaveHead("gone", "nobody's head").ok()) << "no gallery: nothing kept";
+  }
+  auto reopened = Open();
+  ASSERT_NE(reopened, nullptr);
+  HeadRecorder loaded;
+  ASSERT_TRUE(reopened->Load(loaded).ok());
+  EXPECT_EQ(loaded.ended_, (std::vector<std::string>{"a", "b"}));
+  EXPECT_EQ(loaded.heads_, (std::map<std::string, std::string>{{"a", head}, {"b", "b's head"}}));
+  // Deleted with its gallery; a new gallery of the same name starts without one.
+  ASSERT_TRUE(reopened->DeleteGallery("a").ok());
+  ASSERT_TRUE(reopened->SaveGallery(MakeGallery("a", 4, 3, 3)).ok());
+  HeadRecorder after;
+  ASSERT_TRUE(Open()->Load(after).ok());
+  EXPECT_EQ(after.heads_, (std::map<std::string, std::string>{{"b", "b's head"}}));
+}
+
 TEST_F(PostgresGalleryStoreTest, RowsAnEarlierReleaseWroteLoadAndTakeChanges) {
   auto store = Open();  // creates the tables
   ASSERT_NE(store, nullptr);
