@@ -42,6 +42,7 @@ const std::vector<std::string> kDefaultSpecs = {
     "dfsd:grid=16,order=10",
     "dfsd:grid=8,fields=isotropic",
     "dfsd:smooth=0.015",
+    "learned",
 };
 
 // CPU time of this thread: the estimate is for one core, and a shared machine's other work

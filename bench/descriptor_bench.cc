@@ -297,6 +297,9 @@ BENCHMARK_CAPTURE(RobotViewBench, dfsd_box, std::string("dfsd:frame=box"))
 BENCHMARK_CAPTURE(RobotViewBench, dfsd_axes, std::string("dfsd"))->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(RobotViewBench, dfsd_box_smooth, std::string("dfsd:frame=box,smooth=0.015"))
     ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(ModelNetCloudBench, learned, std::string("learned"))
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(RobotViewBench, learned, std::string("learned"))->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace shapeid

@@ -5,6 +5,7 @@
 #include "core/descriptors/cnsd.h"
 #include "core/descriptors/comsd.h"
 #include "core/descriptors/dfsd.h"
+#include "core/descriptors/learned.h"
 #include "core/descriptors/rphsd.h"
 #include "core/status_macros.h"
 
@@ -12,10 +13,7 @@ namespace shapeid {
 
 const std::vector<DescriptorKind>& RegisteredDescriptors() {
   static const auto* const kinds = new std::vector<DescriptorKind>{
-      RphsdKind(),
-      ComsdKind(),
-      CnsdKind(),
-      DfsdKind(),
+      RphsdKind(), ComsdKind(), CnsdKind(), DfsdKind(), LearnedKind(),
   };
   return *kinds;
 }

@@ -21,7 +21,7 @@ TEST(DescriptorRegistryTest, OffersTheSeedDescriptorsAndDfsdWithDocumentedParame
     }
     EXPECT_EQ(FindDescriptorKind(kind.kind), &kind);
   }
-  EXPECT_EQ(kinds, (std::set<std::string>{"rphsd", "comsd", "cnsd", "dfsd"}));
+  EXPECT_EQ(kinds, (std::set<std::string>{"rphsd", "comsd", "cnsd", "dfsd", "learned"}));
   EXPECT_EQ(FindDescriptorKind("esf"), nullptr);
 }
 

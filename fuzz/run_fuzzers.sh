@@ -22,7 +22,7 @@ shift $(( $# > 2 ? 2 : $# ))
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
   targets=(pcd_fuzzer ply_fuzzer off_fuzzer obj_fuzzer xyz_fuzzer las_fuzzer npy_fuzzer vtk_fuzzer
-           stl_fuzzer gzip_fuzzer descriptor_spec_fuzzer head_fuzzer service_fuzzer)
+           stl_fuzzer gzip_fuzzer descriptor_spec_fuzzer head_fuzzer model_fuzzer service_fuzzer)
 fi
 cache=${SHAPEID_FUZZ_CACHE:-/var/tmp/shapeid-fuzz}
 out=$build/fuzz-run

@@ -71,6 +71,7 @@ TEST(DescribeCostTest, WorkingBytesBoundThePeakHeapOfEveryKind) {
       "dfsd:grid=4,order=3,fields=isotropic,size=0.15",
       "dfsd:smooth=0.02",
       "dfsd:frame=upright,smooth=0.25",
+      "learned",
   };
   for (size_t n : {3, 100, 5000, 100000}) {
     const PointCloud cloud = dfsd_golden::MakeCloud("surface_rotated", n);

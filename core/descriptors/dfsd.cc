@@ -31,15 +31,6 @@ namespace dfsd_internal {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-// A zero extent (a flat or straight cloud) would make ln(extent) infinite; such an axis
-// counts as this fraction of the largest extent instead.
-constexpr double kMinRelativeExtent = 1e-6;
-// frame=box pose variants: two axes whose box extents differ by less than this fraction may
-// come in either order, and an axis whose skewness is below kSkewnessTolerance may point
-// either way. Chosen on ModelNet10 (docs/accuracy.md): wider tolerances try more poses
-// (slower queries) for no measurable gain, narrower ones miss right poses.
-constexpr double kAxisOrderTolerance = 0.2;
-constexpr double kSkewnessTolerance = 0.3;
 // Largest share of the cloud smoothing averages around each point: beyond it, points would
 // be drawn to the middle of the object rather than to its surface.
 constexpr double kMaxSmooth = 0.25;

@@ -88,6 +88,15 @@ namespace dfsd_internal {
 inline constexpr int kMinGrid = 4;
 inline constexpr int kMaxGrid = 32;
 inline constexpr int kSizeFeatures = 3;
+// frame=box pose variants: two axes whose box extents differ by less than this fraction may
+// come in either order, and an axis whose skewness is below kSkewnessTolerance may point
+// either way. Chosen on ModelNet10 (docs/accuracy.md): wider tolerances try more poses
+// (slower queries) for no measurable gain, narrower ones miss right poses.
+inline constexpr double kAxisOrderTolerance = 0.2;
+inline constexpr double kSkewnessTolerance = 0.3;
+// A zero extent (a flat or straight cloud) would make ln(extent) infinite in the size block;
+// such an axis counts as this fraction of the largest extent instead.
+inline constexpr double kMinRelativeExtent = 1e-6;
 
 // The kept cosine frequencies (a, b, c), a along x: a + b + c < order, every index < grid;
 // ordered by a + b + c, then a, then b (lowest frequencies first).

@@ -453,7 +453,7 @@ def test_import_of_damaged_files(client, trained, tmp_path):
 
 def test_list_descriptors(client):
     kinds = {d.kind: d for d in client.list_descriptors()}
-    assert set(kinds) == {"rphsd", "comsd", "cnsd", "dfsd"}
+    assert set(kinds) == {"rphsd", "comsd", "cnsd", "dfsd", "learned"}
     assert kinds["dfsd"].default_spec == "dfsd:grid=12,order=8,frame=box,fields=both,size=0"
     assert kinds["dfsd"].default_dimension == 240
     assert (kinds["rphsd"].default_spec, kinds["rphsd"].default_dimension) == (
