@@ -177,7 +177,7 @@ absl::StatusOr<CanonicalPoints> MakeCanonicalPoints(const PointCloud& cloud,
 DescriptorKind LearnedKind() {
   return {"learned",
           "a trained point network's embedding (learn/; built in, no Python at run time); "
-          "any pose",
+          "any pose or gravity known, as the model's frame is",
           {{"model", kDefaultPointNetwork,
             "the built-in network: pointnet-box-v1 (any pose) | pointnet-upright-v1 (z up, any "
             "yaw); both ModelNet10-trained, 256 values"},
