@@ -2,9 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <map>
 #include <string>
 #include <vector>
 
+#include "Eigen/Core"
 #include "Eigen/Geometry"
 #include "absl/strings/str_cat.h"
 #include "core/binary_codec.h"
@@ -176,6 +181,57 @@ TEST(LearnedTest, EmbeddingsHaveUnitLengthAndAreDeterministic) {
     for (float v : *first) norm += v * v;
     EXPECT_NEAR(norm, 1.0, 1e-5) << shape;
     EXPECT_EQ(Describe(**descriptor, cloud), *first) << shape;
+  }
+}
+
+// The descriptor's output pinned bit for bit, frame and network together (the golden sets
+// above pin the network alone): an FNV-1a hash of every shipped model's embedding, with the
+// size block, of every golden cloud. Galleries store these vectors, so a change here needs a
+// new model name, never a silent drift. To record after an intended change:
+// SHAPEID_LEARNED_GOLDEN_RECORD=1 ./learned_test prints the table.
+TEST(LearnedTest, OutputIsPinnedBitForBit) {
+  // The box frame's covariance is summed in blocks Eigen sizes from the L1 cache it detects
+  // (dfsd_golden_test); 5,000-point clouds hold for the blocking they were recorded with.
+  Eigen::Index k = 100000, m = 3, n = 3;
+  Eigen::internal::computeProductBlockingSizes<double, double, 1>(k, m, n, Eigen::Index{1});
+  const bool large_clouds_comparable = k == 504;
+  const bool recording = std::getenv("SHAPEID_LEARNED_GOLDEN_RECORD") != nullptr;
+  // clang-format off
+  static const std::map<std::string, uint64_t> golden = {
+      {"pointnet-box-v1/300", 0x94fe06e444c13800ULL},
+      {"pointnet-box-v1/5000", 0xc201a618526d8e58ULL},
+      {"pointnet-upright-v1/300", 0xb1c766a80b6eb2eeULL},
+      {"pointnet-upright-v1/5000", 0x8e8007fa3e43b9d2ULL},
+  };
+  // clang-format on
+  for (const std::string& model : ShippedPointNetworkNames()) {
+    auto descriptor = CreateDescriptor(absl::StrCat("learned:size=0.15,model=", model));
+    ASSERT_TRUE(descriptor.ok());
+    for (const size_t points : {size_t{300}, size_t{5000}}) {
+      if (points > 512 && !large_clouds_comparable && !recording) continue;
+      uint64_t hash = 0xcbf29ce484222325ULL;
+      for (const std::string& shape : dfsd_golden::Shapes()) {
+        absl::StatusOr<std::vector<float>> out =
+            (*descriptor)->Compute(dfsd_golden::MakeCloud(shape, points));
+        std::vector<unsigned char> bytes(sizeof(int));
+        const int code = static_cast<int>(out.status().code());
+        std::memcpy(bytes.data(), &code, sizeof(int));
+        if (out.ok()) {
+          const auto* begin = reinterpret_cast<const unsigned char*>(out->data());
+          bytes.insert(bytes.end(), begin, begin + out->size() * sizeof(float));
+        }
+        for (const unsigned char b : bytes) hash = (hash ^ b) * 0x100000001b3ULL;
+      }
+      const std::string name = absl::StrCat(model, "/", points);
+      if (recording) {
+        std::printf("      {\"%s\", 0x%016llxULL},\n", name.c_str(),
+                    static_cast<unsigned long long>(hash));
+        continue;
+      }
+      const auto it = golden.find(name);
+      ASSERT_NE(it, golden.end()) << "no recorded hash for " << name;
+      EXPECT_EQ(hash, it->second) << name << ": the learned descriptor's output changed";
+    }
   }
 }
 
