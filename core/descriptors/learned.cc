@@ -99,7 +99,7 @@ class LearnedDescriptor final : public Descriptor {
     // The frame as DFSD's estimate prices it (box: the most passes), then the network's
     // multiply-adds at Eigen's single-core float GEMM rate. Constants: docs/performance.md,
     // "Describe cost".
-    constexpr double kNsBase = 10000, kNsPerMultiplyAdd = 0.1;
+    constexpr double kNsBase = 10000, kNsPerMultiplyAdd = 0.06;
     const bool box = network_->frame() == PointNetwork::Frame::kBox;
     const double ns_per_framed_point = box ? 220 : 75;
     const size_t m = std::min<size_t>(num_points, network_->max_points());
