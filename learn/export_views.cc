@@ -46,8 +46,9 @@ int Run(int argc, char** argv) {
   app.add_option("--data", data, "dataset folder (LABEL/train/* or LABEL/*)")->required();
   app.add_option("--out", out_path, "file to write")->required();
   app.add_option("--views", views, "synthetic views per training cloud, besides the whole cloud");
-  app.add_option("--frame", frame_name, "box | upright");
-  app.add_option("--mix", mix, "camera | varied (AugmentOptions::mix)");
+  app.add_option("--frame", frame_name, "box | upright")->check(CLI::IsMember({"box", "upright"}));
+  app.add_option("--mix", mix, "camera | varied (AugmentOptions::mix)")
+      ->check(CLI::IsMember({"camera", "varied"}));
   app.add_option("--max-points", max_points, "points the network reads (its max_points)");
   app.add_option("--view-points", min_view_points, "fewest points a view keeps");
   app.add_option("--view-points-max", max_view_points, "most points a view keeps");
