@@ -82,6 +82,21 @@ def write_model(path, name, card, frame, max_points, layers):
         f.write(_finish(body))
 
 
+def read_model_card(path):
+    """(name, card) of a model file, after checking its magic, version and checksum."""
+    with open(path, "rb") as f:
+        body = _open(f.read(), MODEL_MAGIC)
+    (version,) = struct.unpack_from("<I", body, 0)
+    if version != MODEL_VERSION:
+        raise ValueError("model format version %d, this reads %d" % (version, MODEL_VERSION))
+    at, fields = 4, []
+    for _ in range(2):
+        (n,) = struct.unpack_from("<I", body, at)
+        fields.append(bytes(body[at + 4 : at + 4 + n]).decode())
+        at += 4 + n
+    return fields[0], fields[1]
+
+
 def write_golden(path, point_sets, embeddings):
     """point_sets: m x 3 arrays as the network sees them; embeddings: one vector each."""
     body = GOLDEN_MAGIC + struct.pack("<I", len(point_sets))
@@ -92,3 +107,10 @@ def write_golden(path, point_sets, embeddings):
         body += np.ascontiguousarray(embedding, dtype="<f4").tobytes()
     with open(path, "wb") as f:
         f.write(_finish(body))
+
+
+if __name__ == "__main__":
+    import sys
+
+    for model in sys.argv[1:]:
+        print(read_model_card(model)[1])
