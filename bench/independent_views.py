@@ -13,7 +13,7 @@ so the test views here come from other algorithms, written in Python over numpy 
 
 Each view: the camera at an elevation drawn in [--min-elevation, --max-elevation] degrees
 above the object's horizontal plane (its +z is up in both datasets), any azimuth, 3 bounding
-radii away; Gaussian noise with sigma drawn in [0, --max-noise] of the cloud's bounding-box
+radii away; Gaussian noise with sigma drawn in [--min-noise, --max-noise] of the cloud's bounding-box
 diagonal; then at most N points, N drawn in [--min-points, --max-points] (a uniform random
 subset); then, with --pose any, a uniformly random 3D rotation. Every draw comes from a
 generator seeded by --seed and the file's index, so a rerun writes the same views.
@@ -172,7 +172,7 @@ def make_view(points, args, rng):
     if len(view) < 3:  # a degenerate cut: the whole cloud rather than nothing
         view = points
     diagonal = np.linalg.norm(points.max(0) - points.min(0))
-    view = view + rng.normal(size=view.shape) * rng.uniform(0, args.max_noise) * diagonal
+    view = view + rng.normal(size=view.shape) * rng.uniform(args.min_noise, args.max_noise) * diagonal
     wanted = int(rng.integers(args.min_points, args.max_points + 1))
     if len(view) > wanted:
         view = view[rng.choice(len(view), wanted, replace=False)]
@@ -214,6 +214,7 @@ def main():
     parser.add_argument("--seed", type=int, default=27)
     parser.add_argument("--min-elevation", type=float, default=0)
     parser.add_argument("--max-elevation", type=float, default=60)
+    parser.add_argument("--min-noise", type=float, default=0.0)
     parser.add_argument("--max-noise", type=float, default=0.03)
     parser.add_argument("--min-points", type=int, default=150)
     parser.add_argument("--max-points", type=int, default=1000)
