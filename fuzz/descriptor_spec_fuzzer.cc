@@ -8,8 +8,6 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
-#include <cstdio>
-#include <cstdlib>
 #include <memory>
 #include <vector>
 
@@ -18,14 +16,12 @@
 #include "core/descriptor_registry.h"
 #include "core/descriptor_spec.h"
 #include "core/point_cloud.h"
+#include "fuzz/fuzz_oracle.h"
 
 namespace shapeid {
 namespace {
 
-void Fail(const char* what, const absl::Status& status = absl::OkStatus()) {
-  std::fprintf(stderr, "fuzz oracle failed: %s: %s\n", what, status.ToString().c_str());
-  std::abort();
-}
+using fuzz::Fail;
 
 void CheckError(const absl::Status& status) {
   if (status.code() != absl::StatusCode::kInvalidArgument) {

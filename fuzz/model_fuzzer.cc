@@ -6,21 +6,17 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
-#include <cstdio>
-#include <cstdlib>
 #include <vector>
 
 #include "absl/status/status.h"
 #include "absl/strings/string_view.h"
 #include "core/descriptors/point_network.h"
+#include "fuzz/fuzz_oracle.h"
 
 namespace shapeid {
 namespace {
 
-void Fail(const char* what, const absl::Status& status = absl::OkStatus()) {
-  std::fprintf(stderr, "fuzz oracle failed: %s: %s\n", what, status.ToString().c_str());
-  std::abort();
-}
+using fuzz::Fail;
 
 void CheckEmbedding(const PointNetwork& network) {
   Eigen::Matrix3Xf points(3, 5);

@@ -4,21 +4,14 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
-#include <cstdio>
-#include <cstdlib>
 
 #include "absl/status/status.h"
 #include "absl/strings/match.h"
 #include "absl/strings/string_view.h"
 #include "core/io/point_cloud_reader.h"
+#include "fuzz/fuzz_oracle.h"
 
 namespace shapeid::fuzz {
-
-// Stops the run with a message: libFuzzer records the input as a crash.
-inline void Fail(const char* what, const absl::Status& status) {
-  std::fprintf(stderr, "fuzz oracle failed: %s: %s\n", what, status.ToString().c_str());
-  std::abort();
-}
 
 // Parses `data` as `format` twice, with the defaults and with every option turned the other
 // way (mesh sampling on, small, so an iteration stays fast), and checks what the readers
