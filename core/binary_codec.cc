@@ -4,6 +4,8 @@
 
 #include <algorithm>
 
+#include "absl/strings/str_cat.h"
+
 namespace shapeid {
 
 uint32_t Crc32Of(absl::string_view bytes) {
@@ -14,6 +16,22 @@ uint32_t Crc32Of(absl::string_view bytes) {
     bytes.remove_prefix(chunk);
   }
   return static_cast<uint32_t>(crc);
+}
+
+absl::Status OpenVersionedFile(absl::string_view bytes, absl::string_view magic, uint32_t version,
+                               absl::string_view what, ByteReader& reader) {
+  const auto bad = [what](absl::string_view why) {
+    return absl::DataLossError(absl::StrCat("not a shapeid ", what, ": ", why));
+  };
+  if (bytes.substr(0, magic.size()) != magic) return bad("no magic");
+  if (!reader.Open(bytes)) return bad("checksum mismatch (a truncated or altered file)");
+  absl::string_view skipped;
+  reader.Bytes(magic.size(), skipped);
+  uint32_t found = 0;
+  if (!reader.U32(found) || found != version) {
+    return bad(absl::StrCat("format version ", found, ", this build reads ", version));
+  }
+  return absl::OkStatus();
 }
 
 }  // namespace shapeid

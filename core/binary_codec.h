@@ -14,6 +14,7 @@
 #include <string>
 #include <utility>
 
+#include "absl/status/status.h"
 #include "absl/strings/string_view.h"
 
 namespace shapeid {
@@ -37,6 +38,11 @@ class ByteWriter {
     }
   }
   void Bytes(absl::string_view bytes) { out_.append(bytes.data(), bytes.size()); }
+  // Begins a versioned file: its magic bytes, then its format version (OpenVersionedFile).
+  void Header(absl::string_view magic, uint32_t version) {
+    Bytes(magic);
+    U32(version);
+  }
   void String(absl::string_view s) {
     U32(static_cast<uint32_t>(s.size()));
     Bytes(s);
@@ -108,6 +114,13 @@ class ByteReader {
  private:
   absl::string_view bytes_;
 };
+
+// Opens a file that a ByteWriter began with Header(magic, version) and closed with Finish:
+// checks the magic, the CRC-32 and the version, in that order, and leaves `reader` just after
+// them. Otherwise DataLoss "not a shapeid <what>: <why>", the wording every reader of these
+// files uses for its later checks too.
+absl::Status OpenVersionedFile(absl::string_view bytes, absl::string_view magic, uint32_t version,
+                               absl::string_view what, ByteReader& reader);
 
 }  // namespace shapeid
 

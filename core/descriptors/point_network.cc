@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <utility>
 
 #include "absl/status/status.h"
@@ -10,6 +9,7 @@
 #include "core/binary_codec.h"
 #include "core/descriptors/point_network_kernels.h"
 #include "core/simd.h"
+#include "core/status_macros.h"
 
 namespace shapeid {
 namespace {
@@ -120,8 +120,7 @@ void PointNetwork::Embed(const Eigen::Matrix3Xf& points, float* out) const {
 
 std::string PointNetwork::Serialize() const {
   ByteWriter out;
-  out.Bytes(absl::string_view(kMagic, sizeof(kMagic)));
-  out.U32(kFormatVersion);
+  out.Header(absl::string_view(kMagic, sizeof(kMagic)), kFormatVersion);
   out.String(name_);
   out.String(card_);
   out.U32(static_cast<uint32_t>(frame_));
@@ -139,17 +138,9 @@ absl::StatusOr<PointNetwork> PointNetwork::Parse(absl::string_view bytes) {
   auto bad = [](absl::string_view why) {
     return absl::DataLossError(absl::StrCat("not a shapeid point network: ", why));
   };
-  if (bytes.size() < sizeof(kMagic) || std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0) {
-    return bad("no magic");
-  }
   ByteReader reader;
-  if (!reader.Open(bytes)) return bad("checksum mismatch (a truncated or altered file)");
-  absl::string_view magic;
-  reader.Bytes(sizeof(kMagic), magic);
-  uint32_t version = 0;
-  if (!reader.U32(version) || version != kFormatVersion) {
-    return bad(absl::StrCat("format version ", version, ", this build reads ", kFormatVersion));
-  }
+  SHAPEID_RETURN_IF_ERROR(OpenVersionedFile(bytes, absl::string_view(kMagic, sizeof(kMagic)),
+                                            kFormatVersion, "point network", reader));
   std::string name, card;
   if (!reader.String(name, kMaxNameBytes) || !reader.String(card, kMaxCardBytes)) {
     return bad("name or card too long");

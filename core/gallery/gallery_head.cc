@@ -1,7 +1,6 @@
 #include "core/gallery/gallery_head.h"
 
 #include <algorithm>
-#include <cstring>
 #include <map>
 #include <utility>
 
@@ -9,6 +8,7 @@
 #include "core/binary_codec.h"
 #include "core/gallery/gallery_snapshot.h"
 #include "core/random.h"
+#include "core/status_macros.h"
 
 namespace shapeid {
 namespace {
@@ -77,8 +77,7 @@ int GalleryHead::ClassOf(absl::string_view label) const {
 
 std::string GalleryHead::Serialize() const {
   ByteWriter out;
-  out.Bytes(absl::string_view(kMagic, sizeof(kMagic)));
-  out.U32(kFormatVersion);
+  out.Header(absl::string_view(kMagic, sizeof(kMagic)), kFormatVersion);
   out.U64(fitted_version);
   out.U64(samples_fingerprint);
   out.U64(static_cast<uint64_t>(fitted_samples));
@@ -97,17 +96,9 @@ absl::StatusOr<GalleryHead> GalleryHead::Parse(absl::string_view bytes) {
   auto bad = [](absl::string_view why) {
     return absl::DataLossError(absl::StrCat("not a shapeid gallery head: ", why));
   };
-  if (bytes.size() < sizeof(kMagic) || std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0) {
-    return bad("no magic");
-  }
   ByteReader reader;
-  if (!reader.Open(bytes)) return bad("checksum mismatch (a truncated or altered file)");
-  absl::string_view magic;
-  reader.Bytes(sizeof(kMagic), magic);
-  uint32_t version = 0;
-  if (!reader.U32(version) || version != kFormatVersion) {
-    return bad(absl::StrCat("format version ", version, ", this build reads ", kFormatVersion));
-  }
+  SHAPEID_RETURN_IF_ERROR(OpenVersionedFile(bytes, absl::string_view(kMagic, sizeof(kMagic)),
+                                            kFormatVersion, "gallery head", reader));
   GalleryHead head;
   uint64_t counts[5] = {};
   uint64_t micros = 0;

@@ -2,13 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <numeric>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
 #include "core/binary_codec.h"
 #include "core/random.h"
+#include "core/status_macros.h"
 
 namespace shapeid {
 namespace {
@@ -299,8 +299,7 @@ absl::StatusOr<std::vector<float>> MlpClassifier::Probabilities(
 
 std::string MlpClassifier::Serialize() const {
   ByteWriter out;
-  out.Bytes(absl::string_view(kMagic, sizeof(kMagic)));
-  out.U32(kFormatVersion);
+  out.Header(absl::string_view(kMagic, sizeof(kMagic)), kFormatVersion);
   out.U32(static_cast<uint32_t>(dimension_));
   out.U32(static_cast<uint32_t>(weights_.size()));
   for (const Matrix& w : weights_) out.U32(static_cast<uint32_t>(w.cols()));
@@ -318,16 +317,9 @@ absl::StatusOr<MlpClassifier> MlpClassifier::Parse(absl::string_view bytes) {
     return absl::DataLossError(absl::StrCat("not a shapeid MLP classifier: ", why));
   };
   ByteReader reader;
-  absl::string_view magic;
-  if (bytes.size() < sizeof(kMagic) || std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0) {
-    return bad("no magic");
-  }
-  if (!reader.Open(bytes)) return bad("checksum mismatch (a truncated or altered file)");
-  reader.Bytes(sizeof(kMagic), magic);
-  uint32_t version = 0, dimension = 0, layers = 0;
-  if (!reader.U32(version) || version != kFormatVersion) {
-    return bad(absl::StrCat("format version ", version, ", this build reads ", kFormatVersion));
-  }
+  SHAPEID_RETURN_IF_ERROR(OpenVersionedFile(bytes, absl::string_view(kMagic, sizeof(kMagic)),
+                                            kFormatVersion, "MLP classifier", reader));
+  uint32_t dimension = 0, layers = 0;
   if (!reader.U32(dimension) || dimension < 1 || dimension > kMaxDimension) {
     return bad("dimension out of range");
   }
