@@ -18,6 +18,7 @@
 #include "absl/strings/str_cat.h"
 #include "core/descriptor_registry.h"
 #include "core/descriptors/dfsd_golden_clouds.h"
+#include "core/fnv1a.h"
 #include "gtest/gtest.h"
 
 namespace shapeid {
@@ -39,21 +40,14 @@ Eigen::Index EigenBlocking() {
 
 bool Recording() { return std::getenv("SHAPEID_DFSD_GOLDEN_RECORD") != nullptr; }
 
-class Hash {
+class Hash : public Fnv1a {
  public:
-  void Add(const void* data, size_t size) {
-    const auto* bytes = static_cast<const unsigned char*>(data);
-    for (size_t i = 0; i < size; ++i) value_ = (value_ ^ bytes[i]) * 0x100000001b3ULL;
-  }
+  using Fnv1a::Add;
   void Add(uint64_t v) { Add(&v, sizeof(v)); }
   void Add(const std::vector<float>& v) {
     Add(v.size());
     if (!v.empty()) Add(v.data(), v.size() * sizeof(float));
   }
-  uint64_t value() const { return value_; }
-
- private:
-  uint64_t value_ = 0xcbf29ce484222325ULL;
 };
 
 const std::vector<std::string>& FrameSpecs() {

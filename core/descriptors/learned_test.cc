@@ -4,7 +4,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <map>
 #include <string>
 #include <vector>
@@ -15,6 +14,7 @@
 #include "core/binary_codec.h"
 #include "core/descriptor_registry.h"
 #include "core/descriptors/dfsd_golden_clouds.h"
+#include "core/fnv1a.h"
 #include "core/io/point_cloud_reader.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
@@ -209,28 +209,23 @@ TEST(LearnedTest, OutputIsPinnedBitForBit) {
     ASSERT_TRUE(descriptor.ok());
     for (const size_t points : {size_t{300}, size_t{5000}}) {
       if (points > 512 && !large_clouds_comparable && !recording) continue;
-      uint64_t hash = 0xcbf29ce484222325ULL;
+      Fnv1a hash;
       for (const std::string& shape : dfsd_golden::Shapes()) {
         absl::StatusOr<std::vector<float>> out =
             (*descriptor)->Compute(dfsd_golden::MakeCloud(shape, points));
-        std::vector<unsigned char> bytes(sizeof(int));
         const int code = static_cast<int>(out.status().code());
-        std::memcpy(bytes.data(), &code, sizeof(int));
-        if (out.ok()) {
-          const auto* begin = reinterpret_cast<const unsigned char*>(out->data());
-          bytes.insert(bytes.end(), begin, begin + out->size() * sizeof(float));
-        }
-        for (const unsigned char b : bytes) hash = (hash ^ b) * 0x100000001b3ULL;
+        hash.Add(&code, sizeof(code));
+        if (out.ok()) hash.Add(out->data(), out->size() * sizeof(float));
       }
       const std::string name = absl::StrCat(model, "/", points);
       if (recording) {
         std::printf("      {\"%s\", 0x%016llxULL},\n", name.c_str(),
-                    static_cast<unsigned long long>(hash));
+                    static_cast<unsigned long long>(hash.value()));
         continue;
       }
       const auto it = golden.find(name);
       ASSERT_NE(it, golden.end()) << "no recorded hash for " << name;
-      EXPECT_EQ(hash, it->second) << name << ": the learned descriptor's output changed";
+      EXPECT_EQ(hash.value(), it->second) << name << ": the learned descriptor's output changed";
     }
   }
 }

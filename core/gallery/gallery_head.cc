@@ -6,6 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/binary_codec.h"
+#include "core/fnv1a.h"
 #include "core/gallery/gallery_snapshot.h"
 #include "core/random.h"
 #include "core/status_macros.h"
@@ -145,21 +146,16 @@ absl::StatusOr<GalleryHead> GalleryHead::Parse(absl::string_view bytes) {
 
 uint64_t SamplesFingerprint(const GallerySnapshot& snapshot) {
   const KnnIndex& index = snapshot.index();
-  uint64_t hash = 0xcbf29ce484222325ull;  // FNV-1a over (id, label) in order
-  const auto mix = [&hash](const void* data, size_t size) {
-    for (size_t i = 0; i < size; ++i) {
-      hash = (hash ^ static_cast<const unsigned char*>(data)[i]) * 0x100000001b3ull;
-    }
-  };
+  Fnv1a hash;  // over (id, label) in order
   for (int64_t s = 0; s < index.size(); ++s) {
     const uint64_t id = index.IdAt(s);
     const std::string& label = index.LabelAt(s);
     const uint64_t size = label.size();
-    mix(&id, sizeof(id));
-    mix(&size, sizeof(size));
-    mix(label.data(), label.size());
+    hash.Add(&id, sizeof(id));
+    hash.Add(&size, sizeof(size));
+    hash.Add(label.data(), label.size());
   }
-  return hash;
+  return hash.value();
 }
 
 absl::StatusOr<GalleryHead> FitGalleryHead(const GallerySnapshot& snapshot,

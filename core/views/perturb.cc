@@ -12,6 +12,7 @@
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "core/fnv1a.h"
 #include "core/status_macros.h"
 #include "core/views/scan_simulator.h"
 
@@ -148,13 +149,10 @@ constexpr char kPerturbationForms[] =
 }  // namespace
 
 uint64_t DeriveSeed(uint64_t base_seed, absl::string_view key) {
-  uint64_t hash = 0xcbf29ce484222325ull;  // FNV-1a, 64-bit
-  for (char c : key) {
-    hash ^= static_cast<unsigned char>(c);
-    hash *= 0x100000001b3ull;
-  }
+  Fnv1a hash;
+  hash.Add(key.data(), key.size());
   SplitMix64 mix(base_seed);
-  return SplitMix64(mix.Next() ^ hash).Next();
+  return SplitMix64(mix.Next() ^ hash.value()).Next();
 }
 
 double CloudExtent(const PointCloud& cloud) {
