@@ -23,6 +23,9 @@ using point_network_internal::DenseReluLayer;
 using point_network_internal::kPointBlock;
 using point_network_internal::LayerInput;
 
+// The activation rows' stride for n points: the kernel's blocks, whole.
+size_t PaddedPoints(size_t n) { return (n + kPointBlock - 1) / kPointBlock * kPointBlock; }
+
 }  // namespace
 
 absl::StatusOr<PointNetwork> PointNetwork::Create(std::string name, std::string card, Frame frame,
@@ -74,19 +77,22 @@ int64_t PointNetwork::MultiplyAddsPerPoint() const {
   return total;
 }
 
-size_t PointNetwork::WorkingBytes(size_t n) const {
-  const size_t stride = (n + kPointBlock - 1) / kPointBlock * kPointBlock;
+size_t PointNetwork::WidestActivation() const {
   size_t widest = 3;
   for (const Layer& layer : layers_) widest = std::max<size_t>(widest, layer.bias.size());
+  return widest;
+}
+
+size_t PointNetwork::WorkingBytes(size_t n) const {
   // Two activation buffers, the pooled vector.
-  return (2 * widest * stride + widest) * sizeof(float);
+  const size_t widest = WidestActivation();
+  return (2 * widest * PaddedPoints(n) + widest) * sizeof(float);
 }
 
 void PointNetwork::Embed(const Eigen::Matrix3Xf& points, float* out) const {
   const size_t n = static_cast<size_t>(points.cols());
-  const size_t stride = (n + kPointBlock - 1) / kPointBlock * kPointBlock;
-  size_t widest = 3;
-  for (const Layer& layer : layers_) widest = std::max<size_t>(widest, layer.bias.size());
+  const size_t stride = PaddedPoints(n);
+  const size_t widest = WidestActivation();
   std::vector<float> buffers(2 * widest * stride);
   float* current = buffers.data();
   float* next = current + widest * stride;

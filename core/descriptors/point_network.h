@@ -67,6 +67,8 @@ class PointNetwork {
 
  private:
   PointNetwork() = default;
+  // Units of the widest activation Embed holds per point (3, the input, at least).
+  size_t WidestActivation() const;
 
   std::string name_;
   std::string card_;
