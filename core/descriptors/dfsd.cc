@@ -31,6 +31,9 @@ namespace dfsd_internal {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+// A zero extent (a flat or straight cloud) would make ln(extent) infinite; such an axis
+// counts as this fraction of the largest extent instead.
+constexpr double kMinRelativeExtent = 1e-6;
 // Largest share of the cloud smoothing averages around each point: beyond it, points would
 // be drawn to the middle of the object rather than to its surface.
 constexpr double kMaxSmooth = 0.25;
@@ -323,12 +326,7 @@ class DfsdDescriptor : public Descriptor {
       written += kept_.size();
     }
     if (options_.size_weight > 0) {
-      Eigen::Vector3d extent = 2.0 * half_extent;
-      std::sort(extent.data(), extent.data() + 3, std::greater<double>());
-      for (int a = 0; a < kSizeFeatures; ++a) {
-        const double e = std::max(extent[a], extent[0] * kMinRelativeExtent);
-        out[written++] = static_cast<float>(options_.size_weight * std::log(e));
-      }
+      WriteSizeBlock(2.0 * half_extent, options_.size_weight, &out[written]);
     }
   }
 
@@ -449,6 +447,15 @@ std::vector<Frequency> KeptFrequencies(int grid, int order) {
     }
   }
   return kept;
+}
+
+void WriteSizeBlock(const Eigen::Vector3d& extent, double weight, float* out) {
+  Eigen::Vector3d sorted = extent;
+  std::sort(sorted.data(), sorted.data() + 3, std::greater<double>());
+  for (int a = 0; a < kSizeFeatures; ++a) {
+    const double e = std::max(sorted[a], sorted[0] * kMinRelativeExtent);
+    out[a] = static_cast<float>(weight * std::log(e));
+  }
 }
 
 size_t DfsdDimension(const DfsdOptions& options) {

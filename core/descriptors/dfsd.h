@@ -17,6 +17,7 @@
 #include <memory>
 #include <vector>
 
+#include "Eigen/Core"
 #include "absl/status/statusor.h"
 #include "core/descriptor_registry.h"
 
@@ -94,9 +95,6 @@ inline constexpr int kSizeFeatures = 3;
 // (slower queries) for no measurable gain, narrower ones miss right poses.
 inline constexpr double kAxisOrderTolerance = 0.2;
 inline constexpr double kSkewnessTolerance = 0.3;
-// A zero extent (a flat or straight cloud) would make ln(extent) infinite in the size block;
-// such an axis counts as this fraction of the largest extent instead.
-inline constexpr double kMinRelativeExtent = 1e-6;
 
 // The kept cosine frequencies (a, b, c), a along x: a + b + c < order, every index < grid;
 // ordered by a + b + c, then a, then b (lowest frequencies first).
@@ -107,6 +105,10 @@ std::vector<Frequency> KeptFrequencies(int grid, int order);
 
 // Length of the descriptor.
 size_t DfsdDimension(const DfsdOptions& options);
+
+// The size block: weight * ln(extent) of a box's three extents, largest first, into
+// out[0, kSizeFeatures). Also the learned descriptor's (docs/descriptors.md sections 5, 6).
+void WriteSizeBlock(const Eigen::Vector3d& extent, double weight, float* out);
 
 // How the descriptor changes when the object is described in another pose of its frame:
 // new axis i is old axis axis_of[i] (a permutation of 0, 1, 2), reversed (about the box

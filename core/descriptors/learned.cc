@@ -1,8 +1,6 @@
 #include "core/descriptors/learned.h"
 
 #include <algorithm>
-#include <cmath>
-#include <functional>
 #include <memory>
 #include <utility>
 
@@ -75,8 +73,8 @@ CanonicalPoints PointsInFrame(const PointCloud& cloud, const CloudStats& stats,
     canonical.points.col(static_cast<Eigen::Index>(i)) =
         Eigen::Vector3d(x, y, z).cast<float>() * static_cast<float>(scale);
   }
-  const Eigen::Vector3d extent = 2.0 * found.half_extent();
-  canonical.extent = extent;
+  canonical.extent = 2.0 * found.half_extent();
+  const Eigen::Vector3d& extent = canonical.extent;
   const bool upright = frame == PointNetwork::Frame::kUpright;
   for (int a = 0; a < (upright ? 2 : 3); ++a) {
     if (found.skewness()[a] < dfsd_internal::kSkewnessTolerance) canonical.ambiguous |= 1u << a;
@@ -97,7 +95,7 @@ class LearnedDescriptor final : public Descriptor {
 
   DescribeCost EstimateCost(size_t num_points) const override {
     // The frame as DFSD's estimate prices it (box: the most passes), then the network's
-    // multiply-adds at Eigen's single-core float GEMM rate. Constants: docs/performance.md,
+    // multiply-adds at the layer kernel's single-core rate. Constants: docs/performance.md,
     // "Describe cost".
     constexpr double kNsBase = 10000, kNsPerMultiplyAdd = 0.06;
     const bool box = network_->frame() == PointNetwork::Frame::kBox;
@@ -123,14 +121,8 @@ class LearnedDescriptor final : public Descriptor {
         PointsInFrame(cloud, stats, network_->frame(), network_->max_points());
     network_->Embed(canonical.points, out.data());
     if (size_weight_ > 0) {
-      // DFSD's size block (docs/descriptors.md section 5): the box's extents, largest first.
-      Eigen::Vector3d extent = canonical.extent;
-      std::sort(extent.data(), extent.data() + 3, std::greater<double>());
-      const size_t first = static_cast<size_t>(network_->dimension());
-      for (int a = 0; a < dfsd_internal::kSizeFeatures; ++a) {
-        const double e = std::max(extent[a], extent[0] * dfsd_internal::kMinRelativeExtent);
-        out[first + static_cast<size_t>(a)] = static_cast<float>(size_weight_ * std::log(e));
-      }
+      dfsd_internal::WriteSizeBlock(canonical.extent, size_weight_,
+                                    out.data() + network_->dimension());
     }
     return absl::OkStatus();
   }
