@@ -45,18 +45,27 @@ class Collector final : public GalleryLoader {
 
 }  // namespace
 
-absl::Status GalleryStore::Load(GalleryLoader& loader) {
-  absl::StatusOr<std::vector<StoredGallery>> all = LoadAll();
-  if (!all.ok()) return all.status();
-  for (StoredGallery& gallery : *all) {
+absl::Status HandOverGalleries(std::vector<StoredGallery> galleries,
+                               const std::map<std::string, std::string, std::less<>>& heads,
+                               GalleryLoader& loader) {
+  for (StoredGallery& gallery : galleries) {
     if (absl::Status s = loader.Begin(gallery); !s.ok()) return s;
     for (StoredSample& sample : gallery.samples) {
       if (absl::Status s = loader.Add(sample); !s.ok()) return s;
     }
     if (absl::Status s = loader.End(); !s.ok()) return s;
+    if (auto head = heads.find(gallery.name); head != heads.end()) {
+      if (absl::Status s = loader.Head(head->second); !s.ok()) return s;
+    }
     gallery = StoredGallery();
   }
   return absl::OkStatus();
+}
+
+absl::Status GalleryStore::Load(GalleryLoader& loader) {
+  absl::StatusOr<std::vector<StoredGallery>> all = LoadAll();
+  if (!all.ok()) return all.status();
+  return HandOverGalleries(*std::move(all), {}, loader);
 }
 
 absl::StatusOr<std::vector<StoredGallery>> CollectGalleries(GalleryStore& store) {
@@ -98,17 +107,7 @@ absl::Status InMemoryGalleryStore::Load(GalleryLoader& loader) {
     std::lock_guard<std::mutex> lock(mu_);
     heads = heads_;
   }
-  for (StoredGallery& gallery : *all) {
-    if (absl::Status s = loader.Begin(gallery); !s.ok()) return s;
-    for (StoredSample& sample : gallery.samples) {
-      if (absl::Status s = loader.Add(sample); !s.ok()) return s;
-    }
-    if (absl::Status s = loader.End(); !s.ok()) return s;
-    if (auto head = heads.find(gallery.name); head != heads.end()) {
-      if (absl::Status s = loader.Head(head->second); !s.ok()) return s;
-    }
-  }
-  return absl::OkStatus();
+  return HandOverGalleries(*std::move(all), heads, loader);
 }
 
 absl::Status InMemoryGalleryStore::AppendSamples(absl::string_view name,

@@ -108,6 +108,13 @@ class GalleryStore {
   virtual absl::Status Load(GalleryLoader& loader);
 };
 
+// Hands `galleries` to `loader` as GalleryStore::Load does: each begun, its samples added,
+// ended, then its trained head where `heads` (by gallery name) keeps one; each freed once
+// handed over. For stores that read their galleries whole.
+absl::Status HandOverGalleries(std::vector<StoredGallery> galleries,
+                               const std::map<std::string, std::string, std::less<>>& heads,
+                               GalleryLoader& loader);
+
 // What `store`.Load hands over, collected whole: LoadAll for a store that reads through Load.
 // A gallery begun and not ended is left out.
 absl::StatusOr<std::vector<StoredGallery>> CollectGalleries(GalleryStore& store);

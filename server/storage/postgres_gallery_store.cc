@@ -492,29 +492,26 @@ absl::Status PostgresGalleryStore::Load(GalleryLoader& loader) {
   SHAPEID_ASSIGN_OR_RETURN(std::vector<StoredGallery> all, LoadAll());
   // Read after the galleries, outside their snapshot: a head fitted on other samples than
   // those loaded is refused by the loader's fingerprint check and fitted again.
-  std::map<int64_t, std::string> heads;
+  std::map<int64_t, std::string> name_of;  // by incarnation
+  for (const StoredGallery& gallery : all) {
+    name_of[static_cast<int64_t>(gallery.incarnation)] = gallery.name;
+  }
+  std::map<std::string, std::string, std::less<>> heads;
   const absl::Status read = WithConnection("cannot read trained heads", [&](PgConnection& c) {
     SHAPEID_ASSIGN_OR_RETURN(PgResult rows,
                              c.Query("cannot read trained heads",
                                      "SELECT incarnation, head FROM shapeid_heads", PgParams(),
                                      /*binary=*/true));
     for (int r = 0; r < rows.rows(); ++r) {
-      heads[rows.BinaryInt(r, 0)] = std::string(rows.Value(r, 1));
+      if (auto name = name_of.find(rows.BinaryInt(r, 0)); name != name_of.end()) {
+        heads[name->second] = std::string(rows.Value(r, 1));
+      }
     }
     return absl::OkStatus();
   });
   // Heads are derived: without them every gallery still loads, and fits its head again.
   if (!read.ok()) heads.clear();
-  for (StoredGallery& gallery : all) {
-    SHAPEID_RETURN_IF_ERROR(loader.Begin(gallery));
-    for (StoredSample& sample : gallery.samples) SHAPEID_RETURN_IF_ERROR(loader.Add(sample));
-    SHAPEID_RETURN_IF_ERROR(loader.End());
-    if (auto head = heads.find(static_cast<int64_t>(gallery.incarnation)); head != heads.end()) {
-      SHAPEID_RETURN_IF_ERROR(loader.Head(head->second));
-    }
-    gallery = StoredGallery();
-  }
-  return absl::OkStatus();
+  return HandOverGalleries(std::move(all), heads, loader);
 }
 
 absl::Status PostgresGalleryStore::ReadSnapshot(
