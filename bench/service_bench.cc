@@ -390,6 +390,9 @@ struct InProcessResult {
   double describe_us = 0, search_us = 0;
   double throughput_2t = 0;  // classifications/s with two threads
   std::vector<std::string> labels;
+  // Over the distinct queries: searches that went approximate, answers that differ from an
+  // exact search's, and correct answers of each kind (the cost of approximation).
+  int approximate_searches = 0, differ_from_exact = 0, correct = 0, correct_exact = 0;
 };
 
 InProcessResult InProcess(const Gallery& gallery, const std::vector<Sample>& test, int warmup,
@@ -398,7 +401,13 @@ InProcessResult InProcess(const Gallery& gallery, const std::vector<Sample>& tes
   const CloudLimits limits = gallery.limits().cloud_limits();
   for (const Sample& s : test) {
     auto answer = gallery.Snapshot()->Classify(s.cloud, limits);
+    auto exact = gallery.Snapshot()->Classify(s.cloud, limits, 0, SearchMode::kExact);
     r.labels.push_back(answer.ok() ? answer->label : "<error>");
+    const std::string exact_label = exact.ok() ? exact->label : "<error>";
+    if (answer.ok() && answer->knn.approximate) ++r.approximate_searches;
+    if (r.labels.back() != exact_label) ++r.differ_from_exact;
+    if (r.labels.back() == s.label) ++r.correct;
+    if (exact_label == s.label) ++r.correct_exact;
   }
   for (int i = 0; i < warmup; ++i)
     (void)gallery.Snapshot()->Classify(test[i % test.size()].cloud, limits);
@@ -633,9 +642,20 @@ int Run(int argc, char** argv) {
                  "1,024 points)")
       ->capture_default_str();
   bool query_views = false;
+  int64_t approximate_min_vectors = ApproximateOptions::kServedMinVectors;
+  int approximate_probes = 0;
   app.add_flag("--query_views", query_views,
                "query with single-side sensor views of the test clouds (300-500 points, 1 % "
                "noise, any pose), as a robot would");
+  app.add_option("--approximate_min_vectors", approximate_min_vectors,
+                 "the server's --approximate_min_vectors: searches go approximate (IVF) from this "
+                 "many stored vectors (0: always exact)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--approximate_probes", approximate_probes,
+                 "the server's --approximate_probes: cells a query reads (0: the default, 32)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--log_level", log_level_name,
                  "the server's --log_level: error logs no RPC lines (the figures before issue "
                  "12); info logs one per call, to --log_file")
@@ -701,6 +721,8 @@ int Run(int argc, char** argv) {
 
   ServerOptions options;
   options.listen = "127.0.0.1:0";
+  options.gallery_limits.approximate.min_vectors = approximate_min_vectors;
+  options.gallery_limits.approximate.probes = approximate_probes;
   options.log.level = *ParseLogLevel(log_level_name);  // both checked by CLI11
   options.log.format = *ParseLogFormat(log_format_name);
   std::printf("server log: level %s, format %s%s\n", log_level_name.c_str(),
@@ -793,6 +815,11 @@ int Run(int argc, char** argv) {
                                                                    : rpc.stats.p50_us < 1000
                                                                        ? "MET"
                                                                        : "MISSED");
+  std::printf(
+      "  searches approximate: %d of %zu distinct queries; answers differing from an exact "
+      "search: %d; correct %d (exact search: %d)\n",
+      local.approximate_searches, data.test.size(), local.differ_from_exact, local.correct,
+      local.correct_exact);
   if (rpc.errors > 0 || rpc.label_mismatches > 0) {
     std::printf("  WARNING: %lld errors, %lld answers differ from in-process\n",
                 static_cast<long long>(rpc.errors), static_cast<long long>(rpc.label_mismatches));

@@ -58,7 +58,7 @@ ABSL_FLAG(bool, set_aside_damaged, false,
           "start even if some gallery files are damaged: move them to <data_dir>/damaged/ and "
           "serve the rest (without it, a damaged gallery stops start-up with an error naming "
           "the file). Env: SHAPEID_SET_ASIDE_DAMAGED");
-ABSL_FLAG(int64_t, approximate_min_vectors, 1'000'000,
+ABSL_FLAG(int64_t, approximate_min_vectors, shapeid::ApproximateOptions::kServedMinVectors,
           "search a gallery approximately (inverted lists over k-means cells, recall measured "
           "in docs/performance.md) once it holds this many vectors (samples x views); 0: every "
           "search exact. A Classify may still ask for an exact search. "

@@ -249,8 +249,11 @@ absl::StatusOr<std::unique_ptr<EvalBackend>> NewLocalEvalBackend(const EvalOptio
                                                                  const CliContext& context) {
   absl::StatusOr<GalleryOptions> gallery_options = LocalGalleryOptions(options.create);
   if (!gallery_options.ok()) return gallery_options.status();
+  // Searches as a server with its default flags does: approximate on large galleries.
+  GalleryLimits limits;
+  limits.approximate.min_vectors = ApproximateOptions::kServedMinVectors;
   absl::StatusOr<std::shared_ptr<Gallery>> empty =
-      Gallery::Create("eval-local", *gallery_options, GalleryLimits{}, /*store=*/nullptr);
+      Gallery::Create("eval-local", *gallery_options, limits, /*store=*/nullptr);
   if (!empty.ok()) return empty.status();
   return std::unique_ptr<EvalBackend>(
       std::make_unique<LocalEvalBackend>(options, context, *std::move(empty)));

@@ -63,6 +63,10 @@ struct ApproximateOptions {
   // Cells a query vector reads. 0: kDefaultProbes. More probes: better recall, slower.
   int probes = 0;
 
+  // Where a server (and `shapeid eval --local`, which answers as one) turns approximation
+  // on: a view-augmented gallery of ~3,000 objects, whose pose-variant queries take ~3 ms
+  // to scan exactly and lose nothing at the default probes (docs/performance.md).
+  static constexpr int64_t kServedMinVectors = 50'000;
   static constexpr double kDefaultListsPerSqrt = 1.0;
   static constexpr int kMaxLists = 1 << 16;
   static constexpr int kDefaultProbes = 32;
