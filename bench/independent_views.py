@@ -10,6 +10,10 @@ so the test views here come from other algorithms, written in Python over numpy 
            rays cast on it (Moller-Trumbore in numpy; Debian's Open3D 0.16 RaycastingScene
            answers no hit for any ray): new points where the rays land, not the cloud's own.
   cut      the points on the camera's side of a plane through the centroid (a crude cut).
+  occluded hpr's view with something in front: a disc-shaped occluder between the camera and
+           the object hides 15-40 % of the visible points; 20-50 % as many points of the
+           occluder's surface, close in front of what it hides (a segmentation that could not
+           part them), are left in the view, and 1-3 % outliers uniform in the view's box.
 
 Each view: the camera at an elevation drawn in [--min-elevation, --max-elevation] degrees
 above the object's horizontal plane (its +z is up in both datasets), any azimuth, 3 bounding
@@ -154,7 +158,37 @@ def view_cut(points, elevation, azimuth, rng):
     return points[(points - points.mean(0)) @ toward >= 0]
 
 
-MODELS = {"hpr": view_hpr, "raycast": view_raycast, "cut": view_cut}
+def view_occluded(points, elevation, azimuth, rng):
+    view = view_hpr(points, elevation, azimuth, rng)
+    centre, radius, eye = camera_position(points, elevation, azimuth)
+    forward = (centre - eye) / np.linalg.norm(centre - eye)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    relative = view - eye
+    depth = relative @ forward
+    image = np.stack([relative @ right, relative @ up], axis=1) / depth[:, None]
+    # The occluder's centre: a random visible point's image; its radius covers the wanted share.
+    middle = image[rng.integers(len(image))]
+    distance = np.linalg.norm(image - middle, axis=1)
+    radius = np.quantile(distance, rng.uniform(0.15, 0.40))
+    hidden = distance < radius
+    kept = view[~hidden]
+    # Points on the occluder: a flat disc 5-15 % of the object's radius in front of the
+    # nearest point it hides.
+    count = int(hidden.sum() * rng.uniform(0.2, 0.5))
+    angle = rng.uniform(0, 2 * np.pi, count)
+    r = radius * np.sqrt(rng.uniform(0, 1, count))
+    u = middle[0] + r * np.cos(angle)
+    v = middle[1] + r * np.sin(angle)
+    d = depth[hidden].min() - rng.uniform(0.05, 0.15) * radius if hidden.any() else depth.min()
+    occluder = eye + d * (forward + u[:, None] * right + v[:, None] * up)
+    low, high = view.min(0), view.max(0)
+    outliers = rng.uniform(low, high, size=(int(len(view) * rng.uniform(0.01, 0.03)), 3))
+    return np.concatenate([kept, occluder, outliers])
+
+
+MODELS = {"hpr": view_hpr, "raycast": view_raycast, "cut": view_cut, "occluded": view_occluded}
 
 
 def random_rotation(rng):
