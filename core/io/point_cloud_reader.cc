@@ -7,6 +7,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <optional>
 
 #include "absl/status/status.h"
 #include "absl/strings/ascii.h"
@@ -16,15 +17,7 @@
 #include "absl/strings/strip.h"
 #include "core/io/errno_status.h"
 #include "core/io/gzip.h"
-#include "core/io/las_reader.h"
-#include "core/io/npy_reader.h"
-#include "core/io/obj_reader.h"
-#include "core/io/off_reader.h"
-#include "core/io/pcd_reader.h"
-#include "core/io/ply_reader.h"
-#include "core/io/stl_reader.h"
-#include "core/io/vtk_reader.h"
-#include "core/io/xyz_reader.h"
+#include "core/io/reader_registry.h"
 #include "core/status_macros.h"
 
 namespace shapeid {
@@ -45,27 +38,46 @@ class FdCloser {
 }  // namespace
 
 const std::vector<std::string>& CloudFormatNames() {
-  static const auto* names = new std::vector<std::string>{"pcd", "ply", "off", "obj", "stl", "vtk",
-                                                          "las", "npy", "npz", "xyz", "pts", "csv"};
+  static const auto* names = [] {
+    auto* all = new std::vector<std::string>;
+    for (const CloudReaderKind& reader : RegisteredReaders()) all->push_back(reader.name);
+    return all;
+  }();
   return *names;
 }
 
-absl::StatusOr<CloudFormat> CloudFormatForName(absl::string_view name) {
-  std::string lower = absl::AsciiStrToLower(absl::StripPrefix(name, "."));
-  // The text formats' other extensions are names too: their files read as xyz.
-  if (lower == "txt" || lower == "xyzn" || lower == "xyzrgb") lower = "xyz";
-  const std::vector<std::string>& names = CloudFormatNames();
-  for (size_t i = 0; i < names.size(); ++i) {
-    if (names[i] == lower) return static_cast<CloudFormat>(i);
+namespace {
+
+// The format one of whose extensions is `lower` (".txt"), or nullptr.
+const CloudReaderKind* ReaderForExtension(absl::string_view lower) {
+  for (const CloudReaderKind& reader : RegisteredReaders()) {
+    for (const std::string& extension : reader.extensions) {
+      if (extension == lower) return &reader;
+    }
   }
-  return absl::InvalidArgumentError(
-      absl::StrCat("unknown input format \"", name, "\"; known: ", absl::StrJoin(names, ", ")));
+  return nullptr;
+}
+
+}  // namespace
+
+absl::StatusOr<CloudFormat> CloudFormatForName(absl::string_view name) {
+  // A name is a format's name or any of its extensions without the dot ("txt" reads as xyz).
+  const std::string lower = absl::StrCat(".", absl::AsciiStrToLower(absl::StripPrefix(name, ".")));
+  if (const CloudReaderKind* reader = ReaderForExtension(lower); reader != nullptr) {
+    return reader->format;
+  }
+  return absl::InvalidArgumentError(absl::StrCat(
+      "unknown input format \"", name, "\"; known: ", absl::StrJoin(CloudFormatNames(), ", ")));
 }
 
 const std::string& SupportedExtensions() {
-  static const auto* extensions = new std::string(
-      ".pcd .ply .off .obj .stl .vtk .las .npy .npz .xyz .txt .xyzn .xyzrgb .pts .csv "
-      "(any of them .gz)");
+  static const auto* extensions = [] {
+    std::vector<absl::string_view> all;
+    for (const CloudReaderKind& reader : RegisteredReaders()) {
+      all.insert(all.end(), reader.extensions.begin(), reader.extensions.end());
+    }
+    return new std::string(absl::StrCat(absl::StrJoin(all, " "), " (any of them .gz)"));
+  }();
   return *extensions;
 }
 
@@ -82,9 +94,8 @@ absl::StatusOr<CloudFormat> CloudFormatForPath(absl::string_view path) {
         ": LAZ (compressed LAS) is not read; decompress it to LAS first, e.g. `laszip -i in.laz ",
         "-o out.las` (LAStools) or `pdal translate in.laz out.las` (PDAL)"));
   }
-  if (ext.size() > 1) {
-    absl::StatusOr<CloudFormat> format = CloudFormatForName(ext);
-    if (format.ok()) return format;
+  if (const CloudReaderKind* reader = ReaderForExtension(ext); reader != nullptr) {
+    return reader->format;
   }
   return absl::InvalidArgumentError(absl::StrCat(
       path, ": ",
@@ -177,34 +188,33 @@ absl::StatusOr<ReadResult> ParsePointCloud(absl::string_view contents, CloudForm
     }
     return ParsePointCloud(inflated, format, name, options);
   }
-  switch (format) {
-    case CloudFormat::kPcd:
-      return ParsePcd(contents, name, options);
-    case CloudFormat::kPly:
-      return ParsePly(contents, name, options);
-    case CloudFormat::kOff:
-      return ParseOff(contents, name, options);
-    case CloudFormat::kObj:
-      return ParseObj(contents, name, options);
-    case CloudFormat::kStl:
-      return ParseStl(contents, name, options);
-    case CloudFormat::kVtk:
-      return ParseVtk(contents, name, options);
-    case CloudFormat::kLas:
-      return ParseLas(contents, name, options);
-    case CloudFormat::kNpy:
-      return ParseNpy(contents, name, options);
-    case CloudFormat::kNpz:
-      return ParseNpz(contents, name, options);
-    case CloudFormat::kXyz:
-      return ParseXyz(contents, name, TextDialect::kXyz, options);
-    case CloudFormat::kPts:
-      return ParseXyz(contents, name, TextDialect::kPts, options);
-    case CloudFormat::kCsv:
-      return ParseXyz(contents, name, TextDialect::kCsv, options);
-  }
-  return absl::InternalError("unreachable CloudFormat");
+  return ReaderFor(format).parse(contents, name, options);
 }
+
+namespace {
+
+// A file whose name named no format: read by its signature (looking through gzip), else
+// `unnamed` (why the name did not do) with the signatures that were looked for.
+absl::StatusOr<ReadResult> ParseBySignature(absl::string_view contents, absl::string_view name,
+                                            const absl::Status& unnamed,
+                                            const ReadOptions& options) {
+  std::string inflated;
+  absl::string_view plain = contents;
+  if (IsGzip(contents)) {
+    SHAPEID_ASSIGN_OR_RETURN(inflated, Gunzip(contents, name, options.max_inflated_bytes));
+    plain = inflated;
+  }
+  const std::optional<CloudFormat> format = CloudFormatBySignature(plain);
+  if (!format.has_value()) {
+    return absl::Status(unnamed.code(), absl::StrCat(unnamed.message(),
+                                                     "; nor do its first bytes carry the "
+                                                     "signature of a format that has one (",
+                                                     FormatsWithSignatures(), ")"));
+  }
+  return ParsePointCloud(plain, *format, name, options);
+}
+
+}  // namespace
 
 absl::StatusOr<ReadResult> ReadPointCloud(const std::string& path, const ReadOptions& options) {
   if (path == "-") {
@@ -217,12 +227,24 @@ absl::StatusOr<ReadResult> ReadPointCloud(const std::string& path, const ReadOpt
     SHAPEID_ASSIGN_OR_RETURN(const std::string contents, ReadFileContents("/dev/stdin"));
     return ParsePointCloud(contents, *options.input_format, "standard input", options);
   }
-  CloudFormat format;
-  if (options.input_format.has_value()) {
-    format = *options.input_format;
-  } else {
-    SHAPEID_ASSIGN_OR_RETURN(format, CloudFormatForPath(path));
+  // The format: --input-format, else the extension, else (a missing or unknown extension)
+  // the contents' signature.
+  std::optional<CloudFormat> format = options.input_format;
+  absl::Status unnamed;
+  if (!format.has_value()) {
+    absl::StatusOr<CloudFormat> by_name = CloudFormatForPath(path);
+    if (by_name.ok()) {
+      format = *by_name;
+    } else if (absl::IsInvalidArgument(by_name.status())) {
+      unnamed = by_name.status();
+    } else {
+      return by_name.status();  // .laz: a known format this reader does not handle
+    }
   }
+  const auto parse = [&](absl::string_view contents) {
+    return format.has_value() ? ParsePointCloud(contents, *format, path, options)
+                              : ParseBySignature(contents, path, unnamed, options);
+  };
   int fd = -1;
   struct stat st;
   SHAPEID_RETURN_IF_ERROR(OpenForReading(path, &fd, &st));
@@ -232,12 +254,12 @@ absl::StatusOr<ReadResult> ReadPointCloud(const std::string& path, const ReadOpt
     void* mapped = ::mmap(nullptr, size, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
     if (mapped != MAP_FAILED) {
       const MappedFile file(mapped, size);
-      return ParsePointCloud(file.view(), format, path, options);
+      return parse(file.view());
     }
   }
   // Empty files, pipes and what cannot be mapped are read.
   SHAPEID_ASSIGN_OR_RETURN(const std::string contents, ReadOpenFile(path, fd, st));
-  return ParsePointCloud(contents, format, path, options);
+  return parse(contents);
 }
 
 }  // namespace shapeid

@@ -26,7 +26,8 @@ absl::StatusOr<CloudFormat> CloudFormatForPath(absl::string_view path);
 // The extensions CloudFormatForPath accepts, for messages: ".pcd .ply ... .csv".
 const std::string& SupportedExtensions();
 
-// Reads and parses one point-cloud file, choosing the reader by extension; "-" reads
+// Reads and parses one point-cloud file, choosing the reader by extension, or for a file whose
+// extension is missing or unknown by its first bytes' signature (reader_registry.h); "-" reads
 // standard input, which needs ReadOptions::input_format (which also overrides any extension). The
 // file is read with one bulk read (inflated if gzipped) and parsed from memory. Error messages
 // start with `path`, and name the line or byte offset of a problem in the contents. Codes: NotFound

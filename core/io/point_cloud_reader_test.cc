@@ -65,12 +65,38 @@ TEST(PointCloudReaderTest, FormatNamesRoundTrip) {
   EXPECT_THAT(std::string(bad.status().message()), HasSubstr("pcd, ply, off"));
 }
 
-TEST(PointCloudReaderTest, UnknownExtensionFailsBeforeReading) {
+TEST(PointCloudReaderTest, AnUnknownExtensionWithoutASignatureIsRefused) {
   const std::string path = WriteTempFile("cloud.e57", "1 2 3\n");
   const absl::StatusOr<ReadResult> r = ReadPointCloud(path);
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(std::string(r.status().message()), HasSubstr("\".e57\""));
+  EXPECT_THAT(std::string(r.status().message()),
+              HasSubstr("nor do its first bytes carry the signature of a format that has one "
+                        "(pcd, ply, off, stl, vtk, las, npy, npz)"));
+}
+
+// A file named by a tool that knows nothing of extensions (a ROS bag dump, a download) is read
+// by its first bytes, gzipped or not; the extension, when it names a format, still decides.
+TEST(PointCloudReaderTest, AFileWithoutAKnownExtensionIsReadByItsSignature) {
+  const std::string ply_text =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+      "property float z\nend_header\n1 2 3\n4 5 6\n7 8 10\n";
+  for (const std::string& name : {std::string("frame_0001"), std::string("scan.dat")}) {
+    const absl::StatusOr<ReadResult> r = ReadPointCloud(WriteTempFile(name, ply_text), Raw());
+    ASSERT_TRUE(r.ok()) << name << ": " << r.status();
+    ASSERT_EQ(r->cloud.size(), 3u);
+    EXPECT_EQ(r->cloud.point(2), Eigen::Vector3f(7, 8, 10));
+  }
+  const absl::StatusOr<ReadResult> pcd = ReadPointCloud(
+      WriteTempFile("cloud",
+                    "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n"
+                    "COUNT 1 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n1 2 3\n"),
+      Raw());
+  ASSERT_TRUE(pcd.ok()) << pcd.status();
+  EXPECT_EQ(pcd->cloud.point(0), Eigen::Vector3f(1, 2, 3));
+  // A PLY named .xyz is read as text, as its name says, and fails there.
+  EXPECT_FALSE(ReadPointCloud(WriteTempFile("mislabelled.xyz", ply_text)).ok());
 }
 
 TEST(PointCloudReaderTest, AnInputFormatOverridesTheExtension) {
