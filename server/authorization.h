@@ -12,6 +12,10 @@
 
 namespace shapeid {
 
+// The full name of ShapeId's RPC `name` ("/shapeid.v1.ShapeId/Train"), as the scope table, the
+// handlers' call records and gRPC know it.
+#define SHAPEID_METHOD(name) "/shapeid.v1.ShapeId/" #name
+
 // The metadata key that carries "Bearer KEY" (lowercase, as gRPC metadata keys are).
 inline constexpr absl::string_view kAuthorizationMetadata = "authorization";
 

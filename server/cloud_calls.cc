@@ -15,6 +15,7 @@
 #include "core/gallery/gallery_registry.h"
 #include "core/gallery/scene_recognition.h"
 #include "core/status_macros.h"
+#include "server/authorization.h"
 #include "server/cloud_assembler.h"
 #include "server/proto_convert.h"
 #include "server/service_options.h"
@@ -23,8 +24,6 @@
 
 namespace shapeid {
 namespace {
-
-#define SHAPEID_METHOD(name) "/shapeid.v1.ShapeId/" #name
 
 // Points in a one-message call's bytes, for its report and cost (a partial point counts
 // nothing; the assembler refuses it).
@@ -43,13 +42,6 @@ absl::StatusOr<WireCloudFormat> FormatOf(const Header& header, const Descriptor*
       FromProto(header.sensor_frame(), descriptor != nullptr ? descriptor->up_direction()
                                                              : std::array<float, 3>{0, 0, 1}));
   return format;
-}
-
-absl::Status RequireGalleryName(absl::string_view rpc, const std::string& name) {
-  if (name.empty()) {
-    return absl::InvalidArgumentError(absl::StrCat(rpc, ": the gallery name is empty"));
-  }
-  return absl::OkStatus();
 }
 
 // The cloud of a DescribeCloud or ClassifyCloud request: the streams' assembler with a single
@@ -105,10 +97,7 @@ absl::StatusOr<std::shared_ptr<Gallery>> GalleryToClassify(const GalleryRegistry
                                                            const v1::ClassifyHeader& header) {
   SHAPEID_RETURN_IF_ERROR(RequireGalleryName("Classify", header.gallery()));
   SHAPEID_ASSIGN_OR_RETURN(std::shared_ptr<Gallery> gallery, registry.Get(header.gallery()));
-  if (gallery->Snapshot()->empty()) {
-    return absl::FailedPreconditionError(absl::StrCat(
-        "gallery '", gallery->name(), "' has no samples; train it before classifying"));
-  }
+  SHAPEID_RETURN_IF_ERROR(gallery->Snapshot()->RequireSamples("classifying"));
   return gallery;
 }
 
@@ -151,11 +140,7 @@ absl::StatusOr<SceneCall> SceneCallOf(const GalleryRegistry& registry,
   SceneCall scene;
   SHAPEID_ASSIGN_OR_RETURN(scene.gallery, registry.Get(header.gallery()));
   const std::shared_ptr<const GallerySnapshot> snapshot = scene.gallery->Snapshot();
-  if (snapshot->empty()) {
-    return absl::FailedPreconditionError(
-        absl::StrCat("gallery '", scene.gallery->name(),
-                     "' has no samples; train it before recognising scenes"));
-  }
+  SHAPEID_RETURN_IF_ERROR(snapshot->RequireSamples("recognizing scenes"));
   SHAPEID_ASSIGN_OR_RETURN(scene.format.layout, FromProto(header.layout()));
   scene.format.layout.drop_nonfinite = false;
   const v1::SensorFrame& frame = header.sensor_frame();

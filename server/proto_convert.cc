@@ -11,6 +11,13 @@
 
 namespace shapeid {
 
+absl::Status RequireGalleryName(absl::string_view rpc, absl::string_view name) {
+  if (name.empty()) {
+    return absl::InvalidArgumentError(absl::StrCat(rpc, ": the gallery name is empty"));
+  }
+  return absl::OkStatus();
+}
+
 absl::StatusOr<KnnOptions> FromProto(const v1::KnnOptions& knn) {
   KnnOptions out;
   out.k = knn.k() == 0 ? 1 : static_cast<int>(std::min<uint32_t>(knn.k(), 1 << 20));

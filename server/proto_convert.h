@@ -17,6 +17,10 @@
 
 namespace shapeid {
 
+// InvalidArgument "RPC: the gallery name is empty" for a request that names no gallery: every
+// call that names one checks this before asking the registry.
+absl::Status RequireGalleryName(absl::string_view rpc, absl::string_view name);
+
 // A header's point layout; the empty message is the default packed float32 layout.
 // InvalidArgument naming the field: a coordinate missing or of a type other than FLOAT32 or
 // FLOAT64, or what ValidatePointLayout refuses.

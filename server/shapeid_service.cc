@@ -13,6 +13,7 @@
 #include "core/gallery/gallery.h"
 #include "core/status_macros.h"
 #include "google/protobuf/io/coded_stream.h"
+#include "server/authorization.h"
 #include "server/cloud_calls.h"
 #include "server/proto_convert.h"
 #include "server/transfer_calls.h"
@@ -21,16 +22,6 @@
 
 namespace shapeid {
 namespace {
-
-// Full method names, as the call gate's scope table (server/authorization.cc) knows them.
-#define SHAPEID_METHOD(name) "/shapeid.v1.ShapeId/" #name
-
-absl::Status RequireGalleryName(absl::string_view rpc, const std::string& name) {
-  if (name.empty()) {
-    return absl::InvalidArgumentError(absl::StrCat(rpc, ": the gallery name is empty"));
-  }
-  return absl::OkStatus();
-}
 
 // A store write of a gallery's metadata or samples: cheap for the CPU, slow on the disk.
 constexpr absl::Duration kStoreWriteCost = absl::Milliseconds(1);

@@ -10,6 +10,7 @@
 #include "core/gallery/gallery.h"
 #include "core/gallery/gallery_registry.h"
 #include "core/status_macros.h"
+#include "server/authorization.h"
 #include "server/gallery_export.h"
 #include "server/grpc_status.h"
 #include "server/proto_convert.h"
@@ -18,8 +19,6 @@
 
 namespace shapeid {
 namespace {
-
-#define SHAPEID_METHOD(name) "/shapeid.v1.ShapeId/" #name
 
 // Streams one snapshot of a gallery, one chunk in flight at a time (gRPC's flow control
 // paces the writes), so memory stays at one chunk whatever the gallery's size. Past the
@@ -47,7 +46,7 @@ class ExportReactor final : public grpc::ServerWriteReactor<v1::GalleryExportChu
 
  private:
   absl::Status Start(const GalleryRegistry& registry, const std::string& name) {
-    if (name.empty()) return absl::InvalidArgumentError("ExportGallery: the gallery name is empty");
+    SHAPEID_RETURN_IF_ERROR(RequireGalleryName("ExportGallery", name));
     SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry.Get(name));
     const std::shared_ptr<const GallerySnapshot> snapshot = gallery->Snapshot();
     call_.record().samples = snapshot->num_samples();

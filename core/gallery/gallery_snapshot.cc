@@ -109,14 +109,17 @@ absl::StatusOr<std::vector<float>> GallerySnapshot::DescribeForTraining(
   return shapeid::DescribeForTraining(*descriptor_, cloud, meta_.options.augment, limits);
 }
 
+absl::Status GallerySnapshot::RequireSamples(absl::string_view doing) const {
+  if (!empty()) return absl::OkStatus();
+  return absl::FailedPreconditionError(
+      absl::StrCat("gallery '", meta_.name, "' has no samples; train it before ", doing));
+}
+
 absl::StatusOr<GalleryClassification> GallerySnapshot::Classify(const PointCloud& cloud,
                                                                 const CloudLimits& limits, int k,
                                                                 SearchMode mode) const {
   SHAPEID_RETURN_IF_ERROR(CheckCompatible());
-  if (empty()) {
-    return absl::FailedPreconditionError(
-        absl::StrCat("gallery '", meta_.name, "' has no samples; train it before classifying"));
-  }
+  SHAPEID_RETURN_IF_ERROR(RequireSamples("classifying"));
   const absl::Time start = absl::Now();
   // The query with its pose variants (core/descriptor.h): a sample's distance is the least
   // over them, so a frame that guessed wrong between near-equal axes costs nothing.
@@ -134,10 +137,7 @@ absl::StatusOr<GalleryClassification> GallerySnapshot::Classify(const PointCloud
 absl::StatusOr<GalleryClassification> GallerySnapshot::ClassifyFeatures(
     absl::Span<const float> features, int k, SearchMode mode) const {
   SHAPEID_RETURN_IF_ERROR(CheckCompatible());
-  if (empty()) {
-    return absl::FailedPreconditionError(
-        absl::StrCat("gallery '", meta_.name, "' has no samples; train it before classifying"));
-  }
+  SHAPEID_RETURN_IF_ERROR(RequireSamples("classifying"));
   const absl::Time start = absl::Now();
   SHAPEID_ASSIGN_OR_RETURN(KnnResult knn, index_.Classify(features, KnnFor(k), mode));
   GalleryClassification answer = Answer(std::move(knn), features);

@@ -93,6 +93,9 @@ class GallerySnapshot {
 
   int64_t num_samples() const { return index_.size(); }
   bool empty() const { return index_.empty(); }
+  // FailedPrecondition "gallery 'NAME' has no samples; train it before `doing`" when empty:
+  // the one message of every call that needs samples ("classifying", "recognizing scenes").
+  absl::Status RequireSamples(absl::string_view doing) const;
   bool Contains(uint64_t id) const { return index_.Contains(id); }
   // The ids of the samples labelled `label`, in training order; empty if none. O(samples).
   std::vector<uint64_t> IdsWithLabel(absl::string_view label) const {

@@ -16,11 +16,7 @@ absl::Status CheckGallery(const GallerySnapshot& gallery) {
   if (!gallery.incompatible().empty()) {
     return absl::FailedPreconditionError(gallery.incompatible());
   }
-  if (gallery.empty()) {
-    return absl::FailedPreconditionError(absl::StrCat(
-        "gallery '", gallery.name(), "' has no samples; train it before recognising scenes"));
-  }
-  return absl::OkStatus();
+  return gallery.RequireSamples("recognizing scenes");
 }
 
 // Whether the cluster's points lie on a line: its box has no second extent, so no
