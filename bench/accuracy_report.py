@@ -209,7 +209,7 @@ def esc(text):
 
 
 def svg_hbars(title, bars, target=None, legend=()):
-    """Horizontal bars: (label, value, std or None, colour). Values in percent."""
+    """Horizontal bars: (label, value, std or None, color). Values in percent."""
     label_w = 24 + int(6.8 * max(len(b[0]) for b in bars))
     plot_w, bar_h, gap, top = 470, 16, 5, 72
     height = top + len(bars) * (bar_h + gap) + 40
@@ -221,8 +221,8 @@ def svg_hbars(title, bars, target=None, legend=()):
            f'<text x="{width / 2}" y="20" text-anchor="middle" font-size="15" '
            f'font-weight="bold">{esc(title)}</text>']
     lx = label_w
-    for text, colour in legend:
-        out.append(f'<rect x="{lx}" y="31" width="12" height="12" fill="{colour}"/>')
+    for text, color in legend:
+        out.append(f'<rect x="{lx}" y="31" width="12" height="12" fill="{color}"/>')
         out.append(f'<text x="{lx + 16}" y="41">{esc(text)}</text>')
         lx += 36 + 7.5 * len(text)
     bottom = top + len(bars) * (bar_h + gap)
@@ -230,11 +230,11 @@ def svg_hbars(title, bars, target=None, legend=()):
         out.append(f'<line x1="{x(v)}" y1="{top - 4}" x2="{x(v)}" y2="{bottom}" stroke="#ddd"/>')
         out.append(f'<text x="{x(v)}" y="{bottom + 15}" text-anchor="middle">{v}</text>')
     out.append(f'<text x="{x(50)}" y="{bottom + 32}" text-anchor="middle">accuracy (%)</text>')
-    for i, (text, value, std, colour) in enumerate(bars):
+    for i, (text, value, std, color) in enumerate(bars):
         y = top + i * (bar_h + gap)
         out.append(f'<text x="{label_w - 6}" y="{y + bar_h - 4}" text-anchor="end">{esc(text)}</text>')
         out.append(f'<rect x="{x(0)}" y="{y}" width="{x(value) - x(0):.1f}" height="{bar_h}" '
-                   f'fill="{colour}"/>')
+                   f'fill="{color}"/>')
         end = value
         if std:
             lo, hi = max(0.0, value - std), min(100.0, value + std)
@@ -270,8 +270,8 @@ def svg_grouped(title, groups, series, values):
            f'font-weight="bold">{esc(title)}</text>']
     lx = left
     for s, name in enumerate(series):
-        colour = PALETTE[s % len(PALETTE)]
-        out.append(f'<rect x="{lx}" y="32" width="12" height="12" fill="{colour}"/>')
+        color = PALETTE[s % len(PALETTE)]
+        out.append(f'<rect x="{lx}" y="32" width="12" height="12" fill="{color}"/>')
         out.append(f'<text x="{lx + 16}" y="42">{esc(name)}</text>')
         lx += 36 + 7.5 * len(name)
     for v in range(0, 101, 20):

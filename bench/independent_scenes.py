@@ -27,7 +27,7 @@ Open3D, reuses only bench/independent_views.py (the same independent side):
 
 Frames are in the camera's optical frame (x right, y down, z forward). Written (the scene set
 format of bench/scene_files.h): OUT/NNNN.pcd, NNNN.objects.csv, NNNN.truth.u16, README.txt,
-and NNNN.png (label colours) with --png. Every draw comes from a generator seeded by --seed
+and NNNN.png (label colors) with --png. Every draw comes from a generator seeded by --seed
 and the frame number, so a rerun writes the same bytes.
 
 Usage: /usr/bin/python3 bench/independent_scenes.py --data ../shared/data/modelnet10 \
@@ -379,7 +379,7 @@ PALETTE = np.array([[230, 25, 75], [60, 180, 75], [255, 225, 25], [0, 130, 200],
 
 
 def write_png(path, camera, points, ids):
-    """Label colours (table grey by depth, no return black), in the camera's image."""
+    """Label colors (table grey by depth, no return black), in the camera's image."""
     image = np.zeros((camera.height, camera.width, 3), np.uint8)
     flat, ids = points.reshape(-1, 3), ids.ravel()
     ok = np.isfinite(flat[:, 2])
@@ -387,8 +387,8 @@ def write_png(path, camera, points, ids):
     u = np.clip(np.round(u).astype(int), 0, camera.width - 1)
     v = np.clip(np.round(v).astype(int), 0, camera.height - 1)
     shade = np.clip(255 - 80 * flat[ok, 2], 60, 220).astype(np.uint8)
-    colour = np.where(ids[ok, None] == 0, shade[:, None].repeat(3, 1), PALETTE[(ids[ok].astype(int) - 1) % len(PALETTE)])
-    image[v, u] = colour
+    color = np.where(ids[ok, None] == 0, shade[:, None].repeat(3, 1), PALETTE[(ids[ok].astype(int) - 1) % len(PALETTE)])
+    image[v, u] = color
     o3d.io.write_image(path, o3d.geometry.Image(image))
 
 
@@ -413,7 +413,7 @@ def main():
     parser.add_argument("--min-distance", type=float, default=0.7)
     parser.add_argument("--max-distance", type=float, default=1.2)
     parser.add_argument("--min-visible", type=int, default=60)
-    parser.add_argument("--png", action="store_true", help="also NNNN.png, the truth in colours")
+    parser.add_argument("--png", action="store_true", help="also NNNN.png, the truth in colors")
     args = parser.parse_args()
 
     os.makedirs(args.out, exist_ok=True)

@@ -71,7 +71,7 @@ def svg_loglog(path, title, xlabel, ylabel, series):
     def py(y):
         return h - bottom - (math.log10(y) - y0) / (y1 - y0) * (h - bottom - top)
 
-    colours = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2",
+    colors = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2",
                "#7f7f7f", "#17becf", "#bcbd22"]
     parts = ['<svg xmlns="http://www.w3.org/2000/svg" width="%d" height="%d" '
              'font-family="sans-serif" font-size="11">' % (w, h),
@@ -92,7 +92,7 @@ def svg_loglog(path, title, xlabel, ylabel, series):
     parts.append('<text x="14" y="%d" transform="rotate(-90 14 %d)" text-anchor="middle">%s</text>'
                  % (h // 2, h // 2, ylabel))
     for i, (name, pts) in enumerate(series):
-        c = colours[i % len(colours)]
+        c = colors[i % len(colors)]
         pts = sorted(pts)
         parts.append('<polyline fill="none" stroke="%s" stroke-width="2" points="%s"/>'
                      % (c, " ".join("%.1f,%.1f" % (px(x), py(y)) for x, y in pts)))

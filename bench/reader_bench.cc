@@ -130,7 +130,7 @@ std::string PlyBinary(const PointCloud& cloud, bool big) {
   return out;
 }
 
-// PCL's PointXYZRGB layout: x y z and a packed colour, 16-byte records.
+// PCL's PointXYZRGB layout: x y z and a packed color, 16-byte records.
 std::string PcdXyzRgb(const PointCloud& cloud) {
   std::string out = absl::StrFormat(
       "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\n"

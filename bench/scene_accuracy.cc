@@ -1,5 +1,5 @@
 // Scene recognition accuracy (issue 29, "Done when" 1): tabletop frames with the truth of
-// every point, recognised by RecognizeScene against a ModelNet10 gallery, scored per object.
+// every point, recognized by RecognizeScene against a ModelNet10 gallery, scored per object.
 // Protocol, figures and what was tuned on what: docs/accuracy.md, "Scenes".
 //
 //   scene_accuracy                                    # calibrate, then test scenes A
@@ -125,7 +125,7 @@ std::vector<bool> SeparatedObjects(const PointCloud& frame, const std::vector<ui
   return separated;
 }
 
-// Scores one recognised frame. An object is found when one cluster holds >= 50 % of its
+// Scores one recognized frame. An object is found when one cluster holds >= 50 % of its
 // points; a cluster speaks for the object holding most of its points, and a found object is
 // labelled by its cluster only if the cluster speaks for it (else: merged).
 void Score(const PointCloud& frame, const std::vector<uint16_t>& truth,

@@ -152,7 +152,7 @@ class Client {
     v1::SceneSegmentation segmentation;
     // Only points inside this box (the frame's coordinates) are considered; none: all.
     std::optional<v1::AxisAlignedBox> region;
-    // Send each object's point indices in the frame (to colour or crop it).
+    // Send each object's point indices in the frame (to color or crop it).
     bool return_indices = false;
   };
 

@@ -5,9 +5,9 @@
 // of a value, the value of a name and the list of names for an error message all read it, so
 // a new value cannot be printable but not parseable (or listed in one message and not another).
 //
-//   constexpr EnumNames<Colour, 2> kColourNames = {{{Colour::kRed, "red"}, {Colour::kBlue,
-//   "blue"}}}; NameOf(kColourNames, Colour::kRed)   -> "red" ValueNamed(kColourNames, " Blue ") ->
-//   Colour::kBlue NameList(kColourNames)               -> "red, blue"
+//   constexpr EnumNames<Color, 2> kColorNames = {{{Color::kRed, "red"}, {Color::kBlue,
+//   "blue"}}}; NameOf(kColorNames, Color::kRed)   -> "red" ValueNamed(kColorNames, " Blue ") ->
+//   Color::kBlue NameList(kColorNames)               -> "red, blue"
 
 #include <array>
 #include <cstddef>

@@ -5,40 +5,40 @@
 namespace shapeid {
 namespace {
 
-enum class Colour { kRed, kGreen, kBlue };
+enum class Color { kRed, kGreen, kBlue };
 
-constexpr EnumNames<Colour, 3> kColourNames = {{
-    {Colour::kRed, "red"},
-    {Colour::kGreen, "green"},
-    {Colour::kBlue, "blue"},
+constexpr EnumNames<Color, 3> kColorNames = {{
+    {Color::kRed, "red"},
+    {Color::kGreen, "green"},
+    {Color::kBlue, "blue"},
 }};
 
 TEST(EnumNamesTest, NameOfEveryValueReadsBackAsThatValue) {
-  for (const EnumName<Colour>& entry : kColourNames) {
-    EXPECT_EQ(ValueNamed(kColourNames, NameOf(kColourNames, entry.value)), entry.value);
+  for (const EnumName<Color>& entry : kColorNames) {
+    EXPECT_EQ(ValueNamed(kColorNames, NameOf(kColorNames, entry.value)), entry.value);
   }
 }
 
 TEST(EnumNamesTest, NameOfAValueOutsideTheTableIsTheFallback) {
-  const auto stray = static_cast<Colour>(7);
-  EXPECT_EQ(NameOf(kColourNames, stray), "unknown");
-  EXPECT_EQ(NameOf(kColourNames, stray, "?"), "?");
+  const auto stray = static_cast<Color>(7);
+  EXPECT_EQ(NameOf(kColorNames, stray), "unknown");
+  EXPECT_EQ(NameOf(kColorNames, stray, "?"), "?");
 }
 
 TEST(EnumNamesTest, ValueNamedIgnoresCaseAndSurroundingSpaceOnly) {
-  EXPECT_EQ(ValueNamed(kColourNames, " GREEN\t"), Colour::kGreen);
-  EXPECT_EQ(ValueNamed(kColourNames, "Blue"), Colour::kBlue);
-  EXPECT_EQ(ValueNamed(kColourNames, "gre en"), std::nullopt);
-  EXPECT_EQ(ValueNamed(kColourNames, "redd"), std::nullopt);
-  EXPECT_EQ(ValueNamed(kColourNames, ""), std::nullopt);
+  EXPECT_EQ(ValueNamed(kColorNames, " GREEN\t"), Color::kGreen);
+  EXPECT_EQ(ValueNamed(kColorNames, "Blue"), Color::kBlue);
+  EXPECT_EQ(ValueNamed(kColorNames, "gre en"), std::nullopt);
+  EXPECT_EQ(ValueNamed(kColorNames, "redd"), std::nullopt);
+  EXPECT_EQ(ValueNamed(kColorNames, ""), std::nullopt);
 }
 
 TEST(EnumNamesTest, NameListKeepsTheTablesOrder) {
-  EXPECT_EQ(NameList(kColourNames), "red, green, blue");
+  EXPECT_EQ(NameList(kColorNames), "red, green, blue");
 }
 
 TEST(EnumNamesTest, NameOfIsAConstantExpression) {
-  static_assert(NameOf(kColourNames, Colour::kBlue) == "blue");
+  static_assert(NameOf(kColorNames, Color::kBlue) == "blue");
 }
 
 }  // namespace

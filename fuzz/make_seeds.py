@@ -129,7 +129,7 @@ def off_seeds():
     write('off_fuzzer', 'tetrahedron.off',
           'OFF\n# a comment\n4 4 6\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n3 0 1 3\n'
           '3 0 2 3\n3 1 2 3\n')
-    write('off_fuzzer', 'modelnet_quirk_quads_colours.off',
+    write('off_fuzzer', 'modelnet_quirk_quads_colors.off',
           'OFF8 6 0\n' + ''.join('%d %d %d\n' % v for v in
                                  [(x, y, z) for x in (0, 2) for y in (0, 1) for z in (0, 3)]) +
           '4 0 1 3 2 255 0 0\n4 4 6 7 5 0 255 0\n4 0 4 5 1\n4 2 3 7 6\n4 0 2 6 4\n4 1 5 7 3\n')
@@ -148,7 +148,7 @@ def obj_seeds():
           'f -6 -5 -1 -2\nf 1 3 7 5\nf 2 6 8 4\n')
     write('obj_fuzzer', 'points_only.obj',
           ''.join('v %.6g %.6g %.6g\n' % q for q in points(12)))
-    write('obj_fuzzer', 'triangles_with_colour.obj',
+    write('obj_fuzzer', 'triangles_with_color.obj',
           'v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nv 0 0 1 1 1 1\nf 1 2 3\nf 1 3 4\n'
           'l 1 2\n')
 
@@ -176,7 +176,7 @@ def open3d_text_and_gzip_seeds():
           '6\n' + ''.join('%.5f %.5f %.5f 12 200 100 50\n' % q for q in p[:6]) +
           '4\n' + ''.join('%.5f %.5f %.5f 9 0 0 0\n' % q for q in p[6:]))
     write('xyz_fuzzer', 'open3d_normals.xyzn', ''.join('%.10f %.10f %.10f 0 0 1\n' % q for q in p))
-    write('xyz_fuzzer', 'open3d_colours.xyzrgb',
+    write('xyz_fuzzer', 'open3d_colors.xyzrgb',
           ''.join('%.10f %.10f %.10f 0.5 0.25 1\n' % q for q in p))
     text = ''.join('%.6f %.6f %.6f\n' % q for q in p).encode()
     write('gzip_fuzzer', 'text_in_gzip.xyz.gz', gzip.compress(text, mtime=0))

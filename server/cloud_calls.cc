@@ -199,18 +199,18 @@ Work SceneWork(SceneCall scene, size_t points, std::function<absl::StatusOr<Poin
           },
           [frame, &call, response] {
             SHAPEID_ASSIGN_OR_RETURN(
-                SceneRecognition recognised,
+                SceneRecognition recognized,
                 ClassifySceneObjects(*frame->snapshot, frame->points,
                                      std::move(frame->segmentation), frame->scene.options));
-            recognised.segment_time = frame->segment_time;
+            recognized.segment_time = frame->segment_time;
             const std::string& kind = frame->snapshot->shared_descriptor()->spec().kind;
-            for (const RecognizedObject& object : recognised.objects) {
+            for (const RecognizedObject& object : recognized.objects) {
               if (!object.status.ok()) continue;
               call.observer().Described(call.record(), kind, object.classification.describe_time);
               call.observer().Searched(call.record(), object.classification.knn.approximate,
                                        object.classification.search_time);
             }
-            ToProto(recognised, frame->points.size(), frame->scene.return_indices, response);
+            ToProto(recognized, frame->points.size(), frame->scene.return_indices, response);
             return call.HoldAnswer(*response,
                                    "fewer neighbours (k), no point indices, larger "
                                    "min_cluster_points or a smaller region");

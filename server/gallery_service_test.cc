@@ -255,7 +255,7 @@ TEST_F(GalleryServiceTest, CreateGetListDeleteWithEveryError) {
             grpc::StatusCode::NOT_FOUND);
 }
 
-TEST_F(GalleryServiceTest, BulkTrainThenClassifyRecognisesShapes) {
+TEST_F(GalleryServiceTest, BulkTrainThenClassifyRecognizesShapes) {
   ASSERT_TRUE(Create("shapes", "rphsd:refs=cubic27,bins=30").ok());
   v1::TrainResponse trained;
   std::vector<Sample> samples = TrainingSet(4, 100);

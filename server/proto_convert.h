@@ -68,7 +68,7 @@ void ToProto(const GalleryClassification& answer, size_t num_points, v1::Classif
 // conversion: counts too large for an int are clamped so that the check names them.
 SceneSegmentationOptions FromProto(const v1::SceneSegmentation& segmentation,
                                    const v1::AxisAlignedBox* region);
-// A recognised frame of `num_points` points; each object's indices only `with_indices`.
+// A recognized frame of `num_points` points; each object's indices only `with_indices`.
 void ToProto(const SceneRecognition& scene, size_t num_points, bool with_indices,
              v1::RecognizeSceneResponse* out);
 

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The main job (README): on a fresh Debian 12 machine, installs the packages, builds, starts
 # shapeid-server with its built-in store, creates a gallery, trains it on real labelled data,
-# batch-classifies held-out data with the CLI, prints the accuracy table and timings, recognises
-# the objects of a composed tabletop frame (coloured frame and picture), and stops the server.
+# batch-classifies held-out data with the CLI, prints the accuracy table and timings, recognizes
+# the objects of a composed tabletop frame (colored frame and picture), and stops the server.
 #
 # The data: real 3D models that Debian ships (the chess pieces of `brutalchess` and furniture
 # of `minetest-mod-homedecor`, fetched with `apt-get download` and unpacked, never installed),
@@ -155,7 +155,7 @@ step "Accuracy on the held-out views"
 # A robot's frame holds a table and several things on it. `shapeid views --scenes` composes one:
 # five of the models (real sizes, any yaw, apart) on a table, seen by one simulated depth camera,
 # with each point's truth beside it (docs/scenes.md). `shapeid scene` finds and names them.
-step "A scene: five of the models on a table, one depth-camera frame, recognised in one call"
+step "A scene: five of the models on a table, one depth-camera frame, recognized in one call"
 "$shapeid" views --out "$demo/scene" --train-views 0 --test-views 0 --scenes 1 --scene-objects 5 \
   --touching 0 --up y --seed 5 "$meshes"/*.obj >/dev/null
 "$shapeid" scene --gallery objects --colored "$demo/scene.ply" --picture "$demo/scene.png" \
@@ -185,4 +185,4 @@ kill -TERM "$server_pid"
 wait "$server_pid" && echo "shapeid-server stopped cleanly"
 trap - EXIT
 echo "report: $demo/report.html"
-echo "scene:  $demo/scene.png (and $demo/scene.ply, each object's points coloured by its label)"
+echo "scene:  $demo/scene.png (and $demo/scene.ply, each object's points colored by its label)"

@@ -260,9 +260,9 @@ void RecognitionCounters(benchmark::State& state, const FrameSet& set, double cl
   state.counters["objects"] = static_cast<double>(objects) / set.frames.size();
 }
 
-// Times `recognise` (frame -> SceneRecognition) over every frame of the set.
-template <typename Recognise>
-void TimeRecognition(benchmark::State& state, const FrameSet& set, Recognise recognise) {
+// Times `recognize` (frame -> SceneRecognition) over every frame of the set.
+template <typename Recognize>
+void TimeRecognition(benchmark::State& state, const FrameSet& set, Recognize recognize) {
   size_t points = 0;
   for (const Frame& f : set.frames) points += f.frame.cloud.size();
   double classify = 0;
@@ -270,7 +270,7 @@ void TimeRecognition(benchmark::State& state, const FrameSet& set, Recognise rec
   for (auto _ : state) {
     objects = 0;
     for (const Frame& f : set.frames) {
-      absl::StatusOr<SceneRecognition> scene = recognise(f);
+      absl::StatusOr<SceneRecognition> scene = recognize(f);
       if (!scene.ok()) {
         state.SkipWithError(std::string(scene.status().message()).c_str());
         return;

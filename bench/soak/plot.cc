@@ -85,7 +85,7 @@ void WarmupLine(std::string& svg, const Panel& p, double warmup_end) {
 
 template <typename YOf>
 void Polyline(std::string& svg, const Panel& p, const std::vector<Window>& windows,
-              const char* colour, const YOf& y_of, const std::string& first_point = "") {
+              const char* color, const YOf& y_of, const std::string& first_point = "") {
   std::string points = first_point;
   for (const Window& w : windows) {
     if (w.requests == 0 && w.rss_kib == 0) continue;
@@ -96,11 +96,10 @@ void Polyline(std::string& svg, const Panel& p, const std::vector<Window>& windo
   absl::StrAppendFormat(&svg,
                         R"(<polyline points="%s" fill="none" stroke="%s" stroke-width="1.8"/>)"
                         "\n",
-                        points, colour);
+                        points, color);
 }
 
-void Legend(std::string& svg, const Panel& p, int row, const char* colour,
-            const std::string& text) {
+void Legend(std::string& svg, const Panel& p, int row, const char* color, const std::string& text) {
   const double x = p.left + p.width - 190, y = p.top + 18 + 18 * row;
   absl::StrAppendFormat(&svg, R"(<rect x="%.1f" y="%.1f" width="180" height="18" fill="white"/>)",
                         x - 4, y - 13);
@@ -108,7 +107,7 @@ void Legend(std::string& svg, const Panel& p, int row, const char* colour,
                         R"(<line x1="%.1f" y1="%.1f" x2="%.1f" y2="%.1f" stroke="%s" )"
                         R"(stroke-width="2.5"/><text x="%.1f" y="%.1f">%s</text>)"
                         "\n",
-                        x, y - 4, x + 24, y - 4, colour, x + 30, y, Escape(text));
+                        x, y - 4, x + 24, y - 4, color, x + 30, y, Escape(text));
 }
 
 }  // namespace

@@ -15,8 +15,8 @@
 namespace shapeid {
 namespace {
 
-constexpr std::array<std::array<uint8_t, 3>, kPictureColours> MakePalette() {
-  std::array<std::array<uint8_t, 3>, kPictureColours> p{};
+constexpr std::array<std::array<uint8_t, 3>, kPictureColors> MakePalette() {
+  std::array<std::array<uint8_t, 3>, kPictureColors> p{};
   p[kPictureBackground] = {255, 255, 255};
   p[kPictureFrame] = {209, 213, 219};
   constexpr int kNear[3] = {17, 45, 110};
@@ -54,8 +54,8 @@ void AppendChunk(std::string& out, absl::string_view type, absl::string_view dat
                   static_cast<uint32_t>(crc32(0, bytes, static_cast<uInt>(out.size() - start))));
 }
 
-// RenderCloudViews, with the points' own colours when `colours` is not empty.
-CloudPicture RenderViews(const PointCloud& cloud, absl::Span<const uint8_t> colours,
+// RenderCloudViews, with the points' own colors when `colors` is not empty.
+CloudPicture RenderViews(const PointCloud& cloud, absl::Span<const uint8_t> colors,
                          const CloudPictureOptions& options) {
   const int view = std::max(8, options.view_pixels);
   const int gap = std::max(0, options.gap_pixels);
@@ -122,9 +122,9 @@ CloudPicture RenderViews(const PointCloud& cloud, absl::Span<const uint8_t> colo
       // 0 nearest, 1 farthest.
       const double far = depth_span > 0 ? std::clamp(0.5 - d / depth_span, 0.0, 1.0) : 0.0;
       const uint8_t shade =
-          colours.empty()
+          colors.empty()
               ? static_cast<uint8_t>(kPictureNearest + std::lround(far * (kPictureShades - 1)))
-              : colours[i];
+              : colors[i];
       for (int dy = 0; dy < splat; ++dy) {
         for (int dx = 0; dx < splat; ++dx) {
           const int x = std::clamp(x0 + dx, 1, view - 2);
@@ -143,15 +143,15 @@ CloudPicture RenderViews(const PointCloud& cloud, absl::Span<const uint8_t> colo
 
 }  // namespace
 
-const std::array<std::array<uint8_t, 3>, kPictureColours> kCloudPalette = MakePalette();
+const std::array<std::array<uint8_t, 3>, kPictureColors> kCloudPalette = MakePalette();
 
 CloudPicture RenderCloudViews(const PointCloud& cloud, const CloudPictureOptions& options) {
   return RenderViews(cloud, {}, options);
 }
 
-CloudPicture RenderColouredCloudViews(const PointCloud& cloud, absl::Span<const uint8_t> colours,
-                                      const CloudPictureOptions& options) {
-  return RenderViews(cloud, colours, options);
+CloudPicture RenderColoredCloudViews(const PointCloud& cloud, absl::Span<const uint8_t> colors,
+                                     const CloudPictureOptions& options) {
+  return RenderViews(cloud, colors, options);
 }
 
 std::string EncodePng(const CloudPicture& picture) { return EncodePng(picture, kCloudPalette); }
@@ -164,9 +164,9 @@ std::string EncodePng(const CloudPicture& picture,
   AppendBigEndian(header, static_cast<uint32_t>(picture.height));
   header += std::string("\x08\x03\x00\x00\x00", 5);  // 8 bits, indexed, deflate, filter 0, -
   AppendChunk(png, "IHDR", header);
-  std::string colours;
-  for (const auto& rgb : palette) colours.append(reinterpret_cast<const char*>(rgb.data()), 3);
-  AppendChunk(png, "PLTE", colours);
+  std::string colors;
+  for (const auto& rgb : palette) colors.append(reinterpret_cast<const char*>(rgb.data()), 3);
+  AppendChunk(png, "PLTE", colors);
 
   // Every row starts with its filter type, 0 (none): runs of background compress well as
   // they are.

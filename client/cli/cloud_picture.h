@@ -2,7 +2,7 @@
 #define SHAPEID_CLIENT_CLI_CLOUD_PICTURE_H_
 
 // Small pictures of point clouds for the eval report (eval_report.h): three orthographic
-// views side by side, points shaded by depth, encoded here as an indexed-colour PNG so that a
+// views side by side, points shaded by depth, encoded here as an indexed-color PNG so that a
 // page can embed it as a data: URI without any image library or external file.
 
 #include <array>
@@ -16,14 +16,14 @@
 
 namespace shapeid {
 
-// Palette indices of a CloudPicture (kCloudPalette holds their colours).
+// Palette indices of a CloudPicture (kCloudPalette holds their colors).
 inline constexpr uint8_t kPictureBackground = 0;  // white
 inline constexpr uint8_t kPictureFrame = 1;       // the light grey border of each view
 inline constexpr uint8_t kPictureNearest = 2;     // the darkest shade: the nearest points
 inline constexpr int kPictureShades = 24;         // kPictureNearest .. kPictureNearest + 23
-inline constexpr int kPictureColours = kPictureNearest + kPictureShades;
-// The RGB colour of each index: white, grey, then navy (near) to pale blue (far).
-extern const std::array<std::array<uint8_t, 3>, kPictureColours> kCloudPalette;
+inline constexpr int kPictureColors = kPictureNearest + kPictureShades;
+// The RGB color of each index: white, grey, then navy (near) to pale blue (far).
+extern const std::array<std::array<uint8_t, 3>, kPictureColors> kCloudPalette;
 
 struct CloudPictureOptions {
   int view_pixels = 96;  // each view is a square this wide and high, its frame included
@@ -47,13 +47,13 @@ struct CloudPicture {
 // a cloud without a finite point gives the empty frames. Sizes below 8 pixels count as 8.
 CloudPicture RenderCloudViews(const PointCloud& cloud, const CloudPictureOptions& options = {});
 
-// As RenderCloudViews, each point drawn in its own palette index, colours[i] for point i (one
+// As RenderCloudViews, each point drawn in its own palette index, colors[i] for point i (one
 // per point of `cloud`), instead of a shade of its depth; nearer points still hide farther
 // ones. Indices 0 and 1 are the background and the views' frame.
-CloudPicture RenderColouredCloudViews(const PointCloud& cloud, absl::Span<const uint8_t> colours,
-                                      const CloudPictureOptions& options = {});
+CloudPicture RenderColoredCloudViews(const PointCloud& cloud, absl::Span<const uint8_t> colors,
+                                     const CloudPictureOptions& options = {});
 
-// `picture` as a PNG file: 8-bit indexed colour with kCloudPalette, not interlaced, one IDAT
+// `picture` as a PNG file: 8-bit indexed color with kCloudPalette, not interlaced, one IDAT
 // chunk compressed by zlib. Empty only if zlib runs out of memory.
 std::string EncodePng(const CloudPicture& picture);
 // The same with `palette` (index -> RGB, at most 256, one for every index the picture uses).

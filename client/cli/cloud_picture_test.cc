@@ -110,7 +110,7 @@ uint32_t BigEndian(absl::string_view bytes, size_t at) {
 // Decodes what EncodePng writes (one IDAT, filter 0 rows), checking every chunk's CRC.
 struct DecodedPng {
   uint32_t width = 0, height = 0;
-  std::string ihdr_rest;  // bit depth, colour type, compression, filter, interlace
+  std::string ihdr_rest;  // bit depth, color type, compression, filter, interlace
   std::string palette;
   std::string rows;  // inflated IDAT
   std::vector<std::string> chunk_types;
@@ -157,7 +157,7 @@ TEST(CloudPictureTest, PngDecodesToThePicture) {
   EXPECT_EQ(decoded.width, 300u);
   EXPECT_EQ(decoded.height, 96u);
   EXPECT_EQ(decoded.ihdr_rest, std::string("\x08\x03\x00\x00\x00", 5));
-  ASSERT_EQ(decoded.palette.size(), 3u * kPictureColours);
+  ASSERT_EQ(decoded.palette.size(), 3u * kPictureColors);
   EXPECT_EQ(decoded.palette.substr(0, 6), "\xFF\xFF\xFF\xD1\xD5\xDB");  // white, frame grey
   ASSERT_EQ(decoded.rows.size(), 301u * 96u);
   for (int y = 0; y < 96; ++y) {

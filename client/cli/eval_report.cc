@@ -116,7 +116,7 @@ dl.head{display:grid;max-width:980px;margin:8px 0 18px}
   color:#92400e;background:#fffbeb;border:1px dashed #f59e0b;overflow-wrap:anywhere}
 )css";
 
-// Cell colours: green for correct, red for a confusion with another test class, amber for a
+// Cell colors: green for correct, red for a confusion with another test class, amber for a
 // label outside the test classes (a rejection such as "unknown"). The shade is the cell's share
 // of its row, with a floor so that a single mistake still shows.
 std::string CellStyle(uint64_t count, uint64_t row_total, bool diagonal, bool extra) {

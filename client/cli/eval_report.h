@@ -31,7 +31,7 @@ inline constexpr size_t kMaxErrorPictures = 50;
 // A self-contained HTML page (inline CSS, pictures as data: URIs, no scripts or external
 // resources): a header (dataset, mode, gallery, descriptor spec, k, start time, server,
 // client and server versions), headline figures, per-class table, the confusion matrix as a
-// coloured grid (truth rows only; cell shade = share of the row), the errors (first 500:
+// colored grid (truth rows only; cell shade = share of the row), the errors (first 500:
 // file, truth, predicted, the nearest training sample's id, label, distance and training
 // file; the vote share only when k > 1), for the first kMaxErrorPictures of them a picture of
 // the test cloud beside one of its nearest training sample (from `pictures`; none when null),

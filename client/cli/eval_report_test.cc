@@ -66,7 +66,7 @@ TEST(EvalReportTest, HtmlHasOneGridCellPerMatrixEntry) {
   const std::string page = RenderEvalHtml(with_unknown, mu);
   EXPECT_EQ(CountOf(page, "class=\"cm-cell\""), mu.classes.size() * mu.labels.size());
   EXPECT_EQ(CountOf(page, "<th class=\"col extra\""), 1u);
-  EXPECT_THAT(page, HasSubstr("rgba(217,119,6,"));  // the rejection colour
+  EXPECT_THAT(page, HasSubstr("rgba(217,119,6,"));  // the rejection color
 }
 
 TEST(EvalReportTest, EmptyRunSaysNoPredictions) {

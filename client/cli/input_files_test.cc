@@ -32,7 +32,7 @@ class InputFilesTest : public ::testing::Test {
   fs::path root_;
 };
 
-TEST_F(InputFilesTest, RecognisesPointCloudExtensions) {
+TEST_F(InputFilesTest, RecognizesPointCloudExtensions) {
   for (const char* name :
        {"a.pcd", "b.PLY", "c.off", "d.obj", "e.xyz", "f.txt", "g.csv", "h.stl", "i.vtk", "j.las",
         "k.npy", "l.npz", "m.pts", "n.xyzn", "o.xyzrgb", "p.pcd.gz"}) {

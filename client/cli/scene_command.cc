@@ -18,20 +18,20 @@
 #include "client/cli/cloud_picture.h"
 #include "client/cli/describe_command.h"
 #include "client/cli/input_files.h"
-#include "core/io/coloured_cloud_writer.h"
+#include "core/io/colored_cloud_writer.h"
 #include "core/io/file_writer.h"
 #include "core/io/point_cloud_reader.h"
 #include "core/json.h"
 
 namespace shapeid {
 
-const std::array<std::array<uint8_t, 3>, kSceneFirstLabel + kSceneLabelColours> kScenePalette = {{
+const std::array<std::array<uint8_t, 3>, kSceneFirstLabel + kSceneLabelColors> kScenePalette = {{
     {255, 255, 255},  // background
     {209, 213, 219},  // view frame
     {150, 150, 150},  // plane
     {60, 60, 60},     // unassigned
     {230, 0, 230},    // unknown
-    // Tableau 10 without its grey: distinct for people with the common colour blindnesses.
+    // Tableau 10 without its grey: distinct for people with the common color blindnesses.
     {31, 119, 180},
     {255, 127, 14},
     {44, 160, 44},
@@ -228,22 +228,21 @@ std::string SceneCsvRows(const std::string& file, const v1::RecognizeSceneRespon
   return rows;
 }
 
-// The frame's points coloured and written / drawn as --colored and --picture ask.
+// The frame's points colored and written / drawn as --colored and --picture ask.
 absl::Status WriteOutputs(const SceneCommandOptions& options, const PointCloud& frame,
                           const v1::RecognizeSceneResponse& scene) {
   const double plane_distance = options.call.segmentation.has_plane_distance()
                                     ? options.call.segmentation.plane_distance()
                                     : kDefaultPlaneDistance;
-  const std::vector<uint8_t> colours = SceneColours(
+  const std::vector<uint8_t> colors = SceneColors(
       frame, scene, plane_distance, options.call.region ? &*options.call.region : nullptr);
   if (!options.colored.empty()) {
-    if (absl::Status s = WriteColouredFrame(options.colored, frame, colours); !s.ok()) return s;
+    if (absl::Status s = WriteColoredFrame(options.colored, frame, colors); !s.ok()) return s;
   }
   if (!options.picture.empty()) {
     CloudPictureOptions look;
     look.view_pixels = 320;
-    const std::string png =
-        EncodePng(RenderColouredCloudViews(frame, colours, look), kScenePalette);
+    const std::string png = EncodePng(RenderColoredCloudViews(frame, colors, look), kScenePalette);
     if (png.empty()) return absl::ResourceExhaustedError("out of memory encoding the picture");
     if (absl::Status s = WriteFileAtomically(options.picture, png); !s.ok()) return s;
   }
@@ -252,26 +251,26 @@ absl::Status WriteOutputs(const SceneCommandOptions& options, const PointCloud& 
 
 }  // namespace
 
-uint8_t SceneLabelColour(const std::string& label) {
+uint8_t SceneLabelColor(const std::string& label) {
   if (label == kUnknownLabel) return kSceneUnknown;
   const uLong crc =
       crc32(0, reinterpret_cast<const Bytef*>(label.data()), static_cast<uInt>(label.size()));
-  return static_cast<uint8_t>(kSceneFirstLabel + crc % kSceneLabelColours);
+  return static_cast<uint8_t>(kSceneFirstLabel + crc % kSceneLabelColors);
 }
 
-std::vector<uint8_t> SceneColours(const PointCloud& frame, const v1::RecognizeSceneResponse& scene,
-                                  double plane_distance, const v1::AxisAlignedBox* region) {
+std::vector<uint8_t> SceneColors(const PointCloud& frame, const v1::RecognizeSceneResponse& scene,
+                                 double plane_distance, const v1::AxisAlignedBox* region) {
   constexpr uint8_t kNone = 255;
-  std::vector<uint8_t> colours(frame.size(), kNone);
+  std::vector<uint8_t> colors(frame.size(), kNone);
   for (const v1::SceneObject& object : scene.objects()) {
-    const uint8_t colour = SceneLabelColour(object.classification().label());
+    const uint8_t color = SceneLabelColor(object.classification().label());
     for (const uint32_t i : object.indices()) {
-      if (i < colours.size()) colours[i] = colour;
+      if (i < colors.size()) colors[i] = color;
     }
   }
   for (size_t i = 0; i < frame.size(); ++i) {
-    if (colours[i] != kNone) continue;
-    colours[i] = kSceneUnassigned;
+    if (colors[i] != kNone) continue;
+    colors[i] = kSceneUnassigned;
     const Eigen::Vector3f p = frame.point(i);
     if (!p.allFinite() || (region != nullptr && !Inside(*region, p))) continue;
     for (const v1::ScenePlane& plane : scene.planes()) {
@@ -279,27 +278,27 @@ std::vector<uint8_t> SceneColours(const PointCloud& frame, const v1::RecognizeSc
       const double d = plane.coefficients(0) * p.x() + plane.coefficients(1) * p.y() +
                        plane.coefficients(2) * p.z() + plane.coefficients(3);
       if (std::fabs(d) < plane_distance) {
-        colours[i] = kScenePlane;
+        colors[i] = kScenePlane;
         break;
       }
     }
   }
-  return colours;
+  return colors;
 }
 
-absl::Status WriteColouredFrame(const std::string& path, const PointCloud& frame,
-                                absl::Span<const uint8_t> colours) {
-  ColouredCloudFormat format;
-  if (absl::Status s = ColouredCloudFormatOf(path, &format); !s.ok()) return s;
-  if (colours.size() != frame.size()) {
+absl::Status WriteColoredFrame(const std::string& path, const PointCloud& frame,
+                               absl::Span<const uint8_t> colors) {
+  ColoredCloudFormat format;
+  if (absl::Status s = ColoredCloudFormatOf(path, &format); !s.ok()) return s;
+  if (colors.size() != frame.size()) {
     return absl::InvalidArgumentError(
-        absl::StrCat(colours.size(), " colours for ", frame.size(), " points"));
+        absl::StrCat(colors.size(), " colors for ", frame.size(), " points"));
   }
-  std::vector<Rgb> rgb(colours.size());
-  for (size_t i = 0; i < colours.size(); ++i) rgb[i] = kScenePalette[colours[i]];
+  std::vector<Rgb> rgb(colors.size());
+  for (size_t i = 0; i < colors.size(); ++i) rgb[i] = kScenePalette[colors[i]];
   return WriteFileAtomically(
-      path, EncodeColouredCloud(frame, rgb, format,
-                                "shapeid scene: points coloured by their object's label"));
+      path, EncodeColoredCloud(frame, rgb, format,
+                               "shapeid scene: points colored by their object's label"));
 }
 
 void AddSceneFlags(CLI::App* command, SceneCommandOptions* options) {
@@ -358,10 +357,10 @@ void AddSceneFlags(CLI::App* command, SceneCommandOptions* options) {
                     "json: each object's point indices in the frame (non-finite points "
                     "counted)");
   command->add_option("--colored", options->colored,
-                      "Write the frame here with each point coloured by its object's label "
+                      "Write the frame here with each point colored by its object's label "
                       "(planes grey, the rest dark): OUT.ply or OUT.pcd; one FRAME only");
   command->add_option("--picture", options->picture,
-                      "Draw the coloured frame here, three views side by side: OUT.png; one "
+                      "Draw the colored frame here, three views side by side: OUT.png; one "
                       "FRAME only");
   command
       ->add_option("FRAME", options->frames,

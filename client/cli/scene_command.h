@@ -3,7 +3,7 @@
 
 // `shapeid scene`: the objects of sensor frames (a table or floor with things on it), each
 // classified against a gallery by the server's RecognizeScene; optionally the frame written
-// back coloured by label (PLY or PCD) or drawn as a PNG.
+// back colored by label (PLY or PCD) or drawn as a PNG.
 
 #include <array>
 #include <cstdint>
@@ -20,17 +20,17 @@ namespace shapeid {
 struct SceneCommandOptions {
   std::string gallery;
   // k, exact, segmentation parameters (unset: the server's defaults); main.cc fills the
-  // sensor frame; return_indices is set here when a coloured output needs them.
+  // sensor frame; return_indices is set here when a colored output needs them.
   Client::SceneOptions call;
   std::string region;  // --region x0,y0,z0,x1,y1,z1 as typed; empty: the whole frame
   // How files become frames. Non-finite points are kept unless read.drop_non_finite, so that
-  // indices and colours are the file's points; coordinates are never recentred (answers are
+  // indices and colors are the file's points; coordinates are never recentred (answers are
   // in the file's coordinates).
   ReadOptions read;
   bool skip_unsupported = false;
   bool indices = false;  // json: each object's point indices
-  std::string colored;   // write the frame coloured by label here: .ply or .pcd (one frame)
-  std::string picture;   // draw the coloured frame here: .png (one frame)
+  std::string colored;   // write the frame colored by label here: .ply or .pcd (one frame)
+  std::string picture;   // draw the colored frame here: .png (one frame)
   std::vector<std::string> frames;
 };
 
@@ -38,7 +38,7 @@ struct SceneCommandOptions {
 // and sensor-frame flags the other commands share.
 void AddSceneFlags(CLI::App* command, SceneCommandOptions* options);
 
-// Recognises every frame in order, writing its objects to context.out (table, JSON Lines or
+// Recognizes every frame in order, writing its objects to context.out (table, JSON Lines or
 // CSV) and one line per failed frame to context.err. Returns kExitOk, kExitSomeInputsFailed,
 // kExitUsage (bad region, outputs, paths), or the server's exit code when it refuses the
 // whole command (unknown or empty gallery, bad parameter) or is unreachable.
@@ -50,28 +50,27 @@ inline constexpr uint8_t kSceneViewFrame = 1;   // pictures only: each view's bo
 inline constexpr uint8_t kScenePlane = 2;       // on a removed plane: grey
 inline constexpr uint8_t kSceneUnassigned = 3;  // non-finite, outside the region, noise: dark
 inline constexpr uint8_t kSceneUnknown = 4;     // an object labelled unknown: magenta
-inline constexpr uint8_t kSceneFirstLabel = 5;  // labels' colours from here
-inline constexpr int kSceneLabelColours = 9;
-extern const std::array<std::array<uint8_t, 3>, kSceneFirstLabel + kSceneLabelColours>
-    kScenePalette;
+inline constexpr uint8_t kSceneFirstLabel = 5;  // labels' colors from here
+inline constexpr int kSceneLabelColors = 9;
+extern const std::array<std::array<uint8_t, 3>, kSceneFirstLabel + kSceneLabelColors> kScenePalette;
 
-// The palette index of `label`: kSceneUnknown for "unknown", else one of the label colours
-// chosen by the label's CRC-32, so that a label keeps its colour across frames, galleries
+// The palette index of `label`: kSceneUnknown for "unknown", else one of the label colors
+// chosen by the label's CRC-32, so that a label keeps its color across frames, galleries
 // and runs (two labels may share one).
-uint8_t SceneLabelColour(const std::string& label);
+uint8_t SceneLabelColor(const std::string& label);
 
 // One palette index per point of `frame` (as sent; scene answered with return_indices): its
-// object's label colour; kScenePlane for a finite point within `plane_distance` of a removed
+// object's label color; kScenePlane for a finite point within `plane_distance` of a removed
 // plane (the answer gives planes' coefficients, not their points) and inside `region` when
 // one is given; kSceneUnassigned otherwise.
-std::vector<uint8_t> SceneColours(const PointCloud& frame, const v1::RecognizeSceneResponse& scene,
-                                  double plane_distance, const v1::AxisAlignedBox* region);
+std::vector<uint8_t> SceneColors(const PointCloud& frame, const v1::RecognizeSceneResponse& scene,
+                                 double plane_distance, const v1::AxisAlignedBox* region);
 
-// The frame with its points' colours (palette indices of kScenePalette) as a binary PLY or
-// PCD (core/io/coloured_cloud_writer.h), chosen by `path`'s extension, written atomically.
+// The frame with its points' colors (palette indices of kScenePalette) as a binary PLY or
+// PCD (core/io/colored_cloud_writer.h), chosen by `path`'s extension, written atomically.
 // Every point is written, non-finite ones too.
-absl::Status WriteColouredFrame(const std::string& path, const PointCloud& frame,
-                                absl::Span<const uint8_t> colours);
+absl::Status WriteColoredFrame(const std::string& path, const PointCloud& frame,
+                               absl::Span<const uint8_t> colors);
 
 }  // namespace shapeid
 

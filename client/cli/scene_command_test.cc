@@ -1,6 +1,6 @@
 // `shapeid scene` against an in-process server on a loopback port: a table frame written as a
 // PCD file with missing returns (NaN) among its points; the objects in table, JSON and CSV;
-// the frame written back coloured (PLY, PCD) and drawn (PNG); errors as one line each.
+// the frame written back colored (PLY, PCD) and drawn (PNG); errors as one line each.
 
 #include "client/cli/scene_command.h"
 
@@ -185,10 +185,10 @@ TEST_F(SceneCommandTest, JsonAndCsvCarryTheObjectsAndIndicesCountTheMissingPoint
   EXPECT_EQ(lines[4], "");
 }
 
-// The coloured frame reads back with every point in its place (NaN ones too); its colours,
-// read from the file's bytes: each object's label colour, the table grey, missing points dark.
-TEST_F(SceneCommandTest, TheColouredFrameReadsBackWithItsLabelsColours) {
-  for (const std::string name : {"coloured.ply", "coloured.pcd"}) {
+// The colored frame reads back with every point in its place (NaN ones too); its colors,
+// read from the file's bytes: each object's label color, the table grey, missing points dark.
+TEST_F(SceneCommandTest, TheColoredFrameReadsBackWithItsLabelsColors) {
+  for (const std::string name : {"colored.ply", "colored.pcd"}) {
     SCOPED_TRACE(name);
     SceneCommandOptions options;
     options.colored = Path(name);
@@ -209,7 +209,7 @@ TEST_F(SceneCommandTest, TheColouredFrameReadsBackWithItsLabelsColours) {
     const size_t data = bytes.find(end) + end.size();
     const size_t step = ply ? 15 : 16;
     ASSERT_EQ(bytes.size(), data + step * frame_.size());
-    const auto colour = [&](size_t i) {
+    const auto color = [&](size_t i) {
       std::array<uint8_t, 3> rgb;
       if (ply) {
         std::memcpy(rgb.data(), &bytes[data + step * i + 12], 3);
@@ -225,19 +225,19 @@ TEST_F(SceneCommandTest, TheColouredFrameReadsBackWithItsLabelsColours) {
     for (size_t i = 0; i < frame_.size(); ++i) {
       const int kind = KindOf(i);
       if (i < kLeadingNans) {
-        EXPECT_EQ(colour(i), kScenePalette[kSceneUnassigned]) << i;
+        EXPECT_EQ(color(i), kScenePalette[kSceneUnassigned]) << i;
       } else if (kind >= 0) {
-        ASSERT_EQ(colour(i), kScenePalette[SceneLabelColour(kShapeNames[kind])]) << i;
+        ASSERT_EQ(color(i), kScenePalette[SceneLabelColor(kShapeNames[kind])]) << i;
       } else {
-        grey += colour(i) == kScenePalette[kScenePlane];
+        grey += color(i) == kScenePalette[kScenePlane];
       }
     }
     EXPECT_EQ(grey, table_points_);
-    EXPECT_NE(kScenePalette[SceneLabelColour("box")], kScenePalette[SceneLabelColour("sphere")]);
+    EXPECT_NE(kScenePalette[SceneLabelColor("box")], kScenePalette[SceneLabelColor("sphere")]);
   }
 }
 
-TEST_F(SceneCommandTest, ThePictureIsAValidPngOfTheColours) {
+TEST_F(SceneCommandTest, ThePictureIsAValidPngOfTheColors) {
   SceneCommandOptions options;
   options.picture = Path("scene.png");
   ASSERT_EQ(Run(options), kExitOk) << err_->contents();
@@ -277,8 +277,8 @@ TEST_F(SceneCommandTest, ThePictureIsAValidPngOfTheColours) {
                        reinterpret_cast<const Bytef*>(idat.data()), idat.size()),
             Z_OK);
   EXPECT_EQ(size, rows.size());
-  for (const uint8_t index : {kScenePlane, SceneLabelColour("box"), SceneLabelColour("sphere"),
-                              SceneLabelColour("rod")}) {
+  for (const uint8_t index :
+       {kScenePlane, SceneLabelColor("box"), SceneLabelColor("sphere"), SceneLabelColor("rod")}) {
     EXPECT_NE(rows.find(static_cast<char>(index)), std::string::npos) << int{index};
   }
 }

@@ -145,7 +145,7 @@ TEST(GalleryTest, ClassifyGivesNeighboursVotesAndConfidence) {
   EXPECT_GE(answer->describe_time, absl::ZeroDuration());
   EXPECT_GE(answer->search_time, absl::ZeroDuration());
 
-  // Each shape is recognised.
+  // Each shape is recognized.
   EXPECT_EQ(snap->Classify(Box(77))->label, "box");
   EXPECT_EQ(snap->Classify(Line(77))->label, "line");
 }

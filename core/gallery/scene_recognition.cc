@@ -53,7 +53,7 @@ absl::Status ClassifyClusters(const GallerySnapshot& gallery, const PointCloud& 
       object.status = absl::InvalidArgumentError(
           absl::StrCat("the object's ", object.indices.size(), " points ",
                        object.geometry.box.size[0] > 0 ? "lie on a line" : "are all one point",
-                       ": there is no shape to recognise"));
+                       ": there is no shape to recognize"));
       object.classification.label = std::string(kUnknownLabel);
       object.classification.unknown = true;
       continue;

@@ -72,7 +72,7 @@ TEST(SceneRecognitionTest, FindsAndNamesEachObjectOnTheTable) {
 }
 
 // An object that cannot be described (here every point identical) is answered unknown with
-// its reason; the other objects are still recognised.
+// its reason; the other objects are still recognized.
 TEST(SceneRecognitionTest, AnObjectThatCannotBeDescribedIsUnknownNotAFailure) {
   const std::shared_ptr<Gallery> gallery = ShapesGallery(true);
   std::vector<std::vector<uint32_t>> truth;

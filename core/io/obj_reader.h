@@ -8,7 +8,7 @@
 namespace shapeid {
 
 // Parses a Wavefront OBJ mesh held in memory, with Debian's tinyobjloader; `name` is the file
-// name that every error message starts with. Reads `v x y z` vertices (a w or colour after
+// name that every error message starts with. Reads `v x y z` vertices (a w or color after
 // them is ignored) and `f` faces of any size in every form (`i`, `i/t`, `i//n`, `i/t/n`;
 // negative indices count back from the last vertex read so far). Normals, texture
 // coordinates, lines, points, groups, objects, smoothing groups and materials are skipped:

@@ -167,7 +167,7 @@ TEST(ObjReaderTest, VerticesWhenSamplingIsOff) {
 }
 
 TEST(ObjReaderTest, PointCloudWithoutFacesGivesItsVertices) {
-  // Exporters write w or a colour after xyz; both are ignored.
+  // Exporters write w or a color after xyz; both are ignored.
   constexpr char kPoints[] = "# scan\nv 1.5 -2 3e2\nv 4 5 6 1.0\nv 7 8 9 0.5 0.25 1\nvn 0 0 1\n";
   const absl::StatusOr<ReadResult> r = ParseObj(kPoints, "scan.obj", Sampled(2048, 0));
   ASSERT_TRUE(r.ok()) << r.status();

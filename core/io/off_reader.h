@@ -9,7 +9,7 @@ namespace shapeid {
 
 // Parses an OFF mesh (Object File Format, as in ModelNet / Princeton Shape Benchmark) held in
 // memory: an "OFF" line, a line "vertices faces [edges]", one vertex per line (x y z, extra
-// values such as colours ignored), one face per line ("n i1 ... in", extra values ignored).
+// values such as colors ignored), one face per line ("n i1 ... in", extra values ignored).
 // The ModelNet quirk "OFF<vertices> <faces> <edges>" on the first line is accepted. '#'
 // starts a comment. The mesh is sampled to ReadOptions::sample_points points, area-weighted
 // and seeded with sample_seed (polygons split into fans); sample_points 0 returns the vertices.

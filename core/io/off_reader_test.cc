@@ -15,7 +15,7 @@ namespace {
 using ::testing::HasSubstr;
 
 // The unit cube [0, 1]^3: 8 vertices, 6 quads (split into fans by the reader), a comment and a
-// colour on one face.
+// color on one face.
 constexpr char kCube[] =
     "OFF\n"
     "# unit cube\n"

@@ -11,7 +11,7 @@ namespace shapeid {
 // binary_little_endian 1.0 or binary_big_endian 1.0. Every element and property is parsed,
 // whatever its type (char/int8, uchar/uint8, short/int16, ushort/uint16, int/int32,
 // uint/uint32, float/float32, double/float64) or list type, so unknown elements (edges,
-// materials) and properties (normals, colours) are skipped. The "vertex" element must have
+// materials) and properties (normals, colors) are skipped. The "vertex" element must have
 // scalar x, y and z properties. A file with faces (a "face" element of at least one instance)
 // is a mesh: ReadOptions::sample_points points are sampled on its polygons (list property
 // vertex_indices or vertex_index), area-weighted and seeded with sample_seed, as for OFF and

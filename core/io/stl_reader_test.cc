@@ -52,7 +52,7 @@ std::string Binary(const std::vector<Triangle>& triangles, const std::string& he
     for (const Eigen::Vector3f& v : t) {
       for (int a = 0; a < 3; ++a) PutLittle<float>(&f, v[a]);
     }
-    PutLittle<uint16_t>(&f, 0x7c1f);  // colour, ignored
+    PutLittle<uint16_t>(&f, 0x7c1f);  // color, ignored
   }
   return f;
 }

@@ -114,7 +114,7 @@ TEST(AugmentTest, TextFormRoundTrips) {
   EXPECT_EQ(AugmentOptionsToString(*parsed), text);
   EXPECT_FALSE(ParseAugmentOptions("off")->enabled());
   EXPECT_EQ(ParseAugmentOptions("views=3")->sensor.max_points, 500u);  // defaults fill in
-  for (const char* bad : {"views=x", "colour=red", "points=5", "pose=sideways", "views=99"}) {
+  for (const char* bad : {"views=x", "color=red", "points=5", "pose=sideways", "views=99"}) {
     EXPECT_EQ(ParseAugmentOptions(bad).status().code(), absl::StatusCode::kInvalidArgument) << bad;
   }
 }

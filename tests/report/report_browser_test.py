@@ -6,7 +6,7 @@ box/test/, a deliberate misclassification), runs `shapeid eval --local ... --rep
 that the error names the training file it matched, then opens the report in Debian's headless
 Chromium and checks the screenshot's pixels: the page is not blank, its text is drawn, and
 both pictures (the misread scan and its nearest training sample, three views each) were
-decoded and painted side by side in their colours.
+decoded and painted side by side in their colors.
 
 Usage: report_browser_test.py SHAPEID_CLI WORK_DIR. Exit 0 when it renders, 1 otherwise (what
 failed is printed). Without Chromium, Pillow or numpy: exit 77 (ctest's skip), except under CI
@@ -41,7 +41,7 @@ CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 if CHROMIUM is None:
     missing("chromium is not installed")
 
-# The picture colours of client/cli/cloud_picture.cc: 24 shades from navy to pale blue.
+# The picture colors of client/cli/cloud_picture.cc: 24 shades from navy to pale blue.
 NEAR, FAR, SHADES = (17, 45, 110), (165, 196, 236), 24
 PALETTE = {
     tuple(n + (f - n) * s // (SHADES - 1) for n, f in zip(NEAR, FAR)) for s in range(SHADES)
@@ -128,7 +128,7 @@ def main():
         fail(f"only {dark} dark pixels: the page's text was not drawn")
     code = (pixels[:, :, 0] << 16) | (pixels[:, :, 1] << 8) | pixels[:, :, 2]
     palette = np.isin(code, [(r << 16) | (g << 8) | b for r, g, b in PALETTE])
-    # A picture's view is a run of columns holding its colours (a few stray pixels of
+    # A picture's view is a run of columns holding its colors (a few stray pixels of
     # anti-aliased text aside); views are at least 10 columns apart.
     columns = np.nonzero(palette.sum(axis=0) >= 3)[0]
     views = 0 if columns.size == 0 else 1 + int((np.diff(columns) > 8).sum())

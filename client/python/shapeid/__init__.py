@@ -1,4 +1,4 @@
-"""shapeid: recognise 3D objects from point clouds with a shapeid server.
+"""shapeid: recognize 3D objects from point clouds with a shapeid server.
 
     import shapeid
     client = shapeid.Client("127.0.0.1:50051")

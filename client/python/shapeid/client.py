@@ -222,7 +222,7 @@ class Client:
         (15). A value out of range is the server's InvalidArgumentError naming it.
         region: ((min x, y, z), (max x, y, z)), a 2 x 3 array-like: only points inside are
           considered. seed: seeds RANSAC (the same frame and seed, the same answer).
-        return_indices: fill each object's `indices` (numpy uint32, ascending), to colour or
+        return_indices: fill each object's `indices` (numpy uint32, ascending), to color or
           crop the frame; else they are None.
         NotFoundError for an unknown gallery, FailedPreconditionError for an empty one."""
         frame = _sensor_frame(up, transform)

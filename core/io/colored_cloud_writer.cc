@@ -1,4 +1,4 @@
-#include "core/io/coloured_cloud_writer.h"
+#include "core/io/colored_cloud_writer.h"
 
 #include <cstring>
 #include <filesystem>
@@ -7,10 +7,10 @@
 
 namespace shapeid {
 
-std::string EncodeColouredCloud(const PointCloud& cloud, absl::Span<const Rgb> colours,
-                                ColouredCloudFormat format, absl::string_view comment) {
+std::string EncodeColoredCloud(const PointCloud& cloud, absl::Span<const Rgb> colors,
+                               ColoredCloudFormat format, absl::string_view comment) {
   const size_t n = cloud.size();
-  const bool ply = format == ColouredCloudFormat::kPly;
+  const bool ply = format == ColoredCloudFormat::kPly;
   std::string out =
       ply ? absl::StrCat("ply\nformat binary_little_endian 1.0\ncomment ", comment,
                          "\nelement vertex ", n,
@@ -26,7 +26,7 @@ std::string EncodeColouredCloud(const PointCloud& cloud, absl::Span<const Rgb> c
   char* at = out.data() + header;
   for (size_t i = 0; i < n; ++i, at += step) {
     std::memcpy(at, cloud.data() + 3 * i, 12);
-    const Rgb& rgb = colours[i];
+    const Rgb& rgb = colors[i];
     if (ply) {
       std::memcpy(at + 12, rgb.data(), 3);
     } else {
@@ -37,15 +37,15 @@ std::string EncodeColouredCloud(const PointCloud& cloud, absl::Span<const Rgb> c
   return out;
 }
 
-absl::Status ColouredCloudFormatOf(const std::string& path, ColouredCloudFormat* format) {
+absl::Status ColoredCloudFormatOf(const std::string& path, ColoredCloudFormat* format) {
   const std::string extension = std::filesystem::path(path).extension().string();
   if (extension == ".ply") {
-    *format = ColouredCloudFormat::kPly;
+    *format = ColoredCloudFormat::kPly;
   } else if (extension == ".pcd") {
-    *format = ColouredCloudFormat::kPcd;
+    *format = ColoredCloudFormat::kPcd;
   } else {
     return absl::InvalidArgumentError(
-        absl::StrCat(path, ": a coloured cloud is written as .ply or .pcd"));
+        absl::StrCat(path, ": a colored cloud is written as .ply or .pcd"));
   }
   return absl::OkStatus();
 }

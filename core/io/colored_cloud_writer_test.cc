@@ -1,4 +1,4 @@
-#include "core/io/coloured_cloud_writer.h"
+#include "core/io/colored_cloud_writer.h"
 
 #include <cstring>
 #include <string>
@@ -22,14 +22,14 @@ PointCloud ThreePoints() {
   cloud.Add(1e-3f, 2e3f, -0.0f);
   return cloud;
 }
-const std::vector<Rgb> kColours = {{{255, 0, 0}}, {{0, 128, 255}}, {{1, 2, 3}}};
+const std::vector<Rgb> kColors = {{{255, 0, 0}}, {{0, 128, 255}}, {{1, 2, 3}}};
 
 // Each format reads back to the same coordinates with the project's readers (which ignore
-// the colour), and holds each point's colour where the format puts it.
-TEST(ColouredCloudWriterTest, PlyReadsBackWithItsColours) {
+// the color), and holds each point's color where the format puts it.
+TEST(ColoredCloudWriterTest, PlyReadsBackWithItsColors) {
   const PointCloud cloud = ThreePoints();
   const std::string ply =
-      EncodeColouredCloud(cloud, kColours, ColouredCloudFormat::kPly, "a test cloud");
+      EncodeColoredCloud(cloud, kColors, ColoredCloudFormat::kPly, "a test cloud");
   EXPECT_THAT(ply, StartsWith("ply\nformat binary_little_endian 1.0\ncomment a test cloud\n"
                               "element vertex 3\n"));
   EXPECT_THAT(ply, HasSubstr("property uchar red\nproperty uchar green\nproperty uchar blue\n"
@@ -42,13 +42,13 @@ TEST(ColouredCloudWriterTest, PlyReadsBackWithItsColours) {
   EXPECT_EQ(0, std::memcmp(read->cloud.data(), cloud.data(), 36));
   const size_t body = ply.size() - 3 * 15;
   for (size_t i = 0; i < 3; ++i) {
-    EXPECT_EQ(0, std::memcmp(ply.data() + body + 15 * i + 12, kColours[i].data(), 3)) << i;
+    EXPECT_EQ(0, std::memcmp(ply.data() + body + 15 * i + 12, kColors[i].data(), 3)) << i;
   }
 }
 
-TEST(ColouredCloudWriterTest, PcdPacksRgbAsPcl) {
+TEST(ColoredCloudWriterTest, PcdPacksRgbAsPcl) {
   const PointCloud cloud = ThreePoints();
-  const std::string pcd = EncodeColouredCloud(cloud, kColours, ColouredCloudFormat::kPcd, "x");
+  const std::string pcd = EncodeColoredCloud(cloud, kColors, ColoredCloudFormat::kPcd, "x");
   EXPECT_THAT(pcd, HasSubstr("FIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\n"
                              "WIDTH 3\nHEIGHT 1\n"));
   ReadOptions as_written;
@@ -63,15 +63,15 @@ TEST(ColouredCloudWriterTest, PcdPacksRgbAsPcl) {
   EXPECT_EQ(packed, 0x000080FFu);  // point 1: red 0, green 128, blue 255
 }
 
-TEST(ColouredCloudWriterTest, FormatComesFromTheExtension) {
-  ColouredCloudFormat format = ColouredCloudFormat::kPcd;
-  ASSERT_TRUE(ColouredCloudFormatOf("out/frame.ply", &format).ok());
-  EXPECT_EQ(format, ColouredCloudFormat::kPly);
-  ASSERT_TRUE(ColouredCloudFormatOf("frame.pcd", &format).ok());
-  EXPECT_EQ(format, ColouredCloudFormat::kPcd);
-  const absl::Status bad = ColouredCloudFormatOf("frame.xyz", &format);
+TEST(ColoredCloudWriterTest, FormatComesFromTheExtension) {
+  ColoredCloudFormat format = ColoredCloudFormat::kPcd;
+  ASSERT_TRUE(ColoredCloudFormatOf("out/frame.ply", &format).ok());
+  EXPECT_EQ(format, ColoredCloudFormat::kPly);
+  ASSERT_TRUE(ColoredCloudFormatOf("frame.pcd", &format).ok());
+  EXPECT_EQ(format, ColoredCloudFormat::kPcd);
+  const absl::Status bad = ColoredCloudFormatOf("frame.xyz", &format);
   EXPECT_EQ(bad.code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_THAT(bad.message(), HasSubstr("frame.xyz: a coloured cloud is written as .ply or .pcd"));
+  EXPECT_THAT(bad.message(), HasSubstr("frame.xyz: a colored cloud is written as .ply or .pcd"));
 }
 
 }  // namespace
