@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
-#include "core/io/test_files.h"
+#include "core/io/io_testing.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "tests/test_certificates.h"

@@ -14,7 +14,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "absl/strings/strip.h"
-#include "core/io/test_files.h"
+#include "core/io/io_testing.h"
 #include "core/testing/test_clouds.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"

@@ -12,7 +12,7 @@
 #include "core/gallery/gallery.h"
 #include "core/gallery/gallery_registry.h"
 #include "core/gallery/gallery_store.h"
-#include "core/gallery/gallery_test_shapes.h"
+#include "core/testing/gallery_shapes.h"
 #include "gtest/gtest.h"
 
 namespace shapeid {

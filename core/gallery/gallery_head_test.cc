@@ -7,7 +7,7 @@
 #include "core/binary_codec.h"
 #include "core/gallery/gallery.h"
 #include "core/gallery/gallery_snapshot.h"
-#include "core/gallery/gallery_test_shapes.h"
+#include "core/testing/gallery_shapes.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 

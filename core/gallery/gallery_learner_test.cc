@@ -9,7 +9,7 @@
 #include "core/gallery/gallery_registry.h"
 #include "core/gallery/gallery_snapshot.h"
 #include "core/gallery/gallery_store.h"
-#include "core/gallery/gallery_test_shapes.h"
+#include "core/testing/gallery_shapes.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 

@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "core/gallery/gallery_store.h"
-#include "core/gallery/gallery_test_shapes.h"
 #include "core/status_macros.h"
+#include "core/testing/gallery_shapes.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 

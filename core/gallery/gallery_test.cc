@@ -15,7 +15,7 @@
 #include "core/descriptor_registry.h"
 #include "core/gallery/gallery_registry.h"
 #include "core/gallery/gallery_store.h"
-#include "core/gallery/gallery_test_shapes.h"
+#include "core/testing/gallery_shapes.h"
 #include "core/version.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"

@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "core/io/io_testing.h"
 #include "core/io/point_cloud_reader.h"
-#include "core/io/test_files.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 

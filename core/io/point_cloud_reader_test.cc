@@ -6,7 +6,7 @@
 #include <cmath>
 #include <string>
 
-#include "core/io/test_files.h"
+#include "core/io/io_testing.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 

@@ -14,9 +14,9 @@
 #include "Eigen/Geometry"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "core/io/io_testing.h"
 #include "core/io/pcd_writer.h"
 #include "core/io/point_cloud_reader.h"
-#include "core/io/test_files.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 

@@ -5,8 +5,8 @@
 #include <string>
 
 #include "absl/strings/numbers.h"
+#include "core/io/io_testing.h"
 #include "core/io/point_cloud_reader.h"
-#include "core/io/test_files.h"
 #include "core/io/text_lines.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"

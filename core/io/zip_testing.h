@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "absl/strings/string_view.h"
-#include "core/io/test_files.h"
+#include "core/io/io_testing.h"
 #include "gtest/gtest.h"
 
 namespace shapeid {

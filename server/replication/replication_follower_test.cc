@@ -4,7 +4,7 @@
 #include <string>
 
 #include "absl/strings/str_cat.h"
-#include "core/gallery/gallery_test_shapes.h"
+#include "core/testing/gallery_shapes.h"
 #include "gtest/gtest.h"
 #include "server/storage/testing/postgres_database_test.h"
 

@@ -12,7 +12,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "core/gallery/gallery_store_testing.h"
-#include "core/gallery/gallery_test_shapes.h"
+#include "core/testing/gallery_shapes.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "server/replication/replication_follower.h"

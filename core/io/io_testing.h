@@ -1,5 +1,5 @@
-#ifndef SHAPEID_CORE_IO_TEST_FILES_H_
-#define SHAPEID_CORE_IO_TEST_FILES_H_
+#ifndef SHAPEID_CORE_IO_IO_TESTING_H_
+#define SHAPEID_CORE_IO_IO_TESTING_H_
 
 // Test-only helpers: files written into testing::TempDir(), named after the running test so
 // that tests run in parallel (ctest -j) never share one.
@@ -92,4 +92,4 @@ void ExpectCorruptionsNameTheFile(const std::string& file, const std::string& na
 
 }  // namespace shapeid
 
-#endif  // SHAPEID_CORE_IO_TEST_FILES_H_
+#endif  // SHAPEID_CORE_IO_IO_TESTING_H_

@@ -1,5 +1,5 @@
-#ifndef SHAPEID_CORE_GALLERY_GALLERY_TEST_SHAPES_H_
-#define SHAPEID_CORE_GALLERY_GALLERY_TEST_SHAPES_H_
+#ifndef SHAPEID_CORE_TESTING_GALLERY_SHAPES_H_
+#define SHAPEID_CORE_TESTING_GALLERY_SHAPES_H_
 
 // Test-only: seeded clouds of three clearly different shapes, small enough to describe in
 // microseconds.
@@ -39,4 +39,4 @@ inline PointCloud BoxWithNaN(uint32_t seed, size_t bad_point) {
 
 }  // namespace shapeid::gallery_testing
 
-#endif  // SHAPEID_CORE_GALLERY_GALLERY_TEST_SHAPES_H_
+#endif  // SHAPEID_CORE_TESTING_GALLERY_SHAPES_H_
