@@ -37,7 +37,7 @@
 #include "bench/host_info.h"
 #include "bench/percentile.h"
 #include "core/gallery/gallery.h"
-#include "core/gallery/scene_recognition.h"
+#include "core/scene/scene_recognition.h"
 #include "core/io/point_cloud_reader.h"
 #include "core/io/scene_files.h"
 #include "core/random.h"

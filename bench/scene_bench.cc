@@ -1,5 +1,5 @@
 // Issue 29's speed goal: a 300,000-point frame segmented and all its objects classified in
-// under 100 ms on one core. RecognizeScene (core/gallery/scene_recognition.h) on ray-cast
+// under 100 ms on one core. RecognizeScene (core/scene/scene_recognition.h) on ray-cast
 // tabletop frames (core/testing/tabletop_frames.h, 640 x 480, 3-10 objects), one thread,
 // with the segmentation and the classification reported apart (bench/tabletop_gallery.h: a
 // timing gallery, not an accuracy figure). PCL's chain beside the whole call:
@@ -15,7 +15,7 @@
 #include "bench/tabletop_gallery.h"
 #include "benchmark/benchmark.h"
 #include "core/gallery/gallery.h"
-#include "core/gallery/scene_recognition.h"
+#include "core/scene/scene_recognition.h"
 #include "core/testing/tabletop_frames.h"
 
 namespace shapeid {

@@ -13,7 +13,7 @@
 #include "core/descriptor_registry.h"
 #include "core/gallery/gallery.h"
 #include "core/gallery/gallery_registry.h"
-#include "core/gallery/scene_recognition.h"
+#include "core/scene/scene_recognition.h"
 #include "core/status_macros.h"
 #include "server/authorization.h"
 #include "server/cloud_assembler.h"

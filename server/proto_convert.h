@@ -10,7 +10,7 @@
 #include "core/gallery/gallery_metadata.h"
 #include "core/gallery/gallery_options.h"
 #include "core/gallery/gallery_snapshot.h"
-#include "core/gallery/scene_recognition.h"
+#include "core/scene/scene_recognition.h"
 #include "core/knn/knn_options.h"
 #include "server/cloud_assembler.h"
 #include "shapeid/v1/shapeid.pb.h"

@@ -15,7 +15,7 @@
 #include "core/descriptor_registry.h"
 #include "core/gallery/gallery.h"
 #include "core/gallery/gallery_store.h"
-#include "core/gallery/scene_recognition.h"
+#include "core/scene/scene_recognition.h"
 #include "core/testing/test_clouds.h"
 #include "core/views/augment.h"
 #include "gtest/gtest.h"

@@ -35,7 +35,7 @@
 #include "bench/host_info.h"
 #include "bench/tabletop_gallery.h"
 #include "benchmark/benchmark.h"
-#include "core/gallery/scene_recognition.h"
+#include "core/scene/scene_recognition.h"
 #include "core/point_cloud.h"
 #include "core/scene/scene_segmentation.h"
 #include "core/testing/tabletop_frames.h"

@@ -1,5 +1,5 @@
-#ifndef SHAPEID_CORE_GALLERY_SCENE_RECOGNITION_H_
-#define SHAPEID_CORE_GALLERY_SCENE_RECOGNITION_H_
+#ifndef SHAPEID_CORE_SCENE_SCENE_RECOGNITION_H_
+#define SHAPEID_CORE_SCENE_SCENE_RECOGNITION_H_
 
 // One sensor frame in, the objects on it out: SegmentScene (core/scene) finds them, the
 // gallery classifies each as the partial view it is.
@@ -91,4 +91,4 @@ absl::StatusOr<SceneRecognition> ClassifySceneObjects(const GallerySnapshot& gal
 
 }  // namespace shapeid
 
-#endif  // SHAPEID_CORE_GALLERY_SCENE_RECOGNITION_H_
+#endif  // SHAPEID_CORE_SCENE_SCENE_RECOGNITION_H_

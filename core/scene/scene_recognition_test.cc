@@ -1,4 +1,4 @@
-#include "core/gallery/scene_recognition.h"
+#include "core/scene/scene_recognition.h"
 
 #include <algorithm>
 #include <cmath>

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "core/gallery/gallery.h"
-#include "core/gallery/scene_recognition.h"
+#include "core/scene/scene_recognition.h"
 #include "core/testing/tabletop_frames.h"
 #include "core/views/test_surfaces.h"
 #include "gtest/gtest.h"
