@@ -10,8 +10,8 @@
 #include "core/gallery/gallery_metadata.h"
 #include "core/gallery/gallery_options.h"
 #include "core/gallery/gallery_snapshot.h"
-#include "core/scene/scene_recognition.h"
 #include "core/knn/knn_options.h"
+#include "core/scene/scene_recognition.h"
 #include "server/cloud_assembler.h"
 #include "shapeid/v1/shapeid.pb.h"
 
