@@ -178,17 +178,27 @@ absl::StatusOr<std::string> ReadFileContents(const std::string& path) {
   return ReadOpenFile(path, fd, st);
 }
 
+namespace {
+
+// `contents`, or their inflated bytes (held in `*inflated`) when they are gzipped; gzip inside
+// gzip is refused.
+absl::StatusOr<absl::string_view> Inflated(absl::string_view contents, absl::string_view name,
+                                           const ReadOptions& options, std::string* inflated) {
+  if (!IsGzip(contents)) return contents;
+  SHAPEID_ASSIGN_OR_RETURN(*inflated, Gunzip(contents, name, options.max_inflated_bytes));
+  if (IsGzip(*inflated))
+    return absl::InvalidArgumentError(absl::StrCat(name, ": gzip inside gzip"));
+  return absl::string_view(*inflated);
+}
+
+}  // namespace
+
 absl::StatusOr<ReadResult> ParsePointCloud(absl::string_view contents, CloudFormat format,
                                            absl::string_view name, const ReadOptions& options) {
-  if (IsGzip(contents)) {
-    SHAPEID_ASSIGN_OR_RETURN(const std::string inflated,
-                             Gunzip(contents, name, options.max_inflated_bytes));
-    if (IsGzip(inflated)) {
-      return absl::InvalidArgumentError(absl::StrCat(name, ": gzip inside gzip"));
-    }
-    return ParsePointCloud(inflated, format, name, options);
-  }
-  return ReaderFor(format).parse(contents, name, options);
+  std::string inflated;
+  SHAPEID_ASSIGN_OR_RETURN(const absl::string_view plain,
+                           Inflated(contents, name, options, &inflated));
+  return ReaderFor(format).parse(plain, name, options);
 }
 
 namespace {
@@ -199,11 +209,8 @@ absl::StatusOr<ReadResult> ParseBySignature(absl::string_view contents, absl::st
                                             const absl::Status& unnamed,
                                             const ReadOptions& options) {
   std::string inflated;
-  absl::string_view plain = contents;
-  if (IsGzip(contents)) {
-    SHAPEID_ASSIGN_OR_RETURN(inflated, Gunzip(contents, name, options.max_inflated_bytes));
-    plain = inflated;
-  }
+  SHAPEID_ASSIGN_OR_RETURN(const absl::string_view plain,
+                           Inflated(contents, name, options, &inflated));
   const std::optional<CloudFormat> format = CloudFormatBySignature(plain);
   if (!format.has_value()) {
     return absl::Status(unnamed.code(), absl::StrCat(unnamed.message(),
@@ -211,7 +218,7 @@ absl::StatusOr<ReadResult> ParseBySignature(absl::string_view contents, absl::st
                                                      "signature of a format that has one (",
                                                      FormatsWithSignatures(), ")"));
   }
-  return ParsePointCloud(plain, *format, name, options);
+  return ReaderFor(*format).parse(plain, name, options);
 }
 
 }  // namespace

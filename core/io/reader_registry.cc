@@ -1,8 +1,5 @@
 #include "core/io/reader_registry.h"
 
-#include <cstdint>
-#include <cstring>
-
 #include "absl/strings/match.h"
 #include "absl/strings/str_join.h"
 #include "core/io/las_reader.h"
@@ -28,18 +25,6 @@ bool IsPly(absl::string_view c) {
 }
 // ModelNet writes "OFF490 518 0" on one line; the reader needs only the first three bytes.
 bool IsOff(absl::string_view c) { return absl::StartsWith(c, "OFF"); }
-// ASCII STL starts with "solid"; binary STL has no signature but its size, 84 bytes of header
-// and count, then 50 bytes a triangle (the STL reader's own test, so a binary file whose header
-// says "solid" is binary here too).
-bool IsStl(absl::string_view c) {
-  if (c.size() >= 84) {
-    uint32_t count = 0;
-    std::memcpy(&count, c.data() + 80, sizeof count);  // little-endian, as x86 and ARM are
-    if (uint64_t{84} + uint64_t{50} * count == c.size()) return true;
-  }
-  return absl::StartsWithIgnoreCase(c, "solid") &&
-         (c.size() == 5 || c[5] == ' ' || c[5] == '\t' || c[5] == '\n' || c[5] == '\r');
-}
 bool IsVtk(absl::string_view c) { return absl::StartsWith(c, "# vtk DataFile"); }
 bool IsLas(absl::string_view c) { return absl::StartsWith(c, "LASF"); }
 bool IsNpy(absl::string_view c) { return absl::StartsWith(c, absl::string_view("\x93NUMPY", 6)); }
@@ -70,7 +55,7 @@ const std::vector<CloudReaderKind>& RegisteredReaders() {
       {CloudFormat::kPly, "ply", {".ply"}, IsPly, ParsePly},
       {CloudFormat::kOff, "off", {".off"}, IsOff, ParseOff},
       {CloudFormat::kObj, "obj", {".obj"}, nullptr, ParseObj},
-      {CloudFormat::kStl, "stl", {".stl"}, IsStl, ParseStl},
+      {CloudFormat::kStl, "stl", {".stl"}, HasStlSignature, ParseStl},
       {CloudFormat::kVtk, "vtk", {".vtk"}, IsVtk, ParseVtk},
       {CloudFormat::kLas, "las", {".las"}, IsLas, ParseLas},
       {CloudFormat::kNpy, "npy", {".npy"}, IsNpy, ParseNpy},

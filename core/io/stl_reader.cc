@@ -220,14 +220,32 @@ class AsciiParser {
 
 }  // namespace
 
+namespace {
+
+// What a binary file of the header's triangle count would weigh; 0 for a file shorter than
+// the header.
+uint64_t BinarySizeOfCount(absl::string_view contents) {
+  if (contents.size() < kHeaderBytes) return 0;
+  return kHeaderBytes + uint64_t{kRecordBytes} * LoadLittle32(contents.data() + 80);
+}
+
+}  // namespace
+
+bool HasStlSignature(absl::string_view contents) {
+  if (contents.size() >= kHeaderBytes && BinarySizeOfCount(contents) == contents.size()) {
+    return true;
+  }
+  return absl::StartsWithIgnoreCase(contents, "solid") &&
+         (contents.size() == 5 || IsBlank(contents[5]) || contents[5] == '\n' ||
+          contents[5] == '\r');
+}
+
 absl::StatusOr<ReadResult> ParseStl(absl::string_view contents, absl::string_view name,
                                     const ReadOptions& options) {
-  uint32_t count = 0;
-  uint64_t binary_size = 0;  // what a binary file of the header's count would weigh
-  if (contents.size() >= kHeaderBytes) {
-    count = LoadLittle32(contents.data() + 80);
-    binary_size = kHeaderBytes + uint64_t{kRecordBytes} * count;
-    if (binary_size == contents.size()) return ParseBinary(contents, name, count, options);
+  const uint64_t binary_size = BinarySizeOfCount(contents);
+  const uint32_t count = contents.size() >= kHeaderBytes ? LoadLittle32(contents.data() + 80) : 0;
+  if (contents.size() >= kHeaderBytes && binary_size == contents.size()) {
+    return ParseBinary(contents, name, count, options);
   }
   size_t start = 0;
   while (start < contents.size() && (IsBlank(contents[start]) || contents[start] == '\n')) {

@@ -28,6 +28,11 @@ namespace shapeid {
 absl::StatusOr<ReadResult> ParseStl(absl::string_view contents, absl::string_view name,
                                     const ReadOptions& options = {});
 
+// True when `contents` are an STL file by their start or size: ASCII's "solid" as a word, or a
+// binary file weighing exactly what its triangle count says (so a binary file whose header
+// says "solid" is binary here, as in ParseStl). For files whose name names no format.
+bool HasStlSignature(absl::string_view contents);
+
 }  // namespace shapeid
 
 #endif  // SHAPEID_CORE_IO_STL_READER_H_
