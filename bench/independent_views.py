@@ -87,6 +87,14 @@ def camera_position(points, elevation_deg, azimuth_deg):
     return centre, radius, centre + 3.0 * radius * direction
 
 
+def camera_axes(centre, eye):
+    """The camera's forward (towards the centre), right and up unit vectors; +z is world up."""
+    forward = (centre - eye) / np.linalg.norm(centre - eye)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    return forward, right, np.cross(right, forward)
+
+
 def view_hpr(points, elevation, azimuth, rng):
     del rng
     _, _, eye = camera_position(points, elevation, azimuth)
@@ -134,10 +142,7 @@ def view_raycast(points, elevation, azimuth, rng, pixels=72):
     triangles = rebuilt_surface(points)
     if len(triangles) == 0:
         return view_hpr(points, elevation, azimuth, rng)
-    forward = (centre - eye) / np.linalg.norm(centre - eye)
-    right = np.cross(forward, [0.0, 0.0, 1.0])
-    right /= np.linalg.norm(right)
-    up = np.cross(right, forward)
+    forward, right, up = camera_axes(centre, eye)
     half = np.arctan(1.1 * radius / (3.0 * radius))  # the bounding sphere fills the image
     # Jittered pixel centres: a sensor's samples are not a lattice aligned with anything.
     grid = (np.arange(pixels) + 0.5) / pixels * 2 - 1
@@ -161,10 +166,7 @@ def view_cut(points, elevation, azimuth, rng):
 def view_occluded(points, elevation, azimuth, rng):
     view = view_hpr(points, elevation, azimuth, rng)
     centre, radius, eye = camera_position(points, elevation, azimuth)
-    forward = (centre - eye) / np.linalg.norm(centre - eye)
-    right = np.cross(forward, [0.0, 0.0, 1.0])
-    right /= np.linalg.norm(right)
-    up = np.cross(right, forward)
+    forward, right, up = camera_axes(centre, eye)
     relative = view - eye
     depth = relative @ forward
     image = np.stack([relative @ right, relative @ up], axis=1) / depth[:, None]
