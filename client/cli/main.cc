@@ -17,6 +17,7 @@
 #include "client/cli/train_classify_commands.h"
 #include "client/cli/views_command.h"
 #include "core/io/point_cloud_reader.h"
+#include "core/io/reader_registry.h"
 #include "core/request_id.h"
 
 namespace {
@@ -83,8 +84,10 @@ void AddReadFlags(CLI::App* command, shapeid::ReadOptions* read, bool* skip_unsu
             read->input_format = shapeid::CloudFormatForName(name).value();  // checked below
           },
           "Read every input as this format whatever its extension; needed for standard input "
-          "(FILE \"-\"): " +
-              absl::StrJoin(shapeid::CloudFormatNames(), ", "))
+          "(FILE \"-\"). Without it a file is read by its extension, or, when that is missing "
+          "or unknown, by its first bytes (" +
+              shapeid::FormatsWithSignatures() +
+              "): " + absl::StrJoin(shapeid::CloudFormatNames(), ", "))
       ->check([](const std::string& name) {
         const absl::StatusOr<shapeid::CloudFormat> format = shapeid::CloudFormatForName(name);
         return format.ok() ? std::string() : std::string(format.status().message());
