@@ -51,6 +51,10 @@ stage() {  # NAME COMMAND...
 preset() {  # NAME: configure, build and test one preset
   cmake --preset "$1"
   cmake --build --preset "$1" -j "$(nproc)"
+  # testing::TempDir() honours TEST_TMPDIR: each run's test files go to a fresh folder of the
+  # build tree, not to /tmp, where thousands of runs' leftovers once filled the disk.
+  export TEST_TMPDIR="$PWD/build/$1/test-tmp"
+  rm -rf "$TEST_TMPDIR" && mkdir -p "$TEST_TMPDIR"
   ctest --preset "$1"
 }
 
