@@ -787,6 +787,12 @@ TEST(ClientCallerIdTest, RobotsOnOneHostWithIdsGetAShareEach) {
   v1::DescribeRequest header;
   header.mutable_header()->set_expected_points(2'750'000);
   ASSERT_TRUE(stream->Write(header));
+  // Written is not yet read: wait until the server holds the stream's cloud, so that the
+  // robots' calls below cannot take the memory first.
+  for (int i = 0; i < 500 && (*server)->service().budget().held_bytes() < (30u << 20); ++i) {
+    absl::SleepFor(absl::Milliseconds(10));
+  }
+  ASSERT_GE((*server)->service().budget().held_bytes(), 30u << 20);
   const PointCloud cloud = Shape(0, 3, 40'000);  // 480 KB, held twice as a one-message call
   ClientOptions options;
   options.target = (*server)->address();

@@ -5,8 +5,11 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
+#include "core/gallery/gallery_registry.h"
+#include "core/status_macros.h"
 #include "server/caller_identity.h"
 #include "server/grpc_status.h"
+#include "server/proto_convert.h"
 #include "server/service_options.h"
 #include "server/stream_limiter.h"
 
@@ -166,6 +169,13 @@ grpc::Status AdmittedCall::Conclude(const grpc::Status& status, bool report) {
   memory_.Release();
   if (report) runtime_.observer->Finish(record_, status);
   return status;
+}
+
+absl::StatusOr<std::shared_ptr<Gallery>> NamedGallery(const ServiceRuntime& runtime,
+                                                      CallRecord& record, absl::string_view name) {
+  record.gallery = std::string(name);
+  SHAPEID_RETURN_IF_ERROR(RequireGalleryName(record.method, name));
+  return runtime.registry->Get(name);
 }
 
 }  // namespace shapeid

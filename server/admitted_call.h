@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
 #include "absl/time/time.h"
 #include "google/protobuf/message_lite.h"
@@ -30,7 +31,9 @@
 
 namespace shapeid {
 
+class Gallery;
 class GalleryRegistry;
+struct ServerDescription;
 struct ServiceOptions;
 
 // What the service shares with every call; all outlive the calls.
@@ -42,6 +45,7 @@ struct ServiceRuntime {
   // For the handlers.
   const ServiceOptions* options = nullptr;
   GalleryRegistry* registry = nullptr;
+  const ServerDescription* description = nullptr;  // for GetServerStats
 };
 
 // Work a handler hands over: steps run one after another, each on the scheduler's lane its
@@ -160,6 +164,11 @@ class AdmittedCall {
   CeilingAlarm ceiling_;
   grpc::Status final_status_;
 };
+
+// The gallery a call names, recorded as the call's: INVALID_ARGUMENT "METHOD: the gallery name
+// is empty", NOT_FOUND when the registry holds none of that name.
+absl::StatusOr<std::shared_ptr<Gallery>> NamedGallery(const ServiceRuntime& runtime,
+                                                      CallRecord& record, absl::string_view name);
 
 }  // namespace shapeid
 

@@ -8,33 +8,6 @@
 namespace shapeid {
 namespace {
 
-struct MethodScope {
-  absl::string_view method;
-  Scope scope;
-};
-
-// The one table. Anything not listed needs admin (see RequiredScope).
-constexpr MethodScope kMethodScopes[] = {
-    {SHAPEID_METHOD(Describe), Scope::kRead},
-    {SHAPEID_METHOD(DescribeCloud), Scope::kRead},
-    {SHAPEID_METHOD(Classify), Scope::kRead},
-    {SHAPEID_METHOD(ClassifyCloud), Scope::kRead},
-    {SHAPEID_METHOD(RecognizeScene), Scope::kRead},
-    {SHAPEID_METHOD(RecognizeSceneCloud), Scope::kRead},
-    {SHAPEID_METHOD(GetGallery), Scope::kRead},
-    {SHAPEID_METHOD(ListGalleries), Scope::kRead},
-    {SHAPEID_METHOD(ListSamples), Scope::kRead},
-    {SHAPEID_METHOD(ListDescriptors), Scope::kRead},
-    {SHAPEID_METHOD(GetServerStats), Scope::kRead},
-    {SHAPEID_METHOD(Train), Scope::kWrite},
-    {SHAPEID_METHOD(CreateGallery), Scope::kWrite},
-    {SHAPEID_METHOD(RemoveSamples), Scope::kWrite},
-    {SHAPEID_METHOD(ImportGallery), Scope::kWrite},
-    {SHAPEID_METHOD(ExportGallery), Scope::kWrite},
-    {SHAPEID_METHOD(DeleteGallery), Scope::kAdmin},
-    {SHAPEID_METHOD(SetLogLevel), Scope::kAdmin},
-};
-
 constexpr absl::string_view kOpenServicePrefix = "/grpc.health.v1.Health/";
 
 // "Describe" from "/shapeid.v1.ShapeId/Describe", for messages.
@@ -47,8 +20,8 @@ absl::string_view ShortName(absl::string_view full_method) {
 
 std::optional<Scope> RequiredScope(absl::string_view full_method) {
   if (absl::StartsWith(full_method, kOpenServicePrefix)) return std::nullopt;
-  for (const MethodScope& entry : kMethodScopes) {
-    if (entry.method == full_method) return entry.scope;
+  for (const RpcMethod& method : kRpcMethods) {
+    if (method.full_name == full_method) return method.scope;
   }
   return Scope::kAdmin;
 }

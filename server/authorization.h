@@ -9,25 +9,17 @@
 #include "absl/status/status.h"
 #include "absl/strings/string_view.h"
 #include "server/api_keys.h"
+#include "server/rpc_list.h"
 
 namespace shapeid {
-
-// The full name of ShapeId's RPC `name` ("/shapeid.v1.ShapeId/Train"), as the scope table, the
-// handlers' call records and gRPC know it.
-#define SHAPEID_METHOD(name) "/shapeid.v1.ShapeId/" #name
 
 // The metadata key that carries "Bearer KEY" (lowercase, as gRPC metadata keys are).
 inline constexpr absl::string_view kAuthorizationMetadata = "authorization";
 
-// The scope a call of `full_method` ("/shapeid.v1.ShapeId/Train") needs, from one table:
-//   read   Describe, DescribeCloud, Classify, ClassifyCloud, RecognizeScene,
-//          RecognizeSceneCloud, GetGallery, ListGalleries, ListSamples, ListDescriptors,
-//          GetServerStats
-//   write  Train, CreateGallery, RemoveSamples, ImportGallery, ExportGallery
-//   admin  DeleteGallery, SetLogLevel, and every method the table does not name (a new RPC
-//          is admin-only until someone decides otherwise)
-// nullopt: open to every caller, key or not: grpc.health.v1 (Kubernetes' gRPC probes cannot
-// send metadata).
+// The scope a call of `full_method` ("/shapeid.v1.ShapeId/Train") needs: its entry in
+// server/rpc_list.h (docs/security.md lists them); admin for every method the list does not
+// name. nullopt: open to every caller, key or not: grpc.health.v1 (Kubernetes' gRPC probes
+// cannot send metadata).
 std::optional<Scope> RequiredScope(absl::string_view full_method);
 
 // Whether a call of `full_method` may run, given the value of its `authorization` metadata

@@ -10,8 +10,10 @@
 #include "server/call_gate.h"
 #include "server/call_observer.h"
 #include "server/memory_budget.h"
+#include "server/rpc_list.h"
 #include "server/server_stats.h"
 #include "server/service_options.h"
+#include "server/transfer_rpcs.h"
 #include "server/work_scheduler.h"
 #include "shapeid/v1/shapeid.grpc.pb.h"
 
@@ -41,6 +43,27 @@ using ShapeIdRawService = v1::ShapeId::WithRawCallbackMethod_Describe<
                                                                 v1::ShapeId::
                                                                     CallbackService>>>>>>>>>>>>>>>>>;
 
+// The handler declarations of each shape of server/rpc_list.h, as gRPC's generated base
+// class names them.
+#define SHAPEID_SERVICE_DECLARE_kCloud(name)                                            \
+  grpc::ServerReadReactor<grpc::ByteBuffer>* name(grpc::CallbackServerContext* context, \
+                                                  grpc::ByteBuffer* response) override; \
+  grpc::ServerUnaryReactor* name##Cloud(grpc::CallbackServerContext* context,           \
+                                        const grpc::ByteBuffer* raw_request,            \
+                                        grpc::ByteBuffer* raw_response) override;
+#define SHAPEID_SERVICE_DECLARE_kStream(name)                                           \
+  grpc::ServerReadReactor<grpc::ByteBuffer>* name(grpc::CallbackServerContext* context, \
+                                                  grpc::ByteBuffer* response) override;
+#define SHAPEID_SERVICE_DECLARE_kServerStream(name)                                         \
+  grpc::ServerWriteReactor<name##Rpc::Response>* name(grpc::CallbackServerContext* context, \
+                                                      const name##Rpc::Request* request) override;
+#define SHAPEID_SERVICE_DECLARE_kUnary(name)                           \
+  grpc::ServerUnaryReactor* name(grpc::CallbackServerContext* context, \
+                                 const grpc::ByteBuffer* raw_request,  \
+                                 grpc::ByteBuffer* raw_response) override;
+#define SHAPEID_SERVICE_DECLARE_kOperations SHAPEID_SERVICE_DECLARE_kUnary
+#define SHAPEID_SERVICE_DECLARE(name, scope, shape) SHAPEID_SERVICE_DECLARE_##shape(name)
+
 // The gRPC edge of shapeid: each method turns its messages into calls on core/ (descriptors,
 // the gallery registry) and the result into one status (server/grpc_status.h). All state
 // lives in the registry; thread-safe.
@@ -65,64 +88,9 @@ class ShapeIdService final : public ShapeIdRawService {
   // serving.
   void SetDescription(ServerDescription description) { description_ = std::move(description); }
 
-  // Client streams: messages v1::DescribeRequest, TrainRequest, ClassifyRequest; answers
-  // v1::DescribeResponse, TrainResponse, ClassifyResponse.
-  grpc::ServerReadReactor<grpc::ByteBuffer>* Describe(grpc::CallbackServerContext* context,
-                                                      grpc::ByteBuffer* response) override;
-  grpc::ServerReadReactor<grpc::ByteBuffer>* Train(grpc::CallbackServerContext* context,
-                                                   grpc::ByteBuffer* response) override;
-  grpc::ServerReadReactor<grpc::ByteBuffer>* Classify(grpc::CallbackServerContext* context,
-                                                      grpc::ByteBuffer* response) override;
-  grpc::ServerReadReactor<grpc::ByteBuffer>* RecognizeScene(grpc::CallbackServerContext* context,
-                                                            grpc::ByteBuffer* response) override;
-  // Unary calls: the request and response types of the proto, as bytes.
-  grpc::ServerUnaryReactor* DescribeCloud(grpc::CallbackServerContext* context,
-                                          const grpc::ByteBuffer* raw_request,
-                                          grpc::ByteBuffer* raw_response) override;
-  grpc::ServerUnaryReactor* ClassifyCloud(grpc::CallbackServerContext* context,
-                                          const grpc::ByteBuffer* raw_request,
-                                          grpc::ByteBuffer* raw_response) override;
-  grpc::ServerUnaryReactor* RecognizeSceneCloud(grpc::CallbackServerContext* context,
-                                                const grpc::ByteBuffer* raw_request,
-                                                grpc::ByteBuffer* raw_response) override;
-
-  grpc::ServerUnaryReactor* CreateGallery(grpc::CallbackServerContext* context,
-                                          const grpc::ByteBuffer* raw_request,
-                                          grpc::ByteBuffer* raw_response) override;
-  grpc::ServerUnaryReactor* GetGallery(grpc::CallbackServerContext* context,
-                                       const grpc::ByteBuffer* raw_request,
-                                       grpc::ByteBuffer* raw_response) override;
-  grpc::ServerUnaryReactor* ListGalleries(grpc::CallbackServerContext* context,
-                                          const grpc::ByteBuffer* raw_request,
-                                          grpc::ByteBuffer* raw_response) override;
-  grpc::ServerUnaryReactor* DeleteGallery(grpc::CallbackServerContext* context,
-                                          const grpc::ByteBuffer* raw_request,
-                                          grpc::ByteBuffer* raw_response) override;
-  grpc::ServerUnaryReactor* RemoveSamples(grpc::CallbackServerContext* context,
-                                          const grpc::ByteBuffer* raw_request,
-                                          grpc::ByteBuffer* raw_response) override;
-  grpc::ServerUnaryReactor* ListSamples(grpc::CallbackServerContext* context,
-                                        const grpc::ByteBuffer* raw_request,
-                                        grpc::ByteBuffer* raw_response) override;
-  // server/transfer_calls.h.
-  grpc::ServerWriteReactor<v1::GalleryExportChunk>* ExportGallery(
-      grpc::CallbackServerContext* context, const v1::ExportGalleryRequest* request) override;
-  grpc::ServerReadReactor<grpc::ByteBuffer>* ImportGallery(grpc::CallbackServerContext* context,
-                                                           grpc::ByteBuffer* response) override;
-
-  grpc::ServerUnaryReactor* ListDescriptors(grpc::CallbackServerContext* context,
-                                            const grpc::ByteBuffer* raw_request,
-                                            grpc::ByteBuffer* raw_response) override;
-
-  // Operations (docs/operations.md), answered on gRPC's thread in every state: v1::ServerStats
-  // (server/server_stats.h); SetLogLevel changes the observer's logger (INVALID_ARGUMENT for an
-  // unknown level; FAILED_PRECONDITION for a service without a logger).
-  grpc::ServerUnaryReactor* GetServerStats(grpc::CallbackServerContext* context,
-                                           const grpc::ByteBuffer* raw_request,
-                                           grpc::ByteBuffer* raw_response) override;
-  grpc::ServerUnaryReactor* SetLogLevel(grpc::CallbackServerContext* context,
-                                        const grpc::ByteBuffer* raw_request,
-                                        grpc::ByteBuffer* raw_response) override;
+  // One handler per RPC of server/rpc_list.h (two for a cloud RPC: its stream and its
+  // one-message call), declared from the list by shape below.
+  SHAPEID_RPCS(SHAPEID_SERVICE_DECLARE)
 
   // Refuses every call with UNAVAILABLE "loading" until StartServing (a new service serves
   // at once; the server holds it while it loads galleries from the store).

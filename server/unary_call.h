@@ -89,6 +89,22 @@ grpc::ServerUnaryReactor* RunUnary(grpc::CallbackServerContext* context,
   return reactor;
 }
 
+// RunUnary for the RPC a struct declares (server/gallery_rpcs.h): its Request, its Response
+// and its handler Rpc::Handle(runtime, request, response, call).
+template <typename Rpc>
+grpc::ServerUnaryReactor* ServeUnary(grpc::CallbackServerContext* context,
+                                     const ServiceRuntime& runtime, absl::string_view method,
+                                     CallGate::Kind kind, const grpc::ByteBuffer* raw_request,
+                                     grpc::ByteBuffer* raw_response) {
+  using Request = typename Rpc::Request;
+  using Response = typename Rpc::Response;
+  return RunUnary<Request, Response>(
+      context, runtime, method, kind, raw_request, raw_response,
+      [&runtime](const Request& request, Response* response, AdmittedCall& call) {
+        return Rpc::Handle(runtime, request, response, call);
+      });
+}
+
 }  // namespace shapeid
 
 #endif  // SHAPEID_SERVER_UNARY_CALL_H_

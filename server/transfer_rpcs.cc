@@ -1,4 +1,4 @@
-#include "server/transfer_calls.h"
+#include "server/transfer_rpcs.h"
 
 #include <memory>
 #include <optional>
@@ -10,7 +10,6 @@
 #include "core/gallery/gallery.h"
 #include "core/gallery/gallery_registry.h"
 #include "core/status_macros.h"
-#include "server/authorization.h"
 #include "server/gallery_export.h"
 #include "server/grpc_status.h"
 #include "server/proto_convert.h"
@@ -28,9 +27,8 @@ namespace {
 class ExportReactor final : public grpc::ServerWriteReactor<v1::GalleryExportChunk> {
  public:
   ExportReactor(grpc::CallbackServerContext* context, const ServiceRuntime& runtime,
-                const v1::ExportGalleryRequest& request)
-      : context_(context),
-        call_(context, runtime, SHAPEID_METHOD(ExportGallery), CallGate::Kind::kStream) {
+                absl::string_view method, const v1::ExportGalleryRequest& request)
+      : context_(context), call_(context, runtime, method, CallGate::Kind::kStream) {
     call_.record().gallery = request.name();
     if (!call_.admission().ok()) {
       End(ToGrpcStatus(call_.admission()));
@@ -88,8 +86,8 @@ class ExportReactor final : public grpc::ServerWriteReactor<v1::GalleryExportChu
 class ImportReactor final : public StreamReactor<v1::ImportGalleryRequest, v1::Gallery> {
  public:
   ImportReactor(grpc::CallbackServerContext* context, const ServiceRuntime& runtime,
-                grpc::ByteBuffer* response)
-      : StreamReactor(context, runtime, SHAPEID_METHOD(ImportGallery), response),
+                absl::string_view method, grpc::ByteBuffer* response)
+      : StreamReactor(context, runtime, method, response),
         registry_(*runtime.registry),
         assembler_(runtime.registry->limits().max_samples_per_gallery) {
     StartReading();
@@ -137,16 +135,16 @@ class ImportReactor final : public StreamReactor<v1::ImportGalleryRequest, v1::G
 
 }  // namespace
 
-grpc::ServerWriteReactor<v1::GalleryExportChunk>* StartExport(
-    grpc::CallbackServerContext* context, const ServiceRuntime& runtime,
+grpc::ServerWriteReactor<v1::GalleryExportChunk>* ExportGalleryRpc::Start(
+    grpc::CallbackServerContext* context, const ServiceRuntime& runtime, absl::string_view method,
     const v1::ExportGalleryRequest& request) {
-  return new ExportReactor(context, runtime, request);
+  return new ExportReactor(context, runtime, method, request);
 }
 
-grpc::ServerReadReactor<grpc::ByteBuffer>* StartImport(grpc::CallbackServerContext* context,
-                                                       const ServiceRuntime& runtime,
-                                                       grpc::ByteBuffer* response) {
-  return new ImportReactor(context, runtime, response);
+grpc::ServerReadReactor<grpc::ByteBuffer>* ImportGalleryRpc::Start(
+    grpc::CallbackServerContext* context, const ServiceRuntime& runtime, absl::string_view method,
+    grpc::ByteBuffer* response) {
+  return new ImportReactor(context, runtime, method, response);
 }
 
 }  // namespace shapeid
