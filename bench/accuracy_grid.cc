@@ -12,7 +12,7 @@
 // the test clouds only, seeded per cloud by DeriveSeed(--seed, "<perturbation>|<relative path>")
 // so results do not depend on thread order. Each (spec, cloud, perturbation) is described once;
 // each (spec, scaling, perturbation, fold) runs one search per test cloud with the largest k,
-// and every k and weighting is voted from that sorted neighbour list by KnnIndex::Classify's
+// and every k and weighting is voted from that sorted neighbor list by KnnIndex::Classify's
 // rules; a sample of queries (every one with --quick) is checked against Classify itself.
 //
 // Exit status: 0 done, 2 bad arguments or data, 3 a derived vote differed from Classify,
@@ -187,10 +187,10 @@ struct Dataset {
 };
 
 // The first `per_label` files of each label, for --quick.
-std::vector<LabelledFile> FirstPerLabel(const std::vector<LabelledFile>& files, size_t per_label) {
+std::vector<LabeledFile> FirstPerLabel(const std::vector<LabeledFile>& files, size_t per_label) {
   std::map<std::string, size_t> taken;
-  std::vector<LabelledFile> out;
-  for (const LabelledFile& f : files) {
+  std::vector<LabeledFile> out;
+  for (const LabeledFile& f : files) {
     if (taken[f.label]++ < per_label) out.push_back(f);
   }
   return out;
@@ -227,16 +227,16 @@ absl::StatusOr<Dataset> LoadModelNet(const std::string& root, bool quick, int th
   Dataset data;
   data.name = "modelnet10";
   data.protocol = "holdout";
-  absl::StatusOr<std::vector<LabelledFile>> train = LabelledFiles(root, Split::kTrain);
+  absl::StatusOr<std::vector<LabeledFile>> train = LabeledFiles(root, Split::kTrain);
   if (!train.ok()) return train.status();
-  absl::StatusOr<std::vector<LabelledFile>> test = LabelledFiles(root, Split::kTest);
+  absl::StatusOr<std::vector<LabeledFile>> test = LabeledFiles(root, Split::kTest);
   if (!test.ok()) return test.status();
   if (quick) {
     *train = FirstPerLabel(*train, 4);
     *test = FirstPerLabel(*test, 2);
   }
   for (const auto& [files, is_train] : {std::pair{&*train, true}, std::pair{&*test, false}}) {
-    for (const LabelledFile& f : *files) {
+    for (const LabeledFile& f : *files) {
       Sample s;
       s.key = Relative(f.path, root);
       s.label = f.label;
@@ -254,7 +254,7 @@ absl::StatusOr<Dataset> LoadDales(const std::string& root, bool quick, int folds
   data.name = "dales";
   data.protocol = "kfold";
   data.folds = folds;
-  absl::StatusOr<std::vector<LabelledFile>> files = LabelledFiles(root, Split::kAll);
+  absl::StatusOr<std::vector<LabeledFile>> files = LabeledFiles(root, Split::kAll);
   if (!files.ok()) return files.status();
   if (quick) *files = FirstPerLabel(*files, 6);
   // The fold assignment of `shapeid eval --folds`, so the two tools agree cloud for cloud.
@@ -345,9 +345,9 @@ double TimeOne(const Descriptor& descriptor, const PointCloud& cloud) {
 // ----------------------------------------------------------------------------- voting
 
 // KnnIndex::Classify's vote over the first k of `neighbors` (sorted nearest first, ties in
-// insertion order, as Search returns them): weights summed in neighbour order, classes in
-// order of their nearest neighbour, the most weight wins and ties go to the earlier class;
-// with distance weighting and a neighbour at distance 0, only those at 0 vote, one each.
+// insertion order, as Search returns them): weights summed in neighbor order, classes in
+// order of their nearest neighbor, the most weight wins and ties go to the earlier class;
+// with distance weighting and a neighbor at distance 0, only those at 0 vote, one each.
 struct Vote {
   const std::string* label = nullptr;
   double confidence = 0;
@@ -664,7 +664,7 @@ int RunDataset(const Dataset& data, const std::vector<SpecEntry>& specs,
     const double micros_1024 = TimeOne(*entry.descriptor, cloud_1024);
     if (!EvaluateSpec(data, entry, gallery, clean, order, order_features, micros_1024, settings)) {
       std::fprintf(stderr,
-                   "accuracy_grid: INTERNAL ERROR: a vote derived from the neighbour list differs "
+                   "accuracy_grid: INTERNAL ERROR: a vote derived from the neighbor list differs "
                    "from KnnIndex::Classify (%s on %s)\n",
                    entry.name.c_str(), data.name.c_str());
       return kExitMismatch;
@@ -717,7 +717,7 @@ int Main(int argc, char** argv) {
   app.add_option(
       "--specs-file", specs_files,
       "specs, one per line; '#' comments; '[name]' starts a section (the records' group)");
-  app.add_option("--k", k_names, "neighbour counts; 'ln' = round(ln N_train)")
+  app.add_option("--k", k_names, "neighbor counts; 'ln' = round(ln N_train)")
       ->delimiter(',')
       ->capture_default_str();
   app.add_option("--weighting", weighting_names, "uniform, distance")

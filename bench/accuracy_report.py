@@ -417,12 +417,12 @@ def comparison(doc, grid, datasets):
     doc("Where our protocol differs:", "",
         "- **Descriptors as specified, not as the author's code ran**: RPHSD bins with "
         "d_max = 2√3 and a clamp (the code used 3.462 and no clamp), spherical27 rings at ±45° "
-        "(the code passed degrees as radians); CNSD-3D thresholds, degrees normalised by n and "
+        "(the code passed degrees as radians); CNSD-3D thresholds, degrees normalized by n and "
         "no self-loops (the author's library differs, docs/descriptors.md §3). COMSD-3D has no "
         "public code; we follow the text.",
         "- **Clouds**: our ModelNet10 clouds are 1,024-point Poisson-disk samplings of the meshes "
         "(../shared/data/README.md); the dissertation does not say how it sampled them.",
-        "- **Classifier**: our own exact kNN (Euclidean; ties to the nearest neighbour's class). "
+        "- **Classifier**: our own exact kNN (Euclidean; ties to the nearest neighbor's class). "
         "Tables 3-4 came from Weka (table 4's caption), whose IBk kNN by default rescales every "
         "attribute to [0, 1] by its range; the nearest of our scalings is `maxabs` (the author's "
         "own code's choice), so those comparisons show `none / maxabs`.",
@@ -581,7 +581,7 @@ def robustness(doc, grid, robust, datasets, out_dir):
         "bounding-box diagonal;",
         "- **256 / 128 points**: a uniform random subset (clouds with fewer points kept whole);",
         "- **partial view**: the points one depth camera sees (ScanSimulator, no depth noise), "
-        "from a direction uniform over the whole sphere at 3 half-diagonals from the box centre.",
+        "from a direction uniform over the whole sphere at 3 half-diagonals from the box center.",
         "")
     written = []
     for d in datasets:
@@ -669,7 +669,7 @@ def robot_protocol(doc, robot, datasets):
         "`SensorView` in core/views/perturb.h), seeded per cloud. `yaw` is the clean test "
         "cloud turned about the vertical only (what a gravity-aligned sensor sees), `rot3d` "
         "under a random 3D rotation. A query matches each trained object by its "
-        "best view and, for `frame=box`, its best pose variant; the k neighbours are distinct "
+        "best view and, for `frame=box`, its best pose variant; the k neighbors are distinct "
         "objects, so one object's views cast one vote.", "")
     settings = [("1", "uniform"), ("5", "distance")]
     head = ["configuration", "k, votes"]
@@ -791,7 +791,7 @@ def main():
         "- **kNN**: exact, Euclidean; k in {1, 5, 9, ln N_train} (ln: round(ln N_train), 8 on "
         "ModelNet10, 6 on DALES), uniform or 1/distance votes, feature scaling none, zscore or "
         "maxabs fitted on the gallery (docs/descriptors.md §4). Each setting's votes are "
-        "derived from one sorted neighbour list per query, checked against `KnnIndex::Classify`.",
+        "derived from one sorted neighbor list per query, checked against `KnnIndex::Classify`.",
         "- **Mean per-class accuracy** is the unweighted mean of the per-class accuracies (pooled "
         "over folds on DALES).",
         "- **Timing**: µs to describe one 1,024-point ModelNet10 cloud on one core (median of 31).",

@@ -54,7 +54,7 @@ struct KernelSetup {
     input.xyz = cloud.data();
     input.num_points = cloud.size();
     for (int a = 0; a < 3; ++a) input.center[a] = static_cast<float>(stats.centroid[a]);
-    input.inv_scale = static_cast<float>(1.0 / stats.MaxAbsCentred());
+    input.inv_scale = static_cast<float>(1.0 / stats.MaxAbsCentered());
     input.ref_x = rx.data();
     input.ref_y = ry.data();
     input.ref_z = rz.data();
@@ -156,7 +156,7 @@ void BM_ValidateCloud(benchmark::State& state) {
 }
 BENCHMARK(BM_ValidateCloud)->Unit(benchmark::kMicrosecond);
 
-// Whole descriptors through the public API (validation, normalisation, features).
+// Whole descriptors through the public API (validation, normalization, features).
 void DescribeBench(benchmark::State& state, const std::string& spec, size_t points) {
   auto descriptor = CreateDescriptor(spec);
   if (!descriptor.ok()) {

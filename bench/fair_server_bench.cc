@@ -56,7 +56,7 @@
 #include "bench/percentile.h"
 #include "client/client.h"
 #include "core/testing/test_clouds.h"
-#include "server/api_keys.h"
+#include "server/security/api_keys.h"
 #include "server/testing/child_server.h"
 #include "shapeid/v1/shapeid.grpc.pb.h"
 

@@ -13,15 +13,15 @@ Open3D, reuses only bench/independent_views.py (the same independent side):
            toward it until the gap is in [1, 9] mm) with probability --touch-prob, else is
            placed >= --gap m from all; the second object always touches.
   camera   a pinhole depth camera (--width x --height, --vfov deg vertical) --min-distance to
-           --max-distance m from the table centre at 30-60 deg elevation, any azimuth, looking
-           at the centre; moved back (up to 1.8 m) until every object's box is in the image,
+           --max-distance m from the table center at 30-60 deg elevation, any azimuth, looking
+           at the center; moved back (up to 1.8 m) until every object's box is in the image,
            and its azimuth redrawn (up to 8 times) while an object shows < --min-visible points.
   raycast  (default) each ModelNet cloud rebuilt as a surface (its alpha shape), clutter as
            Open3D primitive meshes, rays of every pixel cast on them (Moller-Trumbore in numpy)
-           and on the table analytically: an organised frame, NaN where no return.
+           and on the table analytically: an organized frame, NaN where no return.
   hpr      Katz hidden point removal over the whole scene's points (objects' own points, the
            table as a grid, clutter sampled, all at the objects' spacing): the points the camera
-           sees, unorganised.
+           sees, unorganized.
   noise    Kinect-like: depth z moved along its ray by N(0, 0.0012 + 0.0019 (z - 0.4)^2) m;
            returns outside [0.4, 4] m dropped.
 
@@ -46,7 +46,7 @@ from independent_views import first_hits, read_cloud  # noqa: E402
 
 import open3d as o3d  # noqa: E402  (independent_views already exits cleanly without it)
 
-TABLE = (1.4, 0.9)  # table top extent in x, y (m), centred on the origin
+TABLE = (1.4, 0.9)  # table top extent in x, y (m), centered on the origin
 MIN_RANGE, MAX_RANGE = 0.4, 4.0
 
 
@@ -272,7 +272,7 @@ class Camera:
 
 
 def render_raycast(camera, shapes):
-    """Organised (H, W, 3) noiseless points in the optical frame (NaN: no return) and ids."""
+    """Organized (H, W, 3) noiseless points in the optical frame (NaN: no return) and ids."""
     h, w = camera.height, camera.width
     v, u = np.mgrid[0:h, 0:w]
     rays = camera.rays(u.astype(float), v.astype(float))  # z = 1: a hit's t is its depth
@@ -307,7 +307,7 @@ def render_raycast(camera, shapes):
 
 
 def render_hpr(camera, shapes, spacing):
-    """Unorganised (N, 3) noiseless points in the optical frame that Katz's HPR keeps, and ids."""
+    """Unorganized (N, 3) noiseless points in the optical frame that Katz's HPR keeps, and ids."""
     gx = np.arange(-TABLE[0] / 2, TABLE[0] / 2 + 1e-9, spacing)
     gy = np.arange(-TABLE[1] / 2, TABLE[1] / 2 + 1e-9, spacing)
     table = np.stack(np.meshgrid(gx, gy), -1).reshape(-1, 2)
@@ -470,7 +470,7 @@ def write_readme(args, lines, counts, spacings, n_objects, seconds):
         f.write(f"Objects per frame: median {np.median(n_objects):.0f}, range {min(n_objects)}-{max(n_objects)}.\n"
                 f"Visible points per gallery object: median {np.median(counts):.0f}, 10th percentile "
                 f"{np.percentile(counts, 10):.0f}, min {min(counts)}.\n"
-                f"Point spacing on objects (median nearest-neighbour distance per object): median "
+                f"Point spacing on objects (median nearest-neighbor distance per object): median "
                 f"{np.median(spacings) * 1000:.1f} mm, 90th percentile {np.percentile(spacings, 90) * 1000:.1f} mm.\n")
         if args.visibility == "raycast":
             f.write("The ModelNet10 clouds (1,024 points) sample their surfaces ~1 cm apart at these sizes, so\n"

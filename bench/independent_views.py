@@ -80,16 +80,16 @@ def write_pcd(path, points):
 
 
 def camera_position(points, elevation_deg, azimuth_deg):
-    centre = 0.5 * (points.min(0) + points.max(0))
-    radius = np.linalg.norm(points - centre, axis=1).max()
+    center = 0.5 * (points.min(0) + points.max(0))
+    radius = np.linalg.norm(points - center, axis=1).max()
     e, a = np.radians(elevation_deg), np.radians(azimuth_deg)
     direction = np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
-    return centre, radius, centre + 3.0 * radius * direction
+    return center, radius, center + 3.0 * radius * direction
 
 
-def camera_axes(centre, eye):
-    """The camera's forward (towards the centre), right and up unit vectors; +z is world up."""
-    forward = (centre - eye) / np.linalg.norm(centre - eye)
+def camera_axes(center, eye):
+    """The camera's forward (towards the center), right and up unit vectors; +z is world up."""
+    forward = (center - eye) / np.linalg.norm(center - eye)
     right = np.cross(forward, [0.0, 0.0, 1.0])
     right /= np.linalg.norm(right)
     return forward, right, np.cross(right, forward)
@@ -138,13 +138,13 @@ def first_hits(origin, directions, triangles):
 
 
 def view_raycast(points, elevation, azimuth, rng, pixels=72):
-    centre, radius, eye = camera_position(points, elevation, azimuth)
+    center, radius, eye = camera_position(points, elevation, azimuth)
     triangles = rebuilt_surface(points)
     if len(triangles) == 0:
         return view_hpr(points, elevation, azimuth, rng)
-    forward, right, up = camera_axes(centre, eye)
+    forward, right, up = camera_axes(center, eye)
     half = np.arctan(1.1 * radius / (3.0 * radius))  # the bounding sphere fills the image
-    # Jittered pixel centres: a sensor's samples are not a lattice aligned with anything.
+    # Jittered pixel centers: a sensor's samples are not a lattice aligned with anything.
     grid = (np.arange(pixels) + 0.5) / pixels * 2 - 1
     u, v = np.meshgrid(grid, grid)
     u = (u + rng.uniform(-0.5, 0.5, u.shape) * 2 / pixels) * np.tan(half)
@@ -158,19 +158,19 @@ def view_raycast(points, elevation, azimuth, rng, pixels=72):
 
 def view_cut(points, elevation, azimuth, rng):
     del rng
-    centre, _, eye = camera_position(points, elevation, azimuth)
-    toward = (eye - centre) / np.linalg.norm(eye - centre)
+    center, _, eye = camera_position(points, elevation, azimuth)
+    toward = (eye - center) / np.linalg.norm(eye - center)
     return points[(points - points.mean(0)) @ toward >= 0]
 
 
 def view_occluded(points, elevation, azimuth, rng):
     view = view_hpr(points, elevation, azimuth, rng)
-    centre, radius, eye = camera_position(points, elevation, azimuth)
-    forward, right, up = camera_axes(centre, eye)
+    center, radius, eye = camera_position(points, elevation, azimuth)
+    forward, right, up = camera_axes(center, eye)
     relative = view - eye
     depth = relative @ forward
     image = np.stack([relative @ right, relative @ up], axis=1) / depth[:, None]
-    # The occluder's centre: a random visible point's image; its radius covers the wanted share.
+    # The occluder's center: a random visible point's image; its radius covers the wanted share.
     middle = image[rng.integers(len(image))]
     distance = np.linalg.norm(image - middle, axis=1)
     radius = np.quantile(distance, rng.uniform(0.15, 0.40))
@@ -213,8 +213,8 @@ def make_view(points, args, rng):
     if len(view) > wanted:
         view = view[rng.choice(len(view), wanted, replace=False)]
     if args.pose == "any":
-        centre = view.mean(0)
-        view = (view - centre) @ random_rotation(rng).T + centre
+        center = view.mean(0)
+        view = (view - center) @ random_rotation(rng).T + center
     return view
 
 

@@ -62,7 +62,7 @@ int main(int argc, char** argv) {
   app.add_option("--data", data, "ModelNet10 folder with <class>/{train,test}/*.pcd")
       ->capture_default_str();
   app.add_option("--spec", spec, "descriptor spec")->capture_default_str();
-  app.add_option("--k", k, "neighbours")->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--k", k, "neighbors")->capture_default_str()->check(CLI::PositiveNumber);
   app.add_option("--scaling", scaling_name, "none | zscore | maxabs")->capture_default_str();
   app.add_option("--weighting", weighting_name, "uniform | distance")->capture_default_str();
   app.add_option("--min-accuracy", min_accuracy, "exit 1 when overall accuracy (%) is lower");
@@ -185,7 +185,7 @@ int main(int argc, char** argv) {
     per_class[t.label].second += 1;
   }
   // Exact answers, then each approximate setting against them: the same label, recall of
-  // the exact k neighbours, accuracy, and search time per query (all its vectors).
+  // the exact k neighbors, accuracy, and search time per query (all its vectors).
   if (!approximate_probes.empty()) {
     auto search_all = [&](std::vector<shapeid::KnnResult>* results) {
       results->clear();

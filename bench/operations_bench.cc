@@ -22,8 +22,8 @@
 #include "benchmark/benchmark.h"
 #include "core/gallery/gallery_registry.h"
 #include "prometheus/text_serializer.h"
-#include "server/logger.h"
-#include "server/metrics.h"
+#include "server/ops/logger.h"
+#include "server/ops/metrics.h"
 
 namespace shapeid {
 namespace {

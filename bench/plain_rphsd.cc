@@ -65,7 +65,7 @@ int main(int argc, char** argv) {
     }
   }
 
-  // 1. Centre on the centroid (accumulated in double), scale by the largest |coordinate|.
+  // 1. Center on the centroid (accumulated in double), scale by the largest |coordinate|.
   double centroid[3] = {0, 0, 0};
   for (size_t i = 0; i < n; ++i) {
     for (int a = 0; a < 3; ++a) centroid[a] += xyz[3 * i + a];
@@ -102,7 +102,7 @@ int main(int argc, char** argv) {
     }
   }
 
-  // 3-4. Variance, entropy and inverse difference moment of each normalised histogram.
+  // 3-4. Variance, entropy and inverse difference moment of each normalized histogram.
   double features[3][kRefs];
   for (int k = 0; k < kRefs; ++k) {
     double variance = 0, entropy = 0, idm = 0;

@@ -12,7 +12,7 @@
 // The gallery: the TRAIN split (--instances: the TEST split, for instance recognition of
 // scenes B), trained in-process with view augmentation as a gallery does.
 // Every 10th training file per class is held out to calibrate: frames composed from those
-// objects (no clutter) give the nearest-neighbour distances of known, unseen objects, whose
+// objects (no clutter) give the nearest-neighbor distances of known, unseen objects, whose
 // --reject-percentile is the gallery's reject distance; the held-out files then join the
 // gallery. Scenes A: TEST-split objects and clutter in no gallery (primitives from
 // core/views/test_surfaces.h and DALES objects), composed by core/views/scene_composer.h and
@@ -79,7 +79,7 @@ struct Tally {
   int gallery_found = 0, correct = 0, wrong = 0, rejected = 0, merged = 0;
   int clutter_found = 0, clutter_unknown = 0;
   int stray_clusters = 0;               // clusters mostly table or a mix of objects
-  std::vector<double> known_distances;  // nearest neighbour of each found gallery object
+  std::vector<double> known_distances;  // nearest neighbor of each found gallery object
   std::vector<double> seconds;          // RecognizeScene per frame
 };
 
@@ -127,7 +127,7 @@ std::vector<bool> SeparatedObjects(const PointCloud& frame, const std::vector<ui
 
 // Scores one recognized frame. An object is found when one cluster holds >= 50 % of its
 // points; a cluster speaks for the object holding most of its points, and a found object is
-// labelled by its cluster only if the cluster speaks for it (else: merged).
+// labeled by its cluster only if the cluster speaks for it (else: merged).
 void Score(const PointCloud& frame, const std::vector<uint16_t>& truth,
            const std::vector<SceneFileObject>& objects, const SceneRecognition& recognition,
            size_t min_points, double separation, bool verbose, Tally* tally) {
@@ -317,7 +317,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--view-max-elevation", max_elevation, "... up to this one")
       ->capture_default_str();
-  app.add_option("--k", k, "neighbours")->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--k", k, "neighbors")->capture_default_str()->check(CLI::PositiveNumber);
   app.add_option("--frames", frames, "test frames A (even: separated, odd: some touching)")
       ->capture_default_str();
   app.add_option("--calibration-frames", calibration_frames,
@@ -361,7 +361,7 @@ int main(int argc, char** argv) {
   std::printf("# %s, load %s\n", bench::CpuModel().c_str(), bench::LoadAverages().c_str());
 
   // ModelNet10: training clouds (every 10th per class held out) and test clouds.
-  std::vector<LabelledCloud> train, held_out;
+  std::vector<LabeledCloud> train, held_out;
   std::map<std::string, std::vector<Model>> held_out_models, test_models;
   for (const fs::path& cls : SortedEntries(data)) {
     if (!fs::is_directory(cls)) continue;

@@ -51,7 +51,7 @@
 #include "core/io/point_cloud_reader.h"
 #include "core/views/perturb.h"
 #include "grpcpp/grpcpp.h"
-#include "server/process_stats.h"
+#include "server/ops/process_stats.h"
 #include "server/server.h"
 #include "shapeid/v1/shapeid.grpc.pb.h"
 
@@ -152,7 +152,7 @@ struct Stats {
   double p50_us = 0, p90_us = 0, p99_us = 0, mean_us = 0;
 };
 
-Stats Summarise(std::vector<int64_t> ns) {
+Stats Summarize(std::vector<int64_t> ns) {
   Stats s;
   s.count = static_cast<int64_t>(ns.size());
   if (ns.empty()) return s;
@@ -239,7 +239,7 @@ class LogCapture {
     double window_seconds = 0;
   };
   // After Stop: reads the file back to count lines.
-  Summary Summarise() const {
+  Summary Summarize() const {
     Summary s;
     s.bytes = bytes_;
     std::ifstream in(path_, std::ios::binary);
@@ -377,7 +377,7 @@ LatencyResult SingleClient(v1::ShapeId::Stub& stub, const std::vector<Query>& qu
     describe += response.describe_time().seconds() * 1e6 + response.describe_time().nanos() / 1e3;
     search += response.search_time().seconds() * 1e6 + response.search_time().nanos() / 1e3;
   }
-  r.stats = Summarise(std::move(ns));
+  r.stats = Summarize(std::move(ns));
   if (r.stats.count > 0) {
     r.server.describe_us = describe / r.stats.count;
     r.server.search_us = search / r.stats.count;
@@ -422,7 +422,7 @@ InProcessResult InProcess(const Gallery& gallery, const std::vector<Sample>& tes
     describe += absl::ToDoubleMicroseconds(answer->describe_time);
     search += absl::ToDoubleMicroseconds(answer->search_time);
   }
-  r.stats = Summarise(std::move(ns));
+  r.stats = Summarize(std::move(ns));
   r.describe_us = describe / requests;
   r.search_us = search / requests;
 
@@ -520,7 +520,7 @@ LoadResult Load(const std::string& address, const std::vector<Query>& queries, i
 
   std::vector<int64_t> all;
   for (auto& v : ns) all.insert(all.end(), v.begin(), v.end());
-  r.stats = Summarise(std::move(all));
+  r.stats = Summarize(std::move(all));
   r.per_second = r.stats.count / elapsed;
   r.cpu_us_per_call = r.stats.count > 0 ? cpu / r.stats.count * 1e6 : 0;
   double client_cpu = 0;
@@ -703,7 +703,7 @@ int Run(int argc, char** argv) {
   if (query_views) {
     // What a robot sends: one side of a test object (SensorView: 300-500 points, 1 % noise,
     // any pose). The search's cost does depend on the query: early abandonment drops a stored
-    // vector sooner the nearer the query's neighbours are.
+    // vector sooner the nearer the query's neighbors are.
     size_t view_points = 0;
     for (size_t i = 0; i < data.test.size(); ++i) {
       absl::StatusOr<PointCloud> view = SensorView(data.test[i].cloud, SensorViewOptions(), i + 1);
@@ -758,7 +758,7 @@ int Run(int argc, char** argv) {
     return 1;
   }
   {
-    std::vector<LabelledCloud> samples;
+    std::vector<LabeledCloud> samples;
     samples.reserve(data.train.size());
     for (const Sample& s : data.train) samples.push_back({0, s.label, s.cloud});
     auto trained = (*gallery)->Train(samples);
@@ -794,7 +794,7 @@ int Run(int argc, char** argv) {
   server->Shutdown(absl::Seconds(1));
   server.reset();
   capture.Stop();
-  const LogCapture::Summary log = capture.Summarise();
+  const LogCapture::Summary log = capture.Summarize();
 
   // ------------------------------------------------------------------ report
   const double ratio = local.stats.p50_us > 0 ? rpc.stats.p50_us / local.stats.p50_us : 0;

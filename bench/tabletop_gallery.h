@@ -2,7 +2,7 @@
 #define SHAPEID_BENCH_TABLETOP_GALLERY_H_
 
 // A gallery for timing scene recognition on core/testing/tabletop_frames.h's frames: each
-// object of 12 frames seeded 1000 on (other seeds than the benches' frames), labelled with its
+// object of 12 frames seeded 1000 on (other seeds than the benches' frames), labeled with its
 // kind. It comes from the same ray-caster as the frames, so it serves timings, never accuracy.
 
 #include <cstdint>

@@ -2,8 +2,8 @@
 """Issue 27's probe of "verify before answering": does a geometric fit re-rank the shortlist?
 
 Reads the JSON of `shapeid eval --local --format json --predictions --k 30 ...` (each test
-view's neighbours with the training file each came from), aligns the test view to each
-distinct training cloud among its first --shortlist neighbours (Open3D: FPFH features, RANSAC,
+view's neighbors with the training file each came from), aligns the test view to each
+distinct training cloud among its first --shortlist neighbors (Open3D: FPFH features, RANSAC,
 then point-to-point ICP), scores the fit one-sidedly (the trimmed mean distance from the view's
 points to the cloud's nearest point: missing parts cost nothing) and prints how often each
 rule of answering is right, beside the kNN answer (k = 5, distance-weighted) from the same
@@ -88,13 +88,13 @@ def coverage(moved, model, tolerance):
     away from the centroid) points there. No visibility algorithm of the test views is used.
     """
     points = model["points"]
-    centre = points.mean(0)
-    towards = moved.mean(0) - centre
+    center = points.mean(0)
+    towards = moved.mean(0) - center
     if np.linalg.norm(towards) < 1e-9:
         return 1.0
     towards /= np.linalg.norm(towards)
     normals = np.asarray(model["cloud"].normals)
-    outward = np.where(((points - centre) * normals).sum(1, keepdims=True) < 0, -normals, normals)
+    outward = np.where(((points - center) * normals).sum(1, keepdims=True) < 0, -normals, normals)
     facing = points[outward @ towards > 0.2]
     if len(facing) == 0:
         return 1.0
@@ -104,9 +104,9 @@ def coverage(moved, model, tolerance):
     return covered / len(facing)
 
 
-def knn_answer(neighbours, k=5):
+def knn_answer(neighbors, k=5):
     votes = {}
-    for n in neighbours[:k]:
+    for n in neighbors[:k]:
         votes[n["label"]] = votes.get(n["label"], 0.0) + 1.0 / max(n["distance"], 1e-9)
     return max(votes, key=votes.get)
 
@@ -131,7 +131,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("predictions", nargs="+")
     parser.add_argument("--stride", type=int, default=1, help="every Nth test view")
-    parser.add_argument("--shortlist", type=int, default=10, help="neighbours considered")
+    parser.add_argument("--shortlist", type=int, default=10, help="neighbors considered")
     parser.add_argument("--scale-to-candidate", action="store_true")
     args = parser.parse_args()
     clouds = Clouds()
@@ -144,14 +144,14 @@ def main():
             views += 1
             view = clouds.get(p["file"], 512)
             candidates, seen = [], set()
-            for n in p["neighbours"][: args.shortlist]:
+            for n in p["neighbors"][: args.shortlist]:
                 if n["file"] not in seen:
                     seen.add(n["file"])
                     model = clouds.get(n["file"], 2048)
                     candidates.append((n["file"], fit(view, model, args.scale_to_candidate),
                                        n["label"], n["distance"]))
             for name, rule in RULES.items():
-                answer = knn_answer(p["neighbours"]) if rule is None else rule(candidates)
+                answer = knn_answer(p["neighbors"]) if rule is None else rule(candidates)
                 right[name] += answer == p["truth"]
     for name, r in right.items():
         print(f"{name:38s} {100 * r / views:5.1f} % ({r} / {views})")

@@ -117,7 +117,7 @@ absl::Status ClientReceiveLimitStatus(const grpc::Status& status, size_t limit) 
   absl::Status refused = absl::ResourceExhaustedError(absl::StrCat(
       "the server's answer is ", size, " bytes, more than this client's receive limit of ", max,
       " bytes: this client refused it, not the server; ask for less (a smaller page, fewer "
-      "neighbours)"));
+      "neighbors)"));
   refused.SetPayload(kClientReceiveLimitUrl, absl::Cord(absl::StrCat(size)));
   return refused;
 }

@@ -40,20 +40,20 @@
 
 namespace shapeid {
 
-// One labelled cloud for Train. The cloud is borrowed: it must outlive the Train call.
+// One labeled cloud for Train. The cloud is borrowed: it must outlive the Train call.
 struct TrainSample {
   std::string label;
   // Client-chosen id, unique in the gallery; 0 lets the server choose (and disables retries).
   uint64_t sample_id = 0;
   const PointCloud* cloud = nullptr;
-  // Optional provenance, returned with the sample as a neighbour and by ListSamples: where
+  // Optional provenance, returned with the sample as a neighbor and by ListSamples: where
   // the cloud came from (a file path, a URI) and small key/value pairs (SampleHeader's
   // limits: 4,096 bytes of source, 64 pairs, 4,096 bytes of keys and values).
   std::string source = {};
   std::map<std::string, std::string> metadata = {};
 };
 
-// One labelled cloud for Train in a sensor's own layout (given once per call): its bytes,
+// One labeled cloud for Train in a sensor's own layout (given once per call): its bytes,
 // borrowed.
 struct SensorTrainSample {
   std::string label;
@@ -114,7 +114,7 @@ class Client {
   absl::StatusOr<v1::DescribeResponse> Describe(const SensorCloud& cloud,
                                                 const DescribeOptions& options);
 
-  // Classifies `cloud` against `gallery` with `k` neighbours (0: the gallery's k).
+  // Classifies `cloud` against `gallery` with `k` neighbors (0: the gallery's k).
   // FAILED_PRECONDITION on an empty gallery, NOT_FOUND on an unknown one. A cloud of up to
   // options().chunk_points points goes in one ClassifyCloud message (about a third less
   // CPU per call than a stream); a larger one streams through Classify, and so does every
@@ -124,10 +124,10 @@ class Client {
 
   // Per-call choices of Classify.
   struct ClassifyOptions {
-    // Neighbours that vote; 0: the gallery's k.
+    // Neighbors that vote; 0: the gallery's k.
     uint32_t k = 0;
     // Search every stored vector even where the server searches the gallery approximately
-    // (v1::Gallery::approximate_lists > 0): slower, never misses a neighbour.
+    // (v1::Gallery::approximate_lists > 0): slower, never misses a neighbor.
     bool exact = false;
     // The sensor's frame, as in DescribeOptions.
     v1::SensorFrame sensor_frame;
@@ -140,7 +140,7 @@ class Client {
 
   // Per-call choices of RecognizeScene (the proto's SceneHeader).
   struct SceneOptions {
-    // Neighbours that vote for each object; 0: the gallery's k.
+    // Neighbors that vote for each object; 0: the gallery's k.
     uint32_t k = 0;
     // As in ClassifyOptions.
     bool exact = false;
@@ -167,7 +167,7 @@ class Client {
   absl::StatusOr<v1::RecognizeSceneResponse> RecognizeScene(const std::string& gallery,
                                                             const PointCloud& frame,
                                                             const SceneOptions& options);
-  // The same for a frame in a sensor's own layout (an organised one's indices are its pixels).
+  // The same for a frame in a sensor's own layout (an organized one's indices are its pixels).
   absl::StatusOr<v1::RecognizeSceneResponse> RecognizeScene(const std::string& gallery,
                                                             const SensorCloud& frame,
                                                             const SceneOptions& options);

@@ -33,7 +33,7 @@ class Descriptor {
   Descriptor(const Descriptor&) = delete;
   Descriptor& operator=(const Descriptor&) = delete;
 
-  // The canonical spec: every parameter present, defaults filled, values normalised, in the
+  // The canonical spec: every parameter present, defaults filled, values normalized, in the
   // kind's parameter order. Equal canonical text means equal output for every cloud.
   const DescriptorSpec& spec() const { return spec_; }
 

@@ -18,7 +18,7 @@ PointCloud::PointCloud(std::initializer_list<Eigen::Vector3f> points) {
   for (const auto& p : points) Add(p);
 }
 
-double CloudStats::MaxAbsCentred() const {
+double CloudStats::MaxAbsCentered() const {
   return std::max({max.x() - centroid.x(), centroid.x() - min.x(), max.y() - centroid.y(),
                    centroid.y() - min.y(), max.z() - centroid.z(), centroid.z() - min.z()});
 }

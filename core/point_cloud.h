@@ -73,7 +73,7 @@ struct CloudStats {
 
   // Largest |p - centroid| over every coordinate of every point: the L-infinity radius
   // that RPHSD divides by. Derived from the box, so no second pass is needed.
-  double MaxAbsCentred() const;
+  double MaxAbsCentered() const;
 };
 
 // Validates a cloud as in section 0 of docs/descriptors.md, in one pass, and returns its

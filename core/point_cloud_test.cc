@@ -23,7 +23,7 @@ TEST(PointCloudTest, StoresContiguousXyzAndViewsItThroughEigen) {
 }
 
 TEST(PointCloudTest, StatsOfAValidCloud) {
-  // Centroid (1, 1, 1); box [0, 3] x [0, 2] x [1, 1]; largest centred coordinate |3 - 1| = 2.
+  // Centroid (1, 1, 1); box [0, 3] x [0, 2] x [1, 1]; largest centered coordinate |3 - 1| = 2.
   const PointCloud cloud{{0, 0, 1}, {3, 1, 1}, {0, 2, 1}, {1, 1, 1}};
   const auto stats = ValidateCloud(cloud);
   ASSERT_TRUE(stats.ok()) << stats.status();
@@ -31,7 +31,7 @@ TEST(PointCloudTest, StatsOfAValidCloud) {
   EXPECT_EQ(stats->centroid, Eigen::Vector3d(1, 1, 1));
   EXPECT_EQ(stats->min, Eigen::Vector3d(0, 0, 1));
   EXPECT_EQ(stats->max, Eigen::Vector3d(3, 2, 1));
-  EXPECT_DOUBLE_EQ(stats->MaxAbsCentred(), 2.0);
+  EXPECT_DOUBLE_EQ(stats->MaxAbsCentered(), 2.0);
 }
 
 TEST(PointCloudTest, CentroidKeepsPrecisionOverManyPoints) {

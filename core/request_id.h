@@ -29,7 +29,7 @@ inline bool IsValidRequestId(absl::string_view id) {
 }
 
 // The caller id a client may send as the "shapeid-caller-id" metadata, so that the robots of a
-// fleet that share a host (and no key) are callers of their own (server/caller_identity.h):
+// fleet that share a host (and no key) are callers of their own (server/runtime/caller_identity.h):
 // 1 to 64 of A-Z a-z 0-9 . _ : - (no "/", which the server puts between host and id).
 inline constexpr absl::string_view kCallerIdMetadata = "shapeid-caller-id";
 inline constexpr size_t kMaxCallerIdChars = 64;

@@ -70,7 +70,7 @@ void CheckClassify(const v1::ClassifyResponse& response) {
   double previous = 0;
   for (const v1::Neighbor& n : response.neighbors()) {
     if (!std::isfinite(n.distance()) || n.distance() < previous) {
-      Fail("Classify's neighbours are not sorted by finite distance");
+      Fail("Classify's neighbors are not sorted by finite distance");
     }
     previous = n.distance();
   }

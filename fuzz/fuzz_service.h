@@ -6,7 +6,7 @@
 
 #include "core/gallery/gallery_registry.h"
 #include "grpcpp/grpcpp.h"
-#include "server/shapeid_service.h"
+#include "server/calls/shapeid_service.h"
 #include "service_session.pb.h"
 #include "shapeid/v1/shapeid.grpc.pb.h"
 
@@ -45,7 +45,7 @@ class FuzzServer {
 //    ALREADY_EXISTS, FAILED_PRECONDITION, RESOURCE_EXHAUSTED, DATA_LOSS), or CANCELLED when
 //    the client cancelled: never UNKNOWN, INTERNAL or a deadline;
 //  - a failed call changes no gallery;
-//  - an OK answer is well formed (finite descriptor values, neighbours sorted by distance, a
+//  - an OK answer is well formed (finite descriptor values, neighbors sorted by distance, a
 //    scene's points all accounted for and its indices ascending within the frame);
 // and at the end that the server still answers and the surviving "base" still classifies.
 // A broken promise aborts, so libFuzzer keeps the input.

@@ -1,6 +1,6 @@
 // libFuzzer target: a gallery's trained head as a store or a replica reads it back
 // (core/gallery/gallery_head.h), and the MLP classifier inside it (core/learning). Oracles
-// beyond "no crash": errors are DataLoss; a head that parses serialises to the same bytes
+// beyond "no crash": errors are DataLoss; a head that parses serializes to the same bytes
 // and answers any query of its dimension with probabilities that are finite and sum to 1.
 
 #include <cmath>

@@ -7,7 +7,7 @@ files live only in a tests/*/testdata folder. The spec seeds, which have no exte
 corpus directory (fuzz/testdata/corpus/).
 
 Small files that between them use every feature each reader documents (core/io/*_reader.h):
-ascii and binary encodings, both byte orders, padding fields, organised clouds with NaN,
+ascii and binary encodings, both byte orders, padding fields, organized clouds with NaN,
 comments, headers, polygons and index styles. libFuzzer mutates from these; ../shared/data adds
 real ModelNet10 PCD and DALES XYZ files at run time (fuzz/run_fuzzers.sh). Re-run after
 changing it: python3 fuzz/make_seeds.py
@@ -66,11 +66,11 @@ def pcd_seeds():
     write('pcd_fuzzer', 'ascii_xyz.pcd',
           pcd_header('x y z'.split(), [4] * 3, 'FFF', [1] * 3, 10, 1, 'ascii') +
           ''.join('%.6g %.6g %.6g\n' % q for q in p))
-    organised = ['%.6g %.6g %.6g %d\n' % (q + (0xff8000 + i,)) for i, q in enumerate(p[:6])]
-    organised += ['nan nan nan 0\n', 'nan nan nan 0\n']
+    organized = ['%.6g %.6g %.6g %d\n' % (q + (0xff8000 + i,)) for i, q in enumerate(p[:6])]
+    organized += ['nan nan nan 0\n', 'nan nan nan 0\n']
     write('pcd_fuzzer', 'ascii_organised_rgb_nan.pcd',
           pcd_header('x y z rgb'.split(), [4] * 4, 'FFFU', [1] * 4, 4, 2, 'ascii') +
-          ''.join(organised))
+          ''.join(organized))
     write('pcd_fuzzer', 'binary_xyz.pcd',
           (pcd_header('x y z'.split(), [4] * 3, 'FFF', [1] * 3, 10, 1, 'binary')).encode() +
           b''.join(struct.pack('<3f', *q) for q in p))

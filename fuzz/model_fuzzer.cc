@@ -1,6 +1,6 @@
 // libFuzzer target: a point network's model file as the `learned` descriptor reads it
 // (core/descriptors/point_network.h). Oracles beyond "no crash": errors are DataLoss; a network
-// that parses serialises to the same bytes and embeds any points into finite values of unit
+// that parses serializes to the same bytes and embeds any points into finite values of unit
 // length (or all zero).
 
 #include <cmath>

@@ -15,7 +15,7 @@ namespace shapeid::fuzz {
 
 // Parses `data` as `format` twice, with the defaults and with every option turned the other
 // way (mesh sampling on, small, so an iteration stays fast), and checks what the readers
-// promise in core/io/point_cloud_reader.h beyond "no crash, no undefined behaviour":
+// promise in core/io/point_cloud_reader.h beyond "no crash, no undefined behavior":
 //  - an error is InvalidArgument or Unimplemented and its message starts with the file name;
 //  - a cloud read with drop_non_finite has only finite points, and counts what it dropped;
 //  - the recentering offset is finite.

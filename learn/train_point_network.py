@@ -145,10 +145,10 @@ def main():
 
     widths = [int(w) for w in args.widths.split(",")]
     model = PointNet(widths, len(labels), args.head, args.dropout)
-    optimiser = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=args.wd)
+    optimizer = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=args.wd)
     steps_per_epoch = math.ceil(len(train_objects) * args.per_object / args.batch)
     schedule = torch.optim.lr_scheduler.OneCycleLR(
-        optimiser, max_lr=args.lr, total_steps=args.epochs * steps_per_epoch)
+        optimizer, max_lr=args.lr, total_steps=args.epochs * steps_per_epoch)
     loss_of = nn.CrossEntropyLoss(label_smoothing=0.1)
     rng = np.random.default_rng(args.seed)
 
@@ -176,9 +176,9 @@ def main():
             x = augment(x_all[part], amb_all[part], generator, args)
             logits = model(x.transpose(1, 2))
             loss = loss_of(logits, y_all[part])
-            optimiser.zero_grad()
+            optimizer.zero_grad()
             loss.backward()
-            optimiser.step()
+            optimizer.step()
             schedule.step()
             total += loss.item() * len(part)
             correct += (logits.argmax(1) == y_all[part]).sum().item()

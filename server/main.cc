@@ -19,8 +19,8 @@
 #include "absl/time/time.h"
 #include "client/client_options.h"
 #include "core/gallery/gallery_options.h"
-#include "server/api_keys.h"
-#include "server/security.h"
+#include "server/security/api_keys.h"
+#include "server/security/security.h"
 #include "server/server.h"
 
 ABSL_FLAG(std::string, listen, "127.0.0.1:50051",
@@ -156,7 +156,7 @@ ABSL_FLAG(int32_t, shutdown_grace_seconds, 10,
 namespace {
 
 // The smallest --max_answer_bytes: far above one sample with the largest provenance
-// (core/gallery/sample_provenance.h: 8 KiB of source and metadata), or one neighbour.
+// (core/gallery/sample_provenance.h: 8 KiB of source and metadata), or one neighbor.
 constexpr int64_t kMinAnswerBytes = 1 << 20;
 
 int g_stop_pipe[2] = {-1, -1};

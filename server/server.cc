@@ -15,8 +15,8 @@
 #include "grpcpp/health_check_service_interface.h"
 #include "grpcpp/impl/server_builder_option.h"
 #include "grpcpp/impl/server_builder_plugin.h"
-#include "server/observed_gallery_store.h"
-#include "server/security.h"
+#include "server/ops/observed_gallery_store.h"
+#include "server/security/security.h"
 
 namespace shapeid {
 namespace {

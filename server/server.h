@@ -13,11 +13,11 @@
 #include "grpcpp/generic/async_generic_service.h"
 #include "grpcpp/grpcpp.h"
 #include "prometheus/exposer.h"
-#include "server/logger.h"
-#include "server/metrics.h"
+#include "server/calls/shapeid_service.h"
+#include "server/ops/logger.h"
+#include "server/ops/metrics.h"
 #include "server/replication/replication_follower.h"
 #include "server/server_options.h"
-#include "server/shapeid_service.h"
 #include "server/storage/postgres_gallery_store.h"
 #include "server/storage/sqlite_gallery_store.h"
 
@@ -56,7 +56,7 @@ class ShapeIdServer {
   // Bind, then LoadGalleries: returns a serving server (load_report() says what loaded).
   static absl::StatusOr<std::unique_ptr<ShapeIdServer>> Start(const ServerOptions& options);
 
-  // Loads the API keys and TLS files (server/security.h), opens the store and binds.
+  // Loads the API keys and TLS files (server/security/security.h), opens the store and binds.
   // FailedPrecondition for a non-loopback address with neither TLS nor keys (unless
   // options.security.insecure); InvalidArgument / NotFound for a bad key or TLS file;
   // Unavailable if the address cannot be bound; the store's errors (another server holds the

@@ -6,10 +6,10 @@
 #include "absl/time/time.h"
 #include "core/gallery/gallery_learner.h"
 #include "core/gallery/gallery_options.h"
-#include "server/logger.h"
-#include "server/metrics.h"
-#include "server/security_options.h"
-#include "server/service_options.h"
+#include "server/calls/service_options.h"
+#include "server/ops/logger.h"
+#include "server/ops/metrics.h"
+#include "server/security/security_options.h"
 
 namespace shapeid {
 

@@ -38,7 +38,7 @@ void WriteStoredGallery(const std::string& dir) {
   ASSERT_TRUE(registry.LoadFromStore().ok());
   auto gallery = registry.Create("stored", {});
   ASSERT_TRUE(gallery.ok());
-  std::vector<LabelledCloud> samples;
+  std::vector<LabeledCloud> samples;
   for (uint32_t i = 0; i < 5; ++i) {
     samples.push_back({0, "box", testing_clouds::ShapeCloud(0, i, 200)});
   }
@@ -55,7 +55,7 @@ std::unique_ptr<Client> ClientFor(const ShapeIdServer& server) {
 }
 
 // Trains clouds[begin, end) into gallery "lab": cloud i is testing_clouds::ShapeCloud kind
-// i % 3, labelled by its shape's name, with id i + 1.
+// i % 3, labeled by its shape's name, with id i + 1.
 void TrainShapes(Client& client, const std::vector<PointCloud>& clouds, uint32_t begin,
                  uint32_t end) {
   std::vector<TrainSample> samples;

@@ -774,13 +774,13 @@ std::vector<RpcCase> BadInputTest::RequestTable() {
        Describe({padded_rows(sensor_header(16, xyz32, v1::FLOAT32, false), 48, 48 * 32),
                  DPoints(records32)}),
        kInvalid, "row_step 1536 leaves 768 bytes after width 48 x point_step 16, room for 48"},
-      {"Describe: an organised cloud that ends inside a row",
+      {"Describe: an organized cloud that ends inside a row",
        Describe({padded_rows(sensor_header(16, xyz32, v1::FLOAT32, false, false, 0), 6, 6 * 16 + 4),
                  DPoints(SensorRecords(16, xyz32, false, false, 6))}),
        kInvalid,
-       "the points ended inside a row: 96 of its 100 bytes (row_step) arrived; an organised cloud "
+       "the points ended inside a row: 96 of its 100 bytes (row_step) arrived; an organized cloud "
        "(width 6) is whole rows, padding included"},
-      {"Describe: an organised cloud announcing part of a row",
+      {"Describe: an organized cloud announcing part of a row",
        Describe({padded_rows(sensor_header(16, xyz32, v1::FLOAT32, false, false, 50), 6, 6 * 16),
                  DPoints(records16)}),
        kInvalid, "the cloud announces 50 points, not whole rows of width 6"},
@@ -1106,7 +1106,7 @@ std::vector<RpcCase> BadInputTest::RequestTable() {
       {"RemoveSamples: a known and an unknown id", RemoveSamples(kGallery, {kFirstTrainedId, 9}),
        kNotFound, "nothing was removed"},
       {"RemoveSamples: an unknown label", RemoveSamples(kGallery, {}, {"nope"}), kNotFound,
-       "no samples labelled 'nope'"},
+       "no samples labeled 'nope'"},
       {"RemoveSamples: a known and an unknown label", RemoveSamples(kGallery, {}, {"box", "nope"}),
        kNotFound, "'nope'"},
       {"RemoveSamples: an unknown gallery", RemoveSamples("nope", {kFirstTrainedId}), kNotFound,
@@ -1249,7 +1249,7 @@ std::vector<RpcCase> BadInputTest::RequestTable() {
       const bool refused = shape == "subnormal (1e-40)" && absl::StartsWith(spec, "rphsd");
       rows.push_back({absl::StrCat("DescribeCloud: ", shape, " cloud, spec '", spec, "'"),
                       DescribeCloud(spec, xyz), refused ? kInvalid : StatusCode::OK,
-                      refused ? "too small to normalise in float precision" : ""});
+                      refused ? "too small to normalize in float precision" : ""});
     }
     rows.push_back({absl::StrCat("Classify: ", shape, " cloud"),
                     Classify({CHeader(kGallery), CPoints(xyz)}), StatusCode::OK});

@@ -232,16 +232,16 @@ TEST(CliDescribeTest, MissingFileFailsAloneAndExitsOne) {
 TEST(CliDescribeTest, NonFinitePointsFailUnlessDropped) {
   std::vector<float> xyz = Shape(1);
   for (int i = 0; i < 3; ++i) xyz[30 + i] = std::numeric_limits<float>::quiet_NaN();
-  const std::string organised = WriteTempFile("organised.pcd", BinaryPcd(xyz, 30, 10));
-  const RunResult kept = Shapeid({"describe", "--local", "--spec", kSpec, organised});
+  const std::string organized = WriteTempFile("organized.pcd", BinaryPcd(xyz, 30, 10));
+  const RunResult kept = Shapeid({"describe", "--local", "--spec", kSpec, organized});
   EXPECT_EQ(kept.exit_code, 1);
   EXPECT_EQ(kept.out, "");
-  EXPECT_THAT(kept.err, StartsWith("shapeid: " + organised + ": "));
+  EXPECT_THAT(kept.err, StartsWith("shapeid: " + organized + ": "));
   EXPECT_THAT(kept.err,
               HasSubstr("point 10 has a non-finite coordinate (x is nan); 1 of 300 points"));
   EXPECT_THAT(kept.err, HasSubstr("--drop-nonfinite removes them"));
   const RunResult dropped =
-      Shapeid({"describe", "--local", "--spec", kSpec, "--drop-nonfinite", organised});
+      Shapeid({"describe", "--local", "--spec", kSpec, "--drop-nonfinite", organized});
   EXPECT_EQ(dropped.exit_code, 0) << dropped.err;
   EXPECT_EQ(Lines(dropped.out).size(), 1u);
 }

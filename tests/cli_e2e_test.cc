@@ -1,5 +1,5 @@
 // End-to-end: the real `shapeid` CLI against the real shapeid-server on loopback, as a user
-// would run them: make a labelled dataset from meshes with `shapeid views`, create and train a
+// would run them: make a labeled dataset from meshes with `shapeid views`, create and train a
 // gallery from the folder, batch-classify, evaluate, export and import, and check what scripts
 // rely on: JSON that parses, CSV, and every documented exit code.
 
@@ -98,7 +98,7 @@ class CliE2ETest : public ::testing::Test {
 };
 fs::path* CliE2ETest::root_ = nullptr;
 
-TEST_F(CliE2ETest, ViewsMakeALabelledTrainTestLayout) {
+TEST_F(CliE2ETest, ViewsMakeALabeledTrainTestLayout) {
   for (const char* label : {"cube", "bar", "pyramid"}) {
     EXPECT_TRUE(fs::exists(Data(absl::StrCat(label, "/train/view-007.pcd")))) << label;
     EXPECT_TRUE(fs::exists(Data(absl::StrCat(label, "/test/view-003.pcd")))) << label;
@@ -106,7 +106,7 @@ TEST_F(CliE2ETest, ViewsMakeALabelledTrainTestLayout) {
   }
 }
 
-TEST_F(CliE2ETest, TrainJsonGivesEachFilesSampleIdSoANeighbourTracesBackToItsFile) {
+TEST_F(CliE2ETest, TrainJsonGivesEachFilesSampleIdSoANeighborTracesBackToItsFile) {
   ASSERT_EQ(Run({"gallery", "create", "traced", "--spec", "rphsd:refs=cross7,bins=10"}).exit_code,
             0);
   const RunResult trained = Run({"train", "--gallery", "traced", "--format", "json", Data()});

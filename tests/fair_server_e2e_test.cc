@@ -22,7 +22,7 @@
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "nlohmann/json.hpp"
-#include "server/api_keys.h"
+#include "server/security/api_keys.h"
 #include "tests/server_process.h"
 
 namespace shapeid {

@@ -338,7 +338,7 @@ TEST_F(OperationsE2ETest, StatsSummariseAndTheLogLevelChangesLive) {
 
 // deploy/grafana/shapeid-dashboard.json may only chart what a real server exports (the
 // deploy check has the same list offline; this is the truth it follows). The three replication
-// series exist only over PostgreSQL (server/metrics_test.cc checks them).
+// series exist only over PostgreSQL (server/ops/metrics_test.cc checks them).
 TEST_F(OperationsE2ETest, TheDashboardChartsOnlyMetricsTheServerExports) {
   TrainShelf(1);
   ASSERT_TRUE(client_->Classify("shelf", ShapeCloud(0, 3, 300)).ok());
@@ -349,7 +349,7 @@ TEST_F(OperationsE2ETest, TheDashboardChartsOnlyMetricsTheServerExports) {
         "shapeid_replication_sync_age_seconds"}) {
     exported.insert(postgres_only);
   }
-  // Store failures appear once a write fails; the series name is fixed in server/metrics.cc.
+  // Store failures appear once a write fails; the series name is fixed in server/ops/metrics.cc.
   exported.insert("shapeid_store_write_failures_total");
   std::ifstream file(SHAPEID_SOURCE_DIR "/deploy/grafana/shapeid-dashboard.json");
   ASSERT_TRUE(file) << "deploy/grafana/shapeid-dashboard.json";

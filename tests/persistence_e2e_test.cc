@@ -70,7 +70,7 @@ absl::Status Train(Client& client, const std::string& gallery, const std::string
   return client.Train(gallery, samples).status();
 }
 
-// The labelled gallery every test starts from: 3 shapes x 6 samples, k = 3, z-score scaling
+// The labeled gallery every test starts from: 3 shapes x 6 samples, k = 3, z-score scaling
 // (scaling factors depend on every stored float, so they expose any lossy reload).
 // With `remove_a_batch`, 2 samples trained first are removed at the end, so the survivors
 // have moved (a reload must keep their order: it is the kNN tie-break order).
@@ -101,7 +101,7 @@ std::vector<v1::ClassifyResponse> ClassifyQueries(Client& client, const std::str
   return answers;
 }
 
-// Identical answers, bit for bit: labels, neighbour ids, distances and votes.
+// Identical answers, bit for bit: labels, neighbor ids, distances and votes.
 void ExpectSameAnswers(const std::vector<v1::ClassifyResponse>& a,
                        const std::vector<v1::ClassifyResponse>& b) {
   ASSERT_EQ(a.size(), b.size());
@@ -111,7 +111,7 @@ void ExpectSameAnswers(const std::vector<v1::ClassifyResponse>& a,
     for (int i = 0; i < a[q].neighbors_size(); ++i) {
       EXPECT_EQ(a[q].neighbors(i).sample_id(), b[q].neighbors(i).sample_id());
       const double da = a[q].neighbors(i).distance(), db = b[q].neighbors(i).distance();
-      EXPECT_EQ(std::memcmp(&da, &db, sizeof(double)), 0) << "query " << q << " neighbour " << i;
+      EXPECT_EQ(std::memcmp(&da, &db, sizeof(double)), 0) << "query " << q << " neighbor " << i;
     }
     ASSERT_EQ(a[q].votes_size(), b[q].votes_size());
     for (int i = 0; i < a[q].votes_size(); ++i) {

@@ -135,7 +135,7 @@ void CreateTrainedGallery(Client& client, const std::string& name) {
   }
 }
 
-// Labels and neighbour ids of a fixed set of queries.
+// Labels and neighbor ids of a fixed set of queries.
 std::vector<std::string> Answers(Client& client, const std::string& gallery) {
   std::vector<std::string> answers;
   for (uint32_t q = 0; q < 6; ++q) {

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The main job (README): on a fresh Debian 12 machine, installs the packages, builds, starts
-# shapeid-server with its built-in store, creates a gallery, trains it on real labelled data,
+# shapeid-server with its built-in store, creates a gallery, trains it on real labeled data,
 # batch-classifies held-out data with the CLI, prints the accuracy table and timings, recognizes
 # the objects of a composed tabletop frame (colored frame and picture), and stops the server.
 #

@@ -22,13 +22,13 @@ packages=(
   libtinyobjloader-dev
   # the embedded gallery store (server/storage): SQLite, WAL mode, synchronous commits
   libsqlite3-dev
-  # security (server/api_keys.cc, server/security.cc): libcrypto's SHA-256, CRYPTO_memcmp and
+  # security (server/security/api_keys.cc, server/security/security.cc): libcrypto's SHA-256, CRYPTO_memcmp and
   # RAND_bytes for API keys, and the start-up check of TLS files; gRPC uses the same OpenSSL
   libssl-dev
   # the shared gallery store for several replicas (server/storage/postgres_gallery_store.cc):
   # libpq, PostgreSQL's own C client
   libpq-dev
-  # Prometheus metrics (server/metrics.cc): prometheus-cpp's registry, text format and /metrics
+  # Prometheus metrics (server/ops/metrics.cc): prometheus-cpp's registry, text format and /metrics
   # HTTP endpoint
   prometheus-cpp-dev
   # tests and benchmarks

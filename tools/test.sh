@@ -3,7 +3,7 @@
 # then runs six stages; the first failure (a sanitizer report included) stops it, non-zero:
 #   format     every tracked C++ file (.h .cc .inc) as clang-format-14 writes it (.clang-format);
 #              `clang-format -i FILE` fixes one; a few seconds;
-#   ci         the `ci` preset (optimised, assertions on, warnings are errors): every test;
+#   ci         the `ci` preset (optimized, assertions on, warnings are errors): every test;
 #   container  deploy/test_container.sh: the image of deploy/Dockerfile built with buildah,
 #              run, trained, restarted on its volume (base images and layers are reused
 #              between runs on one machine);

@@ -6,7 +6,7 @@
 //
 // A plain program rather than Google Benchmark: recall, build times and memory are one-shot
 // figures, and within each repetition the engines of one gallery are timed in turn, so a
-// noisy neighbour on a shared VM hits them alike. Every figure is the median of --reps.
+// noisy neighbor on a shared VM hits them alike. Every figure is the median of --reps.
 // Threads: single queries run on one thread everywhere (omp_set_num_threads(1) for Faiss);
 // batches are timed with one and with two threads. See README.md for the setup.
 
@@ -70,7 +70,7 @@ struct Options {
   std::vector<int> nprobes = {1, 8, 32, 128};
   int hnsw_m = 32;
   // HNSW builds take ~1 ms per sample and thread on uniform 81-d data on the reference VM
-  // (shrinking neighbour lists dominates), 20-30 minutes at 10^6: by default only on the
+  // (shrinking neighbor lists dominates), 20-30 minutes at 10^6: by default only on the
   // mixture.
   std::vector<std::string> hnsw_distributions = {"mixture"};
   std::vector<int> ef_searches = {16, 32, 64, 128, 256};
@@ -125,7 +125,7 @@ const char* DistributionName(Distribution d) {
 // Rows of a synthetic gallery or query set, drawn in order from a fixed seed. Uniform: every
 // feature in [0, 1), the worst case for an approximate index (no structure to exploit,
 // distances concentrate). Mixture: 1,000 Gaussians of standard deviation 0.1 per feature
-// around centres uniform in [0, 1)^d (the same centres for gallery and queries), a stand-in
+// around centers uniform in [0, 1)^d (the same centers for gallery and queries), a stand-in
 // for descriptors that cluster by object and class.
 class RowSource {
  public:
@@ -134,9 +134,9 @@ class RowSource {
   RowSource(Distribution distribution, int dim, uint32_t seed)
       : distribution_(distribution), dim_(dim), rng_(seed) {
     if (distribution_ != Distribution::kMixture) return;
-    std::mt19937 centre_rng(2024);
-    centres_.resize(static_cast<std::size_t>(kComponents) * dim_);
-    for (float& c : centres_) c = uniform_(centre_rng);
+    std::mt19937 center_rng(2024);
+    centers_.resize(static_cast<std::size_t>(kComponents) * dim_);
+    for (float& c : centers_) c = uniform_(center_rng);
   }
 
   void Fill(float* row) {
@@ -144,8 +144,8 @@ class RowSource {
       for (int j = 0; j < dim_; ++j) row[j] = uniform_(rng_);
       return;
     }
-    const float* centre = centres_.data() + static_cast<std::size_t>(rng_() % kComponents) * dim_;
-    for (int j = 0; j < dim_; ++j) row[j] = centre[j] + normal_(rng_);
+    const float* center = centers_.data() + static_cast<std::size_t>(rng_() % kComponents) * dim_;
+    for (int j = 0; j < dim_; ++j) row[j] = center[j] + normal_(rng_);
   }
 
   std::vector<float> Rows(int count) {
@@ -160,7 +160,7 @@ class RowSource {
   std::mt19937 rng_;
   std::uniform_real_distribution<float> uniform_{0.0f, 1.0f};
   std::normal_distribution<float> normal_{0.0f, 0.1f};
-  std::vector<float> centres_;
+  std::vector<float> centers_;
 };
 
 // One gallery held twice: by KnnIndex (blocked layout) and by Faiss (row-major, which the
@@ -288,9 +288,9 @@ void RunExact(const Gallery& g, const Options& o, bool single_only, JsonWriter& 
   std::vector<float> distances(static_cast<std::size_t>(kQueryPool) * o.k);
   std::vector<FaissId> labels(distances.size());
   std::vector<Case> cases;
-  auto add = [&cases](std::string engine, int threads, int batch, int neighbours,
+  auto add = [&cases](std::string engine, int threads, int batch, int neighbors,
                       std::function<void(int64_t)> run) {
-    cases.push_back(Case{std::move(engine), threads, batch, neighbours, std::move(run), {}});
+    cases.push_back(Case{std::move(engine), threads, batch, neighbors, std::move(run), {}});
   };
 
   std::vector<int> ks = {o.k};
@@ -367,7 +367,7 @@ void RunExact(const Gallery& g, const Options& o, bool single_only, JsonWriter& 
     }
   }
 
-  // Does Faiss flat return KnnIndex's neighbours? (Ties aside, it must.) 16 queries: at
+  // Does Faiss flat return KnnIndex's neighbors? (Ties aside, it must.) 16 queries: at
   // 10^6 x 640 each costs 0.2 s.
   constexpr int kCheckedQueries = 16;
   int agree = 0;
@@ -418,7 +418,7 @@ void RunExact(const Gallery& g, const Options& o, bool single_only, JsonWriter& 
 }
 
 // Faiss IVF-Flat and HNSW-Flat on one gallery: single-thread latency per query and recall@k
-// against KnnIndex's exact neighbours, over o.ann_queries fresh queries.
+// against KnnIndex's exact neighbors, over o.ann_queries fresh queries.
 void RunApproximate(const Gallery& g, const Options& o, JsonWriter& json) {
   const int nq = o.ann_queries;
   const int k = o.k;
@@ -556,7 +556,7 @@ void RunApproximate(const Gallery& g, const Options& o, JsonWriter& json) {
     hnsw.add(g.n, g.flat->get_xb());
     const double add_seconds = SecondsSince(start);
     const double rss = static_cast<double>(ResidentBytes() - before) / g.n;
-    // From the structures: the vectors, every level's neighbour lists, offsets and levels.
+    // From the structures: the vectors, every level's neighbor lists, offsets and levels.
     const faiss::HNSW& graph = hnsw.hnsw;
     const double bytes = static_cast<double>(g.dim * sizeof(float)) +
                          static_cast<double>(graph.neighbors.size() * sizeof(graph.neighbors[0]) +
@@ -587,7 +587,7 @@ int Run(int argc, char** argv) {
   Options o;
   app.add_option("--dims", o.dims, "feature dimensions")->delimiter(',')->capture_default_str();
   app.add_option("--sizes", o.sizes, "gallery sizes")->delimiter(',')->capture_default_str();
-  app.add_option("--k", o.k, "neighbours")->capture_default_str();
+  app.add_option("--k", o.k, "neighbors")->capture_default_str();
   app.add_option("--k1-dims", o.k1_dims, "dimensions also timed with k = 1 (n >= 10^5)")
       ->delimiter(',');
   app.add_option("--batches", o.batches, "batch sizes besides 1")->delimiter(',');

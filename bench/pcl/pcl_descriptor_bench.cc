@@ -5,7 +5,7 @@
 // docs/performance.md.
 //
 // What is timed is what a user pays per new cloud through each library's public API:
-// - shapeid: Descriptor::Compute (validation, normalisation, features).
+// - shapeid: Descriptor::Compute (validation, normalization, features).
 // - PCL: a fresh estimator per cloud, setInputCloud, compute. PCL's Feature::initCompute
 //   builds a kd-tree over the cloud even for ESF and GASD, which never search it, so that is
 //   part of what a PCL user pays; the `_bruteforce` variants hand those two a search object
@@ -54,11 +54,11 @@ using PclCloud = pcl::PointCloud<pcl::PointXYZ>;
 constexpr size_t kModelNet10 = 0;
 const size_t kInputSizes[] = {kModelNet10, 10000, 100000, 1000000};
 
-// What a PCL user computes normals with for VFH: the k nearest neighbours, k = 10, through a
+// What a PCL user computes normals with for VFH: the k nearest neighbors, k = 10, through a
 // kd-tree. A fixed radius, PCL's other option, must be tuned to each cloud's density, and on a
-// denser cloud of the same object gathers ever more neighbours (quadratic growth); k-nearest
+// denser cloud of the same object gathers ever more neighbors (quadratic growth); k-nearest
 // needs no tuning across the 1,024 to 10^6-point inputs here.
-constexpr int kNormalNeighbours = 10;
+constexpr int kNormalNeighbors = 10;
 
 struct Inputs {
   std::vector<PointCloud> clouds;
@@ -188,7 +188,7 @@ bool PclNormals(const PclCloud::ConstPtr& cloud, pcl::search::KdTree<pcl::PointX
   pcl::NormalEstimation<pcl::PointXYZ, pcl::Normal> estimation;
   estimation.setInputCloud(cloud);
   estimation.setSearchMethod(*tree);
-  estimation.setKSearch(kNormalNeighbours);
+  estimation.setKSearch(kNormalNeighbors);
   estimation.compute(**normals);
   return (*normals)->size() == cloud->size();
 }

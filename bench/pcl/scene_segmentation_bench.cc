@@ -4,18 +4,18 @@
 // then whether the two found the same planes and clusters and the objects that are there.
 // Build and run: bench/pcl/README.md.
 //
-// What is timed, per frame, from the organised frame with its NaN pixels to clusters given
+// What is timed, per frame, from the organized frame with its NaN pixels to clusters given
 // as indices into that frame:
 // - shapeid: SegmentScene (it skips NaNs itself).
 // - PCL, as its tutorials chain it: removeNaNFromPointCloud; per plane SACSegmentation
-//   (SACMODEL_PLANE, SAC_RANSAC, optimised coefficients) and ExtractIndices (negative) for the
+//   (SACMODEL_PLANE, SAC_RANSAC, optimized coefficients) and ExtractIndices (negative) for the
 //   rest; EuclideanClusterExtraction with a fresh search::KdTree. Keeping each remaining
 //   point's frame index (one pass per plane) is timed too: shapeid returns frame indices.
 // Both use the same settings (kOptions), including the rule that stops plane removal: a
 // plane must hold min_plane_share of the finite points.
 // The `clusters_only` rows time the clustering alone, on the points PCL's planes left. The
 // `recognize_scene` and `chain_then_classify` rows add classifying every object found against
-// one gallery: issue 29's whole speed goal (a frame in, every object labelled).
+// one gallery: issue 29's whole speed goal (a frame in, every object labeled).
 // Not timed: making the frames and converting them to pcl::PointCloud (once, at start-up).
 
 #include <algorithm>
@@ -75,7 +75,7 @@ const SceneSegmentationOptions kOptions = Options();
 struct Frame {
   std::string name;
   tf::TabletopFrame frame;
-  PclCloud::Ptr pcl;                 // the same points, organised, NaNs kept
+  PclCloud::Ptr pcl;                 // the same points, organized, NaNs kept
   PointCloud rest;                   // the points PCL's planes left, for the clusters_only rows
   PclCloud::Ptr pcl_rest;            // the same
   std::vector<uint32_t> rest_index;  // their frame indices
@@ -126,7 +126,7 @@ std::vector<pcl::PointIndices> PclClusters(const PclCloud::ConstPtr& cloud, bool
   return found;
 }
 
-// PCL's chain on one organised frame. The clusters' indices are mapped back to the frame.
+// PCL's chain on one organized frame. The clusters' indices are mapped back to the frame.
 PclResult PclChain(const PclCloud::ConstPtr& frame, bool keep_rest) {
   using Clock = std::chrono::steady_clock;
   PclResult result;

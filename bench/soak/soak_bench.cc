@@ -15,7 +15,7 @@
 //
 // Without --keys every robot calls from the same loopback host, as one caller: the case that
 // once locked every local client out once the leaked backlog passed the bound. With --keys N
-// the robots share N keys. --flooders adds hostile callers (server/caller_identity.h: a
+// the robots share N keys. --flooders adds hostile callers (server/runtime/caller_identity.h: a
 // caller id of their own, or a read key each) that keep their share of the cheap lane full;
 // they must be refused themselves while no robot call fails. After the load the server's
 // caller backlog (GetServerStats) must be back to zero.
@@ -53,7 +53,7 @@
 #include "bench/soak/report.h"
 #include "bench/soak/soak_client.h"
 #include "client/client.h"
-#include "server/api_keys.h"
+#include "server/security/api_keys.h"
 #include "server/testing/child_server.h"
 
 namespace shapeid::soak {

@@ -220,7 +220,7 @@ absl::Status SoakClient::RemoveSamples() {
 
 // Half the time the cloud of a sample held now (k = 1: it must find itself, or a copy: a
 // cloud always trains under one label), half the time an unseen one (the gallery's k = 3).
-// Either way the label and every neighbour must be among the samples held now.
+// Either way the label and every neighbor must be among the samples held now.
 absl::Status SoakClient::Classify(bool stream) {
   const Held* self = nullptr;
   if (std::uniform_int_distribution<int>(0, 1)(rng_) == 1 && !held_.empty()) {
@@ -251,16 +251,16 @@ absl::Status SoakClient::Classify(bool stream) {
   std::map<uint64_t, const std::string*> held_labels;
   for (const Held& h : held_) held_labels[h.id] = &h.label;
   const size_t k = self != nullptr ? 1 : 3;
-  bool neighbours_ok = response.neighbors_size() == static_cast<int>(std::min(k, held_.size()));
+  bool neighbors_ok = response.neighbors_size() == static_cast<int>(std::min(k, held_.size()));
   for (const v1::Neighbor& n : response.neighbors()) {
     auto it = held_labels.find(n.sample_id());
-    neighbours_ok = neighbours_ok && it != held_labels.end() && *it->second == n.label();
+    neighbors_ok = neighbors_ok && it != held_labels.end() && *it->second == n.label();
   }
   const bool label_ok =
       self != nullptr ? response.label() == self->label
                       : std::any_of(held_.begin(), held_.end(),
                                     [&](const Held& h) { return h.label == response.label(); });
-  const bool ok = neighbours_ok && label_ok && !response.unknown() && response.confidence() > 0 &&
+  const bool ok = neighbors_ok && label_ok && !response.unknown() && response.confidence() > 0 &&
                   response.confidence() <= 1 && response.num_points() == xyz.size() / 12;
   return Check(
       ok,
@@ -268,7 +268,7 @@ absl::Status SoakClient::Classify(bool stream) {
                    self != nullptr ? absl::StrCat(" for a held '", self->label, "' cloud")
                                    : " for an unseen cloud",
                    ", ", response.neighbors_size(),
-                   " neighbours (all held: ", neighbours_ok ? "yes" : "no", ", nearest at ",
+                   " neighbors (all held: ", neighbors_ok ? "yes" : "no", ", nearest at ",
                    response.neighbors_size() > 0 ? response.neighbors(0).distance() : -1.0,
                    "), confidence ", response.confidence()));
 }

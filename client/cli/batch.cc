@@ -93,7 +93,7 @@ uint64_t RandomSampleId() {
 }  // namespace
 
 TrainOutcome TrainFiles(Client& client, const std::string& gallery,
-                        const std::vector<LabelledFile>& files, const BatchOptions& options,
+                        const std::vector<LabeledFile>& files, const BatchOptions& options,
                         Progress& progress, std::FILE* err) {
   const Clock::time_point start = Clock::now();
   const size_t batch_size = std::max<size_t>(options.train_batch, 1);

@@ -37,7 +37,7 @@ struct FailedInput {
 };
 
 // A file trained into the gallery, and the sample id it was given (client-chosen, so known
-// before the server answers): what traces a neighbour in a later Classify back to its file.
+// before the server answers): what traces a neighbor in a later Classify back to its file.
 struct TrainedFile {
   std::string path;
   std::string label;
@@ -54,12 +54,12 @@ struct TrainOutcome {
 };
 
 // Adds `files` to `gallery`, train_batch samples per stream, `jobs` streams at once, each
-// sample with its file's absolute path as its source (so a neighbour can be traced to its
+// sample with its file's absolute path as its source (so a neighbor can be traced to its
 // file from any directory) and options.metadata. A stream refused for one bad sample is
 // resent one sample per stream so that only the bad file is skipped. Errors go to `err` as they
 // happen (through `progress`).
 TrainOutcome TrainFiles(Client& client, const std::string& gallery,
-                        const std::vector<LabelledFile>& files, const BatchOptions& options,
+                        const std::vector<LabeledFile>& files, const BatchOptions& options,
                         Progress& progress, std::FILE* err);
 
 struct ClassifyOutcome {

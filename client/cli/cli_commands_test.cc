@@ -1,4 +1,4 @@
-// The shapeid commands against an in-process server on a loopback port, on small labelled
+// The shapeid commands against an in-process server on a loopback port, on small labeled
 // folders written by the test: what users and scripts rely on (results, formats, exit codes,
 // a batch that keeps going past a bad file, temporary galleries cleaned up, export / import).
 

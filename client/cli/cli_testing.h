@@ -2,7 +2,7 @@
 #define SHAPEID_CLIENT_CLI_CLI_TESTING_H_
 
 // Test-only helpers for the CLI's tests: a scratch folder per process and test, a small
-// labelled dataset a classifier gets partly wrong, captured output streams, JSON Lines parsed
+// labeled dataset a classifier gets partly wrong, captured output streams, JSON Lines parsed
 // back by python3, and eval's JSON output with its timings blanked (the one part that differs
 // from run to run).
 
@@ -38,7 +38,7 @@ inline fs::path ScratchDir(const std::string& prefix) {
 // (a third of them test clouds when split), labels box, sphere and rod
 // (testing_clouds::ShapeCloud), 150 to 350 points. Every fourth cloud has the shape of the
 // next label: label noise, so that the predictions include mistakes.
-inline void WriteLabelledDataset(const fs::path& dir, bool split, int per_label = 9) {
+inline void WriteLabeledDataset(const fs::path& dir, bool split, int per_label = 9) {
   for (int label = 0; label < 3; ++label) {
     for (int i = 0; i < per_label; ++i) {
       fs::path folder = dir / testing_clouds::kShapeNames[label];

@@ -97,10 +97,10 @@ CloudPicture RenderViews(const PointCloud& cloud, absl::Span<const uint8_t> colo
   if (!(lo[0] <= hi[0])) return picture;  // no finite point
 
   double extent = 0;
-  double centre[3];
+  double center[3];
   for (int a = 0; a < 3; ++a) {
     extent = std::max(extent, hi[a] - lo[a]);
-    centre[a] = 0.5 * (lo[a] + hi[a]);
+    center[a] = 0.5 * (lo[a] + hi[a]);
   }
   // Inside the frame, a one-pixel margin, and room for the splat at the far edge.
   const int inner = view - 4 - splat;
@@ -113,10 +113,10 @@ CloudPicture RenderViews(const PointCloud& cloud, absl::Span<const uint8_t> colo
     const double depth_span = hi[axes.depth] - lo[axes.depth];
     for (size_t i = 0; i < cloud.size(); ++i) {
       if (!finite(i)) continue;
-      const double r = axes.right_sign * (xyz[3 * i + axes.right] - centre[axes.right]);
-      const double u = axes.up_sign * (xyz[3 * i + axes.up] - centre[axes.up]);
-      const double d = axes.depth_sign * (xyz[3 * i + axes.depth] - centre[axes.depth]);
-      // Top-left corner of the splat; r = u = 0 is the view's centre.
+      const double r = axes.right_sign * (xyz[3 * i + axes.right] - center[axes.right]);
+      const double u = axes.up_sign * (xyz[3 * i + axes.up] - center[axes.up]);
+      const double d = axes.depth_sign * (xyz[3 * i + axes.depth] - center[axes.depth]);
+      // Top-left corner of the splat; r = u = 0 is the view's center.
       const int x0 = 2 + static_cast<int>(std::floor(0.5 * inner + r * scale));
       const int y0 = 2 + static_cast<int>(std::floor(0.5 * inner - u * scale));
       // 0 nearest, 1 farthest.

@@ -41,8 +41,8 @@ struct CloudPicture {
 
 // Three views of `cloud`, left to right: front (x right, y up, seen from +z), side (-z right,
 // y up, seen from +x) and top (x right, -z up, seen from +y). One scale for all three: the
-// largest side of the cloud's bounding box spans the inside of a view, centred on the box's
-// centre, so proportions and the three views agree. A pixel shows its nearest point, darker
+// largest side of the cloud's bounding box spans the inside of a view, centered on the box's
+// center, so proportions and the three views agree. A pixel shows its nearest point, darker
 // the nearer (the shade spans the box's depth in that view). Non-finite points are skipped;
 // a cloud without a finite point gives the empty frames. Sizes below 8 pixels count as 8.
 CloudPicture RenderCloudViews(const PointCloud& cloud, const CloudPictureOptions& options = {});

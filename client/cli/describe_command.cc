@@ -104,7 +104,7 @@ int RunDescribe(const DescribeOptions& options, const CliContext& context) {
     }
     local = std::move(descriptor).value();
     canonical_spec = local->spec().ToString();
-    // The server's rule (server/proto_convert.h): the frame's up turns onto the descriptor's.
+    // The server's rule (server/wire/proto_convert.h): the frame's up turns onto the descriptor's.
     absl::StatusOr<RigidTransform> frame =
         !options.sensor_frame.transform().empty()
             ? RigidTransformFromRows(options.sensor_frame.transform())
@@ -225,7 +225,7 @@ std::string DescribeHelpFooter() {
       "area-weighted and seeded. FILE - reads standard input (with --input-format). Folders\n"
       "are walked for these files; their other files are listed and make the exit status 1\n"
       "unless --skip-unsupported.\n"
-      "Coordinates are recentred on the bounding box before conversion to float; every\n"
+      "Coordinates are recentered on the bounding box before conversion to float; every\n"
       "descriptor is translation invariant.\n"
       "\n"
       "Without --local the server computes the descriptor (--spec, or --gallery for a gallery's\n"

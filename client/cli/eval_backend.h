@@ -37,14 +37,14 @@ class EvalBackend {
   // an existing gallery sets run.gallery and run.train_samples to its name and sample count;
   // appends unusable files to run.failed_files, after one line each on stderr through
   // `progress`. Replaces the previous round's classifier.
-  virtual EvalStep Train(int round, const std::vector<LabelledFile>& train, Progress& progress,
+  virtual EvalStep Train(int round, const std::vector<LabeledFile>& train, Progress& progress,
                          EvalRun& run) = 0;
 
   // Classifies every file of `test` against the round's classifier. Appends one
   // EvalPrediction per classified file (fold = round), in the order of `test`, whatever the
   // parallelism; failed files to run.failed_files (one line each on stderr); the wall time to
   // run.test_seconds.
-  virtual EvalStep Test(int round, const std::vector<LabelledFile>& test, Progress& progress,
+  virtual EvalStep Test(int round, const std::vector<LabeledFile>& test, Progress& progress,
                         EvalRun& run) = 0;
 
   // Sets run.server_version: the server's shapeid version, left empty in-process or when the

@@ -1,7 +1,7 @@
 #ifndef SHAPEID_CLIENT_CLI_EVAL_COMMAND_H_
 #define SHAPEID_CLIENT_CLI_EVAL_COMMAND_H_
 
-// `shapeid eval`: how often the classifier is right on a labelled folder.
+// `shapeid eval`: how often the classifier is right on a labeled folder.
 //   eval --gallery G --test DIR   classify DIR's clouds against an existing gallery
 //   eval DIR                      DIR/<label>/{train,test}: train a temporary gallery on the
 //                                 train clouds, classify the test clouds (hold-out)
@@ -24,7 +24,7 @@
 namespace shapeid {
 
 struct EvalOptions {
-  std::string dataset;  // the labelled folder
+  std::string dataset;  // the labeled folder
   std::string gallery;  // non-empty: test against this existing gallery (no training)
   int folds = 0;        // > 1: k-fold; 0: hold-out when DIR has train/test, else 5-fold
   uint64_t seed = 1;    // k-fold shuffle

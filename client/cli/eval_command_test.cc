@@ -31,11 +31,11 @@ using ::testing::AllOf;
 using ::testing::HasSubstr;
 using ::testing::Not;
 
-// In z-scored rphsd:bins=20 space, nearest-neighbour distances of these clouds straddle it.
+// In z-scored rphsd:bins=20 space, nearest-neighbor distances of these clouds straddle it.
 constexpr double kRejectDistance = 3.0;
 
 // The runs differ in where and when they ran; the local run numbers samples its own way (a
-// server's ids are its own) and names each neighbour's training file as listed (a server
+// server's ids are its own) and names each neighbor's training file as listed (a server
 // gives the source the training client sent, if any). The rest must match.
 std::string WithoutSampleIdentity(const std::string& json) {
   static const std::regex kFile(R"re(,"file":"[^"]*"\})re");
@@ -98,7 +98,7 @@ class EvalCommandTest : public ::testing::Test {
 };
 
 TEST_F(EvalCommandTest, HoldOutGivesTheServersPredictionsForEveryFile) {
-  cli_testing::WriteLabelledDataset(root_ / "split", /*split=*/true, /*per_label=*/15);
+  cli_testing::WriteLabeledDataset(root_ / "split", /*split=*/true, /*per_label=*/15);
   EvalOptions eval;
   eval.dataset = (root_ / "split").string();
   eval.create.spec = "rphsd:refs=cross7,bins=10";
@@ -111,7 +111,7 @@ TEST_F(EvalCommandTest, HoldOutGivesTheServersPredictionsForEveryFile) {
 }
 
 TEST_F(EvalCommandTest, KFoldWithEveryKnobGivesTheServersPredictions) {
-  cli_testing::WriteLabelledDataset(root_ / "flat", /*split=*/false, /*per_label=*/12);
+  cli_testing::WriteLabeledDataset(root_ / "flat", /*split=*/false, /*per_label=*/12);
   // A bad file in each: both count it once per round it is in, in the same order.
   std::ofstream((root_ / "flat/sphere/broken.pcd").string()) << "not a pcd file\n";
   EvalOptions eval;
@@ -140,7 +140,7 @@ TEST_F(EvalCommandTest, KFoldWithEveryKnobGivesTheServersPredictions) {
 }
 
 TEST_F(EvalCommandTest, AgainstAGalleryTheOutputsNameItAndTheReportTracesErrorsToFiles) {
-  cli_testing::WriteLabelledDataset(root_ / "split", /*split=*/true, /*per_label=*/15);
+  cli_testing::WriteLabeledDataset(root_ / "split", /*split=*/true, /*per_label=*/15);
   Captured out, err;
   GalleryCreateOptions create;
   create.name = "parts";

@@ -49,7 +49,7 @@ void OrderedParallelFor(size_t n, int jobs, const std::function<Result(size_t)>&
   });
 }
 
-// What a server makes of the same flags (server/proto_convert.cc GalleryOptionsFromProto):
+// What a server makes of the same flags (server/wire/proto_convert.cc GalleryOptionsFromProto):
 // an empty spec is the default descriptor, k = 0 is 1, empty weighting and scaling are the
 // defaults. Weighting and scaling were checked by CreateGalleryRequestFor already.
 absl::StatusOr<GalleryOptions> LocalGalleryOptions(const GalleryCreateOptions& create) {
@@ -104,7 +104,7 @@ class LocalEvalBackend final : public EvalBackend {
   // Describes in parallel, then builds the round's gallery from the descriptors in file
   // order: Gallery::Restore adds them to the index exactly as a server's Train commits do,
   // without a second description of each cloud or a copy of the index per batch.
-  EvalStep Train(int /*round*/, const std::vector<LabelledFile>& train, Progress& progress,
+  EvalStep Train(int /*round*/, const std::vector<LabeledFile>& train, Progress& progress,
                  EvalRun& run) override {
     const Clock::time_point start = Clock::now();
     gallery_.reset();
@@ -173,7 +173,7 @@ class LocalEvalBackend final : public EvalBackend {
     return {};
   }
 
-  EvalStep Test(int round, const std::vector<LabelledFile>& test, Progress& progress,
+  EvalStep Test(int round, const std::vector<LabeledFile>& test, Progress& progress,
                 EvalRun& run) override {
     const Clock::time_point start = Clock::now();
     const std::shared_ptr<const GallerySnapshot> snapshot = gallery_->Snapshot();
@@ -212,8 +212,8 @@ class LocalEvalBackend final : public EvalBackend {
           p.fold = round;
           for (const Neighbor& n : c.answer.knn.neighbors) {
             const uint64_t index = n.id - kFirstAssignedId;
-            p.neighbours.push_back({n.id, n.label, n.distance, static_cast<uint32_t>(n.view),
-                                    index < sample_files_.size() ? sample_files_[index] : ""});
+            p.neighbors.push_back({n.id, n.label, n.distance, static_cast<uint32_t>(n.view),
+                                   index < sample_files_.size() ? sample_files_[index] : ""});
           }
           run.predictions.push_back(std::move(p));
           progress.Advance(1, 0);

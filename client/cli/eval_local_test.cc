@@ -1,5 +1,5 @@
 // `shapeid eval --local`: the evaluation in this process, no server anywhere. Hold-out and
-// k-fold on a small labelled folder, every output format, answers that do not depend on the
+// k-fold on a small labeled folder, every output format, answers that do not depend on the
 // number of threads, bad files counted, and the usage errors.
 
 #include "client/cli/eval_local.h"
@@ -68,7 +68,7 @@ class EvalLocalTest : public ::testing::Test {
 };
 
 TEST_F(EvalLocalTest, HoldOutInEveryFormatWithoutAServer) {
-  cli_testing::WriteLabelledDataset(root_ / "split", /*split=*/true);
+  cli_testing::WriteLabeledDataset(root_ / "split", /*split=*/true);
   EvalOptions eval = Local("split");
   eval.report_html = (root_ / "report.html").string();
   Captured json;
@@ -81,7 +81,7 @@ TEST_F(EvalLocalTest, HoldOutInEveryFormatWithoutAServer) {
                           HasSubstr("\"train_samples\":18,"), HasSubstr("\"failed_files\":[]"),
                           HasSubstr("\"predictions\":[{\"file\":")));
   // Each answer names its nearest training sample and the file it came from.
-  EXPECT_THAT(text, MatchesRegex(".*\"neighbours\":\\[\\{\"sample_id\":[0-9]+,\"label\":\"[a-z]+\","
+  EXPECT_THAT(text, MatchesRegex(".*\"neighbors\":\\[\\{\"sample_id\":[0-9]+,\"label\":\"[a-z]+\","
                                  "\"distance\":[-0-9.e]+,\"view\":0,\"file\":\"[^\"]*/train/[^\"]*"
                                  "\\.pcd\"\\}\\].*"));
   // Times are measured: the predictions' own describe + classify, and both phases.
@@ -164,7 +164,7 @@ TEST_F(EvalLocalTest, TheReportTracesAnErrorToTheTrainingFileItMatched) {
   p.file = (root_ / "clean/box/test/misfiled.pcd").string();
   p.truth = "box";
   p.predicted = "sphere";
-  p.neighbours = {{7, "sphere", 0.5, 0, sphere_train + "0.pcd"}};
+  p.neighbors = {{7, "sphere", 0.5, 0, sphere_train + "0.pcd"}};
   run.predictions.push_back(p);
   const std::string gone =
       RenderEvalHtml(run, ComputeEvalMetrics(run), ErrorPicturesFromFiles(ReadOptions()));
@@ -174,7 +174,7 @@ TEST_F(EvalLocalTest, TheReportTracesAnErrorToTheTrainingFileItMatched) {
 }
 
 TEST_F(EvalLocalTest, KFoldTestsEveryFileOnceAndTheAnswersDoNotDependOnTheThreads) {
-  cli_testing::WriteLabelledDataset(root_ / "flat", /*split=*/false, /*per_label=*/12);
+  cli_testing::WriteLabeledDataset(root_ / "flat", /*split=*/false, /*per_label=*/12);
   EvalOptions eval = Local("flat");
   eval.folds = 4;
   eval.seed = 3;
@@ -197,7 +197,7 @@ TEST_F(EvalLocalTest, KFoldTestsEveryFileOnceAndTheAnswersDoNotDependOnTheThread
 }
 
 TEST_F(EvalLocalTest, ABadFileIsCountedAndTheEvaluationGoesOn) {
-  cli_testing::WriteLabelledDataset(root_ / "split", /*split=*/true);
+  cli_testing::WriteLabeledDataset(root_ / "split", /*split=*/true);
   std::ofstream((root_ / "split/box/train/broken.pcd").string()) << "not a pcd file\n";
   std::ofstream((root_ / "split/rod/test/tiny.xyz").string()) << "0 0 0\n1 1 1\n";  // 2 points
   EvalOptions eval = Local("split");
@@ -215,7 +215,7 @@ TEST_F(EvalLocalTest, ABadFileIsCountedAndTheEvaluationGoesOn) {
 }
 
 TEST_F(EvalLocalTest, UsageErrorsBeforeAnyFileIsRead) {
-  cli_testing::WriteLabelledDataset(root_ / "split", /*split=*/true);
+  cli_testing::WriteLabeledDataset(root_ / "split", /*split=*/true);
   Captured out;
   EvalOptions eval = Local("split");
   eval.gallery = "parts";

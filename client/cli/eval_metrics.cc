@@ -318,9 +318,9 @@ std::string FormatEvalJson(const EvalRun& run, const EvalMetrics& metrics, bool 
           &out, i == 0 ? "" : ",", "{\"file\":", JsonString(p.file),
           ",\"truth\":", JsonString(p.truth), ",\"predicted\":", JsonString(p.predicted),
           ",\"confidence\":", JsonNumber(p.confidence), ",\"seconds\":", JsonNumber(p.seconds),
-          ",\"fold\":", p.fold, ",\"neighbours\":[");
-      for (size_t j = 0; j < p.neighbours.size(); ++j) {
-        const EvalNeighbour& n = p.neighbours[j];
+          ",\"fold\":", p.fold, ",\"neighbors\":[");
+      for (size_t j = 0; j < p.neighbors.size(); ++j) {
+        const EvalNeighbor& n = p.neighbors[j];
         absl::StrAppend(&out, j == 0 ? "" : ",", "{\"sample_id\":", n.sample_id,
                         ",\"label\":", JsonString(n.label),
                         ",\"distance\":", JsonNumber(n.distance), ",\"view\":", n.view);

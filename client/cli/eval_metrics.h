@@ -1,7 +1,7 @@
 #ifndef SHAPEID_CLIENT_CLI_EVAL_METRICS_H_
 #define SHAPEID_CLIENT_CLI_EVAL_METRICS_H_
 
-// Scoring of a labelled evaluation (`shapeid eval`): the confusion matrix, overall and
+// Scoring of a labeled evaluation (`shapeid eval`): the confusion matrix, overall and
 // per-class accuracy, timing, and its text renderings (table, JSON, CSV; the HTML page is in
 // eval_report.h). Pure functions over plain structs: the eval command fills an EvalRun, these
 // render it.
@@ -13,7 +13,7 @@
 namespace shapeid {
 
 // One of a prediction's nearest samples, for tracing an answer to the training data.
-struct EvalNeighbour {
+struct EvalNeighbor {
   uint64_t sample_id = 0;
   std::string label;
   double distance = 0;  // descriptor distance, as Classify reports it
@@ -31,7 +31,7 @@ struct EvalPrediction {
   double confidence = 0;  // vote share of the winning label, in [0, 1]
   double seconds = 0;     // wall time of the classification seen by the caller
   int fold = 0;           // 0-based fold (hold-out: always 0)
-  std::vector<EvalNeighbour> neighbours;  // nearest first, as many as k
+  std::vector<EvalNeighbor> neighbors;  // nearest first, as many as k
 };
 
 // Everything one eval produced. The metrics below are computed from `predictions`.
@@ -39,7 +39,7 @@ struct EvalRun {
   std::string mode;             // "holdout", "gallery" (against an existing gallery) or "kfold"
   std::string dataset;          // the folder evaluated, as given
   std::string descriptor_spec;  // canonical spec of the gallery(ies)
-  uint32_t k = 0;               // neighbours used
+  uint32_t k = 0;               // neighbors used
   int folds = 1;                // K for kfold, else 1
   uint64_t seed = 0;            // kfold shuffle seed
   // The existing gallery classified against ("gallery" mode); empty when each round trains

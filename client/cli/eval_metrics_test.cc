@@ -260,8 +260,8 @@ TEST(EvalMetricsTest, JsonIsValidAndHasTheValues) {
   run.client_version = "1.2.3";
   run.server_version = "1.2.0";
   run.predictions[0].fold = 1;
-  run.predictions[0].neighbours = {{1, "table", 0.25, 3, "train/table/7.pcd"},
-                                   {9, "bench", 0.5, 0, ""}};
+  run.predictions[0].neighbors = {{1, "table", 0.25, 3, "train/table/7.pcd"},
+                                  {9, "bench", 0.5, 0, ""}};
   Add(run, "chair", "unknown", 1);
   const EvalMetrics m = ComputeEvalMetrics(run);
   const std::string json = FormatEvalJson(run, m, false);
@@ -277,7 +277,7 @@ TEST(EvalMetricsTest, JsonIsValidAndHasTheValues) {
       with_predictions,
       HasSubstr("\"predictions\":[{\"file\":\"table/0.pcd\",\"truth\":\"table\","
                 "\"predicted\":\"table\",\"confidence\":0.75,\"seconds\":0.050000000000000003,"
-                "\"fold\":1,\"neighbours\":[{\"sample_id\":1,\"label\":\"table\",\"distance\":0.25,"
+                "\"fold\":1,\"neighbors\":[{\"sample_id\":1,\"label\":\"table\",\"distance\":0.25,"
                 "\"view\":3,\"file\":\"train/table/7.pcd\"},{\"sample_id\":9,\"label\":\"bench\","
                 "\"distance\":0.5,\"view\":0}]},"));
 
@@ -305,8 +305,8 @@ assert (d["client_version"], d["server_version"]) == ("1.2.3", "1.2.0")
 p = d["predictions"]
 assert len(p) == 11 and p[-1] == {"file": "chair/10.pcd", "truth": "chair",
     "predicted": "unknown", "confidence": 0.75, "seconds": 0.05, "fold": 1,
-    "neighbours": []}, p[-1]
-assert p[0]["neighbours"][1] == {"sample_id": 9, "label": "bench", "distance": 0.5, "view": 0}
+    "neighbors": []}, p[-1]
+assert p[0]["neighbors"][1] == {"sample_id": 9, "label": "bench", "distance": 0.5, "view": 0}
 )py"));
 }
 

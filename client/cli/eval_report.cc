@@ -182,14 +182,14 @@ std::string PictureOrReason(const std::string& png, const std::string& missing,
 }
 
 // The nearest training sample, as the error table and the pictures name it.
-std::string NeighbourCaption(const EvalNeighbour& n) {
+std::string NeighborCaption(const EvalNeighbor& n) {
   std::string caption = absl::StrCat("sample ", n.sample_id, " \xC2\xB7 ", HtmlEscape(n.label),
                                      " \xC2\xB7 distance ", absl::StrFormat("%.4g", n.distance));
   if (n.view != 0) absl::StrAppend(&caption, " \xC2\xB7 its synthetic view ", n.view);
   return caption;
 }
 
-std::string TrainingFile(const EvalNeighbour& n) {
+std::string TrainingFile(const EvalNeighbor& n) {
   return n.file.empty() ? "<span class=\"muted\">not recorded by the gallery</span>"
                         : HtmlEscape(n.file);
 }
@@ -208,7 +208,7 @@ std::string ErrorSections(const EvalRun& run, const ErrorPictureSource& pictures
       "<p class=\"note\">Each error names the training sample nearest to the test cloud: its "
       "id, label, descriptor distance and the training file it was made from. ",
       show_confidence
-          ? "Confidence is the predicted label's share of the k neighbours' vote."
+          ? "Confidence is the predicted label's share of the k neighbors' vote."
           : "With k = 1 the nearest sample alone decides (its share of the vote is always 1), "
             "so there is no confidence column: the distance says how close the match was.",
       pictured > 0 ? " The numbers link to the pictures below." : "",
@@ -230,13 +230,13 @@ std::string ErrorSections(const EvalRun& run, const ErrorPictureSource& pictures
     if (show_confidence) {
       absl::StrAppend(&out, "<td class=\"num\">", absl::StrFormat("%.2f", p.confidence), "</td>");
     }
-    if (p.neighbours.empty()) {
+    if (p.neighbors.empty()) {
       out +=
-          "<td class=\"path\">no neighbour</td><td></td><td class=\"num\"></td>"
+          "<td class=\"path\">no neighbor</td><td></td><td class=\"num\"></td>"
           "<td class=\"num\"></td></tr>\n";
       continue;
     }
-    const EvalNeighbour& n = p.neighbours[0];
+    const EvalNeighbor& n = p.neighbors[0];
     absl::StrAppend(&out, "<td class=\"path\">", TrainingFile(n), "</td><td>", HtmlEscape(n.label),
                     "</td><td class=\"num\">", absl::StrFormat("%.4g", n.distance),
                     "</td><td class=\"num\">", n.sample_id,
@@ -264,15 +264,15 @@ std::string ErrorSections(const EvalRun& run, const ErrorPictureSource& pictures
                     HtmlEscape(p.predicted), "</b><br>", HtmlEscape(p.file), "</p>",
                     PictureOrReason(pics.test_png, pics.test_missing, "the test cloud"),
                     "</div>\n<div class=\"pic\"><p class=\"cap\">nearest training ");
-    if (p.neighbours.empty()) {
+    if (p.neighbors.empty()) {
       absl::StrAppend(&out, "sample: none</p>");
     } else {
-      absl::StrAppend(&out, NeighbourCaption(p.neighbours[0]), "<br>",
-                      TrainingFile(p.neighbours[0]), "</p>");
+      absl::StrAppend(&out, NeighborCaption(p.neighbors[0]), "<br>", TrainingFile(p.neighbors[0]),
+                      "</p>");
     }
     absl::StrAppend(
         &out,
-        PictureOrReason(pics.neighbour_png, pics.neighbour_missing, "the nearest training sample"),
+        PictureOrReason(pics.neighbor_png, pics.neighbor_missing, "the nearest training sample"),
         "</div>\n</div>\n");
   }
   out += "</div>\n";
@@ -306,13 +306,13 @@ ErrorPictureSource ErrorPicturesFromFiles(const ReadOptions& read) {
     } else {
       out.test_missing = absl::StrCat("No picture: ", test.status().message());
     }
-    if (p.neighbours.empty()) {
-      out.neighbour_missing = "No picture: the classifier named no neighbour.";
+    if (p.neighbors.empty()) {
+      out.neighbor_missing = "No picture: the classifier named no neighbor.";
       return out;
     }
-    const EvalNeighbour& n = p.neighbours[0];
+    const EvalNeighbor& n = p.neighbors[0];
     if (n.file.empty()) {
-      out.neighbour_missing =
+      out.neighbor_missing =
           absl::StrCat("No picture: the gallery does not record which file sample ", n.sample_id,
                        " was trained from.");
       return out;
@@ -330,8 +330,8 @@ ErrorPictureSource ErrorPicturesFromFiles(const ReadOptions& read) {
             cloud.status().message());
       }
     }
-    out.neighbour_png = it->second.first;
-    out.neighbour_missing = it->second.second;
+    out.neighbor_png = it->second.first;
+    out.neighbor_missing = it->second.second;
     return out;
   };
 }

@@ -1,7 +1,7 @@
 #ifndef SHAPEID_CLIENT_CLI_EVAL_REPORT_H_
 #define SHAPEID_CLIENT_CLI_EVAL_REPORT_H_
 
-// The HTML report of a labelled evaluation (`shapeid eval --report`): one self-contained page
+// The HTML report of a labeled evaluation (`shapeid eval --report`): one self-contained page
 // rendered from the run and its metrics (client/cli/eval_metrics.h).
 
 #include <cstddef>
@@ -20,8 +20,8 @@ namespace shapeid {
 struct ErrorPictures {
   std::string test_png;
   std::string test_missing;
-  std::string neighbour_png;
-  std::string neighbour_missing;
+  std::string neighbor_png;
+  std::string neighbor_missing;
 };
 using ErrorPictureSource = std::function<ErrorPictures(const EvalPrediction&)>;
 
@@ -43,7 +43,7 @@ std::string RenderEvalHtml(const EvalRun& run, const EvalMetrics& metrics,
 // label, each group in the run's order.
 std::vector<const EvalPrediction*> ReportErrors(const EvalRun& run);
 
-// Pictures made by reading the test file and the nearest neighbour's training file with the
+// Pictures made by reading the test file and the nearest neighbor's training file with the
 // CLI's readers (ReadInputCloud, `read`). A training file met again is not read twice.
 ErrorPictureSource ErrorPicturesFromFiles(const ReadOptions& read);
 

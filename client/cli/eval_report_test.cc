@@ -98,7 +98,7 @@ TEST(EvalReportTest, HtmlCapsTheErrorListAndThePictures) {
   EXPECT_EQ(CountOf(RenderEvalHtml(run, ComputeEvalMetrics(run)), "class=\"pair\""), 0u);
 }
 
-// A run against a server's gallery, one error traced to its neighbours.
+// A run against a server's gallery, one error traced to its neighbors.
 EvalRun GalleryRun() {
   EvalRun run;
   run.mode = "gallery";
@@ -114,8 +114,8 @@ EvalRun GalleryRun() {
   Add(run, "chair", "chair");
   Add(run, "chair", "table");
   run.predictions.back().confidence = 1.0;
-  run.predictions.back().neighbours = {{4711, "table", 0.1234567, 0, "/data/train/table/7.pcd"},
-                                       {12, "chair", 0.5, 2, ""}};
+  run.predictions.back().neighbors = {{4711, "table", 0.1234567, 0, "/data/train/table/7.pcd"},
+                                      {12, "chair", 0.5, 2, ""}};
   return run;
 }
 
@@ -171,14 +171,14 @@ TEST(EvalReportTest, ErrorRowsNameTheNearestSampleAndConfidenceOnlyAboveKOne) {
   EXPECT_THAT(k3, HasSubstr("<th class=\"num\">confidence</th>"));
   EXPECT_THAT(k3, HasSubstr("<td>table</td><td class=\"num\">1.00</td><td class=\"path\">/data/"));
 
-  // A neighbour without a file, and a prediction without neighbours.
-  run.predictions.back().neighbours.erase(run.predictions.back().neighbours.begin());
+  // A neighbor without a file, and a prediction without neighbors.
+  run.predictions.back().neighbors.erase(run.predictions.back().neighbors.begin());
   Add(run, "chair", "unknown");
   const std::string sparse = RenderEvalHtml(run, ComputeEvalMetrics(run));
   EXPECT_THAT(sparse, HasSubstr("<td class=\"path\"><span class=\"muted\">not recorded by the "
                                 "gallery</span></td><td>chair</td><td class=\"num\">0.5</td>"
                                 "<td class=\"num\">12 (view 2)</td></tr>"));
-  EXPECT_THAT(sparse, HasSubstr("<td class=\"path\">no neighbour</td><td></td><td class=\"num\">"
+  EXPECT_THAT(sparse, HasSubstr("<td class=\"path\">no neighbor</td><td></td><td class=\"num\">"
                                 "</td><td class=\"num\"></td></tr>"));
 }
 

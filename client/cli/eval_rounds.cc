@@ -8,7 +8,7 @@
 
 namespace shapeid {
 
-std::vector<int> StratifiedFolds(const std::vector<LabelledFile>& files, int folds, uint64_t seed) {
+std::vector<int> StratifiedFolds(const std::vector<LabeledFile>& files, int folds, uint64_t seed) {
   std::map<std::string, std::vector<size_t>> by_label;
   for (size_t i = 0; i < files.size(); ++i) by_label[files[i].label].push_back(i);
   std::vector<int> fold(files.size(), 0);
@@ -33,19 +33,19 @@ absl::StatusOr<EvalPlan> PlanEval(const std::string& dataset, bool against_galle
   const bool split_layout = HasTrainTestSplit(dataset);
   if (against_gallery) {
     plan.mode = "gallery";
-    absl::StatusOr<std::vector<LabelledFile>> test =
-        LabelledFiles(dataset, split_layout ? Split::kTest : Split::kAll, &plan.unsupported);
+    absl::StatusOr<std::vector<LabeledFile>> test =
+        LabeledFiles(dataset, split_layout ? Split::kTest : Split::kAll, &plan.unsupported);
     if (!test.ok()) return test.status();
     plan.rounds.push_back({{}, std::move(test).value()});
     return plan;
   }
   if (folds == 0 && split_layout) {
     plan.mode = "holdout";
-    absl::StatusOr<std::vector<LabelledFile>> train =
-        LabelledFiles(dataset, Split::kTrain, &plan.unsupported);
+    absl::StatusOr<std::vector<LabeledFile>> train =
+        LabeledFiles(dataset, Split::kTrain, &plan.unsupported);
     if (!train.ok()) return train.status();
-    absl::StatusOr<std::vector<LabelledFile>> test =
-        LabelledFiles(dataset, Split::kTest, &plan.unsupported);
+    absl::StatusOr<std::vector<LabeledFile>> test =
+        LabeledFiles(dataset, Split::kTest, &plan.unsupported);
     if (!test.ok()) return test.status();
     plan.rounds.push_back({std::move(train).value(), std::move(test).value()});
     return plan;
@@ -53,8 +53,8 @@ absl::StatusOr<EvalPlan> PlanEval(const std::string& dataset, bool against_galle
   plan.mode = "kfold";
   const int k = folds == 0 ? 5 : folds;
   if (k < 2) return absl::InvalidArgumentError("--folds must be at least 2");
-  absl::StatusOr<std::vector<LabelledFile>> files =
-      LabelledFiles(dataset, Split::kAll, &plan.unsupported);
+  absl::StatusOr<std::vector<LabeledFile>> files =
+      LabeledFiles(dataset, Split::kAll, &plan.unsupported);
   if (!files.ok()) return files.status();
   if (files->size() < static_cast<size_t>(k)) {
     return absl::InvalidArgumentError(

@@ -15,8 +15,8 @@ namespace shapeid {
 
 // One round: a fresh classifier trained on `train`, then asked about every file of `test`.
 struct EvalRound {
-  std::vector<LabelledFile> train;  // empty against an existing gallery
-  std::vector<LabelledFile> test;
+  std::vector<LabeledFile> train;  // empty against an existing gallery
+  std::vector<LabeledFile> test;
 };
 
 struct EvalPlan {
@@ -26,21 +26,21 @@ struct EvalPlan {
   std::vector<std::string> unsupported;  // the dataset's files in no format shapeid reads
 };
 
-// The rounds for a labelled folder (input_files.h):
+// The rounds for a labeled folder (input_files.h):
 //  - against_gallery: one round, no training, testing DIR/<label>/test/ when every label has
 //    train/ and test/, else every file under DIR/<label>/;
 //  - folds == 0 and DIR/<label>/{train,test}/: one hold-out round;
 //  - otherwise stratified k-fold (folds, or 5 when 0) with StratifiedFolds(seed): round f
 //    tests fold f and trains on the others, every list in the folder's order.
 // InvalidArgument for folds < 2 (other than 0), fewer files than folds or a folder without
-// labelled files; NotFound for a missing folder. All are usage errors: nothing was done.
+// labeled files; NotFound for a missing folder. All are usage errors: nothing was done.
 absl::StatusOr<EvalPlan> PlanEval(const std::string& dataset, bool against_gallery, int folds,
                                   uint64_t seed);
 
 // Stratified fold assignment: within each label, files are shuffled with `seed`
 // (Fisher-Yates over splitmix64, the same on every platform) and dealt round-robin into
 // `folds` folds, so each fold holds ~1/folds of every class. Returns the fold of each file.
-std::vector<int> StratifiedFolds(const std::vector<LabelledFile>& files, int folds, uint64_t seed);
+std::vector<int> StratifiedFolds(const std::vector<LabeledFile>& files, int folds, uint64_t seed);
 
 }  // namespace shapeid
 

@@ -44,9 +44,9 @@ class PlanEvalTest : public ::testing::Test {
   fs::path root_;
 };
 
-std::vector<std::string> Names(const std::vector<LabelledFile>& files) {
+std::vector<std::string> Names(const std::vector<LabeledFile>& files) {
   std::vector<std::string> names;
-  for (const LabelledFile& f : files) {
+  for (const LabeledFile& f : files) {
     names.push_back(absl::StrCat(f.label, ":", fs::path(f.path).filename().string()));
   }
   return names;
@@ -94,7 +94,7 @@ TEST_F(PlanEvalTest, KFoldTestsEveryFileOnceAndTrainsOnTheOthersInFolderOrder) {
   for (const EvalRound& round : plan->rounds) {
     EXPECT_EQ(round.train.size() + round.test.size(), 11u);
     std::set<std::string> in_test;
-    for (const LabelledFile& f : round.test) {
+    for (const LabeledFile& f : round.test) {
       tested.insert(f.path);
       in_test.insert(f.path);
     }
@@ -122,7 +122,7 @@ TEST_F(PlanEvalTest, UsageErrors) {
 }
 
 TEST(StratifiedFoldsTest, EveryFoldGetsItsShareOfEveryClassAndTheSeedMatters) {
-  std::vector<LabelledFile> files;
+  std::vector<LabeledFile> files;
   for (int i = 0; i < 10; ++i) files.push_back({absl::StrCat("a", i), "a"});
   for (int i = 0; i < 5; ++i) files.push_back({absl::StrCat("b", i), "b"});
   const std::vector<int> folds = StratifiedFolds(files, 5, 42);

@@ -54,7 +54,7 @@ class ServerEvalBackend final : public EvalBackend {
 
   std::string target() const override { return context_.client.target; }
 
-  EvalStep Train(int round, const std::vector<LabelledFile>& train, Progress& progress,
+  EvalStep Train(int round, const std::vector<LabeledFile>& train, Progress& progress,
                  EvalRun& run) override {
     temporary_.reset();  // the previous round's gallery goes first
     const uint32_t k = options_.create.k;
@@ -84,11 +84,11 @@ class ServerEvalBackend final : public EvalBackend {
     return {};
   }
 
-  EvalStep Test(int round, const std::vector<LabelledFile>& test, Progress& progress,
+  EvalStep Test(int round, const std::vector<LabeledFile>& test, Progress& progress,
                 EvalRun& run) override {
     std::vector<std::string> paths;
     paths.reserve(test.size());
-    for (const LabelledFile& f : test) paths.push_back(f.path);
+    for (const LabeledFile& f : test) paths.push_back(f.path);
     Client::ClassifyOptions call;
     call.k = options_.create.k;
     const ClassifyOutcome classified = ClassifyFiles(
@@ -102,7 +102,7 @@ class ServerEvalBackend final : public EvalBackend {
           p.seconds = seconds;
           p.fold = round;
           for (const v1::Neighbor& n : response.neighbors()) {
-            p.neighbours.push_back({n.sample_id(), n.label(), n.distance(), n.view(), n.source()});
+            p.neighbors.push_back({n.sample_id(), n.label(), n.distance(), n.view(), n.source()});
           }
           run.predictions.push_back(std::move(p));
         },

@@ -102,7 +102,7 @@ absl::StatusOr<ReadResult> ReadInputCloud(const std::string& path, const ReadOpt
       path == "-" ? "standard input" : path, ": point ", first, " has a non-finite coordinate (",
       std::string(1, "xyz"[axis]), " is ", p[axis], "); ", read->non_finite_points, " of ",
       read->cloud.size(),
-      " points are non-finite, as an organised depth-camera cloud marks missing pixels; "
+      " points are non-finite, as an organized depth-camera cloud marks missing pixels; "
       "--drop-nonfinite removes them"));
 }
 
@@ -133,8 +133,8 @@ absl::StatusOr<std::vector<std::string>> ExpandInputs(const std::vector<std::str
   return files;
 }
 
-absl::StatusOr<std::vector<LabelledFile>> LabelledFiles(const std::string& dir, Split split,
-                                                        std::vector<std::string>* unsupported) {
+absl::StatusOr<std::vector<LabeledFile>> LabeledFiles(const std::string& dir, Split split,
+                                                      std::vector<std::string>* unsupported) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) {
     if (!fs::exists(dir, ec)) {
@@ -145,7 +145,7 @@ absl::StatusOr<std::vector<LabelledFile>> LabelledFiles(const std::string& dir, 
   }
   const std::vector<fs::path> labels = LabelFolders(dir, ec);
   if (ec) return absl::UnknownError(absl::StrCat(dir, ": ", ec.message()));
-  std::vector<LabelledFile> files;
+  std::vector<LabeledFile> files;
   std::vector<std::string> others;
   for (const fs::path& label_dir : labels) {
     fs::path root = label_dir;
@@ -165,7 +165,7 @@ absl::StatusOr<std::vector<LabelledFile>> LabelledFiles(const std::string& dir, 
   if (files.empty()) {
     const char* layout = split == Split::kTest ? "<label>/test/<files>" : "<label>/<files>";
     return absl::InvalidArgumentError(
-        absl::StrCat(dir, ": no labelled point-cloud file found; expected the layout ", dir, "/",
+        absl::StrCat(dir, ": no labeled point-cloud file found; expected the layout ", dir, "/",
                      layout, " (one sub-folder per label)",
                      others.empty() ? "" : absl::StrCat("; ", UnsupportedFilesMessage(others))));
   }

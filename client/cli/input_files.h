@@ -2,7 +2,7 @@
 #define SHAPEID_CLIENT_CLI_INPUT_FILES_H_
 
 // Turning the paths on a command line into the files a batch works on: plain lists, and
-// labelled folders (one sub-folder per class, the layout of ModelNet and of most datasets).
+// labeled folders (one sub-folder per class, the layout of ModelNet and of most datasets).
 
 #include <cstdio>
 #include <string>
@@ -41,30 +41,30 @@ std::string UnsupportedFilesMessage(const std::vector<std::string>& unsupported)
 bool ReportUnsupportedFiles(std::FILE* err, absl::string_view command,
                             const std::vector<std::string>& unsupported, bool skip);
 
-// ReadPointCloud for the commands: as it, and a cloud with non-finite points (an organised
+// ReadPointCloud for the commands: as it, and a cloud with non-finite points (an organized
 // cloud's missing pixels) is refused here, before any server sees it, with the count and
 // the flag that removes them (--drop-nonfinite), unless options.drop_non_finite.
 absl::StatusOr<ReadResult> ReadInputCloud(const std::string& path, const ReadOptions& options);
 
-struct LabelledFile {
+struct LabeledFile {
   std::string path;
   std::string label;
 };
 
-// Which part of a labelled folder to take.
+// Which part of a labeled folder to take.
 enum class Split {
   kAll,    // every point-cloud file under DIR/<label>/
   kTrain,  // DIR/<label>/train/ where it exists, else every file under DIR/<label>/
   kTest,   // DIR/<label>/test/ only
 };
 
-// The files of a labelled folder: each sub-folder of `dir` is a label (hidden ones skipped)
+// The files of a labeled folder: each sub-folder of `dir` is a label (hidden ones skipped)
 // and holds its clouds, at any depth. Sorted by label, then path. InvalidArgument when `dir`
 // has no sub-folder or no file at all (with the layout expected in the message), NotFound
 // when it does not exist. A label folder without files for `split` is skipped silently; the
 // caller sees it missing from the result. Files in formats no reader knows go to
 // `unsupported` (when given), as for ExpandInputs.
-absl::StatusOr<std::vector<LabelledFile>> LabelledFiles(
+absl::StatusOr<std::vector<LabeledFile>> LabeledFiles(
     const std::string& dir, Split split, std::vector<std::string>* unsupported = nullptr);
 
 // True when every label folder of `dir` has both a train/ and a test/ sub-folder (hold-out

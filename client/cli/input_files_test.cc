@@ -75,15 +75,15 @@ TEST_F(InputFilesTest, UnsupportedFilesMessageCountsNamesAndGivesTheFlag) {
   const auto none = ExpandInputs({P("mix")});
   EXPECT_TRUE(absl::IsInvalidArgument(none.status()));
   EXPECT_THAT(none.status().message(), HasSubstr("a.e57"));
-  Touch("labelled/chair/a.e57");
-  const auto labelled = LabelledFiles(P("labelled"), Split::kAll);
-  EXPECT_TRUE(absl::IsInvalidArgument(labelled.status()));
-  EXPECT_THAT(labelled.status().message(),
+  Touch("labeled/chair/a.e57");
+  const auto labeled = LabeledFiles(P("labeled"), Split::kAll);
+  EXPECT_TRUE(absl::IsInvalidArgument(labeled.status()));
+  EXPECT_THAT(labeled.status().message(),
               HasSubstr("1 file is in no format shapeid reads and was not processed"));
 }
 
 TEST_F(InputFilesTest, NonFinitePointsNameTheFlagThatDropsThem) {
-  const fs::path path = root_ / "organised.xyz";
+  const fs::path path = root_ / "organized.xyz";
   std::ofstream(path) << "1 2 3\nnan nan nan\n4 5 6\n7 8 9\nnan 0 0\n";
   const absl::StatusOr<ReadResult> refused = ReadInputCloud(path.string(), ReadOptions());
   ASSERT_FALSE(refused.ok());
@@ -122,19 +122,19 @@ TEST_F(InputFilesTest, StandardInputNeedsAnInputFormat) {
   EXPECT_TRUE(CheckStandardInputFormat({"-"}, options).ok());
 }
 
-TEST_F(InputFilesTest, LabelledFoldersWithAndWithoutTrainTestSplit) {
+TEST_F(InputFilesTest, LabeledFoldersWithAndWithoutTrainTestSplit) {
   Touch("flat/chair/1.pcd");
   Touch("flat/chair/2.pcd");
   Touch("flat/table/deep/3.pcd");
   EXPECT_FALSE(HasTrainTestSplit(P("flat")));
-  auto flat = LabelledFiles(P("flat"), Split::kAll);
+  auto flat = LabeledFiles(P("flat"), Split::kAll);
   ASSERT_TRUE(flat.ok()) << flat.status();
   ASSERT_EQ(flat->size(), 3u);
   EXPECT_EQ((*flat)[0].label, "chair");
   EXPECT_EQ((*flat)[2].label, "table");
   EXPECT_EQ((*flat)[2].path, P("flat/table/deep/3.pcd"));
   // No test/ folders: the test split is empty, which is an error naming the layout.
-  const auto no_test = LabelledFiles(P("flat"), Split::kTest);
+  const auto no_test = LabeledFiles(P("flat"), Split::kTest);
   EXPECT_TRUE(absl::IsInvalidArgument(no_test.status()));
   EXPECT_THAT(no_test.status().message(), HasSubstr("<label>/test/"));
 
@@ -144,21 +144,21 @@ TEST_F(InputFilesTest, LabelledFoldersWithAndWithoutTrainTestSplit) {
   Touch("split/table/test/4.pcd");
   Touch("split/table/test/5.pcd");
   EXPECT_TRUE(HasTrainTestSplit(P("split")));
-  auto train = LabelledFiles(P("split"), Split::kTrain);
-  auto test = LabelledFiles(P("split"), Split::kTest);
+  auto train = LabeledFiles(P("split"), Split::kTrain);
+  auto test = LabeledFiles(P("split"), Split::kTest);
   ASSERT_TRUE(train.ok() && test.ok());
   EXPECT_EQ(train->size(), 2u);
   EXPECT_EQ(test->size(), 3u);
   EXPECT_EQ((*test)[2].label, "table");
-  EXPECT_EQ(LabelledFiles(P("split"), Split::kAll)->size(), 5u);
+  EXPECT_EQ(LabeledFiles(P("split"), Split::kAll)->size(), 5u);
 }
 
-TEST_F(InputFilesTest, LabelledFilesErrors) {
-  EXPECT_TRUE(absl::IsNotFound(LabelledFiles(P("missing"), Split::kAll).status()));
+TEST_F(InputFilesTest, LabeledFilesErrors) {
+  EXPECT_TRUE(absl::IsNotFound(LabeledFiles(P("missing"), Split::kAll).status()));
   Touch("file.pcd");
-  EXPECT_TRUE(absl::IsInvalidArgument(LabelledFiles(P("file.pcd"), Split::kAll).status()));
+  EXPECT_TRUE(absl::IsInvalidArgument(LabeledFiles(P("file.pcd"), Split::kAll).status()));
   Touch("nolabels/a.pcd");  // files directly in the root: no label folders
-  EXPECT_TRUE(absl::IsInvalidArgument(LabelledFiles(P("nolabels"), Split::kAll).status()));
+  EXPECT_TRUE(absl::IsInvalidArgument(LabeledFiles(P("nolabels"), Split::kAll).status()));
 }
 
 }  // namespace

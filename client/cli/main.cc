@@ -69,7 +69,7 @@ constexpr char kMainFooter[] =
 // How the commands that read files read them.
 void AddReadFlags(CLI::App* command, shapeid::ReadOptions* read, bool* skip_unsupported) {
   command->add_flag("--drop-nonfinite", read->drop_non_finite,
-                    "Remove points with NaN or infinite coordinates (organised PCD clouds) "
+                    "Remove points with NaN or infinite coordinates (organized PCD clouds) "
                     "instead of failing on them");
   command
       ->add_option("--mesh-points", read->sample_points,
@@ -118,7 +118,7 @@ void AddSensorFrameFlags(CLI::App* command, shapeid::SensorFrameFlags* flags) {
 void AddGalleryKnobs(CLI::App* command, shapeid::GalleryCreateOptions* create) {
   command->add_option("--spec", create->spec,
                       "Descriptor spec, KIND[:param=value,...] (default: the server's, dfsd)");
-  command->add_option("--k", create->k, "Neighbours that vote (default 1)")
+  command->add_option("--k", create->k, "Neighbors that vote (default 1)")
       ->check(CLI::Range(1u, 1000000u));
   command->add_option("--weighting", create->weighting, "Votes: uniform or distance")
       ->check(CLI::IsMember({"uniform", "distance"}));
@@ -316,7 +316,7 @@ int main(int argc, char** argv) {
   // train
   shapeid::TrainOptions train;
   CLI::App* train_cmd = app.add_subcommand(
-      "train", "Add labelled clouds to a gallery: --label L FILE..., or labelled folders");
+      "train", "Add labeled clouds to a gallery: --label L FILE..., or labeled folders");
   train_cmd->fallthrough();
   train_cmd->add_option("--gallery,-g", train.gallery, "Gallery to add to")->required();
   train_cmd->add_option("--label,-l", train.label,
@@ -332,7 +332,7 @@ int main(int argc, char** argv) {
   train_cmd
       ->add_option("--metadata", train.metadata,
                    "KEY=VALUE kept with every sample of this call (repeatable), beside its "
-                   "file's path; shown with neighbours and by `gallery samples`")
+                   "file's path; shown with neighbors and by `gallery samples`")
       ->type_name("KEY=VALUE")
       ->allow_extra_args(false);  // one value per --metadata: the files after it stay files
   train_cmd->add_option("PATH", train.paths, "Files or folders")->required()->type_name("");
@@ -343,7 +343,7 @@ int main(int argc, char** argv) {
       app.add_subcommand("classify", "Classify each cloud: label, confidence, nearest samples");
   classify_cmd->fallthrough();
   classify_cmd->add_option("--gallery,-g", classify.gallery, "Gallery to search")->required();
-  classify_cmd->add_option("--k", classify.call.k, "Neighbours that vote (default: the gallery's)")
+  classify_cmd->add_option("--k", classify.call.k, "Neighbors that vote (default: the gallery's)")
       ->check(CLI::Range(1u, 1000000u));
   classify_cmd->add_flag("--exact", classify.call.exact,
                          "Search every stored vector, even where the server searches the gallery "
@@ -358,7 +358,7 @@ int main(int argc, char** argv) {
   // eval
   shapeid::EvalOptions eval;
   CLI::App* eval_cmd = app.add_subcommand(
-      "eval", "Accuracy on a labelled folder: hold-out, k-fold, or against a gallery");
+      "eval", "Accuracy on a labeled folder: hold-out, k-fold, or against a gallery");
   eval_cmd->fallthrough();
   eval_cmd->add_option("--gallery,-g", eval.gallery,
                        "Test against this existing gallery (no training; server only)");
@@ -367,7 +367,7 @@ int main(int argc, char** argv) {
                      "the same results; --jobs threads");
   eval_cmd
       ->add_option("--test,DIR", eval.dataset,
-                   "Labelled folder: <label>/{train,test}/ (hold-out) or <label>/ "
+                   "Labeled folder: <label>/{train,test}/ (hold-out) or <label>/ "
                    "(k-fold)")
       ->required();
   eval_cmd->add_option("--folds", eval.folds, "Stratified k-fold cross-validation with K folds")
@@ -418,7 +418,7 @@ int main(int argc, char** argv) {
   // views
   shapeid::ViewsOptions views;
   CLI::App* views_cmd = app.add_subcommand(
-      "views", "Simulate depth-sensor scans of meshes: a labelled <mesh>/{train,test}/ dataset");
+      "views", "Simulate depth-sensor scans of meshes: a labeled <mesh>/{train,test}/ dataset");
   views_cmd->fallthrough();
   shapeid::AddViewsFlags(views_cmd, &views);
 

@@ -88,7 +88,7 @@ Table WorkTable(const v1::ServerStats& stats) {
   return table;
 }
 
-// As the server reads it (server/logger.cc): any case.
+// As the server reads it (server/ops/logger.cc): any case.
 bool KnownLevel(const std::string& level) {
   const std::string lower = absl::AsciiStrToLower(level);
   return lower == "debug" || lower == "info" || lower == "warning" || lower == "error";

@@ -304,7 +304,7 @@ absl::Status WriteColoredFrame(const std::string& path, const PointCloud& frame,
 void AddSceneFlags(CLI::App* command, SceneCommandOptions* options) {
   command->add_option("--gallery,-g", options->gallery, "Gallery to classify the objects against")
       ->required();
-  command->add_option("--k", options->call.k, "Neighbours that vote (default: the gallery's)")
+  command->add_option("--k", options->call.k, "Neighbors that vote (default: the gallery's)")
       ->check(CLI::Range(1u, 1000000u));
   command->add_flag("--exact", options->call.exact,
                     "Search every stored vector, even where the server searches the gallery "

@@ -24,7 +24,7 @@ struct SceneCommandOptions {
   Client::SceneOptions call;
   std::string region;  // --region x0,y0,z0,x1,y1,z1 as typed; empty: the whole frame
   // How files become frames. Non-finite points are kept unless read.drop_non_finite, so that
-  // indices and colors are the file's points; coordinates are never recentred (answers are
+  // indices and colors are the file's points; coordinates are never recentered (answers are
   // in the file's coordinates).
   ReadOptions read;
   bool skip_unsupported = false;
@@ -49,7 +49,7 @@ inline constexpr uint8_t kSceneBackground = 0;  // pictures only: white
 inline constexpr uint8_t kSceneViewFrame = 1;   // pictures only: each view's border
 inline constexpr uint8_t kScenePlane = 2;       // on a removed plane: grey
 inline constexpr uint8_t kSceneUnassigned = 3;  // non-finite, outside the region, noise: dark
-inline constexpr uint8_t kSceneUnknown = 4;     // an object labelled unknown: magenta
+inline constexpr uint8_t kSceneUnknown = 4;     // an object labeled unknown: magenta
 inline constexpr uint8_t kSceneFirstLabel = 5;  // labels' colors from here
 inline constexpr int kSceneLabelColors = 9;
 extern const std::array<std::array<uint8_t, 3>, kSceneFirstLabel + kSceneLabelColors> kScenePalette;

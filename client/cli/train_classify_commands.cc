@@ -66,7 +66,7 @@ int RunTrain(const TrainOptions& options, const CliContext& context) {
       return kExitUsage;
     }
   }
-  std::vector<LabelledFile> files;
+  std::vector<LabeledFile> files;
   std::vector<std::string> unsupported;
   if (!options.label.empty()) {
     if (absl::Status format = CheckStandardInputFormat(options.paths, options.batch.read);
@@ -82,13 +82,13 @@ int RunTrain(const TrainOptions& options, const CliContext& context) {
     for (std::string& path : *paths) files.push_back({std::move(path), options.label});
   } else {
     for (const std::string& dir : options.paths) {
-      absl::StatusOr<std::vector<LabelledFile>> found =
-          LabelledFiles(dir, Split::kTrain, &unsupported);
+      absl::StatusOr<std::vector<LabeledFile>> found =
+          LabeledFiles(dir, Split::kTrain, &unsupported);
       if (!found.ok()) {
         PrintError(context.err, "train",
                    absl::Status(found.status().code(),
                                 absl::StrCat(found.status().message(),
-                                             " (or give --label for unlabelled files)")));
+                                             " (or give --label for unlabeled files)")));
         return kExitUsage;
       }
       files.insert(files.end(), found->begin(), found->end());

@@ -15,7 +15,7 @@ namespace shapeid {
 struct TrainOptions {
   std::string gallery;
   // Non-empty: every file given (and every cloud under a folder given) gets this label.
-  // Empty: each path is a labelled folder, one sub-folder per label (<label>/train/ is used
+  // Empty: each path is a labeled folder, one sub-folder per label (<label>/train/ is used
   // where it exists, as in ModelNet's layout).
   std::string label;
   std::vector<std::string> paths;
@@ -28,7 +28,7 @@ int RunTrain(const TrainOptions& options, const CliContext& context);
 struct ClassifyOptions {
   std::string gallery;
   Client::ClassifyOptions call;  // k (0: the gallery's) and exact
-  int top = 3;                   // neighbours shown per file in table and csv output
+  int top = 3;                   // neighbors shown per file in table and csv output
   std::vector<std::string> paths;
   BatchOptions batch;
 };

@@ -134,7 +134,7 @@ absl::Status RenderSet(ScanSimulator& simulator, const ViewsOptions& options, in
   return absl::OkStatus();
 }
 
-// One scene model per file: its surface sampled as for views, labelled by its file name.
+// One scene model per file: its surface sampled as for views, labeled by its file name.
 absl::StatusOr<SceneObjectModel> SceneModel(const std::string& file, const ViewsOptions& options,
                                             SceneRole role) {
   ReadOptions read;

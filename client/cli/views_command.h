@@ -2,7 +2,7 @@
 #define SHAPEID_CLIENT_CLI_VIEWS_COMMAND_H_
 
 // `shapeid views`: turns 3D models into the clouds a robot's depth sensor would see of them,
-// as a labelled dataset for train / classify / eval:
+// as a labeled dataset for train / classify / eval:
 //   OUT/<model>/train/view-00.pcd ...   (views from one set of directions)
 //   OUT/<model>/test/view-00.pcd ...    (views from directions between those, other noise)
 // The label is the model's file name without extension. With --scenes N it also composes N

@@ -2,7 +2,7 @@
 //
 // Readings of points the spec and the dissertation leave open:
 //  - Comparison. "w_ij <= T" is decided once, in squared form: the pair's float squared
-//    distance (dx*dx + dy*dy) + dz*dz on the normalised coordinates (bounding-box centre
+//    distance (dx*dx + dy*dy) + dz*dz on the normalized coordinates (bounding-box center
 //    subtracted, scaled by a power of two) against the largest float <= T*T*d_max^2 (double).
 //    d_max^2 is the largest float squared distance, so T = 1 joins the farthest pair exactly.
 //    Every kernel (scalar, AVX2, AVX-512) computes the same floats and makes the same exact
@@ -24,7 +24,7 @@
 //    60% of every cloud; here, like the box filter, it only runs when n > max_points and
 //    keeps exactly max_points points.
 //
-// This file: thresholds, normalisation, the features from the pair passes, the spec and the
+// This file: thresholds, normalization, the features from the pair passes, the spec and the
 // registry entry. The pair passes are in cnsd_kernels.cc, downsampling in cnsd_downsample.cc.
 #include "core/descriptors/cnsd.h"
 
@@ -73,17 +73,17 @@ std::vector<float> NormalizedXyz(const PointCloud& cloud) {
       hi[a] = std::max(hi[a], static_cast<double>(xyz[3 * i + a]));
     }
   }
-  double centre[3];
+  double center[3];
   double radius = 0;
   for (int a = 0; a < 3; ++a) {
-    centre[a] = 0.5 * (lo[a] + hi[a]);
-    radius = std::max({radius, hi[a] - centre[a], centre[a] - lo[a]});
+    center[a] = 0.5 * (lo[a] + hi[a]);
+    radius = std::max({radius, hi[a] - center[a], center[a] - lo[a]});
   }
   int exponent = 0;
   if (radius > 0) std::frexp(radius, &exponent);  // radius = f * 2^exponent, f in [0.5, 1)
   std::vector<float> out(3 * n);
   for (size_t i = 0; i < 3 * n; ++i) {
-    out[i] = static_cast<float>(std::ldexp(xyz[i] - centre[i % 3], -exponent));
+    out[i] = static_cast<float>(std::ldexp(xyz[i] - center[i % 3], -exponent));
   }
   return out;
 }
@@ -114,7 +114,7 @@ absl::Status ComputeFeatures(const PointCloud& cloud, absl::Span<const double> t
   const float max_d2 = MaxSquaredDistance(xyz, level);
   if (!(max_d2 > 0)) {
     return absl::InvalidArgumentError(
-        absl::StrCat("cnsd: all ", n, " points coincide, so no distance can be normalised"));
+        absl::StrCat("cnsd: all ", n, " points coincide, so no distance can be normalized"));
   }
 
   std::vector<float> bounds(num_thresholds);
@@ -182,7 +182,7 @@ class CnsdDescriptor final : public Descriptor {
     }
     DescribeCost cost;
     cost.cpu = cost_model::Nanoseconds(ns);
-    // The reduced cloud and the normalised coordinates stay while the pair passes run.
+    // The reduced cloud and the normalized coordinates stay while the pair passes run.
     const size_t downsampling = !downsampled ? 0
                                 : downsample_ == Downsample::kVoxel
                                     ? cnsd_internal::VoxelDownsampleBytes(num_points, max_points_)

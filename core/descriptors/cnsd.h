@@ -28,8 +28,8 @@ namespace cnsd_internal {
 // of t_end is snapped to t_end, so t_end = 1 always means "every pair".
 std::vector<double> Thresholds(double t_start, double t_end, double t_step);
 
-// The coordinates the pair loop works on: each point minus the bounding-box centre, times the
-// power of two that brings the largest centred coordinate into [0.5, 1), rounded to float.
+// The coordinates the pair loop works on: each point minus the bounding-box center, times the
+// power of two that brings the largest centered coordinate into [0.5, 1), rounded to float.
 // Interleaved xyz like PointCloud. Exact under permutation and power-of-two scaling.
 std::vector<float> NormalizedXyz(const PointCloud& cloud);
 

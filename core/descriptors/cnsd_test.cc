@@ -38,7 +38,7 @@ std::vector<float> Features(const PointCloud& cloud, const std::vector<double>& 
 }
 
 // The definition, literally: an explicit n x n matrix of squared distances on the same
-// normalised floats and the same squared bounds, and a direct count per threshold.
+// normalized floats and the same squared bounds, and a direct count per threshold.
 std::vector<float> BruteForce(const PointCloud& cloud, const std::vector<double>& thresholds) {
   const std::vector<float> xyz = ci::NormalizedXyz(cloud);
   const size_t n = cloud.size();

@@ -86,7 +86,7 @@ bool HardwarePopcountAvailable();
 // The 13 co-occurrence matrices of `grid`. Both paths give identical counts.
 AllCounts CountCooccurrences(const PackedGrid& grid, PopcountPath path);
 
-// The 7 features of each direction's normalised matrix, in double, written as floats into
+// The 7 features of each direction's normalized matrix, in double, written as floats into
 // `out` (kDimension values, direction-major).
 void ComputeFeatures(const AllCounts& counts, absl::Span<float> out);
 

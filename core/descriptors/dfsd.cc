@@ -98,9 +98,9 @@ class DfsdDescriptor : public Descriptor {
             alpha * std::cos(kPi * (2 * i + 1) * a / (2.0 * g));
       }
     }
-    centres_.resize(static_cast<size_t>(g));
+    centers_.resize(static_cast<size_t>(g));
     for (int i = 0; i < g; ++i) {
-      centres_[static_cast<size_t>(i)] = static_cast<float>((2.0 * i + 1.0) / g - 1.0);
+      centers_[static_cast<size_t>(i)] = static_cast<float>((2.0 * i + 1.0) / g - 1.0);
     }
   }
 
@@ -121,7 +121,7 @@ class DfsdDescriptor : public Descriptor {
                      kNsPerPointRow = 0.3, kSlabbedPoints = 5e6;
     // Smoothing: finding each kept point's k nearest (the candidates grow with k), and one
     // pass to reduce a large cloud.
-    constexpr double kNsPerSmoothedPoint = 1000, kNsPerNeighbour = 50, kNsPerReducedPoint = 5;
+    constexpr double kNsPerSmoothedPoint = 1000, kNsPerNeighbor = 50, kNsPerReducedPoint = 5;
     // axes, pca, box, upright; the second for each kSlabbedPoints beyond the first.
     constexpr double kNsPerFramedPoint[] = {0, 25, 220, 75};
     constexpr double kNsPerSlabbedPoint[] = {0, 0, 225, 165};
@@ -141,9 +141,9 @@ class DfsdDescriptor : public Descriptor {
     const double frame_ns = kNsPerFramedPoint[frame] +
                             kNsPerSlabbedPoint[frame] *
                                 std::max(0.0, static_cast<double>(described) / kSlabbedPoints - 1);
-    const double neighbours = std::max(static_cast<double>(kMinSmoothingNeighbours),
-                                       options_.smooth * static_cast<double>(described));
-    const double smooth_ns = smooth ? (kNsPerSmoothedPoint + kNsPerNeighbour * neighbours) *
+    const double neighbors = std::max(static_cast<double>(kMinSmoothingNeighbors),
+                                      options_.smooth * static_cast<double>(described));
+    const double smooth_ns = smooth ? (kNsPerSmoothedPoint + kNsPerNeighbor * neighbors) *
                                               static_cast<double>(described) +
                                           kNsPerReducedPoint * static_cast<double>(n)
                                     : 0;
@@ -157,7 +157,7 @@ class DfsdDescriptor : public Descriptor {
     const size_t t = static_cast<size_t>(std::min(options_.order, g));
     const size_t kernel = 3 * static_cast<size_t>(g) * chunk * sizeof(float)  // tables
                           + 3 * chunk * sizeof(double)                        // coordinates
-                          + 2 * chunk * sizeof(float)  // normalised, the kernel's x-y sums
+                          + 2 * chunk * sizeof(float)  // normalized, the kernel's x-y sums
                           + cells * (sizeof(float) + sizeof(double))  // squared, field
                           + (static_cast<size_t>(g) * g * t + g * t * t) * sizeof(double);
     const size_t variants = HasPoseVariants(options_.frame)
@@ -275,7 +275,7 @@ class DfsdDescriptor : public Descriptor {
     std::fill(tables.get(), tables.get() + 3 * static_cast<size_t>(g) * stride, kFarSquared);
     std::vector<double> coords(3 * chunk);
     double* const coord[3] = {coords.data(), coords.data() + chunk, coords.data() + 2 * chunk};
-    std::vector<float> normalised(chunk);
+    std::vector<float> normalized(chunk);
     std::vector<float> squared(cells);
     std::vector<double> field(cells);
     size_t written = 0;
@@ -291,7 +291,7 @@ class DfsdDescriptor : public Descriptor {
           const double half = half_extent[a];
           const double scale = 1.0 / (isotropic || half == 0 ? largest_half : half);
           for (size_t p = 0; p < count; ++p) {
-            normalised[p] = static_cast<float>(coord[a][p] * scale);
+            normalized[p] = static_cast<float>(coord[a][p] * scale);
           }
           // Row by row, so each row is one contiguous loop the compiler vectorises. A last,
           // shorter chunk leaves the previous chunk's values past `count` (this field's: a
@@ -299,9 +299,9 @@ class DfsdDescriptor : public Descriptor {
           // they cannot change a minimum.
           for (int i = 0; i < g; ++i) {
             float* row = tables.get() + (static_cast<size_t>(a) * g + i) * stride;
-            const float centre = centres_[static_cast<size_t>(i)];
+            const float center = centers_[static_cast<size_t>(i)];
             for (size_t p = 0; p < count; ++p) {
-              const float d = centre - normalised[p];
+              const float d = center - normalized[p];
               row[p] = d * d;
             }
           }
@@ -376,7 +376,7 @@ class DfsdDescriptor : public Descriptor {
   std::vector<Frequency> kept_;
   std::vector<Pose> poses_;      // frames with pose variants (box, upright) only
   std::vector<double> cosines_;  // [frequency][cell index]
-  std::vector<float> centres_;   // cell centre coordinates in [-1, 1]
+  std::vector<float> centers_;   // cell center coordinates in [-1, 1]
 };
 
 absl::StatusOr<std::unique_ptr<Descriptor>> CreateFromSpec(const DescriptorSpec& filled) {
@@ -398,7 +398,7 @@ absl::StatusOr<std::unique_ptr<Descriptor>> CreateFromSpec(const DescriptorSpec&
 
 void PoseMap(const DfsdOptions& options, const std::array<int, 3>& axis_of, int flips,
              std::vector<int>* source, std::vector<float>* sign) {
-  // Reversing an axis maps cell i to G - 1 - i (the grid is centred on the box), which
+  // Reversing an axis maps cell i to G - 1 - i (the grid is centered on the box), which
   // multiplies the cosine coefficient of frequency a along it by (-1)^a; reordering axes
   // reorders frequencies. a + b + c is unchanged, so every frequency of the pose is kept.
   const std::vector<Frequency> kept = KeptFrequencies(options.grid, options.order);

@@ -66,7 +66,7 @@ struct DfsdOptions {
   // turned to +z up gives with up=z: the axes are permuted, never resampled.
   enum class Up { kPlusZ, kPlusY, kPlusX, kMinusZ, kMinusY, kMinusX };
   Up up = Up::kPlusZ;
-  // Which normalisations of the bounding box get a field.
+  // Which normalizations of the bounding box get a field.
   enum class Fields {
     kBoth,         // isotropic then anisotropic: shape and proportions, each seen both ways
     kIsotropic,    // one scale for all axes: keeps the proportions
@@ -112,7 +112,7 @@ void WriteSizeBlock(const Eigen::Vector3d& extent, double weight, float* out);
 
 // How the descriptor changes when the object is described in another pose of its frame:
 // new axis i is old axis axis_of[i] (a permutation of 0, 1, 2), reversed (about the box
-// centre) where bit i of `flips` is set. The new descriptor is
+// center) where bit i of `flips` is set. The new descriptor is
 // value[q] = sign[q] * old[source[q]]: no recomputation.
 void PoseMap(const DfsdOptions& options, const std::array<int, 3>& axis_of, int flips,
              std::vector<int>* source, std::vector<float>* sign);

@@ -46,9 +46,9 @@ Eigen::Matrix3d UpBasis(DfsdOptions::Up up) {
 // The cloud's points less the centroid, in double, a chunk at a time: the columns that the
 // whole cloud's 3 x n matrix had (same expression; chunks start at even columns, so each
 // column keeps its 16-byte alignment).
-class CentredChunks {
+class CenteredChunks {
  public:
-  CentredChunks(const PointCloud& cloud, const Eigen::Vector3d& centroid)
+  CenteredChunks(const PointCloud& cloud, const Eigen::Vector3d& centroid)
       : cloud_(cloud), centroid_(centroid) {}
 
   size_t size() const { return cloud_.size(); }
@@ -100,8 +100,8 @@ struct RowRange {
   }
 };
 
-// Volume of the box around the centred points along the columns of `axes`.
-double BoxVolume(CentredChunks& chunks, const Eigen::Matrix3d& axes) {
+// Volume of the box around the centered points along the columns of `axes`.
+double BoxVolume(CenteredChunks& chunks, const Eigen::Matrix3d& axes) {
   RowRange range;
   chunks.ForEach([&](size_t, const Eigen::Matrix3Xd& d) {
     const Eigen::Matrix3Xd q = axes.transpose() * d;
@@ -110,12 +110,12 @@ double BoxVolume(CentredChunks& chunks, const Eigen::Matrix3d& axes) {
   return range.Volume();
 }
 
-// Orders the first `free` columns of `axes` by the extent of the centred points along them,
+// Orders the first `free` columns of `axes` by the extent of the centered points along them,
 // largest first (stable: equal extents keep their order), and points each of them to the
 // side where the cubed coordinates sum positive; later columns stay as they are, with an
 // infinite skewness (never a guess). `skewness` gets |third moment| / second moment^1.5 per
 // resulting axis. Two passes: extents, then moments.
-Eigen::Matrix3d OrderAndSign(const Eigen::Matrix3d& axes, CentredChunks& chunks, int free,
+Eigen::Matrix3d OrderAndSign(const Eigen::Matrix3d& axes, CenteredChunks& chunks, int free,
                              Eigen::Vector3d* skewness) {
   RowRange range;
   chunks.ForEach([&](size_t, const Eigen::Matrix3Xd& d) {
@@ -167,7 +167,7 @@ Eigen::Matrix3d OrderAndSign(const Eigen::Matrix3d& axes, CentredChunks& chunks,
 Eigen::Matrix3d BoxAxes(const PointCloud& cloud, const Eigen::Vector3d& centroid,
                         size_t hull_candidates, Eigen::Vector3d* skewness) {
   const size_t n = cloud.size();
-  CentredChunks chunks(cloud, centroid);
+  CenteredChunks chunks(cloud, centroid);
   ScatterSum scatter(n);
   chunks.ForEach([&](size_t, const Eigen::Matrix3Xd& d) { scatter.Add(d); });
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter.Sum());
@@ -246,7 +246,7 @@ Eigen::Matrix3d BoxAxes(const PointCloud& cloud, const Eigen::Vector3d& centroid
 Eigen::Matrix3d UprightAxes(const PointCloud& cloud, const Eigen::Vector3d& centroid,
                             DfsdOptions::Up up, size_t hull_candidates, Eigen::Vector3d* skewness) {
   const Eigen::Matrix3d basis = UpBasis(up);
-  CentredChunks chunks(cloud, centroid);
+  CenteredChunks chunks(cloud, centroid);
   StreamedHull hull(cloud.size(), hull_candidates);
   std::vector<Eigen::Vector2d> projected(std::min(cloud.size(), kFramePassPoints));
   // The basis holds one signed 1 per column: these products are exact.
@@ -374,7 +374,7 @@ double EigenOrderSum::Sum() const {
 size_t FrameBytes(size_t n, DfsdOptions::Frame frame) {
   if (frame == DfsdOptions::Frame::kAxes || frame == DfsdOptions::Frame::kPca) return 0;
   const size_t chunk = std::min(n, kFramePassPoints);
-  // The centred chunk, a product of it (q or the extents along an axis), projections.
+  // The centered chunk, a product of it (q or the extents along an axis), projections.
   const size_t columns = 3 * sizeof(double) * chunk;
   const size_t projections =
       (frame == DfsdOptions::Frame::kBox ? 3 : 1) * chunk * sizeof(Eigen::Vector2d);
@@ -407,7 +407,7 @@ CloudFrame CloudFrame::Find(const PointCloud& cloud, const CloudStats& stats,
       hi = hi.cwiseMax(q);
     }
   }
-  frame.centre_ = 0.5 * (lo + hi);
+  frame.center_ = 0.5 * (lo + hi);
   frame.half_extent_ = 0.5 * (hi - lo);
   return frame;
 }
@@ -421,13 +421,13 @@ void CloudFrame::Coordinates(const PointCloud& cloud, size_t first, size_t count
   if (input_axes_) {
     const float* xyz = cloud.data() + 3 * first;
     for (size_t p = 0; p < count; ++p) {
-      for (int a = 0; a < 3; ++a) coord[a][p] = static_cast<double>(xyz[3 * p + a]) - centre_[a];
+      for (int a = 0; a < 3; ++a) coord[a][p] = static_cast<double>(xyz[3 * p + a]) - center_[a];
     }
     return;
   }
   for (size_t p = 0; p < count; ++p) {
     const Eigen::Vector3d q = Rotated(cloud, first + p);
-    for (int a = 0; a < 3; ++a) coord[a][p] = q[a] - centre_[a];
+    for (int a = 0; a < 3; ++a) coord[a][p] = q[a] - center_[a];
   }
 }
 

@@ -37,15 +37,15 @@ class CloudFrame {
   static CloudFrame Find(const PointCloud& cloud, const CloudStats& stats,
                          const DfsdOptions& options, size_t hull_candidates = kHullCandidates);
 
-  // Coordinates of points [first, first + count) in the frame, relative to the centre of the
+  // Coordinates of points [first, first + count) in the frame, relative to the center of the
   // box: axis a of point first + p goes to coord[a][p].
   void Coordinates(const PointCloud& cloud, size_t first, size_t count,
                    double* const coord[3]) const;
 
   // Columns: the frame's axes in input coordinates (the identity for frame=axes).
   const Eigen::Matrix3d& axes() const { return axes_; }
-  // The centre of the box, in frame coordinates about the centroid (frame=axes: input ones).
-  const Eigen::Vector3d& centre() const { return centre_; }
+  // The center of the box, in frame coordinates about the centroid (frame=axes: input ones).
+  const Eigen::Vector3d& center() const { return center_; }
   const Eigen::Vector3d& half_extent() const { return half_extent_; }
   // frame=box and upright: |third moment| / second moment^1.5 of the points along each axis,
   // about their centroid (0 for an axis without spread, infinite for the upright vertical,
@@ -58,7 +58,7 @@ class CloudFrame {
   bool input_axes_ = true;  // frame=axes: coordinates as given
   Eigen::Matrix3d axes_ = Eigen::Matrix3d::Identity();
   Eigen::Vector3d centroid_ = Eigen::Vector3d::Zero();
-  Eigen::Vector3d centre_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d center_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d half_extent_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d skewness_ = Eigen::Vector3d::Zero();
 };

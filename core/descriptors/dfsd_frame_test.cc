@@ -76,7 +76,7 @@ TEST(DfsdFrameTest, BoxFrameOfABoxIsItsAxesLargestFirst) {
   EXPECT_NEAR(std::abs(frame.axes().determinant()), 1.0, 1e-9);
 }
 
-TEST(DfsdFrameTest, CoordinatesAreTheFramedPointsAboutTheBoxCentre) {
+TEST(DfsdFrameTest, CoordinatesAreTheFramedPointsAboutTheBoxCenter) {
   const PointCloud cloud = dfsd_golden::MakeCloud("surface_rotated", 1000);
   const CloudStats stats = *ValidateCloud(cloud);
   for (DfsdOptions::Frame kind : {DfsdOptions::Frame::kAxes, DfsdOptions::Frame::kBox}) {
@@ -97,7 +97,7 @@ TEST(DfsdFrameTest, CoordinatesAreTheFramedPointsAboutTheBoxCentre) {
       frame.Coordinates(cloud, p, 1, single);
       EXPECT_TRUE(SameBits(one, q.data(), 3));
       const Eigen::Vector3d back =
-          frame.axes() * (q + frame.centre()) +
+          frame.axes() * (q + frame.center()) +
           (kind == DfsdOptions::Frame::kAxes ? Eigen::Vector3d::Zero() : stats.centroid);
       EXPECT_LT((back - cloud.point(p).cast<double>()).norm(), 1e-5);
     }
@@ -126,7 +126,7 @@ TEST(DfsdFrameTest, FramesDoNotDependOnTheHullSlabs) {
           const CloudFrame got = CloudFrame::Find(cloud, *stats, options, slab);
           const std::string what = shape + " up=" + up + " slab " + std::to_string(slab);
           EXPECT_EQ(got.axes(), want.axes()) << what;
-          EXPECT_EQ(got.centre(), want.centre()) << what;
+          EXPECT_EQ(got.center(), want.center()) << what;
           EXPECT_EQ(got.half_extent(), want.half_extent()) << what;
           EXPECT_EQ(got.skewness(), want.skewness()) << what;
         }

@@ -136,7 +136,7 @@ inline PointCloud MakeCloud(const std::string& shape, size_t n, uint64_t seed = 
       add(x / r, y / r, 2 * rng.Symmetric(), false);
     }
   } else if (shape == "signed_zeros") {
-    // A flat cloud at z = -0 and z = +0, symmetric in x and y, so centred coordinates and
+    // A flat cloud at z = -0 and z = +0, symmetric in x and y, so centered coordinates and
     // projections meet zeros of both signs.
     while (cloud.size() + 4 <= n) {
       const float x = rng.Symmetric(), y = rng.Symmetric();

@@ -411,7 +411,7 @@ const std::map<std::string, uint64_t>& SmoothedGolden() {
 }
 // clang-format on
 
-// Smoothing (step 0 of docs/descriptors.md section 5): its neighbours, ties, reduction seed
+// Smoothing (step 0 of docs/descriptors.md section 5): its neighbors, ties, reduction seed
 // and floor shape stored vectors too. Below and past the 4,096 points it reduces to.
 TEST(DfsdGoldenTest, SmoothedClouds) {
   if (EigenBlocking() != kRecordedBlocking) {

@@ -1,7 +1,7 @@
 #ifndef SHAPEID_CORE_DESCRIPTORS_DFSD_KERNELS_H_
 #define SHAPEID_CORE_DESCRIPTORS_DFSD_KERNELS_H_
 
-// The DFSD hot loop: the squared distance from every cell centre of a G^3 grid to the nearest
+// The DFSD hot loop: the squared distance from every cell center of a G^3 grid to the nearest
 // point of the cloud. Internal to core; exposed for tests and benchmarks that compare SIMD
 // levels.
 
@@ -15,7 +15,7 @@ namespace shapeid::dfsd_internal {
 
 // Points are stored structure-of-arrays, padded to a multiple of this many lanes so every SIMD
 // level loads whole vectors. Padding entries hold kFarSquared, which no real point exceeds
-// (coordinates are normalised to [-1, 1]), so padding never wins a minimum.
+// (coordinates are normalized to [-1, 1]), so padding never wins a minimum.
 inline constexpr size_t kPointLanes = 16;
 inline constexpr float kFarSquared = 1e30f;
 
@@ -29,13 +29,13 @@ struct AlignedFloatsFree {
   void operator()(float* p) const { ::operator delete(p, kRowAlignment); }
 };
 using AlignedFloats = std::unique_ptr<float[], AlignedFloatsFree>;
-// n floats, uninitialised.
+// n floats, uninitialized.
 inline AlignedFloats MakeAlignedFloats(size_t n) {
   return AlignedFloats(static_cast<float*>(::operator new(n * sizeof(float), kRowAlignment)));
 }
 
 // The grid is separable: |c - p|^2 = (c_x - p_x)^2 + (c_y - p_y)^2 + (c_z - p_z)^2, and the
-// cell centres take only G values per axis. So the caller tabulates, per axis a and centre
+// cell centers take only G values per axis. So the caller tabulates, per axis a and center
 // coordinate u_i, the squared differences to every point once (G * n values per axis), and
 // a cell costs two additions and a minimum per point instead of a full distance.
 struct FieldInput {

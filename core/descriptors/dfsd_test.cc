@@ -72,7 +72,7 @@ std::vector<double> ReferenceDfsd(const PointCloud& cloud, int g, int order, boo
     lo = lo.cwiseMin(cloud.point(p).cast<double>());
     hi = hi.cwiseMax(cloud.point(p).cast<double>());
   }
-  const Eigen::Vector3d centre = 0.5 * (lo + hi), half = 0.5 * (hi - lo);
+  const Eigen::Vector3d center = 0.5 * (lo + hi), half = 0.5 * (hi - lo);
   std::vector<double> out;
   for (int f = 0; f < fields; ++f) {
     const bool isotropic = f == 0 ? isotropic_first : !isotropic_first;
@@ -86,7 +86,7 @@ std::vector<double> ReferenceDfsd(const PointCloud& cloud, int g, int order, boo
                                   (2.0 * k + 1) / g - 1);
           double best = 1e300;
           for (size_t p = 0; p < cloud.size(); ++p) {
-            const Eigen::Vector3d v = (cloud.point(p).cast<double>() - centre).cwiseProduct(scale);
+            const Eigen::Vector3d v = (cloud.point(p).cast<double>() - center).cwiseProduct(scale);
             best = std::min(best, (v - c).norm());
           }
           field[(static_cast<size_t>(i) * g + j) * g + k] = std::sqrt(best) / std::pow(g, 1.5);
@@ -299,7 +299,7 @@ double BestPoseDistanceSq(const Descriptor& d, const PointCloud& query,
 }
 
 TEST(DfsdTest, PoseMapIsTheDescriptorOfTheReorderedMirroredCloud) {
-  // In the axes frame, reorder and reverse the cloud's axes about its box centre
+  // In the axes frame, reorder and reverse the cloud's axes about its box center
   // explicitly: the descriptor must be PoseMap applied to the original's.
   DfsdOptions anisotropic;
   anisotropic.fields = DfsdOptions::Fields::kAnisotropic;
@@ -315,12 +315,12 @@ TEST(DfsdTest, PoseMapIsTheDescriptorOfTheReorderedMirroredCloud) {
     const PointCloud cloud = SkewedCloud(800, 21);
     const std::vector<float> base = MustCompute(*d, cloud);
     const CloudStats stats = *ValidateCloud(cloud);
-    const Eigen::Vector3f centre = (0.5 * (stats.min + stats.max)).cast<float>();
+    const Eigen::Vector3f center = (0.5 * (stats.min + stats.max)).cast<float>();
     for (const auto& [axis_of, flips] : std::vector<std::pair<std::array<int, 3>, int>>{
              {{0, 1, 2}, 1}, {{0, 1, 2}, 6}, {{1, 0, 2}, 0}, {{2, 0, 1}, 5}, {{1, 2, 0}, 7}}) {
       PointCloud moved;
       for (size_t i = 0; i < cloud.size(); ++i) {
-        const Eigen::Vector3f p = cloud.point(i) - centre;
+        const Eigen::Vector3f p = cloud.point(i) - center;
         Eigen::Vector3f q;
         for (int a = 0; a < 3; ++a) q[a] = (flips >> a & 1) ? -p[axis_of[a]] : p[axis_of[a]];
         moved.Add(q);

@@ -32,7 +32,7 @@ std::vector<std::string> ShippedPointNetworkNames();
 
 // A cloud as a point network reads it, and where its frame was a guess.
 struct CanonicalPoints {
-  // 3 x m, m = min(n, max_points): the points in the frame, about the centre of the frame's
+  // 3 x m, m = min(n, max_points): the points in the frame, about the center of the frame's
   // box, divided by the box's largest half extent (so in [-1, 1]); a cloud of more points is
   // subsampled by a fixed stride (point floor(i n / m) for i < m).
   Eigen::Matrix3Xf points;

@@ -36,7 +36,7 @@ constexpr size_t kMaxCells =
 // z arrays) so the distance loop over one cell reads three contiguous runs.
 class PointGrid {
  public:
-  PointGrid(const PointCloud& points, const Eigen::Vector3d& centre, double radius, double cell)
+  PointGrid(const PointCloud& points, const Eigen::Vector3d& center, double radius, double cell)
       : points_(points) {
     const size_t m = points.size();
     for (int a = 0; a < 3; ++a) {
@@ -45,8 +45,8 @@ class PointGrid {
         lo = std::min(lo, static_cast<double>(points.data()[3 * i + a]));
         hi = std::max(hi, static_cast<double>(points.data()[3 * i + a]));
       }
-      lo_[a] = std::max(lo, centre[a] - kGridRobustRadii * radius);
-      hi_[a] = std::min(hi, centre[a] + kGridRobustRadii * radius);
+      lo_[a] = std::max(lo, center[a] - kGridRobustRadii * radius);
+      hi_[a] = std::min(hi, center[a] + kGridRobustRadii * radius);
     }
     const double widest = std::max({hi_[0] - lo_[0], hi_[1] - lo_[1], hi_[2] - lo_[2]});
     cell_ = std::max(cell, widest / kMaxCellsPerAxis);
@@ -87,11 +87,11 @@ class PointGrid {
   void MeanOfNearest(size_t i, size_t k, Candidates* candidates, float* mean) const {
     const float* const p = points_.data() + 3 * i;
     float u[3];
-    int centre[3];
+    int center[3];
     bool inside = true;
     for (int a = 0; a < 3; ++a) {
       u[a] = InCells(a, p[a]);
-      centre[a] = CellAlong(a, p[a]);
+      center[a] = CellAlong(a, p[a]);
       inside = inside && u[a] >= 0 && u[a] < static_cast<float>(cells_[a]);
     }
     if (!inside) return MeanOfNearestOutside(p, k, candidates, mean);
@@ -104,8 +104,8 @@ class PointGrid {
       bool everything = true;
       int from[3], to[3];
       for (int a = 0; a < 3; ++a) {
-        from[a] = std::max(centre[a] - ring, 0);
-        to[a] = std::min(centre[a] + ring, cells_[a] - 1);
+        from[a] = std::max(center[a] - ring, 0);
+        to[a] = std::min(center[a] + ring, cells_[a] - 1);
         everything = everything && from[a] == 0 && to[a] == cells_[a] - 1;
       }
       // Cells in index order, so candidates come in sorted order.
@@ -232,24 +232,24 @@ PointCloud SmoothPoints(const PointCloud& cloud, double share) {
   PointCloud smoothed(std::vector<float>(points.data(), points.data() + 3 * m));
   if (!(share > 0) || m == 0) return smoothed;
   const size_t k =
-      std::min(m, std::max(kMinSmoothingNeighbours,
+      std::min(m, std::max(kMinSmoothingNeighbors,
                            static_cast<size_t>(std::lround(share * static_cast<double>(m)))));
-  // A centre and radius that stray points cannot move: the coordinate-wise median, and the
+  // A center and radius that stray points cannot move: the coordinate-wise median, and the
   // median distance from it.
   std::vector<double> values(m);
   const auto middle = values.begin() + static_cast<std::ptrdiff_t>(m / 2);
-  Eigen::Vector3d centre;
+  Eigen::Vector3d center;
   for (int a = 0; a < 3; ++a) {
     for (size_t i = 0; i < m; ++i) values[i] = points.data()[3 * i + a];
     std::nth_element(values.begin(), middle, values.end());
-    centre[a] = *middle;
+    center[a] = *middle;
   }
-  for (size_t i = 0; i < m; ++i) values[i] = (points.point(i).cast<double>() - centre).norm();
+  for (size_t i = 0; i < m; ++i) values[i] = (points.point(i).cast<double>() - center).norm();
   std::nth_element(values.begin(), middle, values.end());
   const double radius = *middle;
   // Cells about as wide as the k nearest reach on a sphere's surface (pi r^2 = share x 4 pi
   // R^2), so one ring of cells mostly holds them.
-  const PointGrid grid(points, centre, radius, 2 * radius * std::sqrt(share));
+  const PointGrid grid(points, center, radius, 2 * radius * std::sqrt(share));
   PointGrid::Candidates candidates;
   candidates.squared_bits.reserve(m + kCountLanes);
   candidates.index.reserve(m);

@@ -14,11 +14,11 @@ namespace shapeid {
 // Clouds up to this size are smoothed point by point; larger ones are first reduced to this
 // many of their points.
 inline constexpr size_t kSmoothingReferencePoints = 4096;
-// Fewest neighbours a point is averaged with when smoothing is on.
-inline constexpr size_t kMinSmoothingNeighbours = 8;
+// Fewest neighbors a point is averaged with when smoothing is on.
+inline constexpr size_t kMinSmoothingNeighbors = 8;
 
 // The cloud smoothed: each point replaced by the mean of its k nearest points (itself
-// included), k = round(share x points) but at least kMinSmoothingNeighbours and at most all;
+// included), k = round(share x points) but at least kMinSmoothingNeighbors and at most all;
 // share 0 leaves it as it is. A cloud over kSmoothingReferencePoints is first reduced to that
 // many of its points (cnsd_internal::RandomDownsample, fixed seed), which are smoothed and
 // returned, so memory and time stay bounded. Ties at the k-th distance go to a fixed order.

@@ -95,7 +95,7 @@ TEST(PointSmoothingTest, IsTheMeanOfTheTrueNearestPoints) {
        {SphereCloud(700, 4), NoisySquare(24, 0.02f, 6), clusters, strays}) {
     for (double share : {0.005, 0.03, 0.2}) {
       const size_t k = std::max<size_t>(
-          kMinSmoothingNeighbours,
+          kMinSmoothingNeighbors,
           static_cast<size_t>(std::lround(share * static_cast<double>(cloud.size()))));
       const PointCloud expected = BruteForceSmoothed(cloud, k);
       const PointCloud smoothed = SmoothPoints(cloud, share);
@@ -149,19 +149,19 @@ TEST(PointSmoothingTest, TurnsWithTheCloud) {
   const PointCloud b = SmoothPoints(turned, 0.02);
   size_t differing = 0;
   for (size_t i = 0; i < a.size(); ++i) {
-    // Two neighbours at nearly equal distances may swap ranks after rounding.
+    // Two neighbors at nearly equal distances may swap ranks after rounding.
     if ((turn * a.point(i) - b.point(i)).norm() > 1e-4f) ++differing;
   }
   EXPECT_LE(differing, a.size() / 100);
-  // Points on a sphere move inwards, towards the centre of the cap around them.
+  // Points on a sphere move inwards, towards the center of the cap around them.
   for (size_t i = 0; i < a.size(); ++i) EXPECT_LT(a.point(i).norm(), 1.0f);
 }
 
 TEST(PointSmoothingTest, EachPointAveragesItsNearestAtLeastTheFloor) {
-  // Two clusters of kMinSmoothingNeighbours points, far apart: a small share still averages
+  // Two clusters of kMinSmoothingNeighbors points, far apart: a small share still averages
   // the floor's 8 points, which are exactly a point's own cluster.
   PointCloud cloud;
-  for (size_t i = 0; i < kMinSmoothingNeighbours; ++i) {
+  for (size_t i = 0; i < kMinSmoothingNeighbors; ++i) {
     cloud.Add(0.01f * static_cast<float>(i), 0, 0);
     cloud.Add(10 + 0.01f * static_cast<float>(i), 0, 0);
   }
@@ -177,9 +177,9 @@ TEST(PointSmoothingTest, EachPointAveragesItsNearestAtLeastTheFloor) {
   EXPECT_EQ(SmoothPoints(cloud, 0).xyz(), cloud.xyz());
 }
 
-TEST(PointSmoothingTest, AnOutlierIsPulledInAndCostsNoNeighbour) {
+TEST(PointSmoothingTest, AnOutlierIsPulledInAndCostsNoNeighbor) {
   // One point 1e6 away stretches the box, so the grid's cells grow far wider than the
-  // neighbourhoods: the points of the square still find their nearest, and the outlier,
+  // neighborhoods: the points of the square still find their nearest, and the outlier,
   // whose nearest are all on the square, moves towards it.
   PointCloud cloud = NoisySquare(32, 0.02f, 9);
   cloud.Add(1e6f, 0, 0);

@@ -10,7 +10,7 @@
 
 namespace shapeid {
 
-// Reference points for RPHSD, in the normalised frame where the cloud lies in [-1, 1]^3
+// Reference points for RPHSD, in the normalized frame where the cloud lies in [-1, 1]^3
 // (docs/descriptors.md, RPHSD step 5 and dissertation figure 36).
 struct ReferenceArrangement {
   std::string name;  // canonical text: cross7 | cubic27 | spherical27 | fibonacci:N | [x,y,z;...]

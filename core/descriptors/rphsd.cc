@@ -19,7 +19,7 @@ constexpr EnumNames<RphsdOptions::Variant, 2> kVariantNames = {{
 }};
 
 constexpr int kMaxBins = 100000;
-// The diagonal of the [-1, 1]^3 cube: the largest distance between a normalised point and
+// The diagonal of the [-1, 1]^3 cube: the largest distance between a normalized point and
 // a reference inside the cube. Farther pairs (custom references outside the cube, float
 // rounding at the corners) are clamped into the last bin.
 const double kMaxDistance = 2.0 * std::sqrt(3.0);
@@ -156,12 +156,12 @@ absl::Status Rphsd::ComputeAtLevel(const PointCloud& cloud, SimdLevel level,
 
 absl::Status Rphsd::ComputeWith(const PointCloud& cloud, const CloudStats& stats, SimdLevel level,
                                 int max_threads, absl::Span<float> out) const {
-  // Step 1: centre on the centroid, scale by the L-infinity radius into [-1, 1]^3.
-  const double radius = stats.MaxAbsCentred();
+  // Step 1: center on the centroid, scale by the L-infinity radius into [-1, 1]^3.
+  const double radius = stats.MaxAbsCentered();
   const float inv_scale = static_cast<float>(1.0 / radius);
   if (!(radius > 0) || !std::isfinite(inv_scale)) {
     return absl::InvalidArgumentError(absl::StrCat(
-        "rphsd: the cloud's extent (", radius, ") is too small to normalise in float precision"));
+        "rphsd: the cloud's extent (", radius, ") is too small to normalize in float precision"));
   }
   const size_t num_refs = options_.references.points.size();
   const int bins = options_.bins;
@@ -223,7 +223,7 @@ DescriptorKind RphsdKind() {
       "Reference Points Histograms Shape Descriptor: distance histograms from reference points",
       {{"refs", "cubic27",
         "reference arrangement: cross7, cubic27, spherical27, fibonacci:N (N in [1, 4095]) or a "
-        "list [x,y,z;x,y,z;...] in the normalised cube"},
+        "list [x,y,z;x,y,z;...] in the normalized cube"},
        {"bins", "100", "histogram size M, in [1, 100000]"},
        {"variant", "complete",
         "complete (3K values: variance, entropy, IDM per reference) or reduced (6 values: mean "

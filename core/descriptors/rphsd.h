@@ -3,7 +3,7 @@
 
 // RPHSD, the Reference Points Histograms Shape Descriptor (dissertation chapter 6;
 // docs/descriptors.md). For each reference point, a histogram of the distances from it to
-// every point of the normalised cloud; three statistics per histogram.
+// every point of the normalized cloud; three statistics per histogram.
 
 #include <memory>
 #include <vector>

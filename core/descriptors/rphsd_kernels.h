@@ -18,7 +18,7 @@ inline constexpr size_t kReferenceLanes = 16;
 struct HistogramInput {
   const float* xyz = nullptr;  // n interleaved points
   size_t num_points = 0;
-  // The point normalisation of RPHSD step 1: p' = (p - center) * inv_scale.
+  // The point normalization of RPHSD step 1: p' = (p - center) * inv_scale.
   float center[3] = {0, 0, 0};
   float inv_scale = 1;
   const float* ref_x = nullptr;  // padded reference coordinates

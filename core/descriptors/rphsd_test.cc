@@ -38,7 +38,7 @@ PointCloud RandomCloud(size_t n, uint32_t seed) {
 }
 
 // Worked by hand. Cloud {(2,0,0), (-2,0,0), (0,1,0), (0,-1,0)}: centroid 0, L-infinity
-// radius 2, so normalised {(1,0,0), (-1,0,0), (0,.5,0), (0,-.5,0)}.
+// radius 2, so normalized {(1,0,0), (-1,0,0), (0,.5,0), (0,-.5,0)}.
 // References q1 = (0,0,0), q2 = (1,0,0); M = 4, bin width d_max / M = 2 sqrt(3) / 4 = 0.8660.
 //   q1: distances 1, 1, .5, .5  -> bins 1, 1, 0, 0       -> h1 = [.5, .5, 0, 0]
 //   q2: distances 0, 2, 1.118, 1.118 -> bins 0, 2, 1, 1  -> h2 = [.25, .5, .25, 0]
@@ -88,7 +88,7 @@ TEST(RphsdTest, DimensionsFollowReferencesAndVariant) {
   EXPECT_EQ(MustCreate("rphsd:variant=reduced,refs=fibonacci:64")->dimension(), 6u);
 }
 
-TEST(RphsdTest, CanonicalSpecFillsDefaultsAndNormalises) {
+TEST(RphsdTest, CanonicalSpecFillsDefaultsAndNormalizes) {
   EXPECT_EQ(MustCreate("rphsd")->spec().ToString(), "rphsd:refs=cubic27,bins=100,variant=complete");
   EXPECT_EQ(MustCreate("RPHSD:variant=Reduced,bins=010,refs=Cross7")->spec().ToString(),
             "rphsd:refs=cross7,bins=10,variant=reduced");

@@ -289,9 +289,9 @@ void Gallery::Publish(std::shared_ptr<const GallerySnapshot> next) {
 
 TrainBatch Gallery::NewBatch() { return TrainBatch(shared_from_this()); }
 
-absl::StatusOr<CommitResult> Gallery::Train(absl::Span<const LabelledCloud> samples) {
+absl::StatusOr<CommitResult> Gallery::Train(absl::Span<const LabeledCloud> samples) {
   TrainBatch batch = NewBatch();
-  for (const LabelledCloud& sample : samples) {
+  for (const LabeledCloud& sample : samples) {
     SHAPEID_RETURN_IF_ERROR(
         batch.AddSample(sample.id, sample.label, sample.cloud, sample.provenance));
   }
@@ -496,12 +496,12 @@ absl::StatusOr<int64_t> Gallery::RemoveSamplesOnce(absl::Span<const uint64_t> id
   const Check resolve = [&](const GallerySnapshot& current) -> absl::StatusOr<bool> {
     absl::flat_hash_set<uint64_t> seen;
     for (const std::string& label : labels) {
-      const std::vector<uint64_t> labelled = current.IdsWithLabel(label);
-      if (labelled.empty()) {
-        return absl::NotFoundError(absl::StrCat("gallery '", name_, "' has no samples labelled '",
+      const std::vector<uint64_t> labeled = current.IdsWithLabel(label);
+      if (labeled.empty()) {
+        return absl::NotFoundError(absl::StrCat("gallery '", name_, "' has no samples labeled '",
                                                 absl::CHexEscape(label), "'; nothing was removed"));
       }
-      for (uint64_t id : labelled) {
+      for (uint64_t id : labeled) {
         if (seen.insert(id).second) unique.push_back(id);
       }
     }

@@ -42,7 +42,7 @@ absl::StatusOr<std::vector<float>> DescribeForTraining(const Descriptor& descrip
 // ids stay below 2^63, so they fit a signed 64-bit integer (Java, SQL) unchanged.
 inline constexpr uint64_t kFirstAssignedId = uint64_t{1} << 63;
 
-struct LabelledCloud {
+struct LabeledCloud {
   uint64_t id = 0;  // 0: the gallery assigns one; else in [1, kFirstAssignedId)
   std::string label;
   PointCloud cloud;
@@ -126,7 +126,7 @@ uint64_t NewGalleryIncarnation();
 //
 // Concurrency: readers call Snapshot() and work on the immutable snapshot it returns; they
 // wait for writers only for the copy of one shared_ptr. Writers (commits, removals) are
-// serialised by a second mutex; each builds the next snapshot from the current one, writes
+// serialized by a second mutex; each builds the next snapshot from the current one, writes
 // it to the store, then swaps it in. All methods are thread-safe.
 //
 // Create galleries through GalleryRegistry; Create and Restore are for the registry and tests.
@@ -196,9 +196,9 @@ class Gallery : public std::enable_shared_from_this<Gallery> {
   // An empty batch for this gallery.
   TrainBatch NewBatch();
   // NewBatch, AddSample for each, Commit.
-  absl::StatusOr<CommitResult> Train(absl::Span<const LabelledCloud> samples);
+  absl::StatusOr<CommitResult> Train(absl::Span<const LabeledCloud> samples);
 
-  // Removes the samples with these ids and those labelled with one of `labels` (their
+  // Removes the samples with these ids and those labeled with one of `labels` (their
   // union; duplicates ignored), resolved against the gallery as it is when the removal runs,
   // and returns how many were removed. All or nothing: NotFound naming the first label with
   // no sample or the first absent id. O(num_samples * dimension): remove in batches.

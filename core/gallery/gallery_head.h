@@ -4,7 +4,7 @@
 // A gallery's trained head: an MLP classifier (core/learning) fitted over every
 // vector the gallery stores, its samples' descriptors and their augmented views, that answers
 // Classify together with the kNN vote once fitted (GalleryClassification::by_head). The kNN
-// search still runs: its neighbours, distances and provenance are returned with the answer,
+// search still runs: its neighbors, distances and provenance are returned with the answer,
 // and the reject rule is the gallery's as before.
 //
 // Fitting holds out a slice of the samples (every view of a held-out sample with it, chosen

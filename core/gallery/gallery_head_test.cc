@@ -33,7 +33,7 @@ std::shared_ptr<Gallery> ShapesGallery(int per_label = 10) {
   GalleryOptions options;
   options.augment.views = 2;
   std::shared_ptr<Gallery> gallery = *Gallery::Create("shapes", options, GalleryLimits{}, nullptr);
-  std::vector<LabelledCloud> samples;
+  std::vector<LabeledCloud> samples;
   uint64_t id = 1;
   for (uint32_t seed = 1; seed <= static_cast<uint32_t>(per_label); ++seed) {
     samples.push_back({id++, "box", Box(seed)});
@@ -110,7 +110,7 @@ TEST(GalleryHeadTest, AnswersClassifyOnlyWhileItsLabelsAreTheGallerys) {
   EXPECT_TRUE(answer.by_head);
   EXPECT_EQ(answer.label, "sphere");
   EXPECT_GT(answer.confidence, 0.5);
-  EXPECT_FALSE(answer.knn.neighbors.empty());  // the neighbours come with the head's answer
+  EXPECT_FALSE(answer.knn.neighbors.empty());  // the neighbors come with the head's answer
   // More of a known label: the head still answers. A new label: it cannot, kNN does.
   ASSERT_TRUE(gallery->Train({{0, "box", Box(77)}}).ok());
   EXPECT_TRUE(gallery->Snapshot()->Classify(Box(98))->by_head);
@@ -129,7 +129,7 @@ TEST(GalleryHeadTest, AnUnknownAnswerStaysUnknown) {
   GalleryOptions options;
   options.reject_distance = 1e-9;  // everything is too far
   std::shared_ptr<Gallery> gallery = *Gallery::Create("far", options, GalleryLimits{}, nullptr);
-  std::vector<LabelledCloud> samples;
+  std::vector<LabeledCloud> samples;
   for (uint32_t seed = 1; seed <= 4; ++seed) {
     samples.push_back({0, "box", Box(seed)});
     samples.push_back({0, "line", Line(seed)});

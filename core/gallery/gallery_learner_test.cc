@@ -31,8 +31,8 @@ GalleryLearnerOptions Quick() {
   return options;
 }
 
-std::vector<LabelledCloud> Shapes(int per_label, uint32_t first_seed = 1) {
-  std::vector<LabelledCloud> samples;
+std::vector<LabeledCloud> Shapes(int per_label, uint32_t first_seed = 1) {
+  std::vector<LabeledCloud> samples;
   for (uint32_t seed = first_seed; seed < first_seed + static_cast<uint32_t>(per_label); ++seed) {
     samples.push_back({0, "box", Box(seed)});
     samples.push_back({0, "sphere", Sphere(seed)});
@@ -78,7 +78,7 @@ TEST(GalleryLearnerTest, LeavesSmallAndSingleLabelGalleriesToKnn) {
   std::shared_ptr<Gallery> small = *registry.Create("small", GalleryOptions{});
   ASSERT_TRUE(small->Train(Shapes(1)).ok());  // 3 samples < 6
   std::shared_ptr<Gallery> boxes = *registry.Create("boxes", GalleryOptions{});
-  std::vector<LabelledCloud> only_boxes;
+  std::vector<LabeledCloud> only_boxes;
   for (uint32_t seed = 1; seed <= 8; ++seed) only_boxes.push_back({0, "box", Box(seed)});
   ASSERT_TRUE(boxes->Train(only_boxes).ok());
   std::shared_ptr<Gallery> shapes = *registry.Create("shapes", GalleryOptions{});

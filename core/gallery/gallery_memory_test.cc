@@ -26,8 +26,8 @@ using gallery_testing::ProvenanceAtLimits;
 using gallery_testing::Sphere;
 
 // Nine clouds of three shapes, ids 1-9, each with provenance at the limits.
-std::vector<LabelledCloud> ShapesWithProvenance() {
-  std::vector<LabelledCloud> samples;
+std::vector<LabeledCloud> ShapesWithProvenance() {
+  std::vector<LabeledCloud> samples;
   for (uint32_t seed = 1; seed <= 3; ++seed) {
     samples.push_back({seed, "box", Box(seed), ProvenanceAtLimits(seed)});
     samples.push_back({seed + 3, "sphere", Sphere(seed), ProvenanceAtLimits(seed + 3)});
@@ -49,7 +49,7 @@ TEST(GalleryMemoryTest, ProvenanceBytesFollowTrainingAndRemoval) {
   auto g = Augmented(nullptr);
   EXPECT_EQ(g->Snapshot()->provenance_bytes(), 0);
   const int64_t empty = g->Snapshot()->memory_bytes();
-  std::vector<LabelledCloud> samples = ShapesWithProvenance();
+  std::vector<LabeledCloud> samples = ShapesWithProvenance();
   samples.push_back({10, "box", Box(10)});  // one without provenance
   ASSERT_TRUE(g->Train(samples).ok());
   const auto trained = g->Snapshot();

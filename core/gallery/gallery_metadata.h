@@ -11,8 +11,8 @@ namespace shapeid {
 
 // Everything about a gallery but its samples: one value held by its snapshots
 // (GallerySnapshot::metadata), its stored form (StoredGallery) and its export. A new field
-// goes here, then into each serialisation: the SQLite and PostgreSQL gallery rows
-// (server/storage/), the export header and v1::Gallery (server/proto_convert.cc).
+// goes here, then into each serialization: the SQLite and PostgreSQL gallery rows
+// (server/storage/), the export header and v1::Gallery (server/wire/proto_convert.cc).
 struct GalleryMetadata {
   std::string name;
   GalleryOptions options;  // canonical

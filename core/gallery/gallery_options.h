@@ -30,23 +30,23 @@ struct GalleryOptions {
   // kDefaultDescriptorSpec ("dfsd"): 240 floats per cloud with its defaults.
   std::string descriptor_spec = kDefaultDescriptorSpec;
 
-  // Neighbours, vote weighting and feature scaling (core/knn/knn_options.h). Default k = 1,
+  // Neighbors, vote weighting and feature scaling (core/knn/knn_options.h). Default k = 1,
   // uniform votes, no scaling: the published setting. Larger k smooths label noise but
   // blurs small classes.
   KnnOptions knn;
 
   // Open-set rejection. 0 (the default) turns it off: every query gets the nearest class.
-  // When positive and the nearest neighbour is farther than this, the answer is
+  // When positive and the nearest neighbor is farther than this, the answer is
   // kUnknownLabel ("unknown") with confidence 0; the raw kNN result is still reported. The
   // distance is Neighbor::distance: Euclidean in the feature space of `knn.scaling`, so a
   // threshold is only meaningful for one descriptor spec and one scaling. Pick it from the
-  // distribution of nearest-neighbour distances of known objects: too small rejects
+  // distribution of nearest-neighbor distances of known objects: too small rejects
   // known objects seen from a new angle, too large accepts objects nobody trained.
   double reject_distance = 0.0;
 
   // Training-time view augmentation (core/views/augment.h): each trained cloud also gets
   // `augment.views` synthetic single-view sensor scans, described and kept as views of the
-  // same sample; a query matches each sample by its best view, and the k neighbours are
+  // same sample; a query matches each sample by its best view, and the k neighbors are
   // distinct samples, so one object's views cast one vote. Off by default. What a robot
   // needs when it sees one side of objects that were trained whole (docs/accuracy.md, robot
   // protocol: 50.7 -> 72.8 % with 8 views on ModelNet10), at the price of (1 + views) x the

@@ -189,7 +189,7 @@ TEST(GalleryRegistryTest, LoadFromStoreBuildsApproximateIndexesInTheBackground) 
     GalleryRegistry first({}, store);
     auto big = first.Create("big", {});
     ASSERT_TRUE(big.ok());
-    std::vector<LabelledCloud> samples;
+    std::vector<LabeledCloud> samples;
     for (uint32_t i = 0; i < 70; ++i) {
       samples.push_back({0, i % 2 == 0 ? "box" : "sphere", i % 2 == 0 ? Box(i) : Sphere(i)});
     }
@@ -223,7 +223,7 @@ TEST(GalleryRegistryTest, DestroyingTheRegistryStopsTheBackgroundBuild) {
     for (const char* name : {"a", "b", "c"}) {
       auto g = first.Create(name, {});
       ASSERT_TRUE(g.ok());
-      std::vector<LabelledCloud> samples;
+      std::vector<LabeledCloud> samples;
       for (uint32_t i = 0; i < 70; ++i) samples.push_back({0, "box", Box(i)});
       ASSERT_TRUE((*g)->Train(samples).ok());
     }

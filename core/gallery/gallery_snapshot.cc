@@ -165,7 +165,7 @@ void GallerySnapshot::RefreshHeadAnswers() {
 GalleryClassification GallerySnapshot::Answer(KnnResult knn,
                                               absl::Span<const float> queries) const {
   GalleryClassification answer;
-  // A non-empty index always returns at least one neighbour.
+  // A non-empty index always returns at least one neighbor.
   answer.unknown = meta_.options.reject_distance > 0 && !knn.neighbors.empty() &&
                    knn.neighbors.front().distance > meta_.options.reject_distance;
   answer.label = answer.unknown ? std::string(kUnknownLabel) : knn.label;

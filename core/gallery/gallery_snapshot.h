@@ -31,11 +31,11 @@ struct GalleryClassification {
   std::string label;
   // knn.confidence (the winner's vote share), or 0 when rejected.
   double confidence = 0.0;
-  // True when the nearest neighbour was farther than the gallery's reject_distance.
+  // True when the nearest neighbor was farther than the gallery's reject_distance.
   bool unknown = false;
   // The raw kNN result, reported even when rejected (which class was nearest, how far).
   KnnResult knn;
-  // Each neighbour's provenance, in knn.neighbors' order; null for a sample trained without.
+  // Each neighbor's provenance, in knn.neighbors' order; null for a sample trained without.
   std::vector<std::shared_ptr<const SampleProvenance>> provenance;
   // True when the gallery's trained head (gallery_head.h) took part: label and confidence are
   // then the best of the head's probabilities and the kNN vote shares, half each; false when
@@ -97,7 +97,7 @@ class GallerySnapshot {
   // the one message of every call that needs samples ("classifying", "recognizing scenes").
   absl::Status RequireSamples(absl::string_view doing) const;
   bool Contains(uint64_t id) const { return index_.Contains(id); }
-  // The ids of the samples labelled `label`, in training order; empty if none. O(samples).
+  // The ids of the samples labeled `label`, in training order; empty if none. O(samples).
   std::vector<uint64_t> IdsWithLabel(absl::string_view label) const {
     return index_.IdsWithLabel(label);
   }
@@ -117,7 +117,7 @@ class GallerySnapshot {
   int64_t memory_bytes() const {
     return index_.memory_bytes() + provenance_.memory_bytes() + provenance_memory_;
   }
-  // Up to `page_size` (>= 1) samples with ids above `after_id`, labelled `label` (empty:
+  // Up to `page_size` (>= 1) samples with ids above `after_id`, labeled `label` (empty:
   // any), in increasing id order: keyset paging, so that a sample added or removed while a
   // client pages through changes no other sample's page. O(num_samples * log(page_size)).
   SamplePage ListSamples(absl::string_view label, uint64_t after_id, size_t page_size) const;
@@ -150,7 +150,7 @@ class GallerySnapshot {
   // (Descriptor::ComputeWithPoseVariants) are all searched, each sample at its least
   // distance. FailedPrecondition (naming the gallery) when the gallery has no samples,
   // checked before any work; cloud errors as in Describe.
-  // `k` > 0 overrides the gallery's k for this call (a client asking for more neighbours).
+  // `k` > 0 overrides the gallery's k for this call (a client asking for more neighbors).
   // `mode` kExact searches every vector even when the gallery has an approximate index
   // (GalleryLimits::approximate); knn.approximate tells which search ran.
   absl::StatusOr<GalleryClassification> Classify(const PointCloud& cloud,

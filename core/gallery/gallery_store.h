@@ -64,7 +64,7 @@ class GalleryLoader {
 // change, and a store error fails the operation with nothing published; so with a durable
 // store, "the call returned OK" means "the change survives a restart".
 //
-// Calls for one gallery arrive serialised, in the order the changes are published (galleries
+// Calls for one gallery arrive serialized, in the order the changes are published (galleries
 // call under their writer lock); calls for different galleries may run concurrently, so an
 // implementation must be thread-safe. Errors should be Unavailable / Internal / DataLoss with
 // a message naming the gallery; they reach the client as they are.

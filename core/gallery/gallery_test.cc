@@ -47,8 +47,8 @@ StoredGallery EmptyStored(std::string name) {
   return stored;
 }
 
-std::vector<LabelledCloud> ThreeShapes() {
-  std::vector<LabelledCloud> samples;
+std::vector<LabeledCloud> ThreeShapes() {
+  std::vector<LabeledCloud> samples;
   uint64_t id = 1;
   for (uint32_t seed = 1; seed <= 3; ++seed) samples.push_back({id++, "box", Box(seed)});
   for (uint32_t seed = 1; seed <= 3; ++seed) samples.push_back({id++, "sphere", Sphere(seed)});
@@ -104,7 +104,7 @@ TEST(GalleryTest, TrainPublishesOneSnapshotPerBatch) {
   EXPECT_THAT(snap->IdsWithLabel("cone"), ElementsAre());
 }
 
-TEST(GalleryTest, ClassifyGivesNeighboursVotesAndConfidence) {
+TEST(GalleryTest, ClassifyGivesNeighborsVotesAndConfidence) {
   GalleryOptions options;
   // A frame without pose variants, so the distance below is the plain one (with the
   // default box frame it is the least over the query's variants).
@@ -365,7 +365,7 @@ TEST(GalleryTest, ApproximateIndexFollowsCommitsAndRemovals) {
   GalleryLimits limits;
   limits.approximate.min_vectors = 64;
   auto g = MakeGallery({}, limits);
-  std::vector<LabelledCloud> samples;
+  std::vector<LabeledCloud> samples;
   for (uint32_t i = 0; i < 100; ++i) {
     samples.push_back({i + 1, i % 2 == 0 ? "box" : "sphere", i % 2 == 0 ? Box(i) : Sphere(i)});
   }
@@ -395,7 +395,7 @@ TEST(GalleryTest, ApproximateIndexCanBeBuiltAfterRestore) {
   GalleryLimits limits;
   limits.approximate.min_vectors = 64;
   auto g = MakeGallery();
-  std::vector<LabelledCloud> samples;
+  std::vector<LabeledCloud> samples;
   for (uint32_t i = 0; i < 70; ++i) samples.push_back({0, "box", Box(i)});
   ASSERT_TRUE(g->Train(samples).ok());
   const StoredGallery stored = g->Snapshot()->ToStored();
@@ -644,7 +644,7 @@ TEST(GalleryTest, AugmentedGalleryKeepsViewsPerSampleAndVotesPerObject) {
     EXPECT_EQ(sample.features.size() % static_cast<size_t>(stored.dimension), 0u);
   }
 
-  // A sparse, noisy, turned scan of one side of a trained box: its neighbours are three
+  // A sparse, noisy, turned scan of one side of a trained box: its neighbors are three
   // distinct samples, whatever views of one box lie nearest.
   SensorViewOptions sensor;
   const PointCloud scan = *SensorView(Box(1), sensor, 99);
@@ -736,18 +736,18 @@ namespace shapeid {
 namespace {
 
 // ThreeShapes with a source per sample ("<label>_<id>.pcd") and, on the boxes, metadata.
-std::vector<LabelledCloud> ThreeShapesWithProvenance() {
-  std::vector<LabelledCloud> samples = ThreeShapes();
-  for (LabelledCloud& s : samples) {
+std::vector<LabeledCloud> ThreeShapesWithProvenance() {
+  std::vector<LabeledCloud> samples = ThreeShapes();
+  for (LabeledCloud& s : samples) {
     s.provenance.source = absl::StrCat(s.label, "_", s.id, ".pcd");
     if (s.label == "box") s.provenance.metadata = {{"session", "2"}, {"camera", "d435"}};
   }
   return samples;
 }
 
-TEST(GalleryProvenanceTest, NeighboursCarryTheirProvenance) {
+TEST(GalleryProvenanceTest, NeighborsCarryTheirProvenance) {
   auto g = MakeGallery();
-  std::vector<LabelledCloud> samples = ThreeShapesWithProvenance();
+  std::vector<LabeledCloud> samples = ThreeShapesWithProvenance();
   samples.push_back({0, "sphere", Sphere(9)});  // one without
   ASSERT_TRUE(g->Train(samples).ok());
   const auto answer = g->Snapshot()->Classify(Box(40), {}, 10);
@@ -821,9 +821,9 @@ TEST(GalleryProvenanceTest, BadProvenanceFailsTheSampleAndTheBatch) {
 
 TEST(GalleryProvenanceTest, ListSamplesPagesByIdAndLabel) {
   auto g = MakeGallery();
-  std::vector<LabelledCloud> samples = ThreeShapesWithProvenance();
+  std::vector<LabeledCloud> samples = ThreeShapesWithProvenance();
   // Ids out of training order: paging is by id, whatever the order.
-  for (LabelledCloud& s : samples) s.id = 100 - s.id;  // 99 .. 91
+  for (LabeledCloud& s : samples) s.id = 100 - s.id;  // 99 .. 91
   ASSERT_TRUE(g->Train(samples).ok());
   auto snap = g->Snapshot();
   std::vector<uint64_t> seen;

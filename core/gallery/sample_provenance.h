@@ -16,7 +16,7 @@ namespace shapeid {
 // Where a trained sample came from, kept beside its descriptors so that an answer can be
 // traced to the scan it matched (a vector database's payload): the file or URI it was read
 // from, and a few key/value pairs of the caller's (camera, session, operator...). Stored,
-// exported, replicated and returned with every neighbour; never used by the search.
+// exported, replicated and returned with every neighbor; never used by the search.
 struct SampleProvenance {
   std::string source;
   // Sorted by key, keys unique (ValidateProvenance's form; NormalizeMetadata makes it).

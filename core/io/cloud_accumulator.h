@@ -41,7 +41,7 @@ class CloudAccumulator {
     }
   }
 
-  // Drops non-finite points if asked, shifts by the box centre if asked, converts to float.
+  // Drops non-finite points if asked, shifts by the box center if asked, converts to float.
   // InvalidArgument, naming the file and the point's location, when a coordinate does not fit
   // in a float after the shift (it would become infinite).
   absl::StatusOr<ReadResult> Finish(const ReadOptions& options) &&;

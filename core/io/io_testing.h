@@ -40,7 +40,7 @@ void AppendBytes(std::string* out, T value) {
   out->append(bytes, sizeof(T));
 }
 
-// Options that keep the file's coordinates (no recentring), so tests compare them exactly.
+// Options that keep the file's coordinates (no recentering), so tests compare them exactly.
 inline ReadOptions Raw() {
   ReadOptions options;
   options.recenter = false;

@@ -124,7 +124,7 @@ TEST(LasReaderTest, EveryPointFormatInLas14) {
   }
 }
 
-TEST(LasReaderTest, KnownValuesWithoutRecentring) {
+TEST(LasReaderTest, KnownValuesWithoutRecentering) {
   LasSpec spec;
   spec.points = {{12345, -6789, 250}};
   const absl::StatusOr<ReadResult> r = ParseLas(WriteLas(spec), "k.las", Raw());
@@ -135,7 +135,7 @@ TEST(LasReaderTest, KnownValuesWithoutRecentring) {
   EXPECT_EQ(r->cloud.point(0).z(), 102.5f);
 }
 
-TEST(LasReaderTest, GeoreferencedCoordinatesKeepCentimetresAfterRecentring) {
+TEST(LasReaderTest, GeoreferencedCoordinatesKeepCentimetresAfterRecentering) {
   // Centimetre steps around (500000, 4000000, 100), where a float's spacing is 3 to 25 cm.
   LasSpec spec;
   spec.points = {{1, 2, 3}, {2, 3, 4}, {10001, -20002, 3}, {5003, 7, -999}, {-4321, 12345, 1001}};
@@ -143,7 +143,7 @@ TEST(LasReaderTest, GeoreferencedCoordinatesKeepCentimetresAfterRecentring) {
   const absl::StatusOr<ReadResult> r = ParseLas(file, "geo.las");
   ASSERT_TRUE(r.ok()) << r.status();
   ASSERT_EQ(r->cloud.size(), spec.points.size());
-  // The offset is the bounding-box centre: x in [499956.79, 500100.01], and so on.
+  // The offset is the bounding-box center: x in [499956.79, 500100.01], and so on.
   EXPECT_NEAR(r->offset.x(), (499956.79 + 500100.01) / 2, 1e-9);
   EXPECT_NEAR(r->offset.y(), (3999799.98 + 4000123.45) / 2, 1e-9);
   EXPECT_NEAR(r->offset.z(), (90.01 + 110.01) / 2, 1e-9);
@@ -157,7 +157,7 @@ TEST(LasReaderTest, GeoreferencedCoordinatesKeepCentimetresAfterRecentring) {
   for (int a = 0; a < 3; ++a) {
     EXPECT_NEAR(r->cloud.point(1)[a] - r->cloud.point(0)[a], 0.01, 1e-5) << "axis " << a;
   }
-  // Without recentring, float rounding merges them.
+  // Without recentering, float rounding merges them.
   const absl::StatusOr<ReadResult> raw = ParseLas(file, "geo.las", Raw());
   ASSERT_TRUE(raw.ok()) << raw.status();
   EXPECT_EQ(raw->cloud.point(1).y(), raw->cloud.point(0).y());

@@ -451,7 +451,7 @@ absl::StatusOr<ReadResult> ParseNpyArray(absl::string_view contents, absl::strin
       return Invalid(name, shape_where,
                      absl::StrCat("shape ", shape_text,
                                   " is not a point array; expected (N, 3) or more columns (one "
-                                  "point is (1, 3)), or (H, W, 3) for an organised cloud"));
+                                  "point is (1, 3)), or (H, W, 3) for an organized cloud"));
     }
     if (dims.back() < 3) {
       return Invalid(
@@ -479,7 +479,7 @@ absl::StatusOr<ReadResult> ParseNpyArray(absl::string_view contents, absl::strin
   if (elements == 0) return std::move(cloud).Finish(options);
 
   const uint64_t rows = dims[0];
-  const uint64_t cols = lead_dims == 2 ? dims[1] : 1;  // an organised cloud's width
+  const uint64_t cols = lead_dims == 2 ? dims[1] : 1;  // an organized cloud's width
   const uint64_t points = rows * cols;
   const bool fortran_grid = fortran->truth && lead_dims == 2;
   // A point's values are at record * record_size + offset[axis].

@@ -13,7 +13,7 @@ namespace shapeid {
 // whitespace, a trailing comma, Python 2's "3L" integers. The array is read as points, in
 // NumPy's index order (C order whatever fortran_order says):
 //  - shape (N, C) with C >= 3: x y z are the first three columns, the others (normals,
-//    colors, intensity) are skipped; (H, W, C) is an organised cloud of H * W points;
+//    colors, intensity) are skipped; (H, W, C) is an organized cloud of H * W points;
 //  - a structured dtype (descr a list of fields, as ros_numpy, PCL and Open3D exports write)
 //    of shape (N,) or (H, W): the fields named 'x', 'y' and 'z' (lower case) are read, every
 //    other field is skipped by its size, whatever its type (sub-arrays and nested records too);

@@ -173,7 +173,7 @@ TEST(NpyReaderTest, FortranOrder) {
                           Values<double>({0, 10, 20, 1, 11, 21, 2, 12, 22})),
                       "f.npy", Raw()),
              3);
-  // Column-major (2, 3, 4) organised cloud: element (h, w, c) at h + 2 w + 6 c; the fourth
+  // Column-major (2, 3, 4) organized cloud: element (h, w, c) at h + 2 w + 6 c; the fourth
   // column is skipped. Points come in C order: (0,0) (0,1) (0,2) (1,0) ...
   std::vector<float> data(24, -1.0f);
   for (int h = 0; h < 2; ++h) {
@@ -408,7 +408,7 @@ TEST(NpyReaderTest, ShapesThatAreNotPointArrays) {
   const Case cases[] = {
       {"'<f4'", "(3,)",
        "byte offset 60: shape (3,) is not a point array; expected (N, 3) or more columns (one "
-       "point is (1, 3)), or (H, W, 3) for an organised cloud"},
+       "point is (1, 3)), or (H, W, 3) for an organized cloud"},
       {"'<f4'", "()", "shape () is not a point array"},
       {"'<f4'", "(1, 1, 1, 3)", "shape (1, 1, 1, 3) is not a point array"},
       {"'<f4'", "(3, 2)", "byte offset 60: shape (3, 2) has 2 columns; x, y and z need 3"},

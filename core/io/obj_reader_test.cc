@@ -70,7 +70,7 @@ std::vector<int> CountPerCubeFace(const PointCloud& cloud) {
   std::vector<int> per_face(6, 0);
   for (size_t i = 0; i < cloud.size(); ++i) {
     const auto p = cloud.point(i);
-    double distance = 0;  // to the farthest face plane, measured from the centre
+    double distance = 0;  // to the farthest face plane, measured from the center
     for (int a = 0; a < 3; ++a) {
       EXPECT_GE(p[a], -1e-6f) << "point " << i;
       EXPECT_LE(p[a], 1 + 1e-6f) << "point " << i;
@@ -148,7 +148,7 @@ TEST(ObjReaderTest, SameSeedSamePoints) {
   EXPECT_TRUE(differs);
 }
 
-TEST(ObjReaderTest, DefaultSampleCountAndRecentring) {
+TEST(ObjReaderTest, DefaultSampleCountAndRecentering) {
   const absl::StatusOr<ReadResult> r = ParseObj(kCube, "cube.obj");
   ASSERT_TRUE(r.ok()) << r.status();
   EXPECT_EQ(r->cloud.size(), ReadOptions().sample_points);
@@ -175,10 +175,10 @@ TEST(ObjReaderTest, PointCloudWithoutFacesGivesItsVertices) {
   EXPECT_EQ(r->cloud.point(0), Eigen::Vector3f(1.5f, -2, 300));
   EXPECT_EQ(r->cloud.point(2), Eigen::Vector3f(7, 8, 9));
 
-  const absl::StatusOr<ReadResult> centred = ParseObj(kPoints, "scan.obj");
-  ASSERT_TRUE(centred.ok()) << centred.status();
-  EXPECT_EQ(centred->offset, Eigen::Vector3d(4.25, 3, 153));
-  EXPECT_EQ(centred->cloud.point(0), Eigen::Vector3f(-2.75f, -5, 147));
+  const absl::StatusOr<ReadResult> centered = ParseObj(kPoints, "scan.obj");
+  ASSERT_TRUE(centered.ok()) << centered.status();
+  EXPECT_EQ(centered->offset, Eigen::Vector3d(4.25, 3, 153));
+  EXPECT_EQ(centered->cloud.point(0), Eigen::Vector3f(-2.75f, -5, 147));
 }
 
 TEST(ObjReaderTest, DropsNonFiniteVerticesWhenAsked) {

@@ -39,7 +39,7 @@ TEST(OffReaderTest, CubeSampledOnTheSurface) {
   int per_face[6] = {0, 0, 0, 0, 0, 0};
   for (size_t i = 0; i < r->cloud.size(); ++i) {
     const auto p = r->cloud.point(i);
-    double distance = 0;  // to the nearest face plane, measured from the centre
+    double distance = 0;  // to the nearest face plane, measured from the center
     for (int a = 0; a < 3; ++a) {
       EXPECT_GE(p[a], -1e-6f);
       EXPECT_LE(p[a], 1 + 1e-6f);
@@ -71,7 +71,7 @@ TEST(OffReaderTest, SameSeedSamePoints) {
   EXPECT_TRUE(differs);
 }
 
-TEST(OffReaderTest, DefaultSampleCountAndRecentring) {
+TEST(OffReaderTest, DefaultSampleCountAndRecentering) {
   const absl::StatusOr<ReadResult> r = ParseOff(kCube, "cube.off");
   ASSERT_TRUE(r.ok()) << r.status();
   EXPECT_EQ(r->cloud.size(), ReadOptions().sample_points);

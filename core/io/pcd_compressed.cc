@@ -25,7 +25,7 @@ uint32_t LoadU32(const char* p) {
 }  // namespace
 
 // DATA binary_compressed, as PCL writes it: uint32 compressed size, uint32 uncompressed size,
-// then one LZF block whose contents are organised by field (all values of the first field,
+// then one LZF block whose contents are organized by field (all values of the first field,
 // then all of the second, ...), each field `SIZE * COUNT * points` bytes.
 absl::StatusOr<ReadResult> DecodeCompressed(absl::string_view contents, absl::string_view name,
                                             const Header& h, const Layout& layout,

@@ -11,7 +11,7 @@ namespace shapeid {
 // that every error message starts with. Reads the x, y and z fields, which must be F4 or F8
 // with COUNT 1, and skips every other field (rgb, normals, intensity, `_` padding) whatever
 // its SIZE, TYPE and COUNT. DATA ascii, binary and binary_compressed (LZF, through Debian's
-// liblzf; the decompressed data is organised by field, as PCL writes it). Binary data is host
+// liblzf; the decompressed data is organized by field, as PCL writes it). Binary data is host
 // byte order (little-endian in practice), as PCL writes it. Older headers without COUNT (v0.6) or
 // HEIGHT and POINTS are accepted. Errors name the header line or the byte offset of the problem:
 //  - InvalidArgument: a malformed header (unknown keyword, inconsistent FIELDS / SIZE / TYPE /

@@ -17,7 +17,7 @@ enum class PcdEncoding {
 };
 
 // The bytes of a PCD v0.7 file holding `cloud`: FIELDS x y z, SIZE 4 4 4, TYPE F F F,
-// COUNT 1 1 1, WIDTH n, HEIGHT 1 (unorganised), VIEWPOINT 0 0 0 1 0 0 0, POINTS n, then the data.
+// COUNT 1 1 1, WIDTH n, HEIGHT 1 (unorganized), VIEWPOINT 0 0 0 1 0 0 0, POINTS n, then the data.
 // Non-finite coordinates are written as they are ("nan", "inf" in ascii). ParsePcd and PCL read
 // the result back; with ReadOptions::recenter false, to the same bits.
 std::string EncodePcd(const PointCloud& cloud, PcdEncoding encoding);

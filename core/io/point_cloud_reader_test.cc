@@ -96,7 +96,7 @@ TEST(PointCloudReaderTest, AFileWithoutAKnownExtensionIsReadByItsSignature) {
   ASSERT_TRUE(pcd.ok()) << pcd.status();
   EXPECT_EQ(pcd->cloud.point(0), Eigen::Vector3f(1, 2, 3));
   // A PLY named .xyz is read as text, as its name says, and fails there.
-  EXPECT_FALSE(ReadPointCloud(WriteTempFile("mislabelled.xyz", ply_text)).ok());
+  EXPECT_FALSE(ReadPointCloud(WriteTempFile("mislabeled.xyz", ply_text)).ok());
 }
 
 TEST(PointCloudReaderTest, AnInputFormatOverridesTheExtension) {

@@ -23,7 +23,7 @@ namespace shapeid {
 //   .las               LAS 1.0-1.4, every point format (core/io/las_reader.h); .laz is refused
 //                      with the command that decompresses it
 //   .npy .npz          NumPy arrays (core/io/npy_reader.h): float or integer, (N, 3+) or an
-//                      organised (H, W, 3+), C or Fortran order, or structured with x, y, z
+//                      organized (H, W, 3+), C or Fortran order, or structured with x, y, z
 //                      fields; .npz as np.savez / np.savez_compressed write it
 //   .xyz .txt .xyzn .xyzrgb
 //                      text, blank- or comma-separated, x y z first (core/io/xyz_reader.h)
@@ -37,14 +37,14 @@ enum class CloudFormat { kPcd, kPly, kOff, kObj, kStl, kVtk, kLas, kNpy, kNpz, k
 // How the point-cloud readers turn a file into a PointCloud. Every reader honours
 // drop_non_finite and recenter; the sample_* fields concern the mesh formats.
 struct ReadOptions {
-  // Organised PCD clouds (from depth cameras) mark missing pixels with NaN points. Default
+  // Organized PCD clouds (from depth cameras) mark missing pixels with NaN points. Default
   // false: they are kept, so that describing the cloud fails and says so, rather than
   // silently describing fewer points than the file holds. When true, every point with a
   // non-finite coordinate is removed and ReadResult::dropped_non_finite counts them.
   bool drop_non_finite = false;
 
   // Default true: coordinates are parsed in double and the cloud is shifted by its
-  // bounding-box centre (computed in double, over the finite points) before conversion to
+  // bounding-box center (computed in double, over the finite points) before conversion to
   // float, because float32 cannot hold georeferenced coordinates (e.g. DALES, ~5e5 m) to the
   // centimetre (its spacing there is 3 cm to 6 cm), and every descriptor is translation
   // invariant, so the shift costs nothing. ReadResult::offset gives the shift back. False

@@ -29,7 +29,7 @@ struct SceneFileObject {
 
 struct SceneFile {
   std::string name;  // NNNN
-  PointCloud frame;  // as stored: not recentred, NaN points kept
+  PointCloud frame;  // as stored: not recentered, NaN points kept
   std::vector<uint16_t> truth;
   std::vector<SceneFileObject> objects;  // objects[i - 1] is truth id i
 };

@@ -97,7 +97,7 @@ TEST(XyzReaderTest, NonFiniteValues) {
   absl::StatusOr<ReadResult> dropped = ReadPointCloud(path, drop);
   ASSERT_TRUE(dropped.ok()) << dropped.status();
   EXPECT_EQ(dropped->dropped_non_finite, 2u);
-  // Recentred on the finite points only: box (1..7, 2..8, 3..9), centre (4, 5, 6).
+  // Recentered on the finite points only: box (1..7, 2..8, 3..9), center (4, 5, 6).
   EXPECT_EQ(dropped->offset, Eigen::Vector3d(4, 5, 6));
   ExpectPoints(dropped->cloud, {-3, -3, -3, 3, 3, 3});
 }

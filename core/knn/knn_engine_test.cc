@@ -1,6 +1,6 @@
 // The search engines against a plain double-precision reference, against a naive float
 // double loop over views and query vectors, and against each other: every SIMD level, with
-// and without early abandonment, and the kd-tree must return the same neighbours with
+// and without early abandonment, and the kd-tree must return the same neighbors with
 // bit-identical distances.
 
 #include <algorithm>
@@ -26,7 +26,7 @@ struct Gallery {
   std::vector<std::vector<float>> rows;
 };
 
-// Normal features around different centres per dimension, with about one sample in ten an
+// Normal features around different centers per dimension, with about one sample in ten an
 // exact copy of an earlier one so that exact ties occur.
 Gallery RandomGallery(int n, int dim, uint32_t seed) {
   std::mt19937 rng(seed);
@@ -261,7 +261,7 @@ uint64_t IdOf(std::size_t sample) { return 1000003 * (sample + 1) % 999983; }
 
 // Samples of 1..max_views views each (views * dim floats). Dimension j has spread
 // 1 / (1 + j / 8), like DFSD's low-frequency-first coefficients, so that blocks are
-// abandoned after the first dimensions; the views of one sample scatter around a centre.
+// abandoned after the first dimensions; the views of one sample scatter around a center.
 // About one sample in eight repeats an earlier sample's view, and one view in eight
 // repeats the sample's previous view, so that exact ties occur across and within samples.
 std::vector<std::vector<float>> MultiViewGallery(int n, int dim, int max_views, uint32_t seed) {
@@ -270,8 +270,8 @@ std::vector<std::vector<float>> MultiViewGallery(int n, int dim, int max_views, 
   std::vector<std::vector<float>> samples;
   for (int i = 0; i < n; ++i) {
     const int views = 1 + static_cast<int>(rng() % static_cast<unsigned>(max_views));
-    std::vector<float> centre(dim);
-    for (int j = 0; j < dim; ++j) centre[j] = normal(rng) / (1.0f + static_cast<float>(j) / 8);
+    std::vector<float> center(dim);
+    for (int j = 0; j < dim; ++j) center[j] = normal(rng) / (1.0f + static_cast<float>(j) / 8);
     std::vector<float> x;
     for (int v = 0; v < views; ++v) {
       if (v > 0 && rng() % 8 == 0) {
@@ -280,7 +280,7 @@ std::vector<std::vector<float>> MultiViewGallery(int n, int dim, int max_views, 
         const std::vector<float>& other = samples[rng() % samples.size()];
         x.insert(x.end(), other.begin(), other.begin() + dim);
       } else {
-        for (int j = 0; j < dim; ++j) x.push_back(centre[j] + 0.3f * normal(rng) * centre[j]);
+        for (int j = 0; j < dim; ++j) x.push_back(center[j] + 0.3f * normal(rng) * center[j]);
       }
     }
     samples.push_back(std::move(x));

@@ -216,7 +216,7 @@ std::vector<Candidate> KnnIndex::FindNearest(absl::Span<const float> queries, in
     storage_.Scan(level, lists->indexed_rows(), queries.data(), num_queries, scale, early_abandon,
                   &top);
     // Probed cells can hold fewer than k samples (small or emptied cells); then the exact
-    // scan below answers, so a search always returns min(k, size()) neighbours.
+    // scan below answers, so a search always returns min(k, size()) neighbors.
     if (top.full()) {
       if (approximate != nullptr) *approximate = true;
       return top.TakeSorted();

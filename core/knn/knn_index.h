@@ -32,14 +32,14 @@ enum class SearchMode {
   kExact,
 };
 
-// An exact k-nearest-neighbour classifier over a gallery of labelled samples.
+// An exact k-nearest-neighbor classifier over a gallery of labeled samples.
 //
 // A sample (one id, one label) holds one or more feature vectors, its views: e.g. partial
 // scans of one object made at training time. A query may likewise be several vectors (e.g.
 // one descriptor under the axis permutations its canonical frame cannot tell apart). The
 // distance between a query and a sample is the smallest over all (query vector, view)
 // pairs, and the k nearest are k distinct samples, so an object with many views takes one
-// place among the neighbours and casts one vote, however many of its views are close.
+// place among the neighbors and casts one vote, however many of its views are close.
 //
 // The index is Faiss's split of one: the feature storage (knn_feature_storage.h), the id
 // map and labels (knn_sample_table.h), running statistics (knn_statistics.h), the search
@@ -117,7 +117,7 @@ class KnnIndex {
   std::vector<std::pair<std::string, int64_t>> LabelCounts() const {
     return samples_.LabelCounts();
   }
-  // The ids of the samples labelled `label`, in insertion order; empty if there are none.
+  // The ids of the samples labeled `label`, in insertion order; empty if there are none.
   // O(size()): for removals by label, which cost O(size() * dimension()) anyway.
   std::vector<uint64_t> IdsWithLabel(absl::string_view label) const {
     return samples_.IdsWithLabel(label);
@@ -173,7 +173,7 @@ class KnnIndex {
                                                SearchMode mode = SearchMode::kDefault) const;
 
   // Search with options.k and options.scaling, then the vote of options.weighting: one
-  // vote per neighbouring sample. Same errors as Search, plus ValidateKnnOptions.
+  // vote per neighboring sample. Same errors as Search, plus ValidateKnnOptions.
   absl::StatusOr<KnnResult> Classify(absl::Span<const float> queries, const KnnOptions& options,
                                      SearchMode mode = SearchMode::kDefault) const;
 

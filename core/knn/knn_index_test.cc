@@ -48,19 +48,19 @@ std::vector<uint64_t> Ids(const std::vector<Neighbor>& neighbors) {
 // Differences q - x: id1 (1, 0), id2 (-3, 0), id3 (1, -2), id4 (-3, -2).
 //
 // none:   distances 1, 3, sqrt 5 = 2.2361, sqrt 13 = 3.6056
-//         neighbours 1 (1, b), 3 (2.2361, a), 2 (3, a)
+//         neighbors 1 (1, b), 3 (2.2361, a), 2 (3, a)
 //         uniform:  a 2, b 1 -> a, confidence 2/3
 //         distance: b 1/1 = 1, a 1/2.2361 + 1/3 = 0.4472 + 0.3333 = 0.7805
 //                   -> b, confidence 1 / 1.7805 = 0.5616
 // zscore: scaled differences (0.5, 0), (-1.5, 0), (0.5, -2), (-1.5, -2)
 //         distances 0.5, 1.5, sqrt 4.25 = 2.0616, 2.5
-//         neighbours 1 (0.5, b), 2 (1.5, a), 3 (2.0616, a)
+//         neighbors 1 (0.5, b), 2 (1.5, a), 3 (2.0616, a)
 //         uniform:  a 2, b 1 -> a, confidence 2/3
 //         distance: b 1/0.5 = 2, a 1/1.5 + 1/2.0616 = 0.6667 + 0.4851 = 1.1517
 //                   -> b, confidence 2 / 3.1517 = 0.6346
 // maxabs: scaled differences (1/3, 0), (-1, 0), (1/3, -1), (-1, -1)
 //         distances 0.3333, 1, sqrt(10)/3 = 1.0541, sqrt 2 = 1.4142
-//         neighbours 1 (0.3333, b), 2 (1, a), 3 (1.0541, a)
+//         neighbors 1 (0.3333, b), 2 (1, a), 3 (1.0541, a)
 //         uniform:  a 2, b 1 -> a, confidence 2/3
 //         distance: b 3, a 1 + 0.9487 = 1.9487 -> b, confidence 3 / 4.9487 = 0.6062
 struct HandCase {
@@ -184,7 +184,7 @@ TEST(KnnIndexTest, EqualDistancesGoToTheEarlierSample) {
   EXPECT_THAT(Ids(*neighbors), ElementsAre(7, 1000, 999));
 }
 
-TEST(KnnIndexTest, EqualVotesGoToTheClassOfTheNearestNeighbour) {
+TEST(KnnIndexTest, EqualVotesGoToTheClassOfTheNearestNeighbor) {
   KnnIndex index = MakeIndex(1);
   // "far" is added first, so insertion order would favour it; distance must decide.
   AddOrDie(index, 1, "far", {3});
@@ -214,7 +214,7 @@ TEST(KnnIndexTest, KLargerThanTheGalleryReturnsEverySample) {
   EXPECT_EQ(result->neighbors.size(), 2u);
 }
 
-TEST(KnnIndexTest, ZeroDistanceNeighboursOutvoteAllOthersUnderDistanceWeighting) {
+TEST(KnnIndexTest, ZeroDistanceNeighborsOutvoteAllOthersUnderDistanceWeighting) {
   KnnIndex index = MakeIndex(1);
   AddOrDie(index, 1, "exact", {2});
   AddOrDie(index, 2, "other", {2.5f});
@@ -232,7 +232,7 @@ TEST(KnnIndexTest, ZeroDistanceNeighboursOutvoteAllOthersUnderDistanceWeighting)
   EXPECT_EQ(result->votes[1].weight, 0.0);
 
   // Two zero-distance samples of different classes: one vote each; the tie goes to the
-  // class of the nearest neighbour, which among equal distances is the earlier sample.
+  // class of the nearest neighbor, which among equal distances is the earlier sample.
   AddOrDie(index, 5, "twin", {2});
   options.k = 5;
   result = index.Classify(std::vector<float>{2}, options);
@@ -681,7 +681,7 @@ TEST(KnnIndexTest, TheClosestViewAndQueryDecide) {
   EXPECT_THAT(Ids(*got), ElementsAre(2, 4));
 }
 
-// Nine views of one object next to the query take one neighbour place and one vote.
+// Nine views of one object next to the query take one neighbor place and one vote.
 TEST(KnnIndexTest, ClassifyVotesOncePerSample) {
   KnnIndex index = MakeIndex(2);
   std::vector<float> many;
@@ -701,7 +701,7 @@ TEST(KnnIndexTest, ClassifyVotesOncePerSample) {
   EXPECT_EQ(result->votes[1].label, "mug");
   EXPECT_EQ(result->votes[1].weight, 1.0);
 
-  // A second query vector that sits on the far mug makes it a zero-distance neighbour.
+  // A second query vector that sits on the far mug makes it a zero-distance neighbor.
   options.weighting = VoteWeighting::kDistance;
   result = index.Classify(std::vector<float>{0, 0.2f, 5, 5}, options);
   ASSERT_TRUE(result.ok());

@@ -29,7 +29,7 @@ namespace knn_internal {
 // Exactness: a list scan computes the same distance, bit for bit, as a gallery scan
 // (same kernels), and reports gallery row numbers, so what the lists find is ranked and
 // tie-broken exactly as brute force would. What is approximate is only which rows are
-// looked at: a neighbour in a cell the query did not probe is missed. Probing every list
+// looked at: a neighbor in a cell the query did not probe is missed. Probing every list
 // is exact.
 //
 // Immutable once built, so snapshots of a gallery share it; thread-safe for queries.

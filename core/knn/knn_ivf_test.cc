@@ -1,7 +1,7 @@
 // The approximate index (inverted lists, knn_ivf.h) through KnnIndex: probing every cell
-// is exact, bit for bit; the default probes find nearly every true neighbour on clustered
+// is exact, bit for bit; the default probes find nearly every true neighbor on clustered
 // data; the lists follow Add, Remove and growth; and a search never returns fewer than
-// min(k, size()) neighbours.
+// min(k, size()) neighbors.
 
 #include <algorithm>
 #include <cmath>
@@ -18,8 +18,8 @@ namespace {
 
 constexpr int kDim = 24;
 
-// `n` samples around `clusters` centres (clustered, like descriptors of object classes),
-// `views` vectors each, labelled by cluster.
+// `n` samples around `clusters` centers (clustered, like descriptors of object classes),
+// `views` vectors each, labeled by cluster.
 struct Data {
   std::vector<std::vector<float>> samples;  // views * kDim floats each
   std::vector<int> cluster;
@@ -32,8 +32,8 @@ Data Clustered(int n, int clusters, int views, uint64_t seed) {
     const double u = std::max(rng.Uniform(), 1e-12), v = rng.Uniform();
     return static_cast<float>(std::sqrt(-2.0 * std::log(u)) * std::cos(6.283185307179586 * v));
   };
-  std::vector<std::vector<float>> centres(static_cast<size_t>(clusters), std::vector<float>(kDim));
-  for (auto& c : centres) {
+  std::vector<std::vector<float>> centers(static_cast<size_t>(clusters), std::vector<float>(kDim));
+  for (auto& c : centers) {
     for (float& x : c) x = 10.0f * normal();
   }
   Data data;
@@ -42,7 +42,7 @@ Data Clustered(int n, int clusters, int views, uint64_t seed) {
     std::vector<float> features;
     for (int v = 0; v < views; ++v) {
       for (int j = 0; j < kDim; ++j)
-        features.push_back(centres[static_cast<size_t>(c)][j] + normal());
+        features.push_back(centers[static_cast<size_t>(c)][j] + normal());
     }
     data.samples.push_back(std::move(features));
     data.cluster.push_back(c);
@@ -86,10 +86,10 @@ std::vector<std::vector<float>> Queries(const Data& data, int count, int vectors
 void ExpectSame(const std::vector<Neighbor>& got, const std::vector<Neighbor>& want) {
   ASSERT_EQ(got.size(), want.size());
   for (size_t i = 0; i < got.size(); ++i) {
-    EXPECT_EQ(got[i].id, want[i].id) << "neighbour " << i;
-    EXPECT_EQ(got[i].distance, want[i].distance) << "neighbour " << i;  // bit for bit
-    EXPECT_EQ(got[i].view, want[i].view) << "neighbour " << i;
-    EXPECT_EQ(got[i].query, want[i].query) << "neighbour " << i;
+    EXPECT_EQ(got[i].id, want[i].id) << "neighbor " << i;
+    EXPECT_EQ(got[i].distance, want[i].distance) << "neighbor " << i;  // bit for bit
+    EXPECT_EQ(got[i].view, want[i].view) << "neighbor " << i;
+    EXPECT_EQ(got[i].query, want[i].query) << "neighbor " << i;
   }
 }
 
@@ -119,7 +119,7 @@ TEST(KnnIvfTest, ProbingEveryCellIsExactBitForBit) {
   }
 }
 
-TEST(KnnIvfTest, DefaultProbesFindNearlyEveryTrueNeighbourOnClusteredData) {
+TEST(KnnIvfTest, DefaultProbesFindNearlyEveryTrueNeighborOnClusteredData) {
   const Data data = Clustered(20000, 200, 1, 3);
   KnnIndex index = Build(data);
   ASSERT_TRUE(index.UpdateApproximate(Approximate(10000)).ok());
@@ -193,7 +193,7 @@ TEST(KnnIvfTest, SamplesAddedSinceTheUpdateAreScannedExactly) {
   KnnIndex index = Build(data);
   ASSERT_TRUE(index.UpdateApproximate(Approximate(1000, 50, 1)).ok());
   const int64_t filed = index.approximate_filed_vectors();
-  // A new sample far from every cell centre: only the exact tail can find it.
+  // A new sample far from every cell center: only the exact tail can find it.
   std::vector<float> far(kDim, 500.0f);
   ASSERT_TRUE(index.Add(99999, "far", far).ok());
   EXPECT_EQ(index.approximate_filed_vectors(), filed);

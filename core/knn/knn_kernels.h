@@ -63,7 +63,7 @@ struct AlignedAllocator {
 };
 using AlignedFloats = std::vector<float, AlignedAllocator<float>>;
 
-// A candidate neighbour: squared distance in the scaled space, storage row and the query
+// A candidate neighbor: squared distance in the scaled space, storage row and the query
 // vector that scored it. Candidates are ordered by (distance, row, query): rows of a sample
 // are contiguous and samples are stored in insertion order, so among equal distances the
 // earlier-added sample wins, and within a sample the earlier view, then the earlier query.

@@ -24,21 +24,21 @@ enum class FeatureScaling {
   kMaxAbs,
 };
 
-// How the k neighbours vote for a class.
+// How the k neighbors vote for a class.
 enum class VoteWeighting {
-  // One vote per neighbour.
+  // One vote per neighbor.
   kUniform,
-  // 1 / distance per neighbour. When any neighbour is at distance exactly 0, only the
-  // zero-distance neighbours vote, one vote each (scikit-learn's rule).
+  // 1 / distance per neighbor. When any neighbor is at distance exactly 0, only the
+  // zero-distance neighbors vote, one vote each (scikit-learn's rule).
   kDistance,
 };
 
 struct KnnOptions {
-  // Number of neighbours, >= 1. A k larger than the gallery is clamped to the gallery size.
+  // Number of neighbors, >= 1. A k larger than the gallery is clamped to the gallery size.
   // k = 1 is the published setting; larger k smooths label noise but blurs small classes.
   int k = 1;
   // Default uniform: with k = 1 both weightings agree; with larger k, kDistance lets a very
-  // close neighbour outvote several far ones.
+  // close neighbor outvote several far ones.
   VoteWeighting weighting = VoteWeighting::kUniform;
   // Default none: descriptors are usually histograms with one unit. Use kMaxAbs to
   // reproduce the author's runs, kZScore when dimensions have unrelated units.
@@ -48,7 +48,7 @@ struct KnnOptions {
 // Approximate search for large galleries: inverted lists over k-means cells (IVF-Flat, the
 // scheme of Faiss's IndexIVFFlat; core/knn/knn_ivf.h). A query reads only the `probes`
 // cells nearest to it, so its cost is about probes / lists of an exact scan, and it can miss
-// a neighbour that lies in a cell it did not probe (recall: docs/performance.md). Distances,
+// a neighbor that lies in a cell it did not probe (recall: docs/performance.md). Distances,
 // ranking and votes of what it finds are exact. A server-wide setting, not a gallery's: the
 // lists are derived from the stored vectors and rebuilt when a gallery loads.
 struct ApproximateOptions {

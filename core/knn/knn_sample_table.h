@@ -48,7 +48,7 @@ class SampleTable {
   int64_t memory_bytes() const;
   // Samples per distinct label, labels in order of first appearance. O(num_labels()).
   std::vector<std::pair<std::string, int64_t>> LabelCounts() const;
-  // The ids of the samples labelled `label`, in insertion order. O(size()).
+  // The ids of the samples labeled `label`, in insertion order. O(size()).
   std::vector<uint64_t> IdsWithLabel(absl::string_view label) const;
 
   // Appends a sample of `rows` rows (>= 1) after the existing ones. The caller has checked

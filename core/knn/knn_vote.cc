@@ -13,7 +13,7 @@ void Vote(absl::Span<const Neighbor> neighbors, VoteWeighting weighting, KnnResu
   bool any_zero = false;
   for (const Neighbor& n : neighbors) any_zero = any_zero || n.distance == 0.0;
 
-  // Weights summed in neighbour order; classes listed in order of their nearest neighbour.
+  // Weights summed in neighbor order; classes listed in order of their nearest neighbor.
   absl::flat_hash_map<absl::string_view, std::size_t> vote_of_label;
   std::vector<absl::string_view> vote_label;
   std::vector<double> vote_weight;
@@ -33,7 +33,7 @@ void Vote(absl::Span<const Neighbor> neighbors, VoteWeighting weighting, KnnResu
   }
   std::vector<std::size_t> order(vote_label.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-  // Stable: equal weights keep nearest-neighbour order.
+  // Stable: equal weights keep nearest-neighbor order.
   std::stable_sort(order.begin(), order.end(),
                    [&](std::size_t a, std::size_t b) { return vote_weight[a] > vote_weight[b]; });
   double total = 0.0;

@@ -1,8 +1,8 @@
 #ifndef SHAPEID_CORE_KNN_KNN_VOTE_H_
 #define SHAPEID_CORE_KNN_KNN_VOTE_H_
 
-// The result types of a kNN search and the vote that turns neighbours into a class. Outside
-// the index: a vote needs only the neighbours.
+// The result types of a kNN search and the vote that turns neighbors into a class. Outside
+// the index: a vote needs only the neighbors.
 
 #include <cstdint>
 #include <string>
@@ -33,24 +33,24 @@ struct ClassVote {
 
 struct KnnResult {
   // The winning class: the most vote weight; among equal weights, the class of the nearest
-  // neighbour.
+  // neighbor.
   std::string label;
   // The winner's share of the total vote weight, in (0, 1].
   double confidence = 0.0;
   // min(k, size()) distinct samples, nearest first; equal distances in the order the
   // samples were added.
   std::vector<Neighbor> neighbors;
-  // One entry per class present among the neighbours, most weight first, ties in the order
-  // of each class's nearest neighbour (so votes[0].label == label). Under distance weighting
-  // with a zero-distance neighbour, the classes without one appear with weight 0.
+  // One entry per class present among the neighbors, most weight first, ties in the order
+  // of each class's nearest neighbor (so votes[0].label == label). Under distance weighting
+  // with a zero-distance neighbor, the classes without one appear with weight 0.
   std::vector<ClassVote> votes;
-  // True when the search read the index's inverted lists: the neighbours are exact
+  // True when the search read the index's inverted lists: the neighbors are exact
   // distances, but a nearer sample in a cell that was not probed may be missing.
   bool approximate = false;
 };
 
 // The vote of `neighbors` (nearest first, at least one, finite distances) under `weighting`:
-// one vote per neighbour (kUniform), or 1 / distance (kDistance; when some neighbour is at
+// one vote per neighbor (kUniform), or 1 / distance (kDistance; when some neighbor is at
 // distance 0, only those vote, one each). Fills result->votes, label and confidence; leaves
 // its other fields alone. O(neighbors).
 void Vote(absl::Span<const Neighbor> neighbors, VoteWeighting weighting, KnnResult* result);

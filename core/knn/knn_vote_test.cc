@@ -29,12 +29,12 @@ TEST(VoteTest, DistanceWeighting) {
   const std::vector<Neighbor> neighbors = {N("b", 1), N("a", 2), N("a", 2)};
   KnnResult result;
   Vote(neighbors, VoteWeighting::kDistance, &result);
-  // a: 1/2 + 1/2 = 1 ties b's 1/1: the nearest neighbour's class wins.
+  // a: 1/2 + 1/2 = 1 ties b's 1/1: the nearest neighbor's class wins.
   EXPECT_EQ(result.label, "b");
   EXPECT_DOUBLE_EQ(result.confidence, 0.5);
 }
 
-TEST(VoteTest, ZeroDistanceNeighboursAloneVote) {
+TEST(VoteTest, ZeroDistanceNeighborsAloneVote) {
   const std::vector<Neighbor> neighbors = {N("a", 0), N("b", 0), N("b", 0.5), N("c", 1)};
   KnnResult result;
   Vote(neighbors, VoteWeighting::kDistance, &result);

@@ -156,7 +156,7 @@ absl::StatusOr<MlpClassifier> MlpClassifier::Fit(const TrainingRows& rows,
         absl::StrCat(parameters, " parameters: at most ", kMaxParameters));
   }
   for (size_t l = 0; l + 1 < units.size(); ++l) {
-    // He initialisation (uniform), for ReLU layers.
+    // He initialization (uniform), for ReLU layers.
     const float bound = static_cast<float>(std::sqrt(6.0 / units[l]));
     Matrix w(units[l], units[l + 1]);
     for (Eigen::Index i = 0; i < w.size(); ++i) {

@@ -53,7 +53,7 @@ std::shared_ptr<const GallerySnapshot> PrimitiveGallery() {
   absl::StatusOr<std::shared_ptr<Gallery>> gallery =
       Gallery::Create("primitives", options, {}, nullptr);
   EXPECT_TRUE(gallery.ok()) << gallery.status();
-  std::vector<LabelledCloud> samples;
+  std::vector<LabeledCloud> samples;
   const float sizes[] = {0.05f, 0.11f, 0.19f};
   uint32_t seed = 1;
   for (const float d : {0.06f, 0.15f}) {
@@ -76,10 +76,10 @@ std::shared_ptr<const GallerySnapshot> PrimitiveGallery() {
 }
 
 struct Counts {
-  int separated = 0, found = 0, labelled = 0, correct = 0;
+  int separated = 0, found = 0, labeled = 0, correct = 0;
 };
 
-// Found: a cluster holds >= 50 % of the object's points (ScoreClusters). Labelled: found,
+// Found: a cluster holds >= 50 % of the object's points (ScoreClusters). Labeled: found,
 // and the object holds most of that cluster's points, so the answer is about it.
 void Score(const TabletopFrame& frame, const SceneRecognition& scene, bool separated,
            Counts* counts) {
@@ -99,7 +99,7 @@ void Score(const TabletopFrame& frame, const SceneRecognition& scene, bool separ
     const size_t k = static_cast<size_t>(std::max_element(per_object.begin(), per_object.end()) -
                                          per_object.begin());
     if (2 * per_object[k] < frame.objects[k].points) continue;
-    ++counts->labelled;
+    ++counts->labeled;
     counts->correct +=
         o.classification.label == kLabels[static_cast<int>(frame.objects[k].kind)] ? 1 : 0;
   }
@@ -123,8 +123,8 @@ TEST(SceneAccuracyTest, PrimitivesOnATableAreFoundAndNamed) {
   }
   ASSERT_GE(counts.separated, 15);
   EXPECT_GE(counts.found, 0.95 * counts.separated) << counts.found << "/" << counts.separated;
-  ASSERT_GE(counts.labelled, 25);
-  EXPECT_GE(counts.correct, 0.75 * counts.labelled) << counts.correct << "/" << counts.labelled;
+  ASSERT_GE(counts.labeled, 25);
+  EXPECT_GE(counts.correct, 0.75 * counts.labeled) << counts.correct << "/" << counts.labeled;
 }
 
 }  // namespace

@@ -21,7 +21,7 @@ namespace shapeid {
 
 struct SceneRecognitionOptions {
   SceneSegmentationOptions segmentation;
-  // Neighbours per object; 0: the gallery's k.
+  // Neighbors per object; 0: the gallery's k.
   int k = 0;
   SearchMode mode = SearchMode::kDefault;
   // The caller's sensor frame (proto SensorFrame): the transform from the frame's
@@ -45,9 +45,9 @@ struct SceneRecognitionOptions {
 
 struct RecognizedObject {
   // The gallery's answer for this object's points, as Classify gives it (label, or
-  // kUnknownLabel when rejected; neighbours, votes). When the object could not be described
+  // kUnknownLabel when rejected; neighbors, votes). When the object could not be described
   // (`status` not OK: its points lie on a line, or the descriptor refused them) the label
-  // is kUnknownLabel with no neighbours.
+  // is kUnknownLabel with no neighbors.
   GalleryClassification classification;
   absl::Status status;
   ClusterGeometry geometry;       // in the frame's coordinates

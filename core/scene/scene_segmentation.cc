@@ -296,7 +296,7 @@ absl::StatusOr<std::vector<std::vector<uint32_t>>> EuclideanClusters(
     }
     return false;
   };
-  // The 62 neighbour offsets after (0, 0, 0) in lexicographic order: each pair once.
+  // The 62 neighbor offsets after (0, 0, 0) in lexicographic order: each pair once.
   std::vector<std::array<int, 3>> offsets;
   for (int dx = -2; dx <= 2; ++dx) {
     for (int dy = -2; dy <= 2; ++dy) {

@@ -75,7 +75,7 @@ struct SceneSegmentation {
   std::vector<std::vector<uint32_t>> clusters;
   // Where the other points went. Together with the planes' and the clusters' points they
   // account for every point of the frame.
-  size_t non_finite_points = 0;  // NaN or infinite coordinates: skipped (organised frames)
+  size_t non_finite_points = 0;  // NaN or infinite coordinates: skipped (organized frames)
   size_t outside_region = 0;
   size_t in_small_clusters = 0;  // fewer than min_cluster_points
   size_t in_large_clusters = 0;  // more than max_cluster_points

@@ -87,11 +87,11 @@ TEST(SceneSegmentationTest, ClustersEqualConnectedGroupsFoundByBruteForce) {
     SplitMix64 random(seed);
     PointCloud frame;
     for (int clump = 0; clump < 12; ++clump) {
-      const Eigen::Vector3f centre(static_cast<float>(random.Uniform()),
+      const Eigen::Vector3f center(static_cast<float>(random.Uniform()),
                                    static_cast<float>(random.Uniform()),
                                    static_cast<float>(random.Uniform() * 0.3));
       for (int i = 0; i < 150; ++i) {
-        frame.Add(centre + 0.06f * Eigen::Vector3f(static_cast<float>(random.Uniform() - 0.5),
+        frame.Add(center + 0.06f * Eigen::Vector3f(static_cast<float>(random.Uniform() - 0.5),
                                                    static_cast<float>(random.Uniform() - 0.5),
                                                    static_cast<float>(random.Uniform() - 0.5)));
       }
@@ -350,7 +350,7 @@ TEST(SceneSegmentationTest, AFrameTooWideForTheGridIsRefusedWithTheRemedy) {
   EXPECT_THAT(h.status().message(), HasSubstr("inf cluster tolerances"));
 }
 
-// A box rotated and moved: the geometry finds its centre, its extents (largest first) and
+// A box rotated and moved: the geometry finds its center, its extents (largest first) and
 // axes along its edges.
 TEST(ClusterGeometryTest, OrientedBoxOfARotatedBox) {
   PointCloud box;

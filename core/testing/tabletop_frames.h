@@ -30,7 +30,7 @@ inline constexpr int32_t kFloor = -3;
 
 enum class ObjectKind { kSphere, kBox, kCylinder };
 
-// In the table's frame: origin the table top's centre, x along its width (the camera's
+// In the table's frame: origin the table top's center, x along its width (the camera's
 // right), y along its depth (away from the camera), z up. Every object stands on the table
 // and fills [center - size / 2, center + size / 2] in x and y and [0, size.z] in z: a box
 // exactly (sides along the table's edges), an upright cylinder of diameter size.x, a sphere
@@ -48,7 +48,7 @@ struct TabletopFrameOptions {
   int height = 480;
   double vertical_fov_degrees = 58;
   double pitch_degrees = 45;  // the optical axis below the horizontal
-  // The table top: the optical axis meets its centre this far from the camera.
+  // The table top: the optical axis meets its center this far from the camera.
   double table_distance = 0.9;
   double table_width = 1.2;  // across the view
   double table_depth = 0.8;  // away from the camera
@@ -68,13 +68,13 @@ struct TabletopFrameOptions {
   double max_contact_gap = 0.005;
   // Gaussian depth noise along the ray: sigma = depth_noise * depth^2 (depth z in metres).
   double depth_noise = 0.001;
-  // Drop the NaN points (an unorganised frame) instead of keeping one point per pixel.
+  // Drop the NaN points (an unorganized frame) instead of keeping one point per pixel.
   bool drop_missing = false;
   uint64_t seed = 1;
 };
 
 struct TabletopFrame {
-  PointCloud cloud;            // camera frame; organised row by row unless drop_missing
+  PointCloud cloud;            // camera frame; organized row by row unless drop_missing
   std::vector<int32_t> truth;  // per point: an object's index, or kTable, kNothing, kFloor
   // Fewer than options.objects when some could not be placed (a crowded table).
   std::vector<TabletopObject> objects;
@@ -99,7 +99,7 @@ double BoxSdf(const Eigen::Matrix<double, N, 1>& p, const Eigen::Matrix<double, 
   return q.cwiseMax(0.0).norm() + std::min(q.maxCoeff(), 0.0);
 }
 
-// Signed distance from p (relative to the footprint centre) to the solid of `o`.
+// Signed distance from p (relative to the footprint center) to the solid of `o`.
 inline double ObjectSdf(const TabletopObject& o, const Eigen::Vector3d& p) {
   const Eigen::Vector3d s = o.size.cast<double>();
   switch (o.kind) {
@@ -116,7 +116,7 @@ inline double ObjectSdf(const TabletopObject& o, const Eigen::Vector3d& p) {
 
 // Signed 3-D distance between the solids of a and b (negative: they overlap). Exact for every
 // pair: both stand on z = 0, so two upright prisms are as far apart as their footprints, and
-// a sphere is its centre's distance to the other solid less its radius.
+// a sphere is its center's distance to the other solid less its radius.
 inline double SolidDistance(const TabletopObject& a, const TabletopObject& b) {
   if (b.kind == ObjectKind::kSphere) {
     const Eigen::Vector2d c = (b.center - a.center).cast<double>();
@@ -218,7 +218,7 @@ inline std::vector<TabletopObject> PlaceObjects(const TabletopFrameOptions& opti
       if ((room.array() < 0).any()) continue;
       double gap_needed = options.min_gap;
       if (options.touching && !placed.empty()) {
-        // Slide the new object out from an earlier one's centre until the gap is reached:
+        // Slide the new object out from an earlier one's center until the gap is reached:
         // the distance grows monotonically along the way (convex solids), so bisect.
         const TabletopObject& anchor =
             placed[static_cast<size_t>(random.Uniform() * static_cast<double>(placed.size()))];

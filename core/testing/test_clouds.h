@@ -20,7 +20,7 @@ inline PointCloud UniformCloud(size_t n, uint32_t seed) {
   return cloud;
 }
 
-// n points on the unit sphere (normalised Gaussian samples).
+// n points on the unit sphere (normalized Gaussian samples).
 inline PointCloud SphereCloud(size_t n, uint32_t seed) {
   std::mt19937 rng(seed);
   std::normal_distribution<float> g;

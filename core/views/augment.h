@@ -79,7 +79,7 @@ absl::StatusOr<AugmentOptions> ParseAugmentOptions(absl::string_view text);
 // The `options.views` synthetic views of `cloud`: view i is SensorView with the seed
 // DeriveSeed(options.seed ^ cloud_seed, "view<i>") (ViewMix::kVaried: its visibility and, from
 // the same seed, its noise as ViewMix says). Give each training cloud its own
-// cloud_seed (a gallery uses the sample id) so its views differ from its neighbours'. A view
+// cloud_seed (a gallery uses the sample id) so its views differ from its neighbors'. A view
 // that cannot be made (PartialView refuses a degenerate cloud) fails the call with
 // SensorView's error; an empty vector when augmentation is off.
 absl::StatusOr<std::vector<PointCloud>> AugmentedViews(const PointCloud& cloud,

@@ -42,7 +42,7 @@ absl::Status CheckUp(const Eigen::Vector3d& up) {
 }
 
 // (cos t, sin t) for t uniform in [0, 2 pi): a point uniform in the unit disc (rejection from
-// the square, accepted with probability pi / 4), normalised. Points very near the centre are
+// the square, accepted with probability pi / 4), normalized. Points very near the center are
 // rejected too, so that the direction keeps full precision.
 Eigen::Vector2d UnitCircle(SplitMix64& rng) {
   for (;;) {
@@ -308,7 +308,7 @@ absl::StatusOr<PointCloud> PartialView(const PointCloud& cloud, const PartialVie
   scan.distance = options.distance;
   scan.depth_noise = 0;
   scan.fov_degrees = 45;
-  // A square image spans 2 * distance * radius * tan(22.5 degrees) at the object's centre;
+  // A square image spans 2 * distance * radius * tan(22.5 degrees) at the object's center;
   // pixels a third of a sample spacing wide there rarely hold two visible points, so what
   // is hidden, not the resolution, decides what is lost.
   constexpr double kTanHalfFov = 0.41421356237309504880;  // tan(22.5 deg) = sqrt(2) - 1

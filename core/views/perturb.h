@@ -40,7 +40,7 @@ Eigen::Vector3d CloudCentroid(const PointCloud& cloud);
 
 // Rotation by an angle uniform in [0, 2 pi) about the unit axis `up` (a right-handed turn).
 // The angle's cosine and sine come from a point drawn uniformly in the unit disc and
-// normalised. `up` must be finite and non-zero (normalised here).
+// normalized. `up` must be finite and non-zero (normalized here).
 Eigen::Matrix3d RandomYawMatrix(const Eigen::Vector3d& up, SplitMix64& rng);
 
 // A rotation uniform over SO(3) (Haar measure), by Shoemake's method ("Uniform random
@@ -84,7 +84,7 @@ struct PartialViewOptions {
   Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
   double min_up = -1.0;
   double max_up = 1.0;
-  // Camera distance from the bounding box's centre, in half box diagonals, > 1: as
+  // Camera distance from the bounding box's center, in half box diagonals, > 1: as
   // ScanOptions::distance (nearer sees less of a round object).
   double distance = 3.0;
 };
@@ -97,7 +97,7 @@ absl::StatusOr<Eigen::Vector3d> RandomViewDirection(const PartialViewOptions& op
 // The points of the cloud that one depth camera sees from RandomViewDirection(options, seed),
 // by ScanSimulator (scan_simulator.h; the cloud is taken as a sampling of the object's
 // surface) without depth noise, in a square 45-degree image whose pixels are a third of the
-// sample spacing wide at the object's centre (64 to 2,048 pixels a side), so that
+// sample spacing wide at the object's center (64 to 2,048 pixels a side), so that
 // visibility, not the camera's resolution, decides what is kept. The result is a
 // non-empty subset of the input points, exact, in input order (duplicate points: at most the
 // first copy). Errors (InvalidArgument): the options, as RandomViewDirection and

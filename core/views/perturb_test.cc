@@ -229,12 +229,12 @@ TEST(PerturbTest, PlaneCutKeepsOneSideOfAPlaneNearTheCentroid) {
     const double kept = static_cast<double>(cut->size()) / sphere.size();
     EXPECT_GT(kept, 0.2);
     EXPECT_LT(kept, 0.8);
-    // The kept points' mean leans away from the centre, towards the camera's side.
+    // The kept points' mean leans away from the center, towards the camera's side.
     EXPECT_GT(CloudCentroid(*cut).norm(), 0.2);
   }
   const auto whole = PlaneCutView(sphere, options, 0.0, 3);
   ASSERT_TRUE(whole.ok());
-  EXPECT_NEAR(static_cast<double>(whole->size()) / sphere.size(), 0.5, 0.05);  // through centre
+  EXPECT_NEAR(static_cast<double>(whole->size()) / sphere.size(), 0.5, 0.05);  // through center
   EXPECT_THAT(PlaneCutView(sphere, options, 1.5, 1).status().message(), HasSubstr("[0, 1]"));
   EXPECT_FALSE(PlaneCutView(PointCloud(), options, 0.3, 1).ok());
   // A single repeated point: the plane through the centroid keeps it.
@@ -353,7 +353,7 @@ TEST(PerturbTest, SensorViewIsOneSparseNoisySideInAnyPose) {
     ASSERT_GE(view->size(), 300u);
     ASSERT_LE(view->size(), 500u);
     sizes.push_back(view->size());
-    // One side: the visible cap's centroid is well off the sphere's centre, and the points
+    // One side: the visible cap's centroid is well off the sphere's center, and the points
     // stay near the surface (sigma = 1 % of the extent 2 sqrt 3, so 5 sigma = 0.17).
     EXPECT_GT(CloudCentroid(*view).norm(), 0.3);
     for (size_t i = 0; i < view->size(); ++i) {

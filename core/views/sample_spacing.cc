@@ -12,10 +12,10 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr size_t kProbes = 256;
-// Probes count neighbours among every stride-th point, at most this many: enough for a 2 %
+// Probes count neighbors among every stride-th point, at most this many: enough for a 2 %
 // estimate, and a 100,000-point surface costs a quarter of a pass.
 constexpr size_t kMaxCandidates = 32768;
-// Neighbours per probe that make a usable estimate (below: too noisy; above: needless work,
+// Neighbors per probe that make a usable estimate (below: too noisy; above: needless work,
 // and balls that outgrow the surface's curvature).
 constexpr uint64_t kMinMeanCount = 8;
 constexpr uint64_t kMaxMeanCount = 256;
@@ -27,11 +27,11 @@ struct Cell {
 };
 
 // Ball counts for all probes at one radius, through a table of the 27 cells around each probe
-// (cell side = the radius, so every neighbour lies in one of them). A point costs one hash and
+// (cell side = the radius, so every neighbor lies in one of them). A point costs one hash and
 // one table read; only points near a probe go further. The buffers live across tries.
-class NeighbourCounter {
+class NeighborCounter {
  public:
-  NeighbourCounter(const PointCloud& surface, const Eigen::Vector3d& origin)
+  NeighborCounter(const PointCloud& surface, const Eigen::Vector3d& origin)
       : surface_(surface),
         origin_(origin),
         stride_((surface.size() + kMaxCandidates - 1) / kMaxCandidates),
@@ -135,10 +135,10 @@ class NeighbourCounter {
 
 double EstimateSampleSpacing(const PointCloud& surface, const CloudStats& stats) {
   const double radius = 0.5 * (stats.max - stats.min).norm();  // > 0 for a valid cloud
-  NeighbourCounter counter(surface, stats.min);
+  NeighborCounter counter(surface, stats.min);
   const uint64_t m = counter.num_probes();
   // First guess: the surface area of a compact object is about 4 r^2 (a sphere's is 4.2 r^2
-  // for r the half-diagonal of its box, a cube's 8 r^2); aim at 32 neighbours per probe.
+  // for r the half-diagonal of its box, a cube's 8 r^2); aim at 32 neighbors per probe.
   const double guess_area = 4 * radius * radius;
   const double n = static_cast<double>(counter.num_candidates());
   double g = std::sqrt(32 * guess_area / (kPi * n));
@@ -153,10 +153,10 @@ double EstimateSampleSpacing(const PointCloud& surface, const CloudStats& stats)
       break;
     }
   }
-  const double neighbours = static_cast<double>(pairs - std::min(pairs, m));  // not themselves
-  if (neighbours == 0) return g;  // nothing within g of any probe: the spacing is at least g
+  const double neighbors = static_cast<double>(pairs - std::min(pairs, m));  // not themselves
+  if (neighbors == 0) return g;  // nothing within g of any probe: the spacing is at least g
   const double density =
-      neighbours / (static_cast<double>(m) * kPi * g * g) * static_cast<double>(surface.size()) / n;
+      neighbors / (static_cast<double>(m) * kPi * g * g) * static_cast<double>(surface.size()) / n;
   return 1 / std::sqrt(density);
 }
 

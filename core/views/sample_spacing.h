@@ -11,12 +11,12 @@ namespace shapeid {
 // k * spacing is exp(-pi k^2); the scan simulator sizes its splats from this.
 //
 // Estimated from ball counts: 256 probe points (a fixed stride through the cloud, so the
-// answer does not depend on any seed) count their neighbours within a radius g among every
+// answer does not depend on any seed) count their neighbors within a radius g among every
 // k-th point (k = 1 up to 32,768 points, 4 for 100,000); the density is the total count
 // times k over 256 * pi * g^2. A ball of radius g on a smooth surface holds about
 // pi * g^2 of area (exactly so on a sphere, at any radius up to its diameter); g is grown or
-// shrunk until the probes see about 8 to 256 neighbours each. One pass over those points per
-// try (usually one try), through a hash of the probes' neighbour cells; no per-point
+// shrunk until the probes see about 8 to 256 neighbors each. One pass over those points per
+// try (usually one try), through a hash of the probes' neighbor cells; no per-point
 // allocation.
 //
 // Open edges and thin parts (rods narrower than g) lower the counts, so the spacing comes out

@@ -63,7 +63,7 @@ TEST(SampleSpacingTest, SparseAndDegenerateCloudsGiveAPositiveSpacing) {
 }
 
 TEST(SampleSpacingTest, LargeCloudsCountAmongEveryKthPoint) {
-  // 200,000 points: neighbours are counted among every 7th; the estimate is as good.
+  // 200,000 points: neighbors are counted among every 7th; the estimate is as good.
   const double truth = std::sqrt(4 * kPi / 200000);
   EXPECT_NEAR(Spacing(SphereSurface(200000, 5)), truth, 0.08 * truth);
 }

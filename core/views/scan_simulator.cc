@@ -18,11 +18,11 @@ namespace {
 // How visibility works. Lengths are in sample spacings (sample_spacing.h); a length in the
 // image is measured at the range of the point it belongs to.
 //
-// Each point is drawn into a depth buffer as a cone: over the buffer cells whose centres lie
+// Each point is drawn into a depth buffer as a cone: over the buffer cells whose centers lie
 // within kSplatSpacings of it in x and in y, its range (distance from the camera) plus kSlope
-// times the distance from it. A point is hidden when, at the centre of any of the 3 x 3
+// times the distance from it. A point is hidden when, at the center of any of the 3 x 3
 // cells around it, the buffer holds less than its mirror cone: its range minus kSlope times
-// its distance to that centre. Each pixel then shows its nearest visible point.
+// its distance to that center. Each pixel then shows its nearest visible point.
 //
 // Why cones: two points of one surface tilted by t from their rays differ in range by at most
 // tan(t) times their distance, so by the triangle inequality no point of a surface with
@@ -31,7 +31,7 @@ namespace {
 // trade grazing surfaces against hidden ones: a tolerance that keeps 76 degrees lets through
 // anything less than 8 spacings behind.) A point `gap` behind a nearer surface is hidden
 // when that surface has a sample within about gap / kSlope of it, less its distance to a cell
-// centre, so only the back of a thin wall, or a surface just behind an occluding edge, shows
+// center, so only the back of a thin wall, or a surface just behind an occluding edge, shows
 // through, for a few spacings.
 //
 // Why that splat size: a sampling as uniform and random as the mesh readers' leaves the
@@ -39,7 +39,7 @@ namespace {
 // exp(-16) = 1e-7, and only through such a hole can a far hidden point show. The price is
 // that the visible surface just behind an occluding edge loses a band up to 2 wide.
 //
-// Cells are kCellSpacings wide at the object's centre, whatever the pixels: small enough that
+// Cells are kCellSpacings wide at the object's center, whatever the pixels: small enough that
 // the 3 x 3 test comes close to the distance to the nearest hider, large enough that a cone
 // covers few cells (4 to 9).
 
@@ -100,12 +100,12 @@ struct Camera {
   double focal, cx, cy;
 };
 
-// Looks from centre + distance * radius * direction at the centre of the box [lo, hi].
+// Looks from center + distance * radius * direction at the center of the box [lo, hi].
 Camera MakeCamera(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, const ScanOptions& o) {
   Camera cam;
-  const Eigen::Vector3d centre = 0.5 * (lo + hi);
+  const Eigen::Vector3d center = 0.5 * (lo + hi);
   const Eigen::Vector3d dir = o.direction.normalized();
-  cam.eye = centre + o.distance * 0.5 * (hi - lo).norm() * dir;
+  cam.eye = center + o.distance * 0.5 * (hi - lo).norm() * dir;
   cam.forward = -dir;
   cam.right = cam.forward.cross(o.up).normalized();
   cam.down = cam.forward.cross(cam.right);
@@ -173,10 +173,10 @@ PointCloud Render(const PointCloud& surface, const Eigen::Vector3d& lo, const Ei
   const double radius = 0.5 * (hi - lo).norm();
   const Camera cam = MakeCamera(lo, hi, options);
   const int width = options.width, height = options.height;
-  // Cells kCellSpacings wide at the object's centre, or larger if there would be more than
+  // Cells kCellSpacings wide at the object's center, or larger if there would be more than
   // about 16 per point: only a degenerate surface (most points at one spot) asks for more.
   const double max_cells = std::min(kMaxCells, std::max(65536.0, 16.0 * surface.size()));
-  const double pixel_size = options.distance * radius / cam.focal;  // at the centre's depth
+  const double pixel_size = options.distance * radius / cam.focal;  // at the center's depth
   const double cell_pixels = std::max(kCellSpacings * spacing / pixel_size,
                                       std::sqrt(static_cast<double>(width) * height / max_cells));
   const int cells_x = static_cast<int>(std::ceil(width / cell_pixels));
@@ -192,7 +192,7 @@ PointCloud Render(const PointCloud& surface, const Eigen::Vector3d& lo, const Ei
   // however far the camera.
   const double nearest_range = (options.distance - 1) * radius;
 
-  // Pass 1 over the points: project, and splat the cones, each over the cells whose centres
+  // Pass 1 over the points: project, and splat the cones, each over the cells whose centers
   // lie within its radius in x and y (a square, so no branch per cell; at least half a
   // cell, so that it covers its own).
   constexpr float kFar = std::numeric_limits<float>::infinity();
@@ -216,7 +216,7 @@ PointCloud Render(const PointCloud& surface, const Eigen::Vector3d& lo, const Ei
     const float depth = static_cast<float>(range - nearest_range);
     const float slope = static_cast<float>(slope_per_depth * range);
     const float r = std::max(static_cast<float>(radius_depth / z), 0.5f);
-    // Cells c whose centre c + 0.5 may be within r (truncation is floor for values >= 0);
+    // Cells c whose center c + 0.5 may be within r (truncation is floor for values >= 0);
     // r >= 0.5 takes in the point's own cell.
     const int x0 = std::max(0, static_cast<int>(cu - r + 0.5f));
     const int x1 = std::min(cells_x - 1, static_cast<int>(cu + r - 0.5f));
@@ -235,8 +235,8 @@ PointCloud Render(const PointCloud& surface, const Eigen::Vector3d& lo, const Ei
         static_cast<uint32_t>(static_cast<int>(v) * width + static_cast<int>(u))};
   }
 
-  // Pass 2 over the points: the mirror-cone test at the centres of the 3 x 3 cells around
-  // each (the triangle inequality holds at any centre, and the more centres, the closer the
+  // Pass 2 over the points: the mirror-cone test at the centers of the 3 x 3 cells around
+  // each (the triangle inequality holds at any center, and the more centers, the closer the
   // test comes to the distance between a hidden point and the nearest hider); then each
   // pixel keeps its nearest visible point (ties: the first).
   const size_t num_pixels = static_cast<size_t>(width) * static_cast<size_t>(height);

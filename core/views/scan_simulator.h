@@ -2,7 +2,7 @@
 #define SHAPEID_CORE_VIEWS_SCAN_SIMULATOR_H_
 
 // Simulated depth-camera scans: what one sensor sees of an object from one viewpoint, made
-// from a dense sampling of the object's surface. Turns 3D models into labelled single-view
+// from a dense sampling of the object's surface. Turns 3D models into labeled single-view
 // partial clouds with noise, for training, testing and the demo. Viewpoints for a set of
 // scans: view_directions.h.
 
@@ -21,9 +21,9 @@ struct ScanBuffers;
 }  // namespace views_internal
 
 struct ScanOptions {
-  // Where the camera stands, seen from the object: at the centre of the surface's bounding
+  // Where the camera stands, seen from the object: at the center of the surface's bounding
   // box plus distance * radius * direction, where radius is half the box's diagonal (so the
-  // object lies inside the sphere of that radius), looking at the centre. Need not be unit
+  // object lies inside the sphere of that radius), looking at the center. Need not be unit
   // length; must be finite and non-zero.
   Eigen::Vector3d direction = {0, 0, 1};
   // In object radii, in (1, 1e6]: > 1 so that the camera is outside the object. A nearer
@@ -66,7 +66,7 @@ struct ScanOptions {
 // How it sees (details in scan_simulator.cc): each point is drawn into a depth buffer as a
 // cone over a square of +-2 sample spacings (sample_spacing.h) around it, its range from the
 // camera rising 4 times as fast as the distance from it; a point is hidden when, at the
-// centre of a buffer cell next to it, some cone is nearer than its own mirror cone; each
+// center of a buffer cell next to it, some cone is nearer than its own mirror cone; each
 // pixel shows its nearest visible point. So a surface facing the camera hides what lies
 // behind it: a spot of it with no sample in that square, through which a hidden point could
 // show, turns up with probability exp(-16) = 1e-7. A surface seen at up to atan(4) = 76

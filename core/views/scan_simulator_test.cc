@@ -62,7 +62,7 @@ TEST(ScanSimulatorTest, ASphereShowsOnlyTheCapFacingTheCamera) {
     ASSERT_GT(p.dot(eye - p), -1e-6) << "hidden point (" << p.transpose() << ")";
     widest = std::max(widest, std::hypot(p.x(), p.y()));
   }
-  // The camera is 3 radii of the bounding box (3 sqrt 3) from the centre, so the visible cap
+  // The camera is 3 radii of the bounding box (3 sqrt 3) from the center, so the visible cap
   // reaches z = 1 / (3 sqrt 3) and images as a disc of focal * tan(asin(1 / (3 sqrt 3)))
   // pixels; each pixel of it shows one point (50,000 points leave ~2.5 per pixel of the
   // cap) save a few where the rim turns beyond 76 degrees.
@@ -111,13 +111,13 @@ TEST(ScanSimulatorTest, ACubeSeenCornerOnShowsThreeFaces) {
   for (size_t count : per_face) EXPECT_NEAR(count, scan->size() / 3.0, 0.05 * scan->size());
 }
 
-// Is the segment from `from` to `to` through the box centre +- half?
+// Is the segment from `from` to `to` through the box center +- half?
 bool SegmentHitsBox(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
-                    const Eigen::Vector3d& centre, const Eigen::Vector3d& half) {
+                    const Eigen::Vector3d& center, const Eigen::Vector3d& half) {
   double enter = 0, leave = 1;
   for (int a = 0; a < 3; ++a) {
     const double d = to[a] - from[a];
-    const double lo = centre[a] - half[a] - from[a], hi = centre[a] + half[a] - from[a];
+    const double lo = center[a] - half[a] - from[a], hi = center[a] + half[a] - from[a];
     if (d == 0) {
       if (lo > 0 || hi < 0) return false;
       continue;

@@ -59,7 +59,7 @@ absl::Status ValidateOptions(const SceneComposerOptions& o) {
   return absl::OkStatus();  // distance, image and lens: ScanOptions' checks, at the scan
 }
 
-// A model upright (its up along +z), centred in x and y, its lowest point at z = 0, and
+// A model upright (its up along +z), centered in x and y, its lowest point at z = 0, and
 // scaled so that its largest extent is 1.
 struct UprightModel {
   std::vector<Eigen::Vector3d> points;
@@ -160,23 +160,23 @@ struct Candidate {
   Eigen::Matrix3d yaw = Eigen::Matrix3d::Identity();
   std::vector<Eigen::Vector2d> local;  // footprint about the origin
   Eigen::Vector2d lo, hi;              // its box
-  std::vector<Eigen::Vector2d> at;     // footprint at the current centre
-  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  std::vector<Eigen::Vector2d> at;     // footprint at the current center
+  Eigen::Vector2d center = Eigen::Vector2d::Zero();
 
   void MoveTo(const Eigen::Vector2d& c) {
-    centre = c;
+    center = c;
     at.resize(local.size());
     for (size_t i = 0; i < local.size(); ++i) at[i] = local[i] + c;
   }
   double Gap(const Footprint& other, double stop = 0) const {
-    return other.Gap(at, lo + centre, hi + centre, stop);
+    return other.Gap(at, lo + center, hi + center, stop);
   }
 };
 
 struct Placed {
   Footprint footprint;
-  Eigen::Vector2d centre;
-  double reach;  // largest distance of a footprint point from the centre
+  Eigen::Vector2d center;
+  double reach;  // largest distance of a footprint point from the center
 };
 
 }  // namespace
@@ -223,13 +223,13 @@ absl::StatusOr<ComposedScene> ComposeScene(absl::Span<const SceneObjectModel> mo
         c.hi = c.hi.cwiseMax(c.local.back());
         reach = std::max(reach, c.local.back().norm());
       }
-      const Eigen::Vector2d low = -room - c.lo, high = room - c.hi;  // where the centre may be
+      const Eigen::Vector2d low = -room - c.lo, high = room - c.hi;  // where the center may be
       if ((low.array() > high.array()).any()) continue;
       const bool touch = !placed.empty() && placement.Uniform() < options.touch_probability;
       if (touch) {
         // Slide in from afar along a random direction towards an earlier object until the
         // footprints are `gap` apart: each step is the gap less the target, which cannot
-        // overshoot, as no point moves farther than the centre.
+        // overshoot, as no point moves farther than the center.
         const size_t a =
             std::min(placed.size() - 1,
                      static_cast<size_t>(placement.Uniform() * static_cast<double>(placed.size())));
@@ -239,7 +239,7 @@ absl::StatusOr<ComposedScene> ComposeScene(absl::Span<const SceneObjectModel> mo
         double t = placed[a].reach + reach + options.min_gap;
         bool touched = false;
         for (int step = 0; step < 200 && t >= 0 && !touched; ++step) {
-          c.MoveTo(placed[a].centre + t * dir);
+          c.MoveTo(placed[a].center + t * dir);
           const double now = c.Gap(placed[a].footprint);
           touched = now < gap + kContactTolerance * options.max_contact_gap;
           t -= now - gap;
@@ -248,7 +248,7 @@ absl::StatusOr<ComposedScene> ComposeScene(absl::Span<const SceneObjectModel> mo
       } else {
         c.MoveTo({uniform(placement, low.x(), high.x()), uniform(placement, low.y(), high.y())});
       }
-      if ((c.centre.array() < low.array()).any() || (c.centre.array() > high.array()).any()) {
+      if ((c.center.array() < low.array()).any() || (c.center.array() > high.array()).any()) {
         continue;
       }
       // Separated objects keep min_gap from all; a leaning one overlaps none.
@@ -263,20 +263,20 @@ absl::StatusOr<ComposedScene> ComposeScene(absl::Span<const SceneObjectModel> mo
       object.role = models[m].role;
       object.scale = c.scale * upright[m].unit_scale;
       object.rotation = c.yaw * upright[m].rotation;
-      const Eigen::Vector3d centre3(c.centre.x(), c.centre.y(), 0);
-      object.translation = c.yaw * (c.scale * upright[m].unit_scale * upright[m].offset) + centre3;
+      const Eigen::Vector3d center3(c.center.x(), c.center.y(), 0);
+      object.translation = c.yaw * (c.scale * upright[m].unit_scale * upright[m].offset) + center3;
       std::vector<Eigen::Vector3d> points;
       points.reserve(upright[m].points.size());
       Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
       Eigen::Vector3d hi = -lo;
       for (const Eigen::Vector3d& p : upright[m].points) {
-        points.push_back(c.yaw * (c.scale * p) + centre3);
+        points.push_back(c.yaw * (c.scale * p) + center3);
         lo = lo.cwiseMin(points.back());
         hi = hi.cwiseMax(points.back());
       }
       object.size = hi - lo;
       sparsest = std::max(sparsest, c.scale * upright[m].spacing);
-      placed.push_back(Placed{Footprint(c.at, options.min_gap), c.centre, reach});
+      placed.push_back(Placed{Footprint(c.at, options.min_gap), c.center, reach});
       object_points.push_back(std::move(points));
       scene.objects.push_back(std::move(object));
       break;
@@ -335,7 +335,7 @@ absl::StatusOr<ComposedScene> ComposeScene(absl::Span<const SceneObjectModel> mo
   absl::StatusOr<PointCloud> seen = SimulateScan(surface, scan, &indices);
   if (!seen.ok()) return seen.status();
 
-  // The camera as the simulator places it: at the box centre + distance radii along the
+  // The camera as the simulator places it: at the box center + distance radii along the
   // direction, looking back, the image's up along +z.
   const Eigen::Vector3d dir = scan.direction.normalized();
   const Eigen::Vector3d eye = 0.5 * (stats->min + stats->max) + scan.distance * radius * dir;

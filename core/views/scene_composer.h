@@ -32,7 +32,7 @@ struct SceneObjectModel {
   Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
 };
 
-// Lengths in metres. In the table's frame the top is z = 0, centred on the origin, x along
+// Lengths in metres. In the table's frame the top is z = 0, centered on the origin, x along
 // its width, z up.
 struct SceneComposerOptions {
   double table_width = 1.0;
@@ -52,7 +52,7 @@ struct SceneComposerOptions {
   // The table's sample spacing; 0: the sparsest object's, after scaling (the simulator's
   // visibility works at one spacing, the whole surface's). >= 0.
   double table_spacing = 0;
-  // The camera looks at the scene's bounding box centre from an elevation drawn in
+  // The camera looks at the scene's bounding box center from an elevation drawn in
   // [min, max] degrees above the table and any azimuth, at `distance` radii of the scene's
   // bounding sphere (ScanOptions::distance): near enough that the table fills the view.
   double min_elevation_degrees = 30;
@@ -81,7 +81,7 @@ struct ComposedObject {
 
 struct ComposedScene {
   // The scan in the camera's optical frame (x right, y down, z forward, the camera at the
-  // origin), unorganised: what a depth camera driver gives after dropping empty pixels.
+  // origin), unorganized: what a depth camera driver gives after dropping empty pixels.
   PointCloud frame;
   // Per frame point: 0 the table, i the object objects[i - 1].
   std::vector<uint16_t> truth;

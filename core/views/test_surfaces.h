@@ -12,8 +12,8 @@
 
 namespace shapeid::test_surfaces {
 
-// n points uniform on the surface of the box centre +- half (all six faces, by area).
-inline PointCloud BoxSurface(const Eigen::Vector3f& centre, const Eigen::Vector3f& half, size_t n,
+// n points uniform on the surface of the box center +- half (all six faces, by area).
+inline PointCloud BoxSurface(const Eigen::Vector3f& center, const Eigen::Vector3f& half, size_t n,
                              uint32_t seed) {
   const float face_area[3] = {half.y() * half.z(), half.x() * half.z(), half.x() * half.y()};
   const float total = face_area[0] + face_area[1] + face_area[2];
@@ -26,21 +26,21 @@ inline PointCloud BoxSurface(const Eigen::Vector3f& centre, const Eigen::Vector3
     const int axis = pick < face_area[0] ? 0 : pick < face_area[0] + face_area[1] ? 1 : 2;
     Eigen::Vector3f p(u(rng), u(rng), u(rng));
     p[axis] = u(rng) < 0 ? -1.0f : 1.0f;
-    cloud.Add(centre + p.cwiseProduct(half));
+    cloud.Add(center + p.cwiseProduct(half));
   }
   return cloud;
 }
 
-// n points uniform on the sphere centre + radius * S^2.
+// n points uniform on the sphere center + radius * S^2.
 inline PointCloud SphereSurface(size_t n, uint32_t seed, float radius = 1.0f,
-                                const Eigen::Vector3f& centre = Eigen::Vector3f::Zero()) {
+                                const Eigen::Vector3f& center = Eigen::Vector3f::Zero()) {
   std::mt19937 rng(seed);
   std::normal_distribution<float> g;
   PointCloud cloud;
   cloud.Reserve(n);
   while (cloud.size() < n) {
     const Eigen::Vector3f p(g(rng), g(rng), g(rng));
-    if (p.norm() > 1e-3f) cloud.Add(centre + radius * p.normalized());
+    if (p.norm() > 1e-3f) cloud.Add(center + radius * p.normalized());
   }
   return cloud;
 }

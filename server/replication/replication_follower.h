@@ -15,7 +15,7 @@
 #include "absl/strings/string_view.h"
 #include "absl/time/time.h"
 #include "core/gallery/gallery_registry.h"
-#include "server/logger.h"
+#include "server/ops/logger.h"
 #include "server/storage/postgres_gallery_store.h"
 
 namespace shapeid {

@@ -127,7 +127,7 @@ bool SqliteStatement::ColumnIsNull(int column) const {
 absl::StatusOr<std::unique_ptr<SqliteDb>> SqliteDb::Open(const std::string& path, Mode mode,
                                                          const std::string& vfs) {
   sqlite3* db = nullptr;
-  int flags = SQLITE_OPEN_NOMUTEX;  // the caller serialises use of a connection
+  int flags = SQLITE_OPEN_NOMUTEX;  // the caller serializes use of a connection
   std::string name = path;
   switch (mode) {
     case Mode::kReadWrite:

@@ -16,7 +16,7 @@ namespace shapeid {
 
 // A thin RAII layer over the SQLite C API: one connection, prepared statements, and one
 // mapping from SQLite result codes to absl::Status, so that the store reads like its logic.
-// Not thread-safe: the caller serialises use of a connection and its statements.
+// Not thread-safe: the caller serializes use of a connection and its statements.
 
 // The status for SQLite result `code` on `db`, its message prefixed by `context`:
 //  - SQLITE_FULL, and any I/O error whose errno is ENOSPC or EDQUOT (a -shm that cannot grow):

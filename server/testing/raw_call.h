@@ -2,7 +2,7 @@
 #define SHAPEID_SERVER_TESTING_RAW_CALL_H_
 
 // For tests: a call whose request messages are arbitrary bytes, as a buggy or hostile client
-// would send them, which the generated stubs cannot do (they serialise valid messages only).
+// would send them, which the generated stubs cannot do (they serialize valid messages only).
 
 #include <chrono>
 #include <memory>

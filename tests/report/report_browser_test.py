@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """The eval report renders in a real browser, pictures included.
 
-Writes a tiny labelled dataset (box, sphere and rod clouds as XYZ text; one sphere filed under
+Writes a tiny labeled dataset (box, sphere and rod clouds as XYZ text; one sphere filed under
 box/test/, a deliberate misclassification), runs `shapeid eval --local ... --report`, checks
 that the error names the training file it matched, then opens the report in Debian's headless
 Chromium and checks the screenshot's pixels: the page is not blank, its text is drawn, and
@@ -95,7 +95,7 @@ def main():
     errors = [p for p in result["predictions"] if p["truth"] != p["predicted"]]
     if [e["file"] for e in errors] != [os.path.join(data, "box", "test", "misfiled.xyz")]:
         fail(f"expected the one misfiled sphere as the only error, got {errors}")
-    matched = errors[0]["neighbours"][0]["file"]
+    matched = errors[0]["neighbors"][0]["file"]
     if not matched.startswith(os.path.join(data, "sphere", "train", "")):
         fail(f"the error's nearest training file is {matched}, not a sphere")
     page = open(report, encoding="utf-8").read()

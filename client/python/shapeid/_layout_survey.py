@@ -1,5 +1,5 @@
 """What a PointCloud2's bytes betray about its declared layout: the server's LayoutSurvey
-(server/point_layout.cc), the same rule and message, so that a mis-declared message is
+(server/wire/point_layout.cc), the same rule and message, so that a mis-declared message is
 refused here before anything is sent, whether it is forwarded or converted.
 
 The coordinates of about the first 1,024 points are read as declared and read with the byte

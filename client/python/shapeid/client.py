@@ -172,7 +172,7 @@ class Client:
 
     def classify(self, gallery, cloud, *, k=0, exact=False, drop_non_finite=False, up=None,
                  transform=None, timeout=None):
-        """Classifies `cloud` against `gallery` with `k` neighbours (0: the gallery's k) as a
+        """Classifies `cloud` against `gallery` with `k` neighbors (0: the gallery's k) as a
         ClassifyResult. NotFoundError for an unknown gallery, FailedPreconditionError for an
         empty one. exact=True searches every stored vector even where the server searches
         the gallery approximately.
@@ -203,13 +203,13 @@ class Client:
         """Finds the objects in one sensor frame (a depth camera's or LiDAR's cloud of a table
         or floor with things on it) and classifies each against `gallery` as a SceneResult:
         the supporting planes are removed, the rest split into clusters, each cluster
-        classified with `k` neighbours (0: the gallery's k) as classify would. Distances are
+        classified with `k` neighbors (0: the gallery's k) as classify would. Distances are
         in the frame's units (the defaults assume metres); every answer (centroids, boxes,
         planes) is in the frame's coordinates.
 
         Non-finite points (a depth camera's missing returns) are sent, never refused nor
         dropped here: the server skips and counts them (non_finite_points), so that indices
-        count every point of the frame, an organised PointCloud2's index being its pixel
+        count every point of the frame, an organized PointCloud2's index being its pixel
         (row * width + column).
 
         up, transform: the sensor's frame, as in classify: each object is moved by it before
@@ -248,7 +248,7 @@ class Client:
 
     def train(self, gallery, clouds, labels, *, ids=None, sources=None, metadata=None,
               augmentation=None, drop_non_finite=False, up=None, transform=None, timeout=None):
-        """Adds labelled clouds to `gallery` in one stream: all of them or, on any error, none.
+        """Adds labeled clouds to `gallery` in one stream: all of them or, on any error, none.
         Returns a TrainResult (the new sample ids, in order).
 
         clouds: one cloud, or a sequence of clouds (a 3-D array is a batch of N x 3 clouds).
@@ -258,7 +258,7 @@ class Client:
           repeated stream cannot add a sample twice; an AlreadyExistsError after such a
           retry says that the first attempt may have committed.
         sources: None, or one string per cloud (a file path, a URI, "" for none): kept with
-          the sample and returned with it as a neighbour and by list_samples, so that an
+          the sample and returned with it as a neighbor and by list_samples, so that an
           answer can be traced to the scan it matched (at most 4,096 bytes each).
         metadata: None, one dict of str -> str for every cloud, or one dict per cloud: small
           key/value pairs kept the same way (at most 64 pairs, 4,096 bytes in all).
@@ -354,7 +354,7 @@ class Client:
     def create_gallery(self, name, *, spec="", k=0, weighting=None, scaling=None,
                        reject_distance=0.0, augmentation=None, timeout=None):
         """Creates gallery `name` and returns it (a Gallery). spec: descriptor spec ("":
-        the server's default, "dfsd"); k: neighbours that vote (0: 1); weighting: "uniform"
+        the server's default, "dfsd"); k: neighbors that vote (0: 1); weighting: "uniform"
         or "distance"; scaling: "none", "zscore" or "maxabs"; reject_distance > 0: answer
         "unknown" beyond it; augmentation: a shapeid.Augmentation. Sent once (not retried).
         AlreadyExistsError if the name is taken."""

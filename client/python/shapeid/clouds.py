@@ -98,14 +98,14 @@ def encode(cloud, *, drop_non_finite=False, keep_non_finite=False, forward_point
     """`cloud` as an EncodedCloud (see the module's comment for what is accepted).
 
     drop_non_finite: False (the default) refuses a cloud with a NaN or infinite coordinate
-    (ValueError naming how many and the first); True leaves those points out (organised
+    (ValueError naming how many and the first); True leaves those points out (organized
     depth-camera clouds mark missing returns with NaN): here for arrays, on the server for
     a forwarded PointCloud2 (the layout says so).
     keep_non_finite: True sends such points as they are, in place (a scene: the server skips
     and counts them, and indices count every point sent).
     forward_point_cloud2: False converts a PointCloud2 into PACKED_XYZ32 as arrays are.
     """
-    width = None  # of an organised cloud, to name a point by row and column
+    width = None  # of an organized cloud, to name a point by row and column
     if isinstance(cloud, np.ndarray):
         points, source = _from_array(cloud)
         what = "the array"
@@ -199,8 +199,8 @@ def _finite(points, drop, width, source, what, keep=True):
     """(points without non-finite rows (drop) or unchanged, how many were non-finite);
     ValueError if any and not drop, or if a finite value of `source` (the values before
     conversion, or a function giving them) overflowed float32. `points`: (N, 3), or
-    (rows, columns, 3) of an organised cloud, any strides; `width`: the row length of an
-    organised cloud. keep=False: only count (the points stay as they are)."""
+    (rows, columns, 3) of an organized cloud, any strides; `width`: the row length of an
+    organized cloud. keep=False: only count (the points stay as they are)."""
     finite = np.isfinite(points)
     if finite.all():  # one pass over the points when all is well
         return points, 0

@@ -132,5 +132,5 @@ def from_rpc_error(error, receive_limit=None):
             return ResourceExhaustedError(
                 code, "the server's answer is %s bytes, more than this client's receive limit "
                       "of %s bytes: this client refused it, not the server; ask for less (a "
-                      "smaller page, fewer neighbours)" % match.groups(), client_limit=True)
+                      "smaller page, fewer neighbors)" % match.groups(), client_limit=True)
     return error_for(code or grpc.StatusCode.UNKNOWN, message or "")

@@ -31,7 +31,7 @@ def variants(points):
         "pc2-ros1-xyzi16": ros1_message(points, LAYOUTS["xyzi16"]),
         "pc2-ros1-padded32-big-endian": ros1_message(points, LAYOUTS["padded32"], True),
         "pc2-ros2-float64": ros2_message(points, LAYOUTS["xyz64"]),
-        "pc2-ros2-organised": ros2_message(points, LAYOUTS["xyzi16"], height=32,
+        "pc2-ros2-organized": ros2_message(points, LAYOUTS["xyzi16"], height=32,
                                            row_padding=4),
     }
     try:
@@ -81,17 +81,17 @@ def test_nans_dropped_give_the_cloud_without_them(client):
 
 def test_point_cloud2_streamed_and_trained_through_the_server_decoder(server, client, gallery):
     """Forwarded PointCloud2 bytes in chunks of 700 x point_step (cut inside points' rows of
-    a padded organised cloud), in a train stream of one layout and one mixing layouts."""
+    a padded organized cloud), in a train stream of one layout and one mixing layouts."""
     points = shape(1, 42, 5000)
     reference = client.describe(points).values
-    organised = ros2_message(points, LAYOUTS["padded32"], height=50, row_padding=12)
+    organized = ros2_message(points, LAYOUTS["padded32"], height=50, row_padding=12)
     big_endian64 = ros1_message(points, LAYOUTS["xyz64"], True)
     small = shapeid.Client(server.address, chunk_points=700)
     try:
-        for message in (organised, big_endian64):
+        for message in (organized, big_endian64):
             assert np.array_equal(small.describe(message).values, reference)
-        one_layout = small.train(gallery, [organised, organised], "ball")
-        mixed = small.train(gallery, [organised, big_endian64, points], "ball")
+        one_layout = small.train(gallery, [organized, organized], "ball")
+        mixed = small.train(gallery, [organized, big_endian64, points], "ball")
         assert len(one_layout.sample_ids) == 2 and mixed.gallery_sample_count == 5
         answer = client.classify(gallery, points, k=5)
         assert [n.distance for n in answer.neighbors] == [0.0] * 5
@@ -307,7 +307,7 @@ def test_train_takes_one_cloud_one_label_or_a_batch(client, gallery):
     assert client.get_gallery(gallery).sample_count == 3  # nothing sent by the refusals
 
 
-def test_provenance_comes_back_with_neighbours_and_list_samples(client, gallery):
+def test_provenance_comes_back_with_neighbors_and_list_samples(client, gallery):
     batch = [shape(0, 11), shape(1, 12), shape(2, 13)]
     trained = client.train(gallery, batch, ["plate", "ball", "rod"],
                            sources=["scans/plate.ply", "scans/ball.pcd", ""],

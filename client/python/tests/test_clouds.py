@@ -26,7 +26,7 @@ def wire(cloud, **kwargs):
 
 def decoded(encoded):
     """The float32 x y z a server reads from `encoded` under its declared layout: a model of
-    the server's decoder (server/cloud_assembler.cc), for the tests without a server."""
+    the server's decoder (server/wire/cloud_assembler.cc), for the tests without a server."""
     layout = encoded.layout
     raw = np.frombuffer(encoded.tobytes(), np.uint8)
     if layout.row_step:
@@ -442,8 +442,8 @@ def test_a_float64_coordinate_float32_cannot_hold_is_refused():
                 r"^PointCloud2: point 33: z = -1e-300 \(FLOAT64\) is not 0 but below float32's "
                 r"smallest normal \(1.17549e-38\): float32 data declared FLOAT64 reads like "
                 r"this; is the field's datatype right\?$")
-    organised = ros2_message(points, LAYOUTS["xyz64"], height=20)
-    refused(organised, r"point 33 \(row 1, column 8\): z = -1e-300")
+    organized = ros2_message(points, LAYOUTS["xyz64"], height=20)
+    refused(organized, r"point 33 \(row 1, column 8\): z = -1e-300")
     points[33, 2] = 0  # 0 itself is a coordinate
     assert forwarded(ros2_message(points, LAYOUTS["xyz64"])) == points.astype(np.float32).tobytes()
 

@@ -1,5 +1,5 @@
 """Client.recognize_scene against a real shapeid-server: a table frame with a plate, a ball
-and a rod on it, as an array, an Open3D cloud and organised PointCloud2 messages; objects found,
+and a rod on it, as an array, an Open3D cloud and organized PointCloud2 messages; objects found,
 named and placed, indices into the frame as sent (non-finite points kept and counted),
 segmentation parameters sent only when given, the sensor's frame, and errors."""
 
@@ -13,7 +13,7 @@ from test_clouds import LAYOUTS, ros1_message, ros2_message
 
 TABLE_Z = -0.5
 SCALE = 0.05  # conftest's shapes are a few units across: 5 cm a unit makes tabletop objects
-# Each object's centre: floating 3 cm or more above the table, so that none of its points is
+# Each object's center: floating 3 cm or more above the table, so that none of its points is
 # within the plane distance (1 cm), and farther apart than the cluster tolerance (2 cm).
 PLACES = {"plate": (0.1, 0.3, TABLE_Z + 0.04), "ball": (-0.3, -0.1, TABLE_Z + 0.08),
           "rod": (0.2, -0.3, TABLE_Z + 0.04)}
@@ -101,7 +101,7 @@ def test_objects_found_named_placed_and_indexed_with_nans_kept(client, scene_gal
     without = client.recognize_scene(scene_gallery, frame)
     assert_table_scene(without, truth, 359, with_indices=False)
     # Each object's answer is what classify gives for its points alone (turned by the
-    # table's fitted normal, within float rounding of +z: the same neighbours).
+    # table's fitted normal, within float rounding of +z: the same neighbors).
     for found in scene.objects:
         alone = client.classify(scene_gallery, frame[found.indices])
         assert alone.label == found.label
@@ -132,14 +132,14 @@ def test_one_message_and_a_stream_of_chunks_get_the_same_answer(server, client, 
 
 
 def test_every_input_kind_indices_count_every_point_sent(client, scene_gallery):
-    """An organised 160 x 150 frame: an index is a pixel (row * width + column), NaN pixels
+    """An organized 160 x 150 frame: an index is a pixel (row * width + column), NaN pixels
     included, whether the message is forwarded with its layout, already packed float32 (sent
     as it is) or an array."""
     frame, truth = table_frame(nans=160 * 150 - TABLE_POINTS - 3 * OBJECT_POINTS, seed=3)
     inputs = {
         "float64 array": frame.astype(np.float64),
-        "ros1 xyzi16 organised": ros1_message(frame, LAYOUTS["xyzi16"], height=160),
-        "ros2 packed organised": ros2_message(frame, PACKED, height=160),
+        "ros1 xyzi16 organized": ros1_message(frame, LAYOUTS["xyzi16"], height=160),
+        "ros2 packed organized": ros2_message(frame, PACKED, height=160),
         "ros2 float64 padded rows": ros2_message(frame, LAYOUTS["xyz64"], height=160,
                                                  row_padding=8),
     }

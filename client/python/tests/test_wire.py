@@ -186,11 +186,11 @@ MIS_DECLARED = [
     # 32-byte points declared point_step=16, row_step the data's length
     (sensor_layout(16, XYZ32, pb.FLOAT32, width=48, row_step=48 * 32),
      sensor_records(32, XYZ32, "f4"), 48, r"room for 48 more points"),
-    # an organised cloud whose last row lacks its padding, or is announced in part
+    # an organized cloud whose last row lacks its padding, or is announced in part
     (sensor_layout(16, XYZ32, pb.FLOAT32, width=8, row_step=8 * 16 + 4),
      b"".join(sensor_records(16, XYZ32, "f4", points=SENSOR[r * 8:r * 8 + 8]) + b"\0" * 4
               for r in range(6))[:-4], 0,
-     r"^the points ended inside a row: 128 of its 132 bytes \(row_step\) arrived; an organised "
+     r"^the points ended inside a row: 128 of its 132 bytes \(row_step\) arrived; an organized "
      r"cloud \(width 8\) is whole rows, padding included$"),
     (sensor_layout(16, XYZ32, pb.FLOAT32, width=5, row_step=5 * 16),
      sensor_records(16, XYZ32, "f4"), 48, r"^the cloud announces 48 points, not whole rows of "

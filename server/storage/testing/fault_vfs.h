@@ -29,7 +29,7 @@ class FaultVfs {
     // on a full disk (SQLITE_FULL; SQLITE_IOERR_SHMSIZE for the -shm, as SQLite reports it).
     bool fail_growth = false;
     // Existing files open read-only, as on a read-only volume; an existing -shm cannot be
-    // initialised (SQLITE_READONLY_CANTINIT) and deleting fails (SQLITE_IOERR_DELETE).
+    // initialized (SQLITE_READONLY_CANTINIT) and deleting fails (SQLITE_IOERR_DELETE).
     bool read_only = false;
     // Every read of a main database file fails with this, e.g. SQLITE_IOERR_READ.
     int read_error = SQLITE_OK;
