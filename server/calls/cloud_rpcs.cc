@@ -45,12 +45,10 @@ struct GalleryAndSnapshot {
   std::shared_ptr<const GallerySnapshot> snapshot;
 };
 absl::StatusOr<GalleryAndSnapshot> GalleryWithSamples(const ServiceRuntime& runtime,
-                                                      absl::string_view method,
-                                                      const std::string& name,
+                                                      CallRecord& record, const std::string& name,
                                                       absl::string_view doing) {
-  SHAPEID_RETURN_IF_ERROR(RequireGalleryName(method, name));
   GalleryAndSnapshot found;
-  SHAPEID_ASSIGN_OR_RETURN(found.gallery, runtime.registry->Get(name));
+  SHAPEID_ASSIGN_OR_RETURN(found.gallery, NamedGallery(runtime, record, name));
   found.snapshot = found.gallery->Snapshot();
   SHAPEID_RETURN_IF_ERROR(found.snapshot->RequireSamples(doing));
   return found;
@@ -118,9 +116,7 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainRespo
 
   absl::Status OnHeader(const v1::TrainHeader& header) {
     if (batch_ != nullptr) return absl::InvalidArgumentError("Train: a second TrainHeader");
-    call().record().gallery = header.gallery();
-    SHAPEID_RETURN_IF_ERROR(RequireGalleryName("Train", header.gallery()));
-    SHAPEID_ASSIGN_OR_RETURN(gallery_, runtime_.registry->Get(header.gallery()));
+    SHAPEID_ASSIGN_OR_RETURN(gallery_, NamedGallery(runtime_, call().record(), header.gallery()));
     const std::shared_ptr<const GallerySnapshot> snapshot = gallery_->Snapshot();
     SHAPEID_ASSIGN_OR_RETURN(format_, FormatOf(header, snapshot->shared_descriptor().get()));
     batch_ = std::make_unique<TrainBatch>(gallery_->NewBatch());
@@ -209,9 +205,8 @@ absl::StatusOr<DescribeRpc::Plan> DescribeRpc::PlanOf(const ServiceRuntime& runt
                                                       const Header& header, CallRecord& record) {
   Plan plan;
   if (header.descriptor_spec().empty() && !header.gallery().empty()) {
-    record.gallery = header.gallery();
     SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
-                             runtime.registry->Get(header.gallery()));
+                             NamedGallery(runtime, record, header.gallery()));
     plan.descriptor = gallery->Snapshot()->shared_descriptor();
   } else {
     const std::string& spec = header.descriptor_spec().empty()
@@ -246,10 +241,8 @@ Work DescribeRpc::WorkOf(Plan plan, size_t points, CloudSource cloud, AdmittedCa
 
 absl::StatusOr<ClassifyRpc::Plan> ClassifyRpc::PlanOf(const ServiceRuntime& runtime,
                                                       const Header& header, CallRecord& record) {
-  record.gallery = header.gallery();
-  SHAPEID_ASSIGN_OR_RETURN(
-      GalleryAndSnapshot found,
-      GalleryWithSamples(runtime, "Classify", header.gallery(), "classifying"));
+  SHAPEID_ASSIGN_OR_RETURN(GalleryAndSnapshot found,
+                           GalleryWithSamples(runtime, record, header.gallery(), "classifying"));
   Plan plan;
   plan.gallery = std::move(found.gallery);
   plan.snapshot = std::move(found.snapshot);
@@ -280,10 +273,9 @@ Work ClassifyRpc::WorkOf(Plan plan, size_t points, CloudSource cloud, AdmittedCa
 absl::StatusOr<RecognizeSceneRpc::Plan> RecognizeSceneRpc::PlanOf(const ServiceRuntime& runtime,
                                                                   const Header& header,
                                                                   CallRecord& record) {
-  record.gallery = header.gallery();
   SHAPEID_ASSIGN_OR_RETURN(
       GalleryAndSnapshot found,
-      GalleryWithSamples(runtime, "RecognizeScene", header.gallery(), "recognizing scenes"));
+      GalleryWithSamples(runtime, record, header.gallery(), "recognizing scenes"));
   Plan plan;
   plan.snapshot = std::move(found.snapshot);
   SHAPEID_ASSIGN_OR_RETURN(plan.format.layout, FromProto(header.layout()));

@@ -34,7 +34,7 @@ class ExportReactor final : public grpc::ServerWriteReactor<v1::GalleryExportChu
       End(ToGrpcStatus(call_.admission()));
       return;
     }
-    if (const absl::Status started = Start(*runtime.registry, request.name()); !started.ok()) {
+    if (const absl::Status started = Start(runtime, request.name()); !started.ok()) {
       End(ToGrpcStatus(started));
       return;
     }
@@ -43,9 +43,9 @@ class ExportReactor final : public grpc::ServerWriteReactor<v1::GalleryExportChu
   }
 
  private:
-  absl::Status Start(const GalleryRegistry& registry, const std::string& name) {
-    SHAPEID_RETURN_IF_ERROR(RequireGalleryName("ExportGallery", name));
-    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery, registry.Get(name));
+  absl::Status Start(const ServiceRuntime& runtime, const std::string& name) {
+    SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
+                             NamedGallery(runtime, call_.record(), name));
     const std::shared_ptr<const GallerySnapshot> snapshot = gallery->Snapshot();
     call_.record().samples = snapshot->num_samples();
     exporter_ = std::make_unique<GalleryExporter>(snapshot);
