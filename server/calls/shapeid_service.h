@@ -22,26 +22,31 @@ namespace shapeid {
 // The methods that take requests are registered raw (their messages arrive as bytes and are
 // parsed by the service): gRPC reports a streamed message that does not parse as the end of
 // the stream, and a unary request that does not parse as UNIMPLEMENTED; shapeid answers both
-// INVALID_ARGUMENT and keeps nothing of the call. ExportGallery stays typed (its request is a
-// name).
-using ShapeIdRawService = v1::ShapeId::WithRawCallbackMethod_Describe<
-    v1::ShapeId::WithRawCallbackMethod_DescribeCloud<v1::ShapeId::WithRawCallbackMethod_Train<
-        v1::ShapeId::WithRawCallbackMethod_Classify<v1::ShapeId::WithRawCallbackMethod_ClassifyCloud<
-            v1::ShapeId::WithRawCallbackMethod_RecognizeScene<
-                v1::ShapeId::WithRawCallbackMethod_RecognizeSceneCloud<
-                    v1::ShapeId::WithRawCallbackMethod_CreateGallery<
-                        v1::ShapeId::WithRawCallbackMethod_GetGallery<
-                            v1::ShapeId::WithRawCallbackMethod_ListGalleries<
-                                v1::ShapeId::WithRawCallbackMethod_DeleteGallery<
-                                    v1::ShapeId::WithRawCallbackMethod_RemoveSamples<
-                                        v1::ShapeId::WithRawCallbackMethod_ListSamples<
-                                            v1::ShapeId::WithRawCallbackMethod_ImportGallery<
-                                                v1::ShapeId::WithRawCallbackMethod_ListDescriptors<
-                                                    v1::ShapeId::WithRawCallbackMethod_GetServerStats<
-                                                        v1::ShapeId::
-                                                            WithRawCallbackMethod_SetLogLevel<
-                                                                v1::ShapeId::
-                                                                    CallbackService>>>>>>>>>>>>>>>>>;
+// INVALID_ARGUMENT and keeps nothing of the call. ExportGallery (kServerStream) stays typed
+// (its request is a name). The wrappers come from server/calls/rpc_list.h, nested by
+// RawMethods: gRPC's generated WithRawCallbackMethod_X<Base> each derive from their Base.
+template <template <class> class... Wrappers>
+struct RawMethods;
+template <>
+struct RawMethods<> {
+  using type = v1::ShapeId::CallbackService;
+};
+template <template <class> class Wrap, template <class> class... Rest>
+struct RawMethods<Wrap, Rest...> {
+  using type = Wrap<typename RawMethods<Rest...>::type>;
+};
+template <class Base>
+using AsItIs = Base;
+
+#define SHAPEID_SERVICE_RAW_kCloud(name) \
+  v1::ShapeId::WithRawCallbackMethod_##name, v1::ShapeId::WithRawCallbackMethod_##name##Cloud,
+#define SHAPEID_SERVICE_RAW_kStream(name) v1::ShapeId::WithRawCallbackMethod_##name,
+#define SHAPEID_SERVICE_RAW_kServerStream(name)
+#define SHAPEID_SERVICE_RAW_kUnary SHAPEID_SERVICE_RAW_kStream
+#define SHAPEID_SERVICE_RAW_kOperations SHAPEID_SERVICE_RAW_kStream
+#define SHAPEID_SERVICE_RAW(name, scope, shape) SHAPEID_SERVICE_RAW_##shape(name)
+
+using ShapeIdRawService = RawMethods<SHAPEID_RPCS(SHAPEID_SERVICE_RAW) AsItIs>::type;
 
 // The handler declarations of each shape of server/calls/rpc_list.h, as gRPC's generated base
 // class names them.
