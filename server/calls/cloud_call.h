@@ -6,21 +6,27 @@
 // together). Both check the header before any point is read, assemble the cloud with the same
 // checks and messages (server/wire/cloud_assembler.h), and hand the RPC's work to the scheduler.
 //
-// A cloud RPC is declared by a struct:
+// A cloud RPC is declared by a struct (server/calls/cloud_rpcs.h):
+// clang-format off
 //   struct NameRpc {
-//     using StreamRequest = v1::NameRequest;     // oneof kind { Header header; PointChunk points;
-//     } using CloudRequest = v1::NameCloudRequest; // Header header; PointChunk points using Header
-//     = ...; using Response = ...; static constexpr bool kHeaderRequired = ...;  // false: an
-//     absent header asks for defaults struct Plan { ...; WireCloudFormat format; };
-//     // What the header asks for, checked, with the one gallery snapshot the call uses; names
-//     // the gallery in `record`.
+//     using StreamRequest = v1::NameRequest;      // oneof kind { Header header; PointChunk points; }
+//     using CloudRequest = v1::NameCloudRequest;  // Header header; PointChunk points;
+//     using Header = ...;
+//     using Response = ...;
+//     static constexpr bool kHeaderRequired = ...;  // false: an absent header asks for defaults
+//     struct Plan { ...; WireCloudFormat format; };
+//     // What the header asks for, checked, with the one gallery snapshot the call uses;
+//     // names the gallery in `record`.
 //     static absl::StatusOr<Plan> PlanOf(const ServiceRuntime&, const Header&, CallRecord&);
 //     // The work on the cloud `cloud` gives (`points` points, for the estimate).
 //     static Work WorkOf(Plan, size_t points, CloudSource cloud, AdmittedCall&, Response*);
 //   };
+// clang-format on
 
+#include <cstdint>
 #include <functional>
 #include <optional>
+#include <string>
 #include <utility>
 
 #include "absl/status/statusor.h"

@@ -39,6 +39,13 @@ absl::StatusOr<WireCloudFormat> FormatOf(const Header& header, const Descriptor*
   return format;
 }
 
+// FailedPrecondition with the reason when this server cannot describe for `snapshot`'s
+// gallery (GallerySnapshot::incompatible), so that a call is refused before its points are read.
+absl::Status RequireCompatible(const GallerySnapshot& snapshot) {
+  if (snapshot.incompatible().empty()) return absl::OkStatus();
+  return absl::FailedPreconditionError(snapshot.incompatible());
+}
+
 // The named gallery and its snapshot, which must hold samples to answer `doing`.
 struct GalleryAndSnapshot {
   std::shared_ptr<Gallery> gallery;
@@ -50,6 +57,7 @@ absl::StatusOr<GalleryAndSnapshot> GalleryWithSamples(const ServiceRuntime& runt
   GalleryAndSnapshot found;
   SHAPEID_ASSIGN_OR_RETURN(found.gallery, NamedGallery(runtime, record, name));
   found.snapshot = found.gallery->Snapshot();
+  SHAPEID_RETURN_IF_ERROR(RequireCompatible(*found.snapshot));
   SHAPEID_RETURN_IF_ERROR(found.snapshot->RequireSamples(doing));
   return found;
 }
@@ -207,7 +215,9 @@ absl::StatusOr<DescribeRpc::Plan> DescribeRpc::PlanOf(const ServiceRuntime& runt
   if (header.descriptor_spec().empty() && !header.gallery().empty()) {
     SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
                              NamedGallery(runtime, record, header.gallery()));
-    plan.descriptor = gallery->Snapshot()->shared_descriptor();
+    const std::shared_ptr<const GallerySnapshot> snapshot = gallery->Snapshot();
+    SHAPEID_RETURN_IF_ERROR(RequireCompatible(*snapshot));
+    plan.descriptor = snapshot->shared_descriptor();
   } else {
     const std::string& spec = header.descriptor_spec().empty()
                                   ? runtime.options->default_descriptor_spec
@@ -244,7 +254,7 @@ absl::StatusOr<ClassifyRpc::Plan> ClassifyRpc::PlanOf(const ServiceRuntime& runt
   SHAPEID_ASSIGN_OR_RETURN(GalleryAndSnapshot found,
                            GalleryWithSamples(runtime, record, header.gallery(), "classifying"));
   Plan plan;
-  plan.gallery = std::move(found.gallery);
+  plan.limits = found.gallery->limits().cloud_limits();
   plan.snapshot = std::move(found.snapshot);
   SHAPEID_ASSIGN_OR_RETURN(plan.format, FormatOf(header, plan.snapshot->shared_descriptor().get()));
   plan.k = BoundedK(header.k());
@@ -258,10 +268,8 @@ Work ClassifyRpc::WorkOf(Plan plan, size_t points, CloudSource cloud, AdmittedCa
   return Work::Compute(
       cost.cpu, cost.memory, [plan = std::move(plan), cloud = std::move(cloud), &call, response] {
         SHAPEID_ASSIGN_OR_RETURN(const PointCloud received, cloud());
-        SHAPEID_ASSIGN_OR_RETURN(
-            const GalleryClassification answer,
-            plan.snapshot->Classify(received, plan.gallery->limits().cloud_limits(), plan.k,
-                                    plan.mode));
+        SHAPEID_ASSIGN_OR_RETURN(const GalleryClassification answer,
+                                 plan.snapshot->Classify(received, plan.limits, plan.k, plan.mode));
         call.observer().Described(call.record(), plan.snapshot->shared_descriptor()->spec().kind,
                                   answer.describe_time);
         call.observer().Searched(call.record(), answer.knn.approximate, answer.search_time);
@@ -288,7 +296,7 @@ absl::StatusOr<RecognizeSceneRpc::Plan> RecognizeSceneRpc::PlanOf(const ServiceR
   plan.options.segmentation =
       FromProto(header.segmentation(), header.has_region() ? &header.region() : nullptr);
   if (absl::Status s = ValidateSceneSegmentationOptions(plan.options.segmentation); !s.ok()) {
-    return absl::InvalidArgumentError(absl::StrCat("RecognizeScene: ", s.message()));
+    return absl::InvalidArgumentError(absl::StrCat(record.method, ": ", s.message()));
   }
   plan.options.k = BoundedK(header.k());
   plan.options.mode = header.exact() ? SearchMode::kExact : SearchMode::kDefault;

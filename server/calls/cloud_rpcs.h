@@ -1,11 +1,12 @@
 #ifndef SHAPEID_SERVER_CALLS_CLOUD_RPCS_H_
 #define SHAPEID_SERVER_CALLS_CLOUD_RPCS_H_
 
-// The RPCs that bring clouds (server/calls/rpc_list.h): Describe, Classify and RecognizeScene, each
-// a stream and a one-message call served by server/calls/cloud_call.h from the declaration here,
-// and Train, a stream of many labeled clouds. Each plans its work from the header with one gallery
-// snapshot, on gRPC's thread, and hands describing, searching and committing to the scheduler with
-// their estimated costs (server/runtime/work_costs.h).
+// The RPCs that bring clouds (server/calls/rpc_list.h): Describe, Classify and RecognizeScene,
+// each a stream and a one-message call served by server/calls/cloud_call.h from its
+// declaration here, each planning its work from the header with one gallery snapshot; and
+// Train, a stream of many labeled clouds committed as one batch. All hand describing,
+// searching and committing to the scheduler with their estimated costs
+// (server/runtime/work_costs.h).
 
 #include <memory>
 
@@ -47,8 +48,8 @@ struct ClassifyRpc {
   using Response = v1::ClassifyResponse;
   static constexpr bool kHeaderRequired = true;
   struct Plan {
-    std::shared_ptr<Gallery> gallery;  // for its limits
     std::shared_ptr<const GallerySnapshot> snapshot;
+    CloudLimits limits;  // the gallery's
     WireCloudFormat format;
     int k = 0;
     SearchMode mode = SearchMode::kDefault;

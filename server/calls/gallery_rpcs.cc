@@ -140,12 +140,14 @@ absl::StatusOr<Work> RemoveSamplesRpc::Handle(const ServiceRuntime& runtime, con
 
 absl::StatusOr<Work> ListSamplesRpc::Handle(const ServiceRuntime& runtime, const Request& request,
                                             Response* response, AdmittedCall& call) {
-  SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
-                           NamedGallery(runtime, call.record(), request.gallery()));
-  if (request.page_size() > kMaxPageSize) {
+  // The page size is checked before the gallery is looked up, as a request's own fault.
+  if (request.page_size() > kMaxPageSize && !request.gallery().empty()) {
+    call.record().gallery = request.gallery();
     return absl::InvalidArgumentError(
         absl::StrCat("ListSamples: page_size ", request.page_size(), " is over ", kMaxPageSize));
   }
+  SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
+                           NamedGallery(runtime, call.record(), request.gallery()));
   std::shared_ptr<const GallerySnapshot> snapshot = gallery->Snapshot();
   uint64_t after = 0;
   if (!request.page_token().empty()) {

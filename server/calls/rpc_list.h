@@ -14,7 +14,7 @@
 //   kServerStream  a server stream, NameRpc::Start (ExportGallery);
 //   kUnary         one message in, one out: NameRpc::Handle (server/calls/unary_call.h);
 //   kOperations    kUnary, admitted in every server state and outside the memory budget.
-// The scope table, the service's handlers (server/shapeid_service.{h,cc}) and the gate's kind
+// The scope table, the service's handlers (server/calls/shapeid_service.{h,cc}) and the gate's kind
 // of each call come from this list; rpc_list_test checks it against the proto's service.
 // Adding an RPC: the proto, one line here, its NameRpc, and its core function.
 #define SHAPEID_RPCS(X)                   \
