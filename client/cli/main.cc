@@ -382,7 +382,7 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"off", "mlp"}));
   eval_cmd->add_option("--report", eval.report_html, "Also write a self-contained HTML report");
   eval_cmd->add_flag("--predictions", eval.with_predictions,
-                     "json: include every test cloud's prediction");
+                     "json: include every test cloud's prediction and its neighbors");
   eval.batch.jobs = 4;
   AddBatchFlags(eval_cmd, &eval.batch);
   eval_cmd->footer(
