@@ -1,6 +1,5 @@
 #include "server/calls/cloud_rpcs.h"
 
-#include <algorithm>
 #include <array>
 #include <memory>
 #include <optional>
@@ -61,9 +60,6 @@ absl::StatusOr<GalleryAndSnapshot> GalleryWithSamples(const ServiceRuntime& runt
   SHAPEID_RETURN_IF_ERROR(found.snapshot->RequireSamples(doing));
   return found;
 }
-
-// k as asked, bounded so that an absurd k is refused by its answer's size, not by overflow.
-int BoundedK(uint32_t k) { return static_cast<int>(std::min<uint32_t>(k, 1 << 20)); }
 
 class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainResponse> {
  public:

@@ -18,9 +18,11 @@ absl::Status RequireGalleryName(absl::string_view rpc, absl::string_view name) {
   return absl::OkStatus();
 }
 
+int BoundedK(uint32_t k) { return static_cast<int>(std::min<uint32_t>(k, 1 << 20)); }
+
 absl::StatusOr<KnnOptions> FromProto(const v1::KnnOptions& knn) {
   KnnOptions out;
-  out.k = knn.k() == 0 ? 1 : static_cast<int>(std::min<uint32_t>(knn.k(), 1 << 20));
+  out.k = knn.k() == 0 ? 1 : BoundedK(knn.k());
   switch (knn.weighting()) {
     case v1::VOTE_WEIGHTING_UNSPECIFIED:
     case v1::VOTE_WEIGHTING_UNIFORM:

@@ -21,6 +21,10 @@ namespace shapeid {
 // call that names one checks this before asking the registry.
 absl::Status RequireGalleryName(absl::string_view rpc, absl::string_view name);
 
+// A request's k as an int, bounded so that an absurd k is refused by its answer's size, not
+// by overflow.
+int BoundedK(uint32_t k);
+
 // A header's point layout; the empty message is the default packed float32 layout.
 // InvalidArgument naming the field: a coordinate missing or of a type other than FLOAT32 or
 // FLOAT64, or what ValidatePointLayout refuses.
