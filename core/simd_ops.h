@@ -33,6 +33,17 @@ struct Avx2Ops {
   static Vec Mul(Vec a, Vec b) { return _mm256_mul_ps(a, b); }
   static Vec Max(Vec a, Vec b) { return _mm256_max_ps(a, b); }
   static Vec Min(Vec a, Vec b) { return _mm256_min_ps(a, b); }
+  // Bit l set where a[l] <= b[l] (false for NaN).
+  static uint32_t LessEqualMask(Vec a, Vec b) {
+    return static_cast<uint32_t>(_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_LE_OQ)));
+  }
+  // The smallest lane (a tree of pairwise minima: exact, so any order gives the same bits).
+  static float HorizontalMin(Vec v) {
+    __m128 m = _mm_min_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
+    m = _mm_min_ps(m, _mm_movehl_ps(m, m));
+    m = _mm_min_ss(m, _mm_shuffle_ps(m, m, 1));
+    return _mm_cvtss_f32(m);
+  }
   static void Store(float* p, Vec v) { _mm256_storeu_ps(p, v); }
   static Vec Sqrt(Vec a) { return _mm256_sqrt_ps(a); }
   static IVec Truncate(Vec a) { return _mm256_cvttps_epi32(a); }  // toward zero
@@ -74,6 +85,10 @@ struct Avx512Ops {
   static Vec Mul(Vec a, Vec b) { return _mm512_mul_ps(a, b); }
   static Vec Max(Vec a, Vec b) { return _mm512_max_ps(a, b); }
   static Vec Min(Vec a, Vec b) { return _mm512_min_ps(a, b); }
+  static uint32_t LessEqualMask(Vec a, Vec b) {
+    return static_cast<uint32_t>(_mm512_cmp_ps_mask(a, b, _CMP_LE_OQ));
+  }
+  static float HorizontalMin(Vec v) { return _mm512_reduce_min_ps(v); }
   static void Store(float* p, Vec v) { _mm512_storeu_ps(p, v); }
   static Vec Sqrt(Vec a) { return _mm512_sqrt_ps(a); }
   static IVec Truncate(Vec a) { return _mm512_cvttps_epi32(a); }

@@ -1,9 +1,9 @@
 // DFSD (docs/descriptors.md section 5).
 //
-// Cost: the distance grid is exact (every cell against every point), O(n * G^3), but with the
-// separable tables of dfsd_kernels.h a cell costs two additions and a minimum per point, in
-// SIMD: about 0.25 ms per 1,024-point cloud (both fields, G = 12) on one core, 31 ms per
-// 100,000 points (bench/descriptor_bench).
+// Cost: the distance grid is exact (each cell's nearest point), with the separable tables of
+// dfsd_kernels.h: a point costs a cell two additions and a minimum, in SIMD, and a cell reads
+// only the blocks of nearby points that can hold its nearest (the pruned kernel). Figures:
+// docs/performance.md, "DFSD's pruned kernel".
 // The cosine transform runs one axis at a time and stops at the kept frequencies, so it
 // costs O(G^3 * order), nothing next to the grid.
 #include "core/descriptors/dfsd.h"
@@ -14,6 +14,10 @@
 #include <limits>
 #include <string>
 #include <utility>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "absl/strings/str_cat.h"
 #include "core/descriptor.h"
@@ -74,6 +78,21 @@ absl::string_view UpName(DfsdOptions::Up up) { return NameOf(kUpNames, up); }
 
 int NumFields(DfsdOptions::Fields fields) { return fields == DfsdOptions::Fields::kBoth ? 2 : 1; }
 
+// out[c] = sqrt(sqrt(double(squared[c]))) * scale. With SSE2, two at a time: the same
+// correctly rounded square roots, without the errno check that keeps std::sqrt scalar.
+void FourthRoots(const float* squared, size_t n, double scale, double* out) {
+  size_t c = 0;
+#if defined(__SSE2__)
+  const __m128d factor = _mm_set1_pd(scale);
+  for (; c + 2 <= n; c += 2) {
+    const __m128d v = _mm_cvtps_pd(
+        _mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(squared + c))));
+    _mm_storeu_pd(out + c, _mm_mul_pd(_mm_sqrt_pd(_mm_sqrt_pd(v)), factor));
+  }
+#endif
+  for (; c < n; ++c) out[c] = std::sqrt(std::sqrt(static_cast<double>(squared[c]))) * scale;
+}
+
 // Points per pass of the distance kernel for a cloud of n (see ComputeFramed).
 size_t KernelChunk(size_t n) {
   const size_t chunks = std::max<size_t>(1, (n + kPointsPerChunk - 1) / kPointsPerChunk);
@@ -101,6 +120,11 @@ class DfsdDescriptor : public Descriptor {
     centers_.resize(static_cast<size_t>(g));
     for (int i = 0; i < g; ++i) {
       centers_[static_cast<size_t>(i)] = static_cast<float>((2.0 * i + 1.0) / g - 1.0);
+    }
+    for (int i = 1; i < g; ++i) {
+      cell_spacing_ =
+          std::max(cell_spacing_, static_cast<double>(centers_[static_cast<size_t>(i)]) -
+                                      centers_[static_cast<size_t>(i) - 1]);
     }
   }
 
@@ -157,8 +181,11 @@ class DfsdDescriptor : public Descriptor {
     const size_t t = static_cast<size_t>(std::min(options_.order, g));
     const size_t kernel = 3 * static_cast<size_t>(g) * chunk * sizeof(float)  // tables
                           + 3 * chunk * sizeof(double)                        // coordinates
-                          + 2 * chunk * sizeof(float)  // normalized, the kernel's x-y sums
-                          + cells * (sizeof(float) + sizeof(double))  // squared, field
+                          + 2 * chunk * sizeof(float)     // normalized, the kernel's x-y sums
+                          + 2 * chunk * sizeof(uint32_t)  // spatial order and its keys
+                          + (size_t{1} << 15) * sizeof(uint32_t)  // the order's buckets
+                          + 4 * static_cast<size_t>(g) * BlockStride(chunk) * sizeof(float) +
+                          cells * (sizeof(float) + sizeof(double))  // squared, field
                           + (static_cast<size_t>(g) * g * t + g * t * t) * sizeof(double);
     const size_t variants = HasPoseVariants(options_.frame)
                                 ? cost_model::GrownBytes(poses_.size() * dimension(), sizeof(float))
@@ -271,10 +298,12 @@ class DfsdDescriptor : public Descriptor {
     // (docs/performance.md, "DFSD").
     const size_t chunk = KernelChunk(n);
     const size_t stride = chunk;
+    const size_t block_stride = BlockStride(chunk);
     const AlignedFloats tables = MakeAlignedFloats(3 * static_cast<size_t>(g) * stride);
-    std::fill(tables.get(), tables.get() + 3 * static_cast<size_t>(g) * stride, kFarSquared);
+    std::vector<float> bounds(3 * static_cast<size_t>(g) * block_stride);
     std::vector<double> coords(3 * chunk);
     double* const coord[3] = {coords.data(), coords.data() + chunk, coords.data() + 2 * chunk};
+    std::vector<uint32_t> order;
     std::vector<float> normalized(chunk);
     std::vector<float> squared(cells);
     std::vector<double> field(cells);
@@ -285,26 +314,24 @@ class DfsdDescriptor : public Descriptor {
                              (options_.fields == DfsdOptions::Fields::kBoth && f == 0);
       for (size_t first = 0; first < n; first += chunk) {
         const size_t count = std::min(chunk, n - first);
-        frame.Coordinates(cloud, first, count, coord);
+        // One chunk (most clouds) keeps its coordinates and order for the second field.
+        if (f == 0 || chunk < n) {
+          frame.Coordinates(cloud, first, count, coord);
+          SpatialOrder(coord, count, half_extent.data(), &order);
+        }
         for (int a = 0; a < 3; ++a) {
           // An axis of zero extent keeps the common scale: its points all sit at 0.
           const double half = half_extent[a];
           const double scale = 1.0 / (isotropic || half == 0 ? largest_half : half);
           for (size_t p = 0; p < count; ++p) {
-            normalized[p] = static_cast<float>(coord[a][p] * scale);
+            normalized[p] = static_cast<float>(coord[a][order[p]] * scale);
           }
-          // Row by row, so each row is one contiguous loop the compiler vectorises. A last,
-          // shorter chunk leaves the previous chunk's values past `count` (this field's: a
-          // field with several chunks fills every earlier one): points already counted, so
-          // they cannot change a minimum.
-          for (int i = 0; i < g; ++i) {
-            float* row = tables.get() + (static_cast<size_t>(a) * g + i) * stride;
-            const float center = centers_[static_cast<size_t>(i)];
-            for (size_t p = 0; p < count; ++p) {
-              const float d = center - normalized[p];
-              row[p] = d * d;
-            }
-          }
+          // A last, shorter chunk leaves the previous chunk's values past `count` (this
+          // field's: a field with several chunks fills every earlier one): points already
+          // counted, so they cannot change a minimum.
+          FillAxisTables(normalized.data(), count, centers_.data(), g, stride, block_stride,
+                         /*pad=*/first == 0, tables.get() + static_cast<size_t>(a) * g * stride,
+                         bounds.data() + static_cast<size_t>(a) * g * block_stride);
         }
         FieldInput input;
         input.dx2 = tables.get();
@@ -312,6 +339,11 @@ class DfsdDescriptor : public Descriptor {
         input.dz2 = input.dy2 + static_cast<size_t>(g) * stride;
         input.stride = stride;
         input.grid = g;
+        input.block_dx2 = bounds.data();
+        input.block_dy2 = input.block_dx2 + static_cast<size_t>(g) * block_stride;
+        input.block_dz2 = input.block_dy2 + static_cast<size_t>(g) * block_stride;
+        input.block_stride = block_stride;
+        input.cell_spacing = cell_spacing_;
         input.accumulate = first > 0;
         NearestSquaredDistances(input, squared.data(), level);
       }
@@ -319,9 +351,7 @@ class DfsdDescriptor : public Descriptor {
       // outweigh the detail near the surface. Divided by G^(3/2), so the field's Euclidean
       // norm is a root mean square over cells and does not grow with the grid.
       const double norm = 1.0 / std::pow(static_cast<double>(g), 1.5);
-      for (size_t c = 0; c < cells; ++c) {
-        field[c] = std::sqrt(std::sqrt(static_cast<double>(squared[c]))) * norm;
-      }
+      FourthRoots(squared.data(), cells, norm, field.data());
       Transform(field, out.subspan(written, kept_.size()));
       written += kept_.size();
     }
@@ -377,6 +407,7 @@ class DfsdDescriptor : public Descriptor {
   std::vector<Pose> poses_;      // frames with pose variants (box, upright) only
   std::vector<double> cosines_;  // [frequency][cell index]
   std::vector<float> centers_;   // cell center coordinates in [-1, 1]
+  double cell_spacing_ = 0;      // the largest gap between neighboring centers
 };
 
 absl::StatusOr<std::unique_ptr<Descriptor>> CreateFromSpec(const DescriptorSpec& filled) {

@@ -6,8 +6,10 @@
 // levels.
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <new>
+#include <vector>
 
 #include "core/simd.h"
 
@@ -46,6 +48,20 @@ struct FieldInput {
   const float* dz2 = nullptr;
   size_t stride = 0;  // padded point count, a positive multiple of kPointLanes
   int grid = 0;       // G
+  // Optional pruning, for tables that are geometry: row i of dx2 holds (u_i - x_p)^2 computed
+  // in float as (u_i - x_p) * (u_i - x_p), with neighboring cell centers u_i at most
+  // `cell_spacing` apart (the same for dy2, dz2), and the points grouped into blocks of
+  // kPointLanes that lie close together (SpatialOrder). Row i of block_dx2 holds, per block, a
+  // value no larger than dx2[i][p] for any of the block's points, `block_stride` apart, and
+  // kFarSquared past the last block (FillAxisTables writes both). A cell then reads only the
+  // blocks that can hold its nearest point: those whose bound is within reach of a finished
+  // neighboring cell's distance (triangle inequality). The minima are those of reading every
+  // point, bit for bit.
+  const float* block_dx2 = nullptr;
+  const float* block_dy2 = nullptr;
+  const float* block_dz2 = nullptr;
+  size_t block_stride = 0;  // a multiple of kPointLanes, at least stride / kPointLanes
+  double cell_spacing = 0;
   // false: `out` is overwritten. true: each out value is lowered to the minimum over these
   // points when that is smaller, so a cloud can be fed in chunks whose tables stay in cache;
   // minima are exact, so the result has the same bits as one pass over every point.
@@ -57,6 +73,29 @@ struct FieldInput {
 // exact, so all levels give identical bits.
 // `level` must not exceed DetectedSimdLevel().
 void NearestSquaredDistances(const FieldInput& input, float* out, SimdLevel level);
+
+// Blocks of the pruned kernel for `count` points.
+inline size_t BlockStride(size_t count) {
+  const size_t blocks = (count + kPointLanes - 1) / kPointLanes;
+  return (blocks + kPointLanes - 1) / kPointLanes * kPointLanes;
+}
+
+// A permutation of points [0, count) (coordinates coord[a][p], within [-half[a], half[a]])
+// that puts points close in space close in order: buckets of a regular grid over the box, in
+// Morton order, by a counting sort (O(count)). Each run of kPointLanes points is then a
+// compact block for the pruned kernel.
+void SpatialOrder(const double* const coord[3], size_t count, const double half[3],
+                  std::vector<uint32_t>* order);
+
+// One axis of the kernel's input for `count` points, `values` their normalized coordinates in
+// the order the tables are to hold them: rows i < grid of `rows` (stride apart) get
+// (centers[i] - v)^2 in float, and past `count` kFarSquared when `pad` (a first chunk; a later
+// one keeps what is there). Rows i < grid of `bounds` (block_stride apart) get, per block of
+// kPointLanes values (a last short block counts its own only), the smallest such square any
+// of them can give, computed from the block's extremes with the same rounding; kFarSquared
+// past the last block.
+void FillAxisTables(const float* values, size_t count, const float* centers, int grid,
+                    size_t stride, size_t block_stride, bool pad, float* rows, float* bounds);
 
 }  // namespace shapeid::dfsd_internal
 
