@@ -14,6 +14,7 @@
 #include "bench/bench_clouds.h"
 #include "benchmark/benchmark.h"
 #include "core/descriptor_registry.h"
+#include "core/descriptors/dfsd_kernels_testing.h"
 #include "core/descriptors/reference_points.h"
 #include "core/descriptors/rphsd_kernels.h"
 #include "core/io/point_cloud_reader.h"
@@ -251,6 +252,35 @@ BENCHMARK_CAPTURE(ModelNetCloudBench, dfsd_pca, std::string("dfsd:frame=pca"))
     ->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(ModelNetCloudBench, dfsd_smooth, std::string("dfsd:smooth=0.015"))
     ->Unit(benchmark::kMicrosecond);
+
+// The DFSD kernel alone (one field, G = 12, the default grid) on the same ModelNet10 clouds,
+// reading every point (0) or only the blocks within reach (1), at the machine's SIMD level:
+// the ratio of the two in one run is the pruning's gain (docs/performance.md, "DFSD's pruned
+// kernel"). Both give the same bits (dfsd_kernels_test).
+void BM_DfsdKernel(benchmark::State& state) {
+  const bool pruned = state.range(0) == 1;
+  constexpr int kGrid = 12;
+  bool real = false;
+  std::vector<dfsd_internal::GeometricInput> inputs;
+  for (const PointCloud& cloud : ModelNetClouds(&real)) {
+    const dfsd_internal::Points points = dfsd_internal::BoxNormalized(cloud);
+    inputs.emplace_back(kGrid, dfsd_internal::PaddedStride(points.size()));
+    inputs.back().Fill(points, /*first_chunk=*/true);
+  }
+  std::vector<float> out(kGrid * kGrid * kGrid);
+  const SimdLevel level = ActiveSimdLevel();
+  size_t next = 0;
+  for (auto _ : state) {
+    dfsd_internal::NearestSquaredDistances(inputs[next].Input(pruned, false), out.data(), level);
+    benchmark::DoNotOptimize(out.data());
+    next = (next + 1) % inputs.size();
+  }
+  state.SetItemsProcessed(state.iterations());
+  state.SetLabel(absl::StrCat(pruned ? "pruned, " : "every point, ",
+                              real ? "ModelNet10 x" : "SYNTHETIC (no ../shared/data) x",
+                              inputs.size(), ", ", SimdLevelName(level)));
+}
+BENCHMARK(BM_DfsdKernel)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
 // What a robot's Classify describes: DFSD in the box frame with its pose variants, on
 // single-view sensor scans (SensorView: one side, 1 % noise, 300-500 points, random pose) of

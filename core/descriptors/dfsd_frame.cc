@@ -53,12 +53,15 @@ class CenteredChunks {
 
   size_t size() const { return cloud_.size(); }
 
-  // Points first .. first + count - 1; `first` a multiple of kFramePassPoints.
+  // Points first .. first + count - 1; `first` a multiple of kFramePassPoints. A cloud of
+  // one chunk is converted once, however many passes read it.
   const Eigen::Matrix3Xd& Get(size_t first, size_t count) {
+    if (first == held_first_ && static_cast<size_t>(d_.cols()) == count) return d_;
     if (static_cast<size_t>(d_.cols()) != count) d_.resize(3, static_cast<Eigen::Index>(count));
     for (size_t p = 0; p < count; ++p) {
       d_.col(static_cast<Eigen::Index>(p)) = cloud_.point(first + p).cast<double>() - centroid_;
     }
+    held_first_ = first;
     return d_;
   }
 
@@ -74,6 +77,7 @@ class CenteredChunks {
   const PointCloud& cloud_;
   const Eigen::Vector3d& centroid_;
   Eigen::Matrix3Xd d_;
+  size_t held_first_ = std::numeric_limits<size_t>::max();  // the chunk d_ holds
 };
 
 // Running extremes of the three rows of q = axes^T d, kept as Eigen's rowwise maxCoeff and
@@ -211,8 +215,16 @@ Eigen::Matrix3d BoxAxes(const PointCloud& cloud, const Eigen::Vector3d& centroid
       const Eigen::Vector3d& v = axis[(held + 2) % 3];
       StreamedHull& hull = hulls[held];
       std::vector<Eigen::Vector2d>& chunk = projected[held];
+      // A cloud of one chunk: `chunk` still holds the projections the first pass made (the
+      // same expressions), so the passes offer them as they are.
+      const bool one_chunk = n <= kFramePassPoints;
       while (!hull.done()) {
         hull.BeginPass();
+        if (one_chunk) {
+          hull.Offer(chunk.data(), n);
+          hull.EndPass();
+          continue;
+        }
         chunks.ForEach([&](size_t, const Eigen::Matrix3Xd& d) {
           for (Eigen::Index p = 0; p < d.cols(); ++p) {
             const auto point = d.col(p);

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "core/descriptors/dfsd_kernels_testing.h"
 #include "core/io/point_cloud_reader.h"
 #include "core/simd.h"
 #include "gtest/gtest.h"
@@ -21,78 +22,6 @@ namespace shapeid::dfsd_internal {
 namespace {
 
 namespace fs = std::filesystem;
-using Points = std::vector<std::array<float, 3>>;
-
-std::vector<float> Centers(int g) {
-  std::vector<float> centers(static_cast<size_t>(g));
-  for (int i = 0; i < g; ++i) centers[i] = static_cast<float>((2.0 * i + 1.0) / g - 1.0);
-  return centers;
-}
-
-// The kernel's input for points in [-1, 1]^3 as DFSD lays it out: spatially ordered, every
-// axis's tables and block bounds; a chunk after the first keeps the earlier tables' tail.
-class GeometricInput {
- public:
-  GeometricInput(int g, size_t stride) : g_(g), centers_(Centers(g)), stride_(stride) {
-    tables_.assign(3 * g * stride, kFarSquared);
-    bounds_.assign(3 * g * BlockStride(stride), kFarSquared);
-    for (int i = 1; i < g; ++i) {
-      spacing_ = std::max(spacing_, static_cast<double>(centers_[i]) - centers_[i - 1]);
-    }
-  }
-
-  // Fills the tables with `points` (at most stride of them), first chunk or a later one.
-  void Fill(const Points& points, bool first_chunk) {
-    const size_t n = points.size();
-    std::vector<double> coords(3 * n);
-    const double* coord[3] = {coords.data(), coords.data() + n, coords.data() + 2 * n};
-    for (size_t p = 0; p < n; ++p) {
-      for (int a = 0; a < 3; ++a) coords[a * n + p] = points[p][a];
-    }
-    const double half[3] = {1, 1, 1};
-    std::vector<uint32_t> order;
-    SpatialOrder(coord, n, half, &order);
-    ASSERT_EQ(order.size(), n);
-    std::vector<uint32_t> sorted = order;
-    std::sort(sorted.begin(), sorted.end());
-    for (size_t p = 0; p < n; ++p) ASSERT_EQ(sorted[p], p) << "not a permutation";
-    std::vector<float> values(n);
-    const size_t block_stride = BlockStride(stride_);
-    for (int a = 0; a < 3; ++a) {
-      for (size_t p = 0; p < n; ++p) values[p] = points[order[p]][a];
-      FillAxisTables(values.data(), n, centers_.data(), g_, stride_, block_stride, first_chunk,
-                     tables_.data() + a * g_ * stride_, bounds_.data() + a * g_ * block_stride);
-    }
-  }
-
-  FieldInput Input(bool pruned, bool accumulate) const {
-    FieldInput in;
-    in.dx2 = tables_.data();
-    in.dy2 = in.dx2 + g_ * stride_;
-    in.dz2 = in.dy2 + g_ * stride_;
-    in.stride = stride_;
-    in.grid = g_;
-    in.accumulate = accumulate;
-    if (pruned) {
-      const size_t block_stride = BlockStride(stride_);
-      in.block_dx2 = bounds_.data();
-      in.block_dy2 = in.block_dx2 + g_ * block_stride;
-      in.block_dz2 = in.block_dy2 + g_ * block_stride;
-      in.block_stride = block_stride;
-      in.cell_spacing = spacing_;
-    }
-    return in;
-  }
-
- private:
-  int g_;
-  std::vector<float> centers_;
-  size_t stride_;
-  double spacing_ = 0;
-  std::vector<float> tables_, bounds_;
-};
-
-size_t Padded(size_t n) { return (n + kPointLanes - 1) / kPointLanes * kPointLanes; }
 
 std::vector<float> Minima(const FieldInput& in, SimdLevel level) {
   std::vector<float> out(static_cast<size_t>(in.grid) * in.grid * in.grid);
@@ -102,7 +31,7 @@ std::vector<float> Minima(const FieldInput& in, SimdLevel level) {
 
 // Every level's pruned minima have the bits of reading every point (scalar).
 void ExpectPrunedMatches(const Points& points, int g, const std::string& what) {
-  GeometricInput input(g, Padded(points.size()));
+  GeometricInput input(g, PaddedStride(points.size()));
   input.Fill(points, /*first_chunk=*/true);
   const std::vector<float> want = Minima(input.Input(false, false), SimdLevel::kScalar);
   for (SimdLevel level : {SimdLevel::kScalar, SimdLevel::kAvx2, SimdLevel::kAvx512}) {
@@ -221,6 +150,9 @@ TEST(DfsdKernelsTest, SpatialOrderGroupsNearbyPoints) {
   const double half[3] = {1, 1, 1};
   std::vector<uint32_t> order;
   SpatialOrder(coord, n, half, &order);
+  std::vector<uint32_t> sorted = order;
+  std::sort(sorted.begin(), sorted.end());
+  for (size_t p = 0; p < n; ++p) ASSERT_EQ(sorted[p], p) << "not a permutation";
   const auto mean_block_span = [&](const std::vector<uint32_t>& ids) {
     double total = 0;
     for (size_t b = 0; b < n; b += kPointLanes) {
@@ -258,23 +190,7 @@ TEST(DfsdKernelsTest, PrunedKernelOnModelNet10Clouds) {
     for (size_t f = 0; f < files.size() && f < 3; ++f) {
       absl::StatusOr<ReadResult> read = ReadPointCloud(files[f].string());
       ASSERT_TRUE(read.ok()) << read.status();
-      // Into [-1, 1]^3 by the bounding box, as DFSD's isotropic field does.
-      const PointCloud& cloud = read->cloud;
-      std::array<float, 3> lo = {1e30f, 1e30f, 1e30f}, hi = {-1e30f, -1e30f, -1e30f};
-      for (size_t p = 0; p < cloud.size(); ++p) {
-        for (int a = 0; a < 3; ++a) {
-          lo[a] = std::min(lo[a], cloud.point(p)[a]);
-          hi[a] = std::max(hi[a], cloud.point(p)[a]);
-        }
-      }
-      float half = 0;
-      for (int a = 0; a < 3; ++a) half = std::max(half, 0.5f * (hi[a] - lo[a]));
-      Points points(cloud.size());
-      for (size_t p = 0; p < cloud.size(); ++p) {
-        for (int a = 0; a < 3; ++a) {
-          points[p][a] = (cloud.point(p)[a] - 0.5f * (lo[a] + hi[a])) / half;
-        }
-      }
+      const Points points = BoxNormalized(read->cloud);
       for (int g : {8, 12, 16}) ExpectPrunedMatches(points, g, files[f].string());
       ++clouds;
     }
