@@ -184,8 +184,9 @@ class DfsdDescriptor : public Descriptor {
                           + 2 * chunk * sizeof(float)     // normalized, the kernel's x-y sums
                           + 2 * chunk * sizeof(uint32_t)  // spatial order and its keys
                           + (size_t{1} << 15) * sizeof(uint32_t)  // the order's buckets
+                          // block bounds (three axes) and the kernel's x-y bounds
                           + 4 * static_cast<size_t>(g) * BlockStride(chunk) * sizeof(float) +
-                          cells * (sizeof(float) + sizeof(double))  // squared, field
+                          cells * (2 * sizeof(float) + sizeof(double))  // squared, reach, field
                           + (static_cast<size_t>(g) * g * t + g * t * t) * sizeof(double);
     const size_t variants = HasPoseVariants(options_.frame)
                                 ? cost_model::GrownBytes(poses_.size() * dimension(), sizeof(float))
