@@ -51,20 +51,37 @@ absl::StatusOr<PointCloud> CloudInOneMessage(const ServiceRuntime& runtime,
                                              uint64_t expected_points,
                                              const WireCloudFormat& format, absl::string_view xyz);
 
-template <typename Rpc>
-class CloudStreamReactor final
-    : public StreamReactor<typename Rpc::StreamRequest, typename Rpc::Response> {
-  using Request = typename Rpc::StreamRequest;
-  using Base = StreamReactor<Request, typename Rpc::Response>;
-
- public:
-  CloudStreamReactor(grpc::CallbackServerContext* context, const ServiceRuntime& runtime,
-                     absl::string_view method, grpc::ByteBuffer* response)
-      : Base(context, runtime, method, response),
+// A stream that assembles clouds: the call's runtime and an assembler over the memory budget,
+// whose held bytes count as the call's. The most-derived reactor calls StartReading() as the
+// last step of its constructor: a read that completed earlier would reach a half-built one.
+template <typename Request, typename Response>
+class CloudAssemblingReactor : public StreamReactor<Request, Response> {
+ protected:
+  CloudAssemblingReactor(grpc::CallbackServerContext* context, const ServiceRuntime& runtime,
+                         absl::string_view method, grpc::ByteBuffer* response)
+      : StreamReactor<Request, Response>(context, runtime, method, response),
         runtime_(runtime),
         assembler_(runtime.registry->limits().max_points_per_cloud, runtime.budget,
                    this->call().caller()) {
     this->call().CountHeld([this] { return assembler_.held_bytes(); });
+  }
+
+  const ServiceRuntime runtime_;
+  CloudAssembler assembler_;
+};
+
+template <typename Rpc>
+class CloudStreamReactor final
+    : public CloudAssemblingReactor<typename Rpc::StreamRequest, typename Rpc::Response> {
+  using Request = typename Rpc::StreamRequest;
+  using Base = CloudAssemblingReactor<Request, typename Rpc::Response>;
+  using Base::assembler_;
+  using Base::runtime_;
+
+ public:
+  CloudStreamReactor(grpc::CallbackServerContext* context, const ServiceRuntime& runtime,
+                     absl::string_view method, grpc::ByteBuffer* response)
+      : Base(context, runtime, method, response) {
     this->StartReading();
   }
 
@@ -110,8 +127,6 @@ class CloudStreamReactor final
         this->call(), this->response());
   }
 
-  const ServiceRuntime runtime_;
-  CloudAssembler assembler_;
   std::optional<typename Rpc::Plan> plan_;
 };
 

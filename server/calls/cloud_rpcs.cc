@@ -61,15 +61,11 @@ absl::StatusOr<GalleryAndSnapshot> GalleryWithSamples(const ServiceRuntime& runt
   return found;
 }
 
-class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainResponse> {
+class TrainReactor final : public CloudAssemblingReactor<v1::TrainRequest, v1::TrainResponse> {
  public:
   TrainReactor(grpc::CallbackServerContext* context, const ServiceRuntime& runtime,
                absl::string_view method, grpc::ByteBuffer* response)
-      : StreamReactor(context, runtime, method, response),
-        runtime_(runtime),
-        assembler_(runtime.registry->limits().max_points_per_cloud, runtime.budget,
-                   call().caller()) {
-    call().CountHeld([this] { return assembler_.held_bytes(); });
+      : CloudAssemblingReactor(context, runtime, method, response) {
     StartReading();
   }
 
@@ -182,8 +178,6 @@ class TrainReactor final : public StreamReactor<v1::TrainRequest, v1::TrainRespo
             }));
   }
 
-  const ServiceRuntime runtime_;
-  CloudAssembler assembler_;
   std::shared_ptr<Gallery> gallery_;
   std::unique_ptr<TrainBatch> batch_;
   AugmentOptions augment_;
