@@ -5,12 +5,19 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <memory>
 #include <utility>
 #include <vector>
 
 #include "core/descriptors/cost_model.h"
+#include "core/simd.h"
+#include "core/target_region.h"
+
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 namespace shapeid {
 namespace dfsd_internal {
@@ -31,6 +38,52 @@ struct Descending {
     return Ascending()(b, a);
   }
 };
+
+// The octagon's edges as Octagon::Inside reads them.
+struct OctagonEdges {
+  double ox[8], oy[8], ex[8], ey[8];
+  bool skip[8];
+};
+
+#if defined(__x86_64__)
+SHAPEID_TARGET_REGION_BEGIN("avx2")
+// Octagon::Inside for four points at a time, with its very operations (so the same bits):
+// inside[p] = 1 where the point is strictly inside every edge.
+void InsideFlagsAvx2(const OctagonEdges& e, const Eigen::Vector2d* points, size_t count,
+                     uint8_t* inside) {
+  static_assert(sizeof(Eigen::Vector2d) == 2 * sizeof(double));
+  const double* xy = points[0].data();
+  size_t p = 0;
+  for (; p + 4 <= count; p += 4) {
+    const __m256d a = _mm256_loadu_pd(xy + 2 * p);      // x0 y0 x1 y1
+    const __m256d b = _mm256_loadu_pd(xy + 2 * p + 4);  // x2 y2 x3 y3
+    const __m256d x = _mm256_unpacklo_pd(a, b);         // x0 x2 x1 x3
+    const __m256d y = _mm256_unpackhi_pd(a, b);         // y0 y2 y1 y3
+    __m256d all = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+    for (int k = 0; k < 8; ++k) {
+      if (e.skip[k]) continue;
+      const __m256d turn = _mm256_sub_pd(
+          _mm256_mul_pd(_mm256_set1_pd(e.ex[k]), _mm256_sub_pd(y, _mm256_set1_pd(e.oy[k]))),
+          _mm256_mul_pd(_mm256_set1_pd(e.ey[k]), _mm256_sub_pd(x, _mm256_set1_pd(e.ox[k]))));
+      all = _mm256_and_pd(all, _mm256_cmp_pd(turn, _mm256_setzero_pd(), _CMP_GT_OQ));
+    }
+    const int bits = _mm256_movemask_pd(all);  // lanes hold points 0, 2, 1, 3
+    inside[p] = bits & 1;
+    inside[p + 1] = (bits >> 2) & 1;
+    inside[p + 2] = (bits >> 1) & 1;
+    inside[p + 3] = (bits >> 3) & 1;
+  }
+  for (; p < count; ++p) {
+    bool in = true;
+    for (int k = 0; k < 8; ++k) {
+      const double turn = e.ex[k] * (points[p].y() - e.oy[k]) - e.ey[k] * (points[p].x() - e.ox[k]);
+      in &= e.skip[k] | (turn > 0);
+    }
+    inside[p] = in;
+  }
+}
+SHAPEID_TARGET_REGION_END
+#endif  // __x86_64__
 
 // The polygon of the extreme points in 8 directions.
 class Octagon {
@@ -53,11 +106,11 @@ class Octagon {
       const Eigen::Vector2d& a = extreme_[k];
       const Eigen::Vector2d& b = extreme_[(k + 1) % 8];
       // A repeated extreme gives a zero edge, which says nothing: it never rules p out.
-      skip_[k] = a == b;
-      ox_[k] = a.x();
-      oy_[k] = a.y();
-      ex_[k] = b.x() - a.x();
-      ey_[k] = b.y() - a.y();
+      edges_.skip[k] = a == b;
+      edges_.ox[k] = a.x();
+      edges_.oy[k] = a.y();
+      edges_.ex[k] = b.x() - a.x();
+      edges_.ey[k] = b.y() - a.y();
     }
   }
 
@@ -68,12 +121,22 @@ class Octagon {
   // Strictly inside every edge: not on the hull. All eight turns, without branches (points
   // fall inside and outside at random, which a branch predicts badly).
   bool Inside(const Eigen::Vector2d& p) const {
+    const OctagonEdges& e = edges_;
     bool inside = true;
     for (int k = 0; k < 8; ++k) {
-      const double turn = ex_[k] * (p.y() - oy_[k]) - ey_[k] * (p.x() - ox_[k]);
-      inside &= skip_[k] | (turn > 0);
+      const double turn = e.ex[k] * (p.y() - e.oy[k]) - e.ey[k] * (p.x() - e.ox[k]);
+      inside &= e.skip[k] | (turn > 0);
     }
     return inside;
+  }
+
+  // inside[p] = Inside(points[p]) for count points, several at a time where the CPU can.
+  void InsideFlags(const Eigen::Vector2d* points, size_t count, uint8_t* inside) const {
+#if defined(__x86_64__)
+    if (ActiveSimdLevel() >= SimdLevel::kAvx2)
+      return InsideFlagsAvx2(edges_, points, count, inside);
+#endif
+    for (size_t p = 0; p < count; ++p) inside[p] = Inside(points[p]);
   }
 
  private:
@@ -83,8 +146,7 @@ class Octagon {
   static constexpr double kLow = -std::numeric_limits<double>::infinity();
   Eigen::Vector2d extreme_[8];
   double best_[8] = {kLow, kLow, kLow, kLow, kLow, kLow, kLow, kLow};
-  double ox_[8], oy_[8], ex_[8], ey_[8];
-  bool skip_[8];
+  OctagonEdges edges_;
 };
 
 // Andrew's monotone chain fed one point at a time: the lower hull from the points in
@@ -371,18 +433,25 @@ void StreamedHull::BeginPass() {
 void StreamedHull::Offer(const Eigen::Vector2d* points, size_t count) {
   State& s = *state_;
   if (s.mode == State::Mode::kInMemory) {
-    for (size_t i = 0; i < count; ++i) {
-      const Eigen::Vector2d& p = points[i];
-      if (s.octagon.Inside(p)) continue;
-      if (!s.histogram) {
-        if (s.lower.offered().size() + 1 < s.lower.capacity()) {
-          s.lower.Offer(p);  // wanted: no slab bound yet
-          continue;
+    // The octagon's verdicts a block at a time, on the stack.
+    constexpr size_t kBlock = 256;
+    uint8_t inside[kBlock];
+    for (size_t first = 0; first < count; first += kBlock) {
+      const size_t block = std::min(kBlock, count - first);
+      s.octagon.InsideFlags(points + first, block, inside);
+      for (size_t i = 0; i < block; ++i) {
+        if (inside[i]) continue;
+        const Eigen::Vector2d& p = points[first + i];
+        if (!s.histogram) {
+          if (s.lower.offered().size() + 1 < s.lower.capacity()) {
+            s.lower.Offer(p);  // wanted: no slab bound yet
+            continue;
+          }
+          s.StartHistogram();  // p fills the buffer
         }
-        s.StartHistogram();  // p fills the buffer
+        s.histogram->Count(p.x());
+        if (s.lower.Wants(p)) s.lower.Offer(p);
       }
-      s.histogram->Count(p.x());
-      if (s.lower.Wants(p)) s.lower.Offer(p);
     }
   } else if (s.mode == State::Mode::kLowerSlabs) {
     const State::Run& run = s.lower_run;
