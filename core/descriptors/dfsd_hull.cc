@@ -39,6 +39,11 @@ struct Descending {
   }
 };
 
+// Directions of the octagon's extremes: x, x+y, y, y-x, -x, -x-y, -y, x-y, counter-clockwise
+// around the cloud.
+constexpr double kOctagonDirections[8][2] = {{1, 0},  {1, 1},   {0, 1},  {-1, 1},
+                                             {-1, 0}, {-1, -1}, {0, -1}, {1, -1}};
+
 // The octagon's edges as Octagon::Inside reads them.
 struct OctagonEdges {
   double ox[8], oy[8], ex[8], ey[8];
@@ -82,6 +87,56 @@ void InsideFlagsAvx2(const OctagonEdges& e, const Eigen::Vector2d* points, size_
     inside[p] = in;
   }
 }
+// Per direction k, the largest value of Octagon::See's expression over `count` points (four
+// at a time, the same operations) and the first point that has it: best[k], first[k];
+// first[k] = count when there are no points. Two passes: the maxima of all eight directions
+// at once, then each one's first point, so no step waits on the one before.
+void OctagonExtremesAvx2(const Eigen::Vector2d* points, size_t count, double* best, size_t* first) {
+  const double* xy = points[0].data();
+  const size_t groups = count / 4;
+  const auto values = [xy](size_t g, int k) {
+    const __m256d a = _mm256_loadu_pd(xy + 8 * g);      // x0 y0 x1 y1
+    const __m256d b = _mm256_loadu_pd(xy + 8 * g + 4);  // x2 y2 x3 y3
+    const __m256d x = _mm256_unpacklo_pd(a, b);         // x0 x2 x1 x3
+    const __m256d y = _mm256_unpackhi_pd(a, b);         // y0 y2 y1 y3
+    return _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(kOctagonDirections[k][0]), x),
+                         _mm256_mul_pd(_mm256_set1_pd(kOctagonDirections[k][1]), y));
+  };
+  __m256d top[8];
+  for (int k = 0; k < 8; ++k) top[k] = _mm256_set1_pd(-std::numeric_limits<double>::infinity());
+  for (size_t g = 0; g < groups; ++g) {
+    for (int k = 0; k < 8; ++k) top[k] = _mm256_max_pd(top[k], values(g, k));
+  }
+  for (int k = 0; k < 8; ++k) {
+    alignas(32) double lanes[4];
+    _mm256_store_pd(lanes, top[k]);
+    best[k] = std::max(std::max(lanes[0], lanes[1]), std::max(lanes[2], lanes[3]));
+    first[k] = count;
+    if (groups > 0) {
+      const __m256d wanted = _mm256_set1_pd(best[k]);
+      for (size_t g = 0; g < groups; ++g) {
+        const int equal = _mm256_movemask_pd(_mm256_cmp_pd(values(g, k), wanted, _CMP_EQ_OQ));
+        if (equal == 0) continue;
+        // Lanes hold points 0, 2, 1, 3 of the group: the first point is the lowest of these.
+        constexpr size_t kLaneOffset[4] = {0, 2, 1, 3};
+        size_t offset = 4;
+        for (int l = 0; l < 4; ++l) {
+          if (equal >> l & 1) offset = std::min(offset, kLaneOffset[l]);
+        }
+        first[k] = 4 * g + offset;
+        break;
+      }
+    }
+    for (size_t p = 4 * groups; p < count; ++p) {
+      const double v =
+          kOctagonDirections[k][0] * points[p].x() + kOctagonDirections[k][1] * points[p].y();
+      if (v > best[k]) {
+        best[k] = v;
+        first[k] = p;
+      }
+    }
+  }
+}
 SHAPEID_TARGET_REGION_END
 #endif  // __x86_64__
 
@@ -91,12 +146,31 @@ class Octagon {
   // Points in order: of equal extremes, the first counts.
   void See(const Eigen::Vector2d& p) {
     for (int k = 0; k < 8; ++k) {
-      const double v = kDirections[k][0] * p.x() + kDirections[k][1] * p.y();
+      const double v = kOctagonDirections[k][0] * p.x() + kOctagonDirections[k][1] * p.y();
       if (v > best_[k]) {
         best_[k] = v;
         extreme_[k] = p;
       }
     }
+  }
+
+  // See for `count` points in order, several at a time where the CPU can.
+  void SeeAll(const Eigen::Vector2d* points, size_t count) {
+#if defined(__x86_64__)
+    if (ActiveSimdLevel() >= SimdLevel::kAvx2) {
+      double best[8];
+      size_t first[8];
+      OctagonExtremesAvx2(points, count, best, first);
+      for (int k = 0; k < 8; ++k) {
+        if (first[k] < count && best[k] > best_[k]) {  // an earlier pass's equal one stays
+          best_[k] = best[k];
+          extreme_[k] = points[first[k]];
+        }
+      }
+      return;
+    }
+#endif
+    for (size_t p = 0; p < count; ++p) See(points[p]);
   }
 
   // After the last See: each edge's start and direction, so Inside computes each turn
@@ -140,9 +214,6 @@ class Octagon {
   }
 
  private:
-  // Extremes along x, x+y, y, y-x, -x, -x-y, -y, x-y: counter-clockwise around the cloud.
-  static constexpr double kDirections[8][2] = {{1, 0},  {1, 1},   {0, 1},  {-1, 1},
-                                               {-1, 0}, {-1, -1}, {0, -1}, {1, -1}};
   static constexpr double kLow = -std::numeric_limits<double>::infinity();
   Eigen::Vector2d extreme_[8];
   double best_[8] = {kLow, kLow, kLow, kLow, kLow, kLow, kLow, kLow};
@@ -317,7 +388,7 @@ class XHistogram {
 std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d>& points) {
   if (points.size() >= 16) {
     Octagon octagon;
-    for (const Eigen::Vector2d& p : points) octagon.See(p);
+    octagon.SeeAll(points.data(), points.size());
     octagon.Finish();
     size_t kept = 0;
     for (const Eigen::Vector2d& p : points) {
@@ -404,7 +475,7 @@ void StreamedHull::See(const Eigen::Vector2d* points, size_t count) {
   if (s.mode == State::Mode::kSmall) {
     s.small.insert(s.small.end(), points, points + count);
   } else {
-    for (size_t i = 0; i < count; ++i) s.octagon.See(points[i]);
+    s.octagon.SeeAll(points, count);
   }
 }
 
