@@ -50,6 +50,22 @@ struct OctagonEdges {
   bool skip[8];
 };
 
+// Octagon::See's value of point p along direction k.
+inline double OctagonValue(int k, const Eigen::Vector2d& p) {
+  return kOctagonDirections[k][0] * p.x() + kOctagonDirections[k][1] * p.y();
+}
+
+// Strictly inside every edge: not on the hull. All eight turns, without branches (points
+// fall inside and outside at random, which a branch predicts badly).
+inline bool InsideEdges(const OctagonEdges& e, const Eigen::Vector2d& p) {
+  bool inside = true;
+  for (int k = 0; k < 8; ++k) {
+    const double turn = e.ex[k] * (p.y() - e.oy[k]) - e.ey[k] * (p.x() - e.ox[k]);
+    inside &= e.skip[k] | (turn > 0);
+  }
+  return inside;
+}
+
 #if defined(__x86_64__)
 SHAPEID_TARGET_REGION_BEGIN("avx2")
 // Octagon::Inside for four points at a time, with its very operations (so the same bits):
@@ -57,7 +73,7 @@ SHAPEID_TARGET_REGION_BEGIN("avx2")
 void InsideFlagsAvx2(const OctagonEdges& e, const Eigen::Vector2d* points, size_t count,
                      uint8_t* inside) {
   static_assert(sizeof(Eigen::Vector2d) == 2 * sizeof(double));
-  const double* xy = points[0].data();
+  const double* xy = reinterpret_cast<const double*>(points);
   size_t p = 0;
   for (; p + 4 <= count; p += 4) {
     const __m256d a = _mm256_loadu_pd(xy + 2 * p);      // x0 y0 x1 y1
@@ -78,15 +94,9 @@ void InsideFlagsAvx2(const OctagonEdges& e, const Eigen::Vector2d* points, size_
     inside[p + 2] = (bits >> 1) & 1;
     inside[p + 3] = (bits >> 3) & 1;
   }
-  for (; p < count; ++p) {
-    bool in = true;
-    for (int k = 0; k < 8; ++k) {
-      const double turn = e.ex[k] * (points[p].y() - e.oy[k]) - e.ey[k] * (points[p].x() - e.ox[k]);
-      in &= e.skip[k] | (turn > 0);
-    }
-    inside[p] = in;
-  }
+  for (; p < count; ++p) inside[p] = InsideEdges(e, points[p]);
 }
+
 // Per direction k, the largest value of Octagon::See's expression over `count` points (four
 // at a time, the same operations) and the first point that has it: best[k], first[k];
 // first[k] = count when there are no points. Two passes: the maxima of all eight directions
@@ -128,8 +138,7 @@ void OctagonExtremesAvx2(const Eigen::Vector2d* points, size_t count, double* be
       }
     }
     for (size_t p = 4 * groups; p < count; ++p) {
-      const double v =
-          kOctagonDirections[k][0] * points[p].x() + kOctagonDirections[k][1] * points[p].y();
+      const double v = OctagonValue(k, points[p]);
       if (v > best[k]) {
         best[k] = v;
         first[k] = p;
@@ -146,7 +155,7 @@ class Octagon {
   // Points in order: of equal extremes, the first counts.
   void See(const Eigen::Vector2d& p) {
     for (int k = 0; k < 8; ++k) {
-      const double v = kOctagonDirections[k][0] * p.x() + kOctagonDirections[k][1] * p.y();
+      const double v = OctagonValue(k, p);
       if (v > best_[k]) {
         best_[k] = v;
         extreme_[k] = p;
@@ -192,17 +201,8 @@ class Octagon {
   double min_x() const { return extreme_[4].x(); }
   double max_x() const { return extreme_[0].x(); }
 
-  // Strictly inside every edge: not on the hull. All eight turns, without branches (points
-  // fall inside and outside at random, which a branch predicts badly).
-  bool Inside(const Eigen::Vector2d& p) const {
-    const OctagonEdges& e = edges_;
-    bool inside = true;
-    for (int k = 0; k < 8; ++k) {
-      const double turn = e.ex[k] * (p.y() - e.oy[k]) - e.ey[k] * (p.x() - e.ox[k]);
-      inside &= e.skip[k] | (turn > 0);
-    }
-    return inside;
-  }
+  // Strictly inside every edge: not on the hull.
+  bool Inside(const Eigen::Vector2d& p) const { return InsideEdges(edges_, p); }
 
   // inside[p] = Inside(points[p]) for count points, several at a time where the CPU can.
   void InsideFlags(const Eigen::Vector2d* points, size_t count, uint8_t* inside) const {
