@@ -21,13 +21,21 @@ from .k8s import check_copies, check_dev_postgres, check_k8s
 from .settings import read_server_settings
 
 
+def plural(count, noun):
+    """'1 problem', '2 problems'."""
+    return f"{count} {noun}" if count == 1 else f"{count} {noun}s"
+
+
 def run(deploy):
     """Checks the deploy directory `deploy` (a pathlib.Path); server/main.cc is read from its
     parent. Prints one line per problem and a summary; returns the exit code (1 on any)."""
     c = Checker()
-    read_server_settings(deploy.parent / "server" / "main.cc")
+    main_cc = deploy.parent / "server" / "main.cc"
+    if not read_server_settings(main_cc):
+        print(f"check_manifests: {main_cc} not found: settings are not checked against the "
+              f"server's flags")
     readme = (deploy / "README.md").read_text() if (deploy / "README.md").is_file() else ""
-    image = read_dockerfile(deploy / "Dockerfile")
+    image = read_dockerfile(c, deploy / "Dockerfile")
     check_image(c, image)
     count, _, _ = check_k8s(c, deploy / "k8s", image)
     scaled, stores, secret_refs = check_k8s(c, deploy / "k8s" / "scaled", image, True, readme)
@@ -41,5 +49,5 @@ def run(deploy):
     print(f"check_manifests: Kubernetes documents: {count} in k8s/, {scaled} in k8s/scaled/, "
           f"{dev} in k8s/scaled/dev-postgres/; {panels} dashboard panels; compose.yaml, "
           f"compose.postgres.yaml, grafana/: "
-          f"{'OK' if not c.problems else f'{len(c.problems)} problems'}")
+          f"{'OK' if not c.problems else plural(len(c.problems), 'problem')}")
     return 1 if c.problems else 0

@@ -5,8 +5,7 @@ import re
 
 import yaml
 
-from .settings import (SERVER_SETTINGS, check_store_uri, check_values, listen_ports,
-                       metrics_port)
+from .settings import check_store_uri, check_values, listen_ports, metrics_port, unknown_settings
 
 COMPOSE_TOP = {"name", "services", "volumes", "networks", "configs", "secrets", "version",
                "include"}
@@ -110,7 +109,7 @@ def check_compose(c, path, image, scaled=False):
             continue
         replicas = (service.get("deploy") or {}).get("replicas", 1)
         servers += replicas if isinstance(replicas, int) else 1
-        unknown = {k for k in env if k.startswith("SHAPEID_")} - SERVER_SETTINGS
+        unknown = unknown_settings(env)
         if unknown:
             c.error(swhere, f"unknown settings {sorted(unknown)}")
         listen_port = env.get("SHAPEID_LISTEN", image.get("listen", "")).rpartition(":")[2]

@@ -2,9 +2,13 @@
 with: its USER, EXPOSEd ports and SHAPEID_* ENV defaults."""
 
 
-def read_dockerfile(path):
-    """The runtime stage's USER, EXPOSE'd ports and SHAPEID_* ENV defaults."""
+def read_dockerfile(c, path):
+    """The runtime stage's USER, EXPOSE'd ports and SHAPEID_* ENV defaults; a missing file is
+    a problem, and an image with none of them is checked in its place."""
     image = {"uid": None, "ports": set(), "data_dir": None, "listen": ""}
+    if not path.is_file():
+        c.error(path.name, "not found: the image's user, ports and defaults are unchecked")
+        return image
     lines = path.read_text().replace("\\\n", " ").splitlines()
     for line in lines:
         words = line.split()

@@ -9,7 +9,7 @@ import yaml
 from .checker import check_kustomization, load_docs, matches, quantity
 from .k8s_deployment import check_deployment, check_meta
 from .k8s_schema import ACCESS_MODES, KINDS, PDB_SPEC, PVC_SPEC, SECRET, SERVICE_PORT, SERVICE_SPEC
-from .settings import SERVER_SETTINGS, STORE_SETTINGS, check_store_uri, check_values
+from .settings import STORE_SETTINGS, check_store_uri, check_values, unknown_settings
 
 def check_service(c, where, doc, deployments):
     """Returns whether the Service is headless."""
@@ -122,7 +122,7 @@ def check_k8s(c, k8s_dir, image, scaled=False, readme=""):
                     c.error(f"{file} ConfigMap", f"{key}: {value!r} must be a string (quote it)")
                 if "PASSWORD" in key.upper():
                     c.error(f"{file} ConfigMap", f"{key}: a password belongs in a Secret")
-            unknown = {k for k in data if k.startswith("SHAPEID_")} - SERVER_SETTINGS
+            unknown = unknown_settings(data)
             if unknown:
                 c.error(f"{file} ConfigMap", f"unknown settings {sorted(unknown)}")
             check_values(c, f"{file} ConfigMap", {k: str(v) for k, v in data.items()})

@@ -7,8 +7,7 @@ from .k8s_schema import (CONTAINER, CONTAINER_PORT, DEPLOYMENT_SPEC, DNS_LABEL, 
                          GRPC_ACTION, OBJECT_META, POD_SECURITY_CONTEXT, POD_SPEC, PROBE,
                          PROBE_HANDLERS, RESOURCES, SECURITY_CONTEXT, VOLUME_MOUNT,
                          VOLUME_SOURCES)
-from .settings import (SERVER_SETTINGS, check_store_uri, check_values, listen_ports,
-                       metrics_port)
+from .settings import check_store_uri, check_values, listen_ports, metrics_port, unknown_settings
 
 def check_meta(c, where, doc):
     meta = c.fields(f"{where} metadata", doc.get("metadata"), OBJECT_META)
@@ -249,8 +248,7 @@ def check_deployment(c, where, doc, configmaps, claims, image, scaled):
         result["ports"] |= numbers
         result["port_names"] |= names
         result["secret_refs"] |= set(secret_env.values())
-        unknown = {k for k in {**env, **secret_env} if k.startswith("SHAPEID_")} - \
-            SERVER_SETTINGS
+        unknown = unknown_settings({**env, **secret_env})
         if unknown:
             c.error(cwhere, f"unknown settings {sorted(unknown)}")
         check_values(c, cwhere, env)

@@ -4,10 +4,9 @@ from server/main.cc), their allowed values, the listen and metrics ports, the st
 import re
 
 # The server's settings: SHAPEID_<FLAG> for every ABSL_FLAG in server/main.cc (read there, so a
-# new flag needs no change here); this list only when the deploy folder is checked on its own.
-SERVER_SETTINGS = {"SHAPEID_LISTEN", "SHAPEID_DATA_DIR", "SHAPEID_MAX_POINTS_PER_CLOUD",
-                   "SHAPEID_MAX_MESSAGE_BYTES", "SHAPEID_SET_ASIDE_DAMAGED",
-                   "SHAPEID_SHUTDOWN_GRACE_SECONDS"}
+# new flag needs no change here). Empty until read_server_settings finds the file: a deploy
+# folder checked on its own has no list to check its settings against.
+SERVER_SETTINGS = set()
 # The settings that only the PostgreSQL variants have.
 STORE_SETTINGS = {"SHAPEID_STORE", "SHAPEID_STORE_REFRESH_MS"}
 # Allowed values of the settings that take one of a few (server/main.cc's flags).
@@ -20,12 +19,21 @@ STORE_URI = re.compile(r"^postgres(ql)?://(?:(?P<user>[^:@/]*)(?::(?P<password>[
 
 
 def read_server_settings(main_cc):
-    """SERVER_SETTINGS from server/main.cc's ABSL_FLAGs, in place (the other modules hold the
-    same set); left as listed above when the file is not there."""
-    if main_cc.is_file():
-        flags = ABSL_FLAG.findall(main_cc.read_text())
-        SERVER_SETTINGS.clear()
-        SERVER_SETTINGS.update(f"SHAPEID_{flag.upper()}" for flag in flags)
+    """Fills SERVER_SETTINGS from server/main.cc's ABSL_FLAGs, in place (the other modules hold
+    the same set). Returns whether the file was there."""
+    SERVER_SETTINGS.clear()
+    if not main_cc.is_file():
+        return False
+    SERVER_SETTINGS.update(f"SHAPEID_{flag.upper()}" for flag in ABSL_FLAG.findall(main_cc.read_text()))
+    return True
+
+
+def unknown_settings(keys):
+    """The SHAPEID_* names among `keys` that the server has no flag for; none when its flags
+    could not be read."""
+    if not SERVER_SETTINGS:
+        return set()
+    return {k for k in keys if k.startswith("SHAPEID_")} - SERVER_SETTINGS
 
 
 def check_values(c, where, env):
