@@ -138,11 +138,10 @@ class DfsdDescriptor : public Descriptor {
   DescribeCost EstimateCost(size_t num_points) const override {
     // CPU: the distance kernel is per point and cell of each field (the pruned kernel reads
     // a share of the points that depends on the shape: priced as a typical object's); the
-    // frames are per point
-    // (box: the most passes and sorts), and more so once their hulls take slabs: ordinary
-    // shapes have about a fifth of their points outside the octagon, past 2^20 of them (some
-    // 5 million points) each slab is another pass. Constants: docs/performance.md,
-    // "Describe cost".
+    // frames are per point (box: the most passes and sorts), and more so once their hulls
+    // take slabs: ordinary shapes have about a fifth of their points outside the octagon,
+    // past 2^20 of them (some 5 million points) each slab is another pass. Constants:
+    // docs/performance.md, "Describe cost" and "DFSD's pruned kernel".
     constexpr double kNsBase = 10000, kNsPerPoint = 5, kNsPerPointCell = 0.04, kNsPerPointRow = 0.3,
                      kSlabbedPoints = 5e6;
     // Smoothing: finding each kept point's k nearest (the candidates grow with k), and one
