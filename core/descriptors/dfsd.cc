@@ -180,7 +180,7 @@ class DfsdDescriptor : public Descriptor {
     const size_t chunk = KernelChunk(n);
     // The frame, the kernel's buffers and the pose variants come one after another.
     const size_t t = static_cast<size_t>(std::min(options_.order, g));
-    const size_t kernel = 3 * static_cast<size_t>(g) * chunk * sizeof(float)  // tables
+    const size_t kernel = 4 * static_cast<size_t>(g) * chunk * sizeof(float)  // tables, z by block
                           + 3 * chunk * sizeof(double)                        // coordinates
                           + 2 * chunk * sizeof(float)     // normalized, the kernel's x-y sums
                           + 2 * chunk * sizeof(uint32_t)  // spatial order and its keys
