@@ -96,6 +96,9 @@ class GallerySnapshot {
   // FailedPrecondition "gallery 'NAME' has no samples; train it before `doing`" when empty:
   // the one message of every call that needs samples ("classifying", "recognizing scenes").
   absl::Status RequireSamples(absl::string_view doing) const;
+  // FailedPrecondition with incompatible()'s reason when this build cannot describe for the
+  // gallery, else OK: so a call is refused before its points are read.
+  absl::Status CheckCompatible() const;
   bool Contains(uint64_t id) const { return index_.Contains(id); }
   // The ids of the samples labeled `label`, in training order; empty if none. O(samples).
   std::vector<uint64_t> IdsWithLabel(absl::string_view label) const {
@@ -193,9 +196,6 @@ class GallerySnapshot {
   GalleryClassification Answer(KnnResult knn, absl::Span<const float> queries) const;
   // Sets head_answers_ from head_ and the samples' labels; after any change of either.
   void RefreshHeadAnswers();
-  // FailedPrecondition when incompatible(), else OK.
-  absl::Status CheckCompatible() const;
-
   GalleryMetadata meta_;
   std::shared_ptr<const Descriptor> descriptor_;
   KnnIndex index_;

@@ -7,15 +7,14 @@
 #include "absl/strings/str_cat.h"
 #include "core/gallery/gallery_options.h"
 #include "core/rigid_transform.h"
+#include "core/status_macros.h"
 
 namespace shapeid {
 
 namespace {
 
 absl::Status CheckGallery(const GallerySnapshot& gallery) {
-  if (!gallery.incompatible().empty()) {
-    return absl::FailedPreconditionError(gallery.incompatible());
-  }
+  SHAPEID_RETURN_IF_ERROR(gallery.CheckCompatible());
   return gallery.RequireSamples("recognizing scenes");
 }
 

@@ -38,13 +38,6 @@ absl::StatusOr<WireCloudFormat> FormatOf(const Header& header, const Descriptor*
   return format;
 }
 
-// FailedPrecondition with the reason when this server cannot describe for `snapshot`'s
-// gallery (GallerySnapshot::incompatible), so that a call is refused before its points are read.
-absl::Status RequireCompatible(const GallerySnapshot& snapshot) {
-  if (snapshot.incompatible().empty()) return absl::OkStatus();
-  return absl::FailedPreconditionError(snapshot.incompatible());
-}
-
 // The named gallery and its snapshot, which must hold samples to answer `doing`.
 struct GalleryAndSnapshot {
   std::shared_ptr<Gallery> gallery;
@@ -56,7 +49,7 @@ absl::StatusOr<GalleryAndSnapshot> GalleryWithSamples(const ServiceRuntime& runt
   GalleryAndSnapshot found;
   SHAPEID_ASSIGN_OR_RETURN(found.gallery, NamedGallery(runtime, record, name));
   found.snapshot = found.gallery->Snapshot();
-  SHAPEID_RETURN_IF_ERROR(RequireCompatible(*found.snapshot));
+  SHAPEID_RETURN_IF_ERROR(found.snapshot->CheckCompatible());
   SHAPEID_RETURN_IF_ERROR(found.snapshot->RequireSamples(doing));
   return found;
 }
@@ -206,7 +199,7 @@ absl::StatusOr<DescribeRpc::Plan> DescribeRpc::PlanOf(const ServiceRuntime& runt
     SHAPEID_ASSIGN_OR_RETURN(const std::shared_ptr<Gallery> gallery,
                              NamedGallery(runtime, record, header.gallery()));
     const std::shared_ptr<const GallerySnapshot> snapshot = gallery->Snapshot();
-    SHAPEID_RETURN_IF_ERROR(RequireCompatible(*snapshot));
+    SHAPEID_RETURN_IF_ERROR(snapshot->CheckCompatible());
     plan.descriptor = snapshot->shared_descriptor();
   } else {
     const std::string& spec = header.descriptor_spec().empty()
