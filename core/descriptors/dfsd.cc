@@ -335,17 +335,8 @@ class DfsdDescriptor : public Descriptor {
                          /*pad=*/first == 0, tables.get() + static_cast<size_t>(a) * g * stride,
                          bounds.data() + static_cast<size_t>(a) * g * block_stride);
         }
-        FieldInput input;
-        input.dx2 = tables.get();
-        input.dy2 = input.dx2 + static_cast<size_t>(g) * stride;
-        input.dz2 = input.dy2 + static_cast<size_t>(g) * stride;
-        input.stride = stride;
-        input.grid = g;
-        input.block_dx2 = bounds.data();
-        input.block_dy2 = input.block_dx2 + static_cast<size_t>(g) * block_stride;
-        input.block_dz2 = input.block_dy2 + static_cast<size_t>(g) * block_stride;
-        input.block_stride = block_stride;
-        input.cell_spacing = cell_spacing_;
+        FieldInput input =
+            LaidOutInput(tables.get(), g, stride, bounds.data(), block_stride, cell_spacing_);
         input.accumulate = first > 0;
         NearestSquaredDistances(input, squared.data(), level);
       }

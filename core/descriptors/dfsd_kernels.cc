@@ -50,7 +50,8 @@ void KernelScalar(const FieldInput& in, float* out) {
   }
 }
 
-// Portable path of the pruned kernel: the same bounds, one cell at a time.
+// Portable path of the pruned kernel: the same block bounds, one cell at a time, its reach
+// from the column before only (the minima do not depend on which blocks are skipped).
 void PrunedKernelScalar(const FieldInput& in, float* out) {
   const size_t stride = in.stride;
   const size_t block_stride = in.block_stride;

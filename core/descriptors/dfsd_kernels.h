@@ -68,6 +68,29 @@ struct FieldInput {
   bool accumulate = false;
 };
 
+// The input over one buffer of tables, axis a's row i at (a * grid + i) * stride, and, when
+// `bounds` is given, its block bounds laid out alike, block_stride apart (as ComputeFramed and
+// FillAxisTables lay them).
+inline FieldInput LaidOutInput(const float* tables, int grid, size_t stride,
+                               const float* bounds = nullptr, size_t block_stride = 0,
+                               double cell_spacing = 0) {
+  const size_t rows = static_cast<size_t>(grid);
+  FieldInput in;
+  in.dx2 = tables;
+  in.dy2 = tables + rows * stride;
+  in.dz2 = tables + 2 * rows * stride;
+  in.stride = stride;
+  in.grid = grid;
+  if (bounds != nullptr) {
+    in.block_dx2 = bounds;
+    in.block_dy2 = bounds + rows * block_stride;
+    in.block_dz2 = bounds + 2 * rows * block_stride;
+    in.block_stride = block_stride;
+    in.cell_spacing = cell_spacing;
+  }
+  return in;
+}
+
 // out[(i * G + j) * G + k] = min over points p of (dx2[i][p] + dy2[j][p]) + dz2[k][p], in
 // that float order on every level (and of the old out value when accumulating). Minima are
 // exact, so all levels give identical bits.

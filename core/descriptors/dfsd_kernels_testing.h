@@ -80,21 +80,10 @@ class GeometricInput {
   }
 
   FieldInput Input(bool pruned, bool accumulate) const {
-    FieldInput in;
-    in.dx2 = tables_.data();
-    in.dy2 = in.dx2 + g_ * stride_;
-    in.dz2 = in.dy2 + g_ * stride_;
-    in.stride = stride_;
-    in.grid = g_;
+    FieldInput in = pruned ? LaidOutInput(tables_.data(), g_, stride_, bounds_.data(),
+                                          BlockStride(stride_), spacing_)
+                           : LaidOutInput(tables_.data(), g_, stride_);
     in.accumulate = accumulate;
-    if (pruned) {
-      const size_t block_stride = BlockStride(stride_);
-      in.block_dx2 = bounds_.data();
-      in.block_dy2 = in.block_dx2 + g_ * block_stride;
-      in.block_dz2 = in.block_dy2 + g_ * block_stride;
-      in.block_stride = block_stride;
-      in.cell_spacing = spacing_;
-    }
     return in;
   }
 

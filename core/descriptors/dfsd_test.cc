@@ -160,13 +160,7 @@ TEST(DfsdTest, MatchesTheDefinitionComputedInDouble) {
 
 // The kernel's input over `tables`: G rows of dx2, then of dy2, then of dz2, `stride` apart.
 dfsd_internal::FieldInput KernelInput(const std::vector<float>& tables, int g, size_t stride) {
-  dfsd_internal::FieldInput in;
-  in.dx2 = tables.data();
-  in.dy2 = in.dx2 + g * stride;
-  in.dz2 = in.dy2 + g * stride;
-  in.stride = stride;
-  in.grid = g;
-  return in;
+  return dfsd_internal::LaidOutInput(tables.data(), g, stride);
 }
 
 TEST(DfsdTest, EverySimdLevelGivesTheSameBits) {
